@@ -1,0 +1,158 @@
+# simcluster - one plain Makefile (see README.md).
+#   make            library (static + shared), examples, tools
+#   make check      every test, then again under ASan+UBSan, man lint, install test
+#   make demo       the main job (embedded default)
+#   make bench      benchmarks (bench/)
+#   make install PREFIX=/usr/local DESTDIR=
+#   make V=1        show commands;  make SAN=1  sanitizer build (in build-san/)
+
+PREFIX  ?= /usr/local
+DESTDIR ?=
+LIBDIR  ?= $(PREFIX)/lib
+INCDIR  ?= $(PREFIX)/include
+BINDIR  ?= $(PREFIX)/bin
+MANDIR  ?= $(PREFIX)/share/man
+PCDIR   ?= $(LIBDIR)/pkgconfig
+
+VERSION := 0.1.0
+SOMAJOR := 0
+
+CC      ?= cc
+OPT     ?= -O2
+SANFLAGS := -fsanitize=address,undefined -fno-sanitize-recover=all -fno-omit-frame-pointer
+ifeq ($(SAN),1)
+BUILD   ?= build-san
+XFLAGS  := $(SANFLAGS)
+else
+BUILD   ?= build
+XFLAGS  :=
+endif
+
+DEP_PKGS := ode gsl
+CPPFLAGS += -Iinclude -Ilib -D_GNU_SOURCE
+CFLAGS  += -std=c11 $(OPT) -g -Wall -Wextra -Werror -fPIC -fvisibility=hidden \
+           -pthread $(XFLAGS)
+LDFLAGS += -pthread $(XFLAGS)
+LIBS    := $(shell pkg-config --libs $(DEP_PKGS) 2>/dev/null || echo -lode -lgsl -lgslcblas) -lm
+TESTLIBS := $(LIBS) -lcmocka
+
+ifeq ($(V),1)
+Q :=
+else
+Q := @
+endif
+
+LIB_SRC   := $(sort $(wildcard lib/*.c))
+LIB_OBJ   := $(LIB_SRC:%.c=$(BUILD)/%.o)
+TEST_SRC  := $(sort $(wildcard tests/test_*.c))
+TEST_BIN  := $(TEST_SRC:%.c=$(BUILD)/%)
+EX_SRC    := $(sort $(wildcard examples/*.c))
+EX_BIN    := $(EX_SRC:%.c=$(BUILD)/%)
+TOOL_SRC  := $(sort $(wildcard tools/*.c))
+TOOL_BIN  := $(TOOL_SRC:tools/%.c=$(BUILD)/tools/%)
+BENCH_SRC := $(sort $(wildcard bench/*.c))
+BENCH_BIN := $(BENCH_SRC:%.c=$(BUILD)/%)
+FUZZ_SRC  := $(sort $(wildcard tests/fuzz/fuzz_*.c))
+FUZZ_REPLAY := $(FUZZ_SRC:tests/fuzz/%.c=$(BUILD)/tests/fuzz/%_replay)
+
+STATIC := $(BUILD)/libsimcluster.a
+SHARED := $(BUILD)/libsimcluster.so.$(VERSION)
+
+.PHONY: all lib deps check check-run demo bench install uninstall clean lint-man test-install fuzz
+all: lib $(EX_BIN) $(TOOL_BIN) $(BENCH_BIN)
+lib: $(STATIC) $(SHARED)
+
+deps:
+	$(Q)sh scripts/deps.sh
+
+$(BUILD)/%.o: %.c $(wildcard include/*.h lib/*.h) Makefile
+	@mkdir -p $(dir $@)
+	@$(if $(Q),echo "  CC      $<")
+	$(Q)$(CC) $(CPPFLAGS) $(CFLAGS) -c $< -o $@
+
+$(STATIC): $(LIB_OBJ)
+	@$(if $(Q),echo "  AR      $@")
+	$(Q)rm -f $@ && ar rcs $@ $^
+
+$(SHARED): $(LIB_OBJ)
+	@$(if $(Q),echo "  LD      $@")
+	$(Q)$(CC) -shared -Wl,-soname,libsimcluster.so.$(SOMAJOR) -Wl,--no-undefined \
+	    $(LDFLAGS) -o $@ $^ $(LIBS)
+	$(Q)ln -sf libsimcluster.so.$(VERSION) $(BUILD)/libsimcluster.so.$(SOMAJOR)
+	$(Q)ln -sf libsimcluster.so.$(SOMAJOR) $(BUILD)/libsimcluster.so
+
+# Tests link the static library (internal tests may include lib/*.h).
+$(BUILD)/tests/%: tests/%.c $(STATIC)
+	@mkdir -p $(dir $@)
+	@$(if $(Q),echo "  TEST    $@")
+	$(Q)$(CC) $(CPPFLAGS) $(CFLAGS) $< -o $@ $(LDFLAGS) $(STATIC) $(TESTLIBS)
+
+$(BUILD)/examples/%: examples/%.c $(STATIC)
+	@mkdir -p $(dir $@)
+	@$(if $(Q),echo "  EXAMPLE $@")
+	$(Q)$(CC) $(CPPFLAGS) $(CFLAGS) $< -o $@ $(LDFLAGS) $(STATIC) $(LIBS)
+
+$(BUILD)/tools/%: tools/%.c $(STATIC)
+	@mkdir -p $(dir $@)
+	@$(if $(Q),echo "  TOOL    $@")
+	$(Q)$(CC) $(CPPFLAGS) $(CFLAGS) $< -o $@ $(LDFLAGS) $(STATIC) $(LIBS)
+
+$(BUILD)/bench/%: bench/%.c $(STATIC)
+	@mkdir -p $(dir $@)
+	@$(if $(Q),echo "  BENCH   $@")
+	$(Q)$(CC) $(CPPFLAGS) $(CFLAGS) $< -o $@ $(LDFLAGS) $(STATIC) $(LIBS)
+
+# Fuzz targets: a replay driver (every file of the corpus, run by make check)
+# and, with clang, a libFuzzer binary (make fuzz).
+$(BUILD)/tests/fuzz/%_replay: tests/fuzz/%.c tests/fuzz/replay_main.c $(STATIC)
+	@mkdir -p $(dir $@)
+	@$(if $(Q),echo "  FUZZ    $@")
+	$(Q)$(CC) $(CPPFLAGS) $(CFLAGS) $< tests/fuzz/replay_main.c -o $@ $(LDFLAGS) $(STATIC) $(LIBS)
+
+FUZZ_TIME ?= 60
+fuzz:
+	$(Q)sh tests/fuzz/run.sh $(FUZZ_TIME)
+
+check: deps
+	$(Q)$(MAKE) --no-print-directory all $(TEST_BIN) $(FUZZ_REPLAY)
+	$(Q)$(MAKE) --no-print-directory SAN=1 lib $(TEST_BIN:$(BUILD)/%=build-san/%) $(FUZZ_REPLAY:$(BUILD)/%=build-san/%)
+	$(Q)sh tests/run.sh $(BUILD) build-san
+
+check-run: $(TEST_BIN) $(FUZZ_REPLAY)
+	$(Q)sh tests/run.sh $(BUILD)
+
+demo: deps
+	$(Q)$(MAKE) --no-print-directory $(BUILD)/examples/demo
+	$(Q)./$(BUILD)/examples/demo
+
+bench: all
+	$(Q)for b in $(BENCH_BIN); do echo "== $$b"; ./$$b || exit 1; done
+
+lint-man:
+	$(Q)for m in man/*.[1-8]; do mandoc -T lint -W warning $$m || exit 1; done
+
+$(BUILD)/simcluster.pc: simcluster.pc.in Makefile
+	@mkdir -p $(BUILD)
+	$(Q)sed -e 's|@PREFIX@|$(PREFIX)|' -e 's|@LIBDIR@|$(patsubst $(PREFIX)%,$${prefix}%,$(LIBDIR))|' \
+	    -e 's|@INCDIR@|$(patsubst $(PREFIX)%,$${prefix}%,$(INCDIR))|' \
+	    -e 's|@VERSION@|$(VERSION)|' $< > $(BUILD)/simcluster.pc
+
+install: lib $(TOOL_BIN) $(BUILD)/simcluster.pc
+	install -d $(DESTDIR)$(LIBDIR) $(DESTDIR)$(INCDIR) $(DESTDIR)$(PCDIR) $(DESTDIR)$(BINDIR)
+	install -m 644 $(STATIC) $(DESTDIR)$(LIBDIR)/
+	install -m 755 $(SHARED) $(DESTDIR)$(LIBDIR)/
+	ln -sf libsimcluster.so.$(VERSION) $(DESTDIR)$(LIBDIR)/libsimcluster.so.$(SOMAJOR)
+	ln -sf libsimcluster.so.$(SOMAJOR) $(DESTDIR)$(LIBDIR)/libsimcluster.so
+	install -m 644 include/simcluster.h $(DESTDIR)$(INCDIR)/
+	install -m 644 $(BUILD)/simcluster.pc $(DESTDIR)$(PCDIR)/
+	$(if $(TOOL_BIN),install -m 755 $(TOOL_BIN) $(DESTDIR)$(BINDIR)/)
+	for m in man/*.[1-8]; do s=$${m##*.}; install -d $(DESTDIR)$(MANDIR)/man$$s; \
+	    install -m 644 $$m $(DESTDIR)$(MANDIR)/man$$s/; done
+
+uninstall:
+	rm -f $(DESTDIR)$(LIBDIR)/libsimcluster.* $(DESTDIR)$(INCDIR)/simcluster.h \
+	      $(DESTDIR)$(PCDIR)/simcluster.pc
+	for m in man/*.[1-8]; do rm -f $(DESTDIR)$(MANDIR)/man$${m##*.}/$${m##*/}; done
+
+clean:
+	rm -rf build build-san

@@ -1,0 +1,242 @@
+/*
+ * simcluster.h - public API of libsimcluster, a real-time rigid body engine
+ * that spreads its expensive stages over idle workstation CPUs.
+ *
+ * Conventions: every public name starts with sc_; functions return SC_OK (0)
+ * or a negative SC_E* code, constructors return NULL and leave the code in
+ * sc_last_error(). Units are SI (metres, kilograms, seconds); quaternions are
+ * (w, x, y, z). Definition structs are filled by their *_default() function
+ * first: the create call rejects a struct that skipped it (SC_ENOINIT).
+ * man simcluster(3) documents every function below.
+ */
+#ifndef SIMCLUSTER_H
+#define SIMCLUSTER_H
+
+#include <stddef.h>
+#include <stdint.h>
+
+#ifdef __cplusplus
+extern "C" {
+#endif
+
+#if defined(__GNUC__)
+#define SC_API __attribute__((visibility("default")))
+#else
+#define SC_API
+#endif
+
+#define SC_VERSION_MAJOR 0
+#define SC_VERSION_MINOR 1
+#define SC_VERSION_PATCH 0
+
+/* ---- errors ------------------------------------------------------------ */
+enum {
+    SC_OK = 0,
+    SC_EINVAL = -1,        /* an argument is NULL, NaN, infinite or out of range */
+    SC_ENOMEM = -2,        /* out of memory */
+    SC_EIO = -3,           /* a file could not be opened or read */
+    SC_EFORMAT = -4,       /* a file is not valid OBJ/STL (or is truncated) */
+    SC_ETOOBIG = -5,       /* a file or mesh exceeds the size limits */
+    SC_ENOTCLOSED = -6,    /* a mesh is not a closed, consistently oriented surface */
+    SC_EDEGENERATE = -7,   /* a mesh or hull has no volume (flat, collinear, zero area) */
+    SC_ERANGE = -8,        /* a body id or index is out of range */
+    SC_ENOTSUP = -9,       /* the operation is not supported for this shape or body */
+    SC_ENOINIT = -10,      /* a desc/config struct was not made by its *_default() */
+    SC_ENOSOLUTION = -11,  /* the LCP has no solution the solver can find */
+    SC_EMAXITER = -12,     /* the solver hit its pivot limit (cycling) */
+    SC_ENUMERIC = -13      /* numerical breakdown (singular pivot, NaN in state) */
+};
+
+/* A sentence describing the error code err (never NULL). */
+SC_API const char *sc_strerror(int err);
+/* The code of the last failed constructor call in this thread (like errno). */
+SC_API int sc_last_error(void);
+
+/* ---- shapes -------------------------------------------------------------- */
+/* Shapes are immutable once built and reference counted: a shape may be
+ * shared by many bodies and the world keeps its own reference. */
+typedef struct sc_shape sc_shape;
+
+enum { SC_SHAPE_SPHERE, SC_SHAPE_BOX, SC_SHAPE_PLANE, SC_SHAPE_CONVEX, SC_SHAPE_MESH };
+
+/* Limits on what a mesh may hold (loaders and sc_shape_mesh enforce them). */
+#define SC_MESH_MAX_VERTS 1000000
+#define SC_MESH_MAX_TRIS  2000000
+
+/* Mass properties for unit density, in the shape's own frame. */
+typedef struct sc_mass_props {
+    double volume;         /* m^3 */
+    double com[3];         /* centre of mass, m */
+    double inertia[9];     /* row-major inertia tensor about com, per kg/m^3 */
+} sc_mass_props;
+
+/* A solid sphere of radius r centred on the origin. */
+SC_API sc_shape *sc_shape_sphere(double r);
+/* A solid box with half extents hx, hy, hz centred on the origin. */
+SC_API sc_shape *sc_shape_box(double hx, double hy, double hz);
+/* The static half space n.x <= d (normal need not be unit); static bodies only. */
+SC_API sc_shape *sc_shape_plane(double nx, double ny, double nz, double d);
+/* A closed, outward-oriented triangle mesh (xyz: 3*nverts, tri: 3*ntris);
+ * the data are copied. Non-convex meshes are fine. */
+SC_API sc_shape *sc_shape_mesh(const double *xyz, int nverts, const int *tri, int ntris);
+/* The convex hull of npoints points (xyz: 3*npoints). */
+SC_API sc_shape *sc_shape_convex(const double *xyz, int npoints);
+/* A mesh from a Wavefront .obj or STL (binary or ASCII) file. NULL on error,
+ * with the code (SC_EIO, SC_EFORMAT, SC_ETOOBIG, SC_ENOTCLOSED, ...) in
+ * sc_last_error(). */
+SC_API sc_shape *sc_shape_load(const char *path);
+/* A UV sphere mesh: slices around, stacks pole to pole; 2*slices*(stacks-1)
+ * triangles (224 for the paper's (r, 16, 8)). Convex. */
+SC_API sc_shape *sc_shape_uv_sphere(double r, int slices, int stacks);
+/* The paper's bolt: hex head + round shaft along +z, 180 triangles. */
+SC_API sc_shape *sc_shape_bolt(void);
+/* The paper's nut: hexagonal prism with a round hole along z, 396 triangles. */
+SC_API sc_shape *sc_shape_nut(void);
+
+/* SC_SHAPE_* kind of s. */
+SC_API int sc_shape_kind(const sc_shape *s);
+/* Number of triangles of a mesh or hull; 0 for analytic shapes. */
+SC_API int sc_shape_triangles(const sc_shape *s);
+/* Mass properties per unit density; SC_ENOTSUP for planes. */
+SC_API int sc_shape_mass_props(const sc_shape *s, sc_mass_props *out);
+/* Radius of the smallest origin-centred sphere holding s (INFINITY for planes). */
+SC_API double sc_shape_bounding_radius(const sc_shape *s);
+/* Borrow a mesh/hull's vertices and triangles (valid while s lives);
+ * SC_ENOTSUP for analytic shapes. Any out pointer may be NULL. */
+SC_API int sc_shape_mesh_data(const sc_shape *s, const double **xyz, int *nverts,
+                              const int **tri, int *ntris);
+/* Take one more reference to s; returns s. */
+SC_API sc_shape *sc_shape_retain(sc_shape *s);
+/* Drop one reference; the shape is freed with the last one. NULL is a no-op. */
+SC_API void sc_shape_release(sc_shape *s);
+
+/* ---- poses and contacts ---------------------------------------------------- */
+typedef struct sc_pose {
+    double pos[3];         /* m */
+    double quat[4];        /* unit quaternion w, x, y, z */
+} sc_pose;
+
+/* One contact point between bodies (or shapes) a and b. The normal points
+ * from a towards b: moving b by depth along it separates them. */
+typedef struct sc_contact {
+    int body_a, body_b;    /* body ids, body_a < body_b (-1 in sc_collide) */
+    double pos[3];         /* world point, m */
+    double normal[3];      /* unit, from a to b */
+    double depth;          /* penetration, m (>= 0) */
+} sc_contact;
+
+/* Most contact points kept per pair after reduction. */
+#define SC_MAX_PAIR_CONTACTS 4
+
+/* Exact narrow phase between shapes a and b at the given poses: writes at most
+ * max (<= SC_MAX_PAIR_CONTACTS kept) well-spread contacts to out, returns
+ * their number (0 = apart) or a negative code. Thread-safe. */
+SC_API int sc_collide(const sc_shape *a, const sc_pose *pa, const sc_shape *b,
+                      const sc_pose *pb, sc_contact *out, int max);
+
+/* Time of impact: a moves from a0 to a1 and b from b0 to b1 over t in [0, 1]
+ * (linear in position, slerp in rotation). Finds the first t where they touch
+ * with penetration <= tol_m. Returns 1 and sets *t (0 if already touching
+ * at t = 0), 0 if they never touch in [0, 1], or a negative code. */
+SC_API int sc_toi(const sc_shape *a, const sc_pose *a0, const sc_pose *a1,
+                  const sc_shape *b, const sc_pose *b0, const sc_pose *b1,
+                  double tol_m, double *t);
+
+/* ---- world ----------------------------------------------------------------- */
+typedef struct sc_world sc_world;
+
+enum { SC_BROADPHASE_AUTO, SC_BROADPHASE_SPHERES, SC_BROADPHASE_SAP };
+
+typedef struct sc_world_config {
+    double gravity[3];        /* default {0, 0, -9.81} */
+    int workers;              /* local threads; 0 = number of online CPUs */
+    const char *cluster;      /* LCM URL of the daemons, NULL = local only */
+    const char *key_file;     /* shared cluster key */
+    int broadphase;           /* SC_BROADPHASE_*; AUTO = spheres below 256 bodies */
+    double contact_tol_m;     /* allowed penetration, default 1e-3 */
+    int internal_cookie;      /* set by sc_world_config_default(); do not touch */
+} sc_world_config;
+/* The default configuration. */
+SC_API sc_world_config sc_world_config_default(void);
+
+/* Pass as sc_body_desc.mass to take the mass from density * volume. */
+#define SC_MASS_FROM_DENSITY (-1.0)
+
+typedef struct sc_body_desc {
+    sc_shape *shape;
+    double mass;              /* kg; 0 = static (immovable) body */
+    double pos[3], quat[4];   /* quaternion w, x, y, z */
+    double vel[3], omega[3];  /* m/s and rad/s, world frame */
+    double restitution, friction;
+    double density;           /* kg/m^3, used when mass == SC_MASS_FROM_DENSITY */
+    int internal_cookie;      /* set by sc_body_desc_default(); do not touch */
+} sc_body_desc;
+/* The default body: no shape, 1 kg, at the origin, at rest, e = 0.5, mu = 0.5. */
+SC_API sc_body_desc sc_body_desc_default(void);
+
+/* Body states (the paper's state machine). */
+enum { SC_FREE, SC_COLLIDING, SC_CONTACT, SC_ASLEEP, SC_STATIC };
+
+/* Rows of the paper's Table 1 (per-stage CPU time). */
+enum {
+    SC_STAGE_BROADPHASE,      /* bounding spheres / sweep and prune */
+    SC_STAGE_NARROWPHASE,     /* polygon-level detection */
+    SC_STAGE_TOI,             /* time of impact */
+    SC_STAGE_ISLANDS,         /* extracting the contact graph */
+    SC_STAGE_LCP,             /* building and solving the contact LCPs */
+    SC_STAGE_INTEGRATE,       /* integration and state update */
+    SC_STAGE_COUNT
+};
+
+typedef struct sc_stats {
+    double stage_s[SC_STAGE_COUNT];        /* CPU seconds, last frame */
+    double stage_total_s[SC_STAGE_COUNT];  /* CPU seconds, all frames */
+    long frames;              /* frames stepped */
+    int bodies;               /* bodies in the world */
+    int pairs;                /* broad-phase pairs, last frame */
+    int contacts;             /* contact points, last frame */
+    int islands;              /* islands, last frame */
+    long lcp_pivots;          /* LCP pivots, last frame */
+    double max_penetration;   /* deepest contact, m, last frame */
+} sc_stats;
+
+/* A new empty world; cfg NULL = defaults. NULL on error (sc_last_error()). */
+SC_API sc_world *sc_world_create(const sc_world_config *cfg);
+/* Free w and drop its shape references. NULL is a no-op. */
+SC_API void sc_world_destroy(sc_world *w);
+/* Add a body; returns its id (>= 0, ids count up from 0) or a negative code. */
+SC_API int sc_body_add(sc_world *w, const sc_body_desc *d);
+/* Number of bodies in w. */
+SC_API int sc_world_body_count(const sc_world *w);
+/* Advance w by one frame of dt seconds; SC_OK or a negative code. */
+SC_API int sc_world_step(sc_world *w, double dt);
+/* Pose of body id (origin of its shape frame); zeros for a bad id. */
+SC_API void sc_body_get_pose(const sc_world *w, int id, double pos[3], double quat[4]);
+/* Linear velocity of the shape origin and angular velocity, world frame. */
+SC_API void sc_body_get_velocity(const sc_world *w, int id, double v[3], double omega[3]);
+/* SC_FREE, SC_COLLIDING, SC_CONTACT, SC_ASLEEP or SC_STATIC; negative for a bad id. */
+SC_API int sc_body_state(const sc_world *w, int id);
+/* Push body id with force f (N) at world point at (NULL = centre of mass)
+ * during the next frame (the paper's 3D mouse). */
+SC_API int sc_body_apply_force(sc_world *w, int id, const double f[3], const double at[3]);
+/* 1 when every dynamic body is asleep or at rest, else 0. */
+SC_API int sc_world_at_rest(const sc_world *w);
+/* Kinetic + gravitational potential energy, J. */
+SC_API double sc_world_energy(const sc_world *w);
+/* FNV-1a hash of every body's pose and velocity bits (determinism checks). */
+SC_API uint64_t sc_world_hash(const sc_world *w);
+/* Counters and timings of the last frame and of the run so far. */
+SC_API void sc_world_stats(const sc_world *w, sc_stats *s);
+/* Contacts found in the last frame, in canonical order (by body pair, then
+ * point); copies at most max and returns how many there are in all. */
+SC_API int sc_world_contacts(const sc_world *w, sc_contact *out, int max);
+
+/* ---- LCP ------------------------------------------------------------------ */
+/* Standard LCP: find z with w = M z + q, z >= 0, w >= 0, z.w = 0 (M row-major
+ * n x n). SC_OK with z and w written, or a negative code (never a wrong answer). */
+SC_API int sc_lcp_solve(int n, const double *M, const double *q, double *z, double *w);
+
+#ifdef __cplusplus
+}
+#endif
+#endif /* SIMCLUSTER_H */

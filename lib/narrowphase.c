@@ -1,0 +1,215 @@
+/* narrowphase.c - exact contact detection on ODE's collision primitives
+ * (the paper's step 4, polygon level).
+ *
+ * ODE geoms carry a pose, so they cannot be shared between threads: each
+ * thread owns an sc_np_ctx holding its own geoms (two per shape: a pair may
+ * collide a shape with itself), all pointing at the shape's immutable,
+ * shared trimesh data. Shapes are never written here.
+ *
+ * ODE on Debian is built without libccd, so there is no convex-trimesh
+ * collider: a convex shape meets a trimesh through its own trimesh. Its
+ * normals point from o2 into o1; ours point from a to b, so they flip.
+ */
+#include <stdlib.h>
+#include <string.h>
+#include <pthread.h>
+
+#include <ode/ode.h>
+
+#include "sc_internal.h"
+#include "vecmath.h"
+
+#define RAW_CONTACTS 64
+
+static pthread_once_t ode_once = PTHREAD_ONCE_INIT;
+
+static void ode_init_once(void)
+{
+    /* ODE's global init (its own tables, no simulation state); never closed
+     * so that worlds in any thread can come and go. */
+    dInitODE2(0);
+}
+
+void sc_ode_init(void)
+{
+    pthread_once(&ode_once, ode_init_once);
+}
+
+void sc_ode_thread_init(void)
+{
+    sc_ode_init();
+    dAllocateODEDataForThread(dAllocateMaskAll);
+}
+
+enum { REP_NATIVE, REP_CONVEX, REP_TRIMESH, REP_COUNT };
+
+typedef struct geom_slot {
+    const sc_shape *shape;
+    dGeomID g[2][REP_COUNT];   /* [slot][representation] */
+} geom_slot;
+
+struct sc_np_ctx {
+    geom_slot *slots;
+    int n, cap;
+};
+
+sc_np_ctx *sc_np_create(void)
+{
+    sc_ode_init();
+    return calloc(1, sizeof(sc_np_ctx));
+}
+
+void sc_np_destroy(sc_np_ctx *ctx)
+{
+    if (!ctx)
+        return;
+    for (int i = 0; i < ctx->n; i++)
+        for (int s = 0; s < 2; s++)
+            for (int r = 0; r < REP_COUNT; r++)
+                if (ctx->slots[i].g[s][r])
+                    dGeomDestroy(ctx->slots[i].g[s][r]);
+    free(ctx->slots);
+    free(ctx);
+}
+
+static dGeomID make_geom(const sc_shape *s, int rep)
+{
+    switch (rep) {
+    case REP_NATIVE:
+        switch (s->kind) {
+        case SC_SHAPE_SPHERE: return dCreateSphere(0, s->radius);
+        case SC_SHAPE_BOX: return dCreateBox(0, 2 * s->half[0], 2 * s->half[1], 2 * s->half[2]);
+        case SC_SHAPE_PLANE: return dCreatePlane(0, 0, 0, 1, 0);
+        default: return NULL;
+        }
+    case REP_CONVEX:
+        return dCreateConvex(0, s->ode_planes, (unsigned)s->ntris, s->xyz,
+                             (unsigned)s->nverts, s->ode_polys);
+    case REP_TRIMESH:
+        return dCreateTriMesh(0, (dTriMeshDataID)s->ode_tridata, NULL, NULL, NULL);
+    }
+    return NULL;
+}
+
+/* The cached geom for (shape, slot, representation); linear search is fine:
+ * a world has few distinct shapes. */
+static dGeomID get_geom(sc_np_ctx *ctx, const sc_shape *s, int slot, int rep)
+{
+    geom_slot *gs = NULL;
+    for (int i = 0; i < ctx->n && !gs; i++)
+        if (ctx->slots[i].shape == s)
+            gs = &ctx->slots[i];
+    if (!gs) {
+        if (ctx->n == ctx->cap) {
+            int cap = ctx->cap ? 2 * ctx->cap : 8;
+            geom_slot *p = realloc(ctx->slots, (size_t)cap * sizeof *p);
+            if (!p)
+                return NULL;
+            ctx->slots = p;
+            ctx->cap = cap;
+        }
+        gs = &ctx->slots[ctx->n++];
+        memset(gs, 0, sizeof *gs);
+        gs->shape = s;
+    }
+    if (!gs->g[slot][rep])
+        gs->g[slot][rep] = make_geom(s, rep);
+    return gs->g[slot][rep];
+}
+
+/* Which representation each shape of a pair uses. */
+static void choose_reps(const sc_shape *a, const sc_shape *b, int *ra, int *rb)
+{
+    int ka = a->kind, kb = b->kind;
+    int mesh_a = ka == SC_SHAPE_MESH && !a->convex, mesh_b = kb == SC_SHAPE_MESH && !b->convex;
+    int poly_a = ka == SC_SHAPE_MESH || ka == SC_SHAPE_CONVEX;
+    int poly_b = kb == SC_SHAPE_MESH || kb == SC_SHAPE_CONVEX;
+    *ra = poly_a ? REP_CONVEX : REP_NATIVE;
+    *rb = poly_b ? REP_CONVEX : REP_NATIVE;
+    if (mesh_a) *ra = REP_TRIMESH;
+    if (mesh_b) *rb = REP_TRIMESH;
+    /* no convex-trimesh collider without libccd: both go trimesh */
+    if (poly_a && poly_b && (mesh_a || mesh_b))
+        *ra = *rb = REP_TRIMESH;
+}
+
+static void place(dGeomID g, const sc_shape *s, const sc_pose *p)
+{
+    if (s->kind == SC_SHAPE_PLANE) {
+        /* the plane is given in the body frame: move it to the world */
+        double n[3];
+        q_rotate(n, p->quat, s->plane);
+        dGeomPlaneSetParams(g, n[0], n[1], n[2], s->plane[3] + v3_dot(n, p->pos));
+        return;
+    }
+    dGeomSetPosition(g, p->pos[0], p->pos[1], p->pos[2]);
+    dQuaternion q = { p->quat[0], p->quat[1], p->quat[2], p->quat[3] };
+    dGeomSetQuaternion(g, q);
+    if (dGeomGetClass(g) == dTriMeshClass) {
+        /* no previous pose is tracked: the trimesh colliders must not
+         * extrapolate from a stale one */
+        const dReal *R = dGeomGetRotation(g);
+        dMatrix4 m = { R[0], R[4], R[8], 0, R[1], R[5], R[9], 0,
+                       R[2], R[6], R[10], 0, p->pos[0], p->pos[1], p->pos[2], 1 };
+        dGeomTriMeshSetLastTransform(g, m);
+    }
+}
+
+static int pose_ok(const sc_pose *p)
+{
+    if (!sc_finite3(p->pos))
+        return 0;
+    double n = p->quat[0] * p->quat[0] + p->quat[1] * p->quat[1] +
+               p->quat[2] * p->quat[2] + p->quat[3] * p->quat[3];
+    return isfinite(n) && fabs(n - 1) < 1e-6;
+}
+
+int sc_np_collide(sc_np_ctx *ctx, const sc_shape *a, const sc_pose *pa, const sc_shape *b,
+                  const sc_pose *pb, sc_contact *out, int max)
+{
+    if (!ctx || !a || !b || !pa || !pb || (!out && max > 0) || max < 0)
+        return SC_EINVAL;
+    if (!pose_ok(pa) || !pose_ok(pb))
+        return SC_EINVAL;
+    if (a->kind == SC_SHAPE_PLANE && b->kind == SC_SHAPE_PLANE)
+        return 0;
+    sc_ode_thread_init();
+    int ra, rb;
+    choose_reps(a, b, &ra, &rb);
+    dGeomID ga = get_geom(ctx, a, 0, ra), gb = get_geom(ctx, b, 1, rb);
+    if (!ga || !gb)
+        return SC_ENOMEM;
+    place(ga, a, pa);
+    place(gb, b, pb);
+    dContactGeom raw[RAW_CONTACTS];
+    int n = dCollide(ga, gb, RAW_CONTACTS, raw, sizeof raw[0]);
+    if (n <= 0)
+        return 0;
+    sc_contact c[RAW_CONTACTS];
+    for (int i = 0; i < n; i++) {
+        c[i].body_a = c[i].body_b = -1;
+        v3_copy(c[i].pos, raw[i].pos);
+        v3_scale(c[i].normal, raw[i].normal, -1.0);
+        c[i].depth = raw[i].depth;
+    }
+    double size = fmin(a->bound_r, b->bound_r);
+    if (!isfinite(size))
+        size = 1;
+    n = sc_manifold_reduce(c, n, 1e-3 * size);
+    if (n > max)
+        n = max;
+    if (n > 0)
+        memcpy(out, c, (size_t)n * sizeof *out);
+    return n;
+}
+
+SC_API int sc_collide(const sc_shape *a, const sc_pose *pa, const sc_shape *b,
+                      const sc_pose *pb, sc_contact *out, int max)
+{
+    sc_np_ctx *ctx = sc_np_create();
+    if (!ctx)
+        return SC_ENOMEM;
+    int n = sc_np_collide(ctx, a, pa, b, pb, out, max);
+    sc_np_destroy(ctx);
+    return n;
+}

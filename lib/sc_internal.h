@@ -1,0 +1,130 @@
+/*
+ * sc_internal.h - what the library's files share and do not export.
+ * Every symbol here is hidden (-fvisibility=hidden); only SC_API ones leave
+ * the shared object.
+ */
+#ifndef SC_INTERNAL_H
+#define SC_INTERNAL_H
+
+#include <assert.h>
+#include <math.h>
+#include <stdatomic.h>
+#include <stddef.h>
+#include <stdint.h>
+
+#include "simcluster.h"
+
+/* Internal invariants only, never bad input (that gets an SC_E* code). */
+#define SC_ASSERT(c) assert(c)
+
+/* Record err as this thread's last error (see sc_last_error()); returns err. */
+int sc_set_error(int err);
+
+/* Checked allocation helpers: NULL on overflow or failure. */
+void *sc_alloc_array(size_t n, size_t size);
+void *sc_calloc_array(size_t n, size_t size);
+
+static inline int sc_finite3(const double v[3])
+{
+    return isfinite(v[0]) && isfinite(v[1]) && isfinite(v[2]);
+}
+
+/* ---- shapes ---- */
+struct sc_shape {
+    atomic_int refs;
+    int kind;                 /* SC_SHAPE_* */
+    double radius;            /* sphere */
+    double half[3];           /* box */
+    double plane[4];          /* plane: n (unit), d */
+    /* SC_SHAPE_MESH and SC_SHAPE_CONVEX: outward triangles */
+    int nverts, ntris;
+    double *xyz;
+    int *tri;
+    int convex;               /* 1 if the mesh is convex (hulls always) */
+    sc_mass_props mp;         /* per unit density */
+    double bound_r;           /* about the shape origin */
+    uint64_t hash;            /* content hash (cluster shape cache) */
+    /* ODE data built once at creation, read-only afterwards */
+    void *ode_tridata;        /* dTriMeshDataID for meshes and hulls */
+    unsigned *ode_index;      /* dTriIndex copy of tri */
+    double *ode_planes;       /* dConvex: 4 per triangle */
+    unsigned *ode_polys;      /* dConvex: 3, i, j, k per triangle */
+};
+
+/* A builder's mesh moved so its centre of mass is the origin; takes
+ * ownership of xyz and tri. NULL on error (sc_last_error()). */
+sc_shape *sc_shape_mesh_centered(double *xyz, int nverts, int *tri, int ntris);
+
+/* ODE: process-wide initialisation (once) and the calling thread's ODE data
+ * (idempotent, cheap); both needed before any ODE collision call. */
+void sc_ode_init(void);
+void sc_ode_thread_init(void);
+
+/* ---- narrow phase (narrowphase.c, manifold.c) ---- */
+typedef struct sc_np_ctx sc_np_ctx;     /* one per thread: owns ODE geoms */
+sc_np_ctx *sc_np_create(void);
+void sc_np_destroy(sc_np_ctx *ctx);
+/* Contacts of a at pa with b at pb, normals from a to b, reduced to at most
+ * SC_MAX_PAIR_CONTACTS; returns how many were written (<= max) or a code. */
+int sc_np_collide(sc_np_ctx *ctx, const sc_shape *a, const sc_pose *pa,
+                  const sc_shape *b, const sc_pose *pb, sc_contact *out, int max);
+/* Reduce n raw contacts in place to at most SC_MAX_PAIR_CONTACTS well-spread
+ * ones (points closer than merge_dist merged); returns the new count. */
+int sc_manifold_reduce(sc_contact *c, int n, double merge_dist);
+
+/* sc_toi() with the caller's (per-thread) narrow-phase context. */
+int sc_toi_ctx(sc_np_ctx *ctx, const sc_shape *a, const sc_pose *a0, const sc_pose *a1,
+               const sc_shape *b, const sc_pose *b0, const sc_pose *b1, double tol_m,
+               double *t);
+
+/* Validate a triangle mesh and compute its mass properties:
+ * SC_EINVAL (NaN, bad index), SC_ETOOBIG, SC_EDEGENERATE (zero-area
+ * triangles, no volume), SC_ENOTCLOSED (an edge not shared by exactly two
+ * triangles of opposite orientation, or inward orientation). */
+int sc_mesh_check(const double *xyz, int nverts, const int *tri, int ntris,
+                  sc_mass_props *mp);
+
+/* Convex hull (hull.c): the hull of n points as a closed, outward triangle
+ * mesh whose vertices are hull vertices only. Caller frees *xyz and *tri. */
+int sc_hull_build(const double *pts, int n, double **xyz, int *nverts,
+                  int **tri, int *ntris);
+
+/* Mesh file parsing (shape_load.c): OBJ, ASCII STL or binary STL from memory,
+ * STL vertices welded. Returns SC_OK with arrays the caller frees, or
+ * SC_EFORMAT / SC_ETOOBIG / SC_ENOMEM. Does not check closedness. */
+int sc_mesh_parse(const void *buf, size_t len, double **xyz, int *nverts,
+                  int **tri, int *ntris);
+
+/* ---- broad phase (broadphase.c) ---- */
+typedef struct sc_pair { int a, b; } sc_pair;   /* a < b */
+typedef struct sc_broadphase sc_broadphase;
+
+sc_broadphase *sc_bp_create(void);
+void sc_bp_destroy(sc_broadphase *bp);
+/* All pairs (a < b) whose spheres (centre c[3i..], radius r[i]) overlap and
+ * of which at least one is active (active[i] != 0), sorted by (a, b).
+ * method: SC_BROADPHASE_SPHERES (all pairs, the paper) or SC_BROADPHASE_SAP
+ * (sweep and prune, keeps its sort order between calls). Returns the number
+ * of pairs (written to the growing array *pairs of capacity *cap) or a
+ * negative code. */
+int sc_bp_find_pairs(sc_broadphase *bp, int method, const double *c, const double *r,
+                     const unsigned char *active, int n, sc_pair **pairs, int *cap);
+
+/* ---- LCP (lcp.c) ---- */
+typedef struct sc_lcp_info {
+    long pivots;              /* principal pivots made */
+    double residual;          /* max complementarity / feasibility violation */
+} sc_lcp_info;
+
+/* The standard LCP by Cottle-Dantzig principal pivoting; info may be NULL. */
+int sc_lcp_dantzig(int n, const double *M, const double *q, double *z, double *w,
+                   sc_lcp_info *info);
+/* Boxed LCP (mixed complementarity): lo <= z <= hi, w = M z + q with
+ * w >= 0 where z = lo, w <= 0 where z = hi, w = 0 in between. If findex is
+ * not NULL and findex[i] >= 0, the bounds of row i are -mu[i] * z[findex[i]]
+ * and +mu[i] * z[findex[i]] (friction), lo/hi ignored for that row. */
+int sc_lcp_boxed(int n, const double *M, const double *q, const double *lo,
+                 const double *hi, const int *findex, const double *mu,
+                 double *z, double *w, sc_lcp_info *info);
+
+#endif /* SC_INTERNAL_H */

@@ -1,0 +1,314 @@
+/* shape.c - immutable, reference-counted collision shapes.
+ *
+ * A shape is built once and shared (read-only) by bodies, worker threads
+ * and work units. Everything a collider needs, ODE's trimesh data included,
+ * is built here at creation so the narrow phase never mutates a shape.
+ */
+#include <stdlib.h>
+#include <string.h>
+
+#include <ode/ode.h>
+
+#include "sc_internal.h"
+#include "vecmath.h"
+
+static sc_shape *shape_new(int kind)
+{
+    sc_shape *s = calloc(1, sizeof *s);
+    if (!s) {
+        sc_set_error(SC_ENOMEM);
+        return NULL;
+    }
+    atomic_init(&s->refs, 1);
+    s->kind = kind;
+    return s;
+}
+
+static void shape_free(sc_shape *s)
+{
+    if (s->ode_tridata)
+        dGeomTriMeshDataDestroy((dTriMeshDataID)s->ode_tridata);
+    free(s->xyz);
+    free(s->tri);
+    free(s->ode_index);
+    free(s->ode_planes);
+    free(s->ode_polys);
+    free(s);
+}
+
+static uint64_t fnv1a(uint64_t h, const void *p, size_t n)
+{
+    const unsigned char *c = p;
+    for (size_t i = 0; i < n; i++) {
+        h ^= c[i];
+        h *= 0x100000001b3ULL;
+    }
+    return h;
+}
+
+/* Content hash: equal shapes hash equal on every machine (cluster cache). */
+static void shape_hash(sc_shape *s)
+{
+    uint64_t h = 0xcbf29ce484222325ULL;
+    h = fnv1a(h, &s->kind, sizeof s->kind);
+    h = fnv1a(h, &s->radius, sizeof s->radius);
+    h = fnv1a(h, s->half, sizeof s->half);
+    h = fnv1a(h, s->plane, sizeof s->plane);
+    if (s->xyz) {
+        h = fnv1a(h, s->xyz, (size_t)s->nverts * 3 * sizeof *s->xyz);
+        h = fnv1a(h, s->tri, (size_t)s->ntris * 3 * sizeof *s->tri);
+    }
+    s->hash = h;
+}
+
+SC_API sc_shape *sc_shape_sphere(double r)
+{
+    if (!(r > 0) || !isfinite(r)) {
+        sc_set_error(SC_EINVAL);
+        return NULL;
+    }
+    sc_shape *s = shape_new(SC_SHAPE_SPHERE);
+    if (!s)
+        return NULL;
+    s->radius = r;
+    s->bound_r = r;
+    s->mp.volume = 4.0 / 3.0 * M_PI * r * r * r;
+    double i = 0.4 * s->mp.volume * r * r;
+    s->mp.inertia[0] = s->mp.inertia[4] = s->mp.inertia[8] = i;
+    shape_hash(s);
+    return s;
+}
+
+SC_API sc_shape *sc_shape_box(double hx, double hy, double hz)
+{
+    if (!(hx > 0 && hy > 0 && hz > 0) || !isfinite(hx + hy + hz)) {
+        sc_set_error(SC_EINVAL);
+        return NULL;
+    }
+    sc_shape *s = shape_new(SC_SHAPE_BOX);
+    if (!s)
+        return NULL;
+    v3_set(s->half, hx, hy, hz);
+    s->bound_r = v3_len(s->half);
+    double v = 8 * hx * hy * hz;
+    s->mp.volume = v;
+    s->mp.inertia[0] = v / 3 * (hy * hy + hz * hz);
+    s->mp.inertia[4] = v / 3 * (hx * hx + hz * hz);
+    s->mp.inertia[8] = v / 3 * (hx * hx + hy * hy);
+    shape_hash(s);
+    return s;
+}
+
+SC_API sc_shape *sc_shape_plane(double nx, double ny, double nz, double d)
+{
+    double n[3] = { nx, ny, nz };
+    double l = v3_len(n);
+    if (!(l > 0) || !isfinite(l) || !isfinite(d)) {
+        sc_set_error(SC_EINVAL);
+        return NULL;
+    }
+    sc_shape *s = shape_new(SC_SHAPE_PLANE);
+    if (!s)
+        return NULL;
+    s->plane[0] = nx / l;
+    s->plane[1] = ny / l;
+    s->plane[2] = nz / l;
+    s->plane[3] = d / l;
+    s->bound_r = INFINITY;
+    shape_hash(s);
+    return s;
+}
+
+/* Every vertex behind (or on) every face plane, within a relative tolerance.
+ * Costs ntris * nverts; beyond a budget the mesh is treated as non-convex,
+ * which is always safe (the trimesh collider handles any closed mesh). */
+static int mesh_is_convex(const sc_shape *s)
+{
+    if ((double)s->ntris * s->nverts > 5e7)
+        return 0;
+    double tol = 1e-9 * s->bound_r;
+    for (int t = 0; t < s->ntris; t++) {
+        const double *a = &s->xyz[3 * s->tri[3 * t]], *b = &s->xyz[3 * s->tri[3 * t + 1]],
+                     *c = &s->xyz[3 * s->tri[3 * t + 2]];
+        double e1[3], e2[3], n[3];
+        v3_sub(e1, b, a);
+        v3_sub(e2, c, a);
+        v3_cross(n, e1, e2);
+        v3_normalize(n);
+        double d = v3_dot(n, a);
+        for (int i = 0; i < s->nverts; i++)
+            if (v3_dot(n, &s->xyz[3 * i]) - d > tol)
+                return 0;
+    }
+    return 1;
+}
+
+/* ODE's trimesh data (and, for convex shapes, dConvex planes/polygons). */
+static int build_ode_data(sc_shape *s)
+{
+    sc_ode_init();
+    s->ode_index = sc_alloc_array((size_t)s->ntris * 3, sizeof *s->ode_index);
+    if (!s->ode_index)
+        return SC_ENOMEM;
+    for (int i = 0; i < 3 * s->ntris; i++)
+        s->ode_index[i] = (unsigned)s->tri[i];
+    dTriMeshDataID td = dGeomTriMeshDataCreate();
+    if (!td)
+        return SC_ENOMEM;
+    dGeomTriMeshDataBuildDouble(td, s->xyz, 3 * sizeof(double), s->nverts, s->ode_index,
+                                3 * s->ntris, 3 * sizeof(dTriIndex));
+    dGeomTriMeshDataPreprocess2(td, 1U << dTRIDATAPREPROCESS_BUILD_CONCAVE_EDGES, NULL);
+    s->ode_tridata = td;
+    if (!s->convex)
+        return SC_OK;
+    s->ode_planes = sc_alloc_array((size_t)s->ntris * 4, sizeof *s->ode_planes);
+    s->ode_polys = sc_alloc_array((size_t)s->ntris * 4, sizeof *s->ode_polys);
+    if (!s->ode_planes || !s->ode_polys)
+        return SC_ENOMEM;
+    for (int t = 0; t < s->ntris; t++) {
+        const int *f = &s->tri[3 * t];
+        double e1[3], e2[3], n[3];
+        v3_sub(e1, &s->xyz[3 * f[1]], &s->xyz[3 * f[0]]);
+        v3_sub(e2, &s->xyz[3 * f[2]], &s->xyz[3 * f[0]]);
+        v3_cross(n, e1, e2);
+        v3_normalize(n);
+        double *pl = &s->ode_planes[4 * t];
+        v3_copy(pl, n);
+        pl[3] = v3_dot(n, &s->xyz[3 * f[0]]);
+        unsigned *po = &s->ode_polys[4 * t];
+        po[0] = 3;
+        po[1] = (unsigned)f[0];
+        po[2] = (unsigned)f[1];
+        po[3] = (unsigned)f[2];
+    }
+    return SC_OK;
+}
+
+/* Takes ownership of xyz and tri (freed on failure). */
+static sc_shape *mesh_shape_take(int kind, double *xyz, int nverts, int *tri, int ntris)
+{
+    sc_mass_props mp;
+    int rc = sc_mesh_check(xyz, nverts, tri, ntris, &mp);
+    sc_shape *s = rc == SC_OK ? shape_new(kind) : NULL;
+    if (!s) {
+        free(xyz);
+        free(tri);
+        sc_set_error(rc == SC_OK ? SC_ENOMEM : rc);
+        return NULL;
+    }
+    s->xyz = xyz;
+    s->tri = tri;
+    s->nverts = nverts;
+    s->ntris = ntris;
+    s->mp = mp;
+    for (int i = 0; i < nverts; i++)
+        s->bound_r = fmax(s->bound_r, v3_len(&xyz[3 * i]));
+    s->convex = kind == SC_SHAPE_CONVEX || mesh_is_convex(s);
+    rc = build_ode_data(s);
+    if (rc != SC_OK) {
+        shape_free(s);
+        sc_set_error(rc);
+        return NULL;
+    }
+    shape_hash(s);
+    return s;
+}
+
+SC_API sc_shape *sc_shape_mesh(const double *xyz, int nverts, const int *tri, int ntris)
+{
+    if (!xyz || !tri || nverts <= 0 || ntris <= 0) {
+        sc_set_error(SC_EINVAL);
+        return NULL;
+    }
+    if (nverts > SC_MESH_MAX_VERTS || ntris > SC_MESH_MAX_TRIS) {
+        sc_set_error(SC_ETOOBIG);
+        return NULL;
+    }
+    double *v = sc_alloc_array((size_t)nverts * 3, sizeof *v);
+    int *t = sc_alloc_array((size_t)ntris * 3, sizeof *t);
+    if (!v || !t) {
+        free(v);
+        free(t);
+        sc_set_error(SC_ENOMEM);
+        return NULL;
+    }
+    memcpy(v, xyz, (size_t)nverts * 3 * sizeof *v);
+    memcpy(t, tri, (size_t)ntris * 3 * sizeof *t);
+    return mesh_shape_take(SC_SHAPE_MESH, v, nverts, t, ntris);
+}
+
+SC_API sc_shape *sc_shape_convex(const double *xyz, int npoints)
+{
+    double *v = NULL;
+    int *t = NULL, nv = 0, nt = 0;
+    int rc = sc_hull_build(xyz, npoints, &v, &nv, &t, &nt);
+    if (rc != SC_OK) {
+        sc_set_error(rc);
+        return NULL;
+    }
+    return mesh_shape_take(SC_SHAPE_CONVEX, v, nv, t, nt);
+}
+
+/* Internal: a mesh made by a builder, moved so that its centre of mass is
+ * the origin (then a body's pose is the pose of its centre of mass). */
+sc_shape *sc_shape_mesh_centered(double *xyz, int nverts, int *tri, int ntris)
+{
+    sc_mass_props mp;
+    int rc = sc_mesh_check(xyz, nverts, tri, ntris, &mp);
+    if (rc == SC_OK)
+        for (int i = 0; i < nverts; i++)
+            v3_sub(&xyz[3 * i], &xyz[3 * i], mp.com);
+    return mesh_shape_take(SC_SHAPE_MESH, xyz, nverts, tri, ntris);
+}
+
+SC_API int sc_shape_kind(const sc_shape *s)
+{
+    return s ? s->kind : SC_EINVAL;
+}
+
+SC_API int sc_shape_triangles(const sc_shape *s)
+{
+    return s ? s->ntris : 0;
+}
+
+SC_API int sc_shape_mass_props(const sc_shape *s, sc_mass_props *out)
+{
+    if (!s || !out)
+        return SC_EINVAL;
+    if (s->kind == SC_SHAPE_PLANE)
+        return SC_ENOTSUP;
+    *out = s->mp;
+    return SC_OK;
+}
+
+SC_API double sc_shape_bounding_radius(const sc_shape *s)
+{
+    return s ? s->bound_r : NAN;
+}
+
+SC_API int sc_shape_mesh_data(const sc_shape *s, const double **xyz, int *nverts,
+                              const int **tri, int *ntris)
+{
+    if (!s)
+        return SC_EINVAL;
+    if (!s->xyz)
+        return SC_ENOTSUP;
+    if (xyz) *xyz = s->xyz;
+    if (nverts) *nverts = s->nverts;
+    if (tri) *tri = s->tri;
+    if (ntris) *ntris = s->ntris;
+    return SC_OK;
+}
+
+SC_API sc_shape *sc_shape_retain(sc_shape *s)
+{
+    if (s)
+        atomic_fetch_add(&s->refs, 1);
+    return s;
+}
+
+SC_API void sc_shape_release(sc_shape *s)
+{
+    if (s && atomic_fetch_sub(&s->refs, 1) == 1)
+        shape_free(s);
+}

@@ -1,0 +1,18 @@
+#!/bin/sh
+# make install into a temporary DESTDIR, then compile and run examples/hello.c
+# with nothing but the installed header, library and pkg-config file.
+set -e
+cd "$(dirname "$0")/.."
+d=$(mktemp -d)
+trap 'rm -rf "$d"' EXIT
+make --no-print-directory install PREFIX=/usr/local DESTDIR="$d" >/dev/null
+pc="$d/usr/local/lib/pkgconfig"
+test -f "$pc/simcluster.pc"
+flags=$(PKG_CONFIG_PATH="$pc" pkg-config --define-variable=prefix="$d/usr/local" --cflags --libs simcluster)
+cc -std=c11 -Wall -Wextra -Werror examples/hello.c -o "$d/hello" $flags
+LD_LIBRARY_PATH="$d/usr/local/lib" "$d/hello"
+# only sc_* symbols leave the shared library
+bad=$(nm -D --defined-only "$d/usr/local/lib/libsimcluster.so" | awk '$2 ~ /[TDBR]/ {print $3}' | grep -v '^sc_' || true)
+if [ -n "$bad" ]; then echo "exported non-sc_ symbols: $bad"; exit 1; fi
+readelf -d "$d/usr/local/lib/libsimcluster.so" | grep -q 'SONAME.*libsimcluster.so.0'
+echo "install test: ok"

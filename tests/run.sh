@@ -1,0 +1,59 @@
+#!/bin/sh
+# Runs every test binary of each build directory given (the normal build,
+# then the ASan+UBSan one), replays the fuzz corpora, lints the man pages and
+# tries an install; prints one closing line "check: N passed, M failed".
+# Usage: tests/run.sh BUILD [BUILD...]
+cd "$(dirname "$0")/.." || exit 1
+pass=0
+fail=0
+failed=""
+log=$(mktemp)
+trap 'rm -f "$log"' EXIT
+
+count() { # $1 = label, $2 = exit status; counts cmocka's summary lines
+    p=$(sed -n 's/^\[  PASSED  \] \([0-9]*\) test.*/\1/p' "$log" | tail -n 1)
+    f=$(sed -n 's/^\[  FAILED  \] \([0-9]*\) test.*/\1/p' "$log" | tail -n 1)
+    p=${p:-0}
+    f=${f:-0}
+    if [ "$2" -ne 0 ] && [ "$f" -eq 0 ]; then f=1; fi   # crashed or not cmocka
+    if [ "$p" -eq 0 ] && [ "$f" -eq 0 ]; then p=1; fi   # a plain check that passed
+    pass=$((pass + p))
+    fail=$((fail + f))
+    if [ "$f" -ne 0 ]; then
+        failed="$failed $1"
+        cat "$log"
+    fi
+}
+
+for build in "$@"; do
+    echo "== tests in $build"
+    for t in "$build"/tests/test_*; do
+        [ -x "$t" ] || continue
+        start=$(date +%s)
+        "$t" >"$log" 2>&1
+        rc=$?
+        grep -E '^\[  (PASSED|FAILED)  \]' "$log" | sed "s|^|  $(basename "$t"): |"
+        count "$t" $rc
+        echo "  $(basename "$t"): $(( $(date +%s) - start )) s"
+    done
+    for r in "$build"/tests/fuzz/fuzz_*_replay; do
+        [ -x "$r" ] || continue
+        name=$(basename "$r" _replay)
+        corpus=tests/fuzz/corpus/${name#fuzz_}
+        "$r" "$corpus" >"$log" 2>&1
+        count "$r" $?
+        echo "  $(basename "$r"): $(tail -n 1 "$log")"
+    done
+done
+
+echo "== man pages (mandoc -T lint)"
+mandoc -T lint -W warning man/*.[1-8] >"$log" 2>&1
+count mandoc $?
+echo "== install, then build examples/hello.c against the installed pkg-config"
+sh tests/install.sh >"$log" 2>&1
+count install $?
+tail -n 3 "$log"
+
+echo "check: $pass passed, $fail failed"
+[ -n "$failed" ] && echo "failing:$failed"
+[ "$fail" -eq 0 ]

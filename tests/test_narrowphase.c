@@ -1,0 +1,353 @@
+/* test_narrowphase.c - contacts for every shape pair on hand-placed
+ * configurations whose answer is known: normal, depth, where, how many. */
+#include <math.h>
+#include <setjmp.h>
+#include <stdarg.h>
+#include <stddef.h>
+#include <stdint.h>
+#include <string.h>
+#include <cmocka.h>
+
+#include "simcluster.h"
+
+#define TOL 1e-9
+static const double S2 = 0.70710678118654752;   /* sin 45 degrees */
+
+static sc_pose at(double x, double y, double z)
+{
+    sc_pose p = { { x, y, z }, { 1, 0, 0, 0 } };
+    return p;
+}
+
+/* Rotation by 90 degrees about y: the body's +x axis points down (-z). */
+static sc_pose lying(double x, double y, double z)
+{
+    sc_pose p = { { x, y, z }, { S2, 0, S2, 0 } };
+    return p;
+}
+
+static double max_depth(const sc_contact *c, int n)
+{
+    double d = -1;
+    for (int i = 0; i < n; i++)
+        d = fmax(d, c[i].depth);
+    return d;
+}
+
+static void assert_normals(const sc_contact *c, int n, double nx, double ny, double nz, double tol)
+{
+    for (int i = 0; i < n; i++) {
+        assert_true(fabs(c[i].normal[0] - nx) < tol);
+        assert_true(fabs(c[i].normal[1] - ny) < tol);
+        assert_true(fabs(c[i].normal[2] - nz) < tol);
+    }
+}
+
+/* Lowest and highest z of a mesh shape in its own frame. */
+static void z_range(const sc_shape *s, double *lo, double *hi)
+{
+    const double *xyz;
+    int nv;
+    assert_int_equal(sc_shape_mesh_data(s, &xyz, &nv, NULL, NULL), SC_OK);
+    *lo = INFINITY;
+    *hi = -INFINITY;
+    for (int i = 0; i < nv; i++) {
+        *lo = fmin(*lo, xyz[3 * i + 2]);
+        *hi = fmax(*hi, xyz[3 * i + 2]);
+    }
+}
+
+static void test_spheres_overlap_depth_and_normal_from_a_to_b(void **state)
+{
+    (void)state;
+    sc_shape *s = sc_shape_sphere(0.1);
+    sc_contact c[4];
+    sc_pose a = at(0, 0, 0), b = at(0.15, 0, 0);
+    assert_int_equal(sc_collide(s, &a, s, &b, c, 4), 1);
+    assert_true(fabs(c[0].depth - 0.05) < TOL);
+    assert_normals(c, 1, 1, 0, 0, TOL);
+    /* swapped: the normal flips */
+    assert_int_equal(sc_collide(s, &b, s, &a, c, 4), 1);
+    assert_normals(c, 1, -1, 0, 0, TOL);
+    /* apart */
+    b = at(0.2001, 0, 0);
+    assert_int_equal(sc_collide(s, &a, s, &b, c, 4), 0);
+    sc_shape_release(s);
+}
+
+static void test_box_on_plane_gives_four_corner_contacts(void **state)
+{
+    (void)state;
+    sc_shape *plane = sc_shape_plane(0, 0, 1, 0), *box = sc_shape_box(0.5, 0.3, 0.2);
+    sc_contact c[4];
+    sc_pose o = at(0, 0, 0), b = at(1, 2, 0.199);
+    int n = sc_collide(plane, &o, box, &b, c, 4);
+    assert_int_equal(n, 4);
+    assert_normals(c, n, 0, 0, 1, TOL);
+    for (int i = 0; i < n; i++) {
+        assert_true(fabs(c[i].depth - 0.001) < 1e-9);
+        assert_true(fabs(fabs(c[i].pos[0] - 1) - 0.5) < 1e-9);
+        assert_true(fabs(fabs(c[i].pos[1] - 2) - 0.3) < 1e-9);
+    }
+    /* the plane's pose moves it: a plane body lifted by 1 m */
+    sc_pose up = at(0, 0, 1);
+    b.pos[2] = 1.2001;
+    assert_int_equal(sc_collide(plane, &up, box, &b, c, 4), 0);
+    b.pos[2] = 1.199;
+    assert_int_equal(sc_collide(plane, &up, box, &b, c, 4), 4);
+    sc_shape_release(plane);
+    sc_shape_release(box);
+}
+
+static void test_max_limits_the_contacts_written(void **state)
+{
+    (void)state;
+    sc_shape *plane = sc_shape_plane(0, 0, 1, 0), *box = sc_shape_box(0.5, 0.3, 0.2);
+    sc_contact c[4];
+    sc_pose o = at(0, 0, 0), b = at(0, 0, 0.19);
+    memset(c, 0xff, sizeof c);
+    assert_int_equal(sc_collide(plane, &o, box, &b, c, 2), 2);
+    assert_int_equal(c[2].body_a, -1);    /* 0xff bytes untouched */
+    assert_int_equal(sc_collide(plane, &o, box, &b, NULL, 0), 0);
+    assert_int_equal(sc_collide(plane, &o, box, &b, c, -1), SC_EINVAL);
+    sc_shape_release(plane);
+    sc_shape_release(box);
+}
+
+static void test_bad_poses_are_rejected(void **state)
+{
+    (void)state;
+    sc_shape *s = sc_shape_sphere(1);
+    sc_contact c[4];
+    sc_pose a = at(0, 0, 0), b = at(NAN, 0, 0);
+    assert_int_equal(sc_collide(s, &a, s, &b, c, 4), SC_EINVAL);
+    b = at(0, 0, 0);
+    b.quat[0] = 2;                            /* not a unit quaternion */
+    assert_int_equal(sc_collide(s, &a, s, &b, c, 4), SC_EINVAL);
+    assert_int_equal(sc_collide(NULL, &a, s, &a, c, 4), SC_EINVAL);
+    sc_shape_release(s);
+}
+
+static void test_bolt_lying_on_plane_touches_on_its_head(void **state)
+{
+    (void)state;
+    sc_shape *plane = sc_shape_plane(0, 0, 1, 0), *bolt = sc_shape_bolt();
+    double lo, hi;
+    z_range(bolt, &lo, &hi);               /* head at lo .. lo + 0.0125 */
+    /* lying: body z becomes world x; a head vertex (0.02 from the axis)
+     * points down, the shaft (0.01) does not reach the floor */
+    sc_pose p = lying(0, 0, 0.02 - 0.001);
+    sc_pose o = at(0, 0, 0);
+    sc_contact c[4];
+    int n = sc_collide(plane, &o, bolt, &p, c, 4);
+    assert_true(n >= 2);
+    assert_true(fabs(max_depth(c, n) - 0.001) < 1e-6);
+    assert_normals(c, n, 0, 0, 1, 1e-9);
+    for (int i = 0; i < n; i++) {
+        assert_true(c[i].pos[0] >= lo - 1e-9 && c[i].pos[0] <= lo + 0.0125 + 1e-9);
+        assert_true(fabs(c[i].pos[1]) < 1e-6);   /* along the vertex edge */
+    }
+    /* raised by 2 mm it is free */
+    p.pos[2] += 0.002;
+    assert_int_equal(sc_collide(plane, &o, bolt, &p, c, 4), 0);
+    sc_shape_release(plane);
+    sc_shape_release(bolt);
+}
+
+static void test_bolt_standing_on_head_gets_a_spread_manifold(void **state)
+{
+    (void)state;
+    sc_shape *plane = sc_shape_plane(0, 0, 1, 0), *bolt = sc_shape_bolt();
+    double lo, hi;
+    z_range(bolt, &lo, &hi);
+    sc_pose o = at(0, 0, 0), p = at(0, 0, -lo - 0.0005);
+    sc_contact c[4];
+    int n = sc_collide(plane, &o, bolt, &p, c, 4);
+    assert_int_equal(n, 4);
+    assert_normals(c, n, 0, 0, 1, 1e-9);
+    double xmin = 1, xmax = -1, ymin = 1, ymax = -1;
+    for (int i = 0; i < n; i++) {
+        assert_true(fabs(c[i].depth - 0.0005) < 1e-9);
+        assert_true(hypot(c[i].pos[0], c[i].pos[1]) <= 0.02 + 1e-9);
+        xmin = fmin(xmin, c[i].pos[0]); xmax = fmax(xmax, c[i].pos[0]);
+        ymin = fmin(ymin, c[i].pos[1]); ymax = fmax(ymax, c[i].pos[1]);
+    }
+    /* well spread: the points span most of the hexagon (0.04 x 0.035) */
+    assert_true(xmax - xmin > 0.025 && ymax - ymin > 0.02);
+    sc_shape_release(plane);
+    sc_shape_release(bolt);
+}
+
+static void test_bolt_passes_through_nut_hole_without_contact(void **state)
+{
+    (void)state;
+    sc_shape *bolt = sc_shape_bolt(), *nut = sc_shape_nut();
+    double blo, bhi, nlo, nhi;
+    z_range(bolt, &blo, &bhi);
+    z_range(nut, &nlo, &nhi);
+    sc_contact c[4];
+    sc_pose b = at(0, 0, 0);
+    /* nut threaded halfway up the shaft (0.5 mm radial clearance) */
+    sc_pose n = at(0, 0, blo + 0.0125 + 0.02 - nlo);
+    assert_int_equal(sc_collide(bolt, &b, nut, &n, c, 4), 0);
+    /* moved sideways by 1 mm the hole wall (at -x) cuts 0.5 mm into the
+     * shaft: the nut must go back towards -x */
+    n.pos[0] = 0.001;
+    int k = sc_collide(bolt, &b, nut, &n, c, 4);
+    assert_true(k >= 1);
+    assert_true(max_depth(c, k) > 0 && max_depth(c, k) < 0.002);
+    for (int i = 0; i < k; i++)
+        assert_true(c[i].normal[0] < -0.5);
+    sc_shape_release(bolt);
+    sc_shape_release(nut);
+}
+
+static void test_nut_resting_on_bolt_head_is_pushed_up_the_axis(void **state)
+{
+    (void)state;
+    sc_shape *bolt = sc_shape_bolt(), *nut = sc_shape_nut();
+    double blo, bhi, nlo, nhi;
+    z_range(bolt, &blo, &bhi);
+    z_range(nut, &nlo, &nhi);
+    sc_contact c[4];
+    sc_pose b = at(0, 0, 0);
+    sc_pose n = at(0, 0, blo + 0.0125 - 0.0005 - nlo);   /* 0.5 mm into the head */
+    int k = sc_collide(bolt, &b, nut, &n, c, 4);
+    assert_true(k >= 3);
+    for (int i = 0; i < k; i++) {
+        assert_true(c[i].normal[2] > 0.9);
+        assert_true(c[i].depth <= 0.0005 + 1e-6);
+        assert_true(fabs(c[i].pos[2] - (blo + 0.0125)) < 0.001);
+    }
+    assert_true(fabs(max_depth(c, k) - 0.0005) < 1e-4);
+    sc_shape_release(bolt);
+    sc_shape_release(nut);
+}
+
+static void test_nuts_stacked_flat_touch_on_their_faces(void **state)
+{
+    (void)state;
+    sc_shape *nut = sc_shape_nut();
+    sc_contact c[4];
+    sc_pose a = at(0, 0, 0), b = at(0, 0, 0.016 - 0.0002);
+    int k = sc_collide(nut, &a, nut, &b, c, 4);
+    assert_int_equal(k, 4);
+    for (int i = 0; i < k; i++) {
+        assert_true(c[i].normal[2] > 0.99);
+        assert_true(fabs(c[i].depth - 0.0002) < 1e-6);
+    }
+    sc_shape_release(nut);
+}
+
+static void test_meshes_against_box_and_sphere(void **state)
+{
+    (void)state;
+    sc_shape *box = sc_shape_box(0.5, 0.5, 0.5), *sph = sc_shape_sphere(0.05);
+    sc_shape *nut = sc_shape_nut(), *uv = sc_shape_uv_sphere(0.05, 16, 8);
+    double nlo, nhi;
+    z_range(nut, &nlo, &nhi);
+    sc_contact c[4];
+    /* nut flat on a box top (z = 0.5), 0.3 mm deep */
+    sc_pose bx = at(0, 0, 0), n = at(0.1, 0, 0.5 - nlo - 0.0003);
+    int k = sc_collide(box, &bx, nut, &n, c, 4);
+    assert_true(k >= 3);
+    assert_normals(c, k, 0, 0, 1, 1e-6);
+    assert_true(fabs(max_depth(c, k) - 0.0003) < 1e-6);
+    /* analytic sphere on the nut's top face, off the hole: 0.2 mm deep */
+    sc_pose na = at(0, 0, 0), s = at(0.0155, 0, nhi + 0.05 - 0.0002);
+    k = sc_collide(nut, &na, sph, &s, c, 4);
+    assert_true(k >= 1);
+    assert_true(fabs(max_depth(c, k) - 0.0002) < 1e-5);
+    assert_true(c[0].normal[2] > 0.99);
+    /* convex UV sphere on the box: one point straight below the centre
+     * (a pole vertex), depth 1 mm */
+    sc_pose u = at(0.2, 0.1, 0.5 + 0.05 - 0.001);
+    k = sc_collide(box, &bx, uv, &u, c, 4);
+    assert_true(k >= 1);
+    assert_true(fabs(max_depth(c, k) - 0.001) < 1e-6);
+    assert_true(fabs(c[0].pos[0] - 0.2) < 1e-6 && fabs(c[0].pos[1] - 0.1) < 1e-6);
+    assert_normals(c, k, 0, 0, 1, 1e-6);
+    /* convex mesh against a non-convex one: UV sphere on a lying bolt's shaft */
+    sc_shape *bolt = sc_shape_bolt();
+    double blo, bhi;
+    z_range(bolt, &blo, &bhi);
+    sc_pose bl = lying(0, 0, 0), us = at(bhi - 0.01, 0, 0.01 + 0.05 - 0.0005);
+    k = sc_collide(bolt, &bl, uv, &us, c, 4);
+    assert_true(k >= 1);
+    assert_true(max_depth(c, k) > 0 && max_depth(c, k) < 0.001);
+    for (int i = 0; i < k; i++)
+        assert_true(c[i].normal[2] > 0.9);
+    sc_shape_release(bolt);
+    sc_shape_release(box);
+    sc_shape_release(sph);
+    sc_shape_release(nut);
+    sc_shape_release(uv);
+}
+
+static void test_convex_hull_box_on_plane(void **state)
+{
+    (void)state;
+    double pts[24];
+    for (int i = 0; i < 8; i++) {
+        pts[3 * i] = (i & 1) ? 0.1 : -0.1;
+        pts[3 * i + 1] = (i & 2) ? 0.2 : -0.2;
+        pts[3 * i + 2] = (i & 4) ? 0.05 : -0.05;
+    }
+    sc_shape *hull = sc_shape_convex(pts, 8), *plane = sc_shape_plane(0, 0, 1, 0);
+    assert_non_null(hull);
+    sc_contact c[4];
+    sc_pose o = at(0, 0, 0), h = at(0, 0, 0.0498);
+    int k = sc_collide(plane, &o, hull, &h, c, 4);
+    assert_int_equal(k, 4);
+    assert_normals(c, k, 0, 0, 1, 1e-9);
+    for (int i = 0; i < k; i++)
+        assert_true(fabs(c[i].depth - 0.0002) < 1e-9);
+    /* hull on hull (two convex shapes, ODE's convex-convex) */
+    sc_pose h2 = at(0.05, 0, 0.0998 - 0.0001);
+    k = sc_collide(hull, &o, hull, &h2, c, 4);
+    assert_true(k >= 1);
+    assert_true(fabs(max_depth(c, k) - 0.0003) < 1e-6);
+    for (int i = 0; i < k; i++)
+        assert_true(c[i].normal[2] > 0.99);
+    sc_shape_release(hull);
+    sc_shape_release(plane);
+}
+
+static void test_contacts_are_bit_identical_on_repeat(void **state)
+{
+    (void)state;
+    sc_shape *bolt = sc_shape_bolt(), *nut = sc_shape_nut();
+    sc_pose a = { { 0, 0, 0 }, { 0.9, 0.3, 0.2, 0.1 } }, b = { { 0.01, 0.005, 0.02 }, { 1, 0, 0, 0 } };
+    double l = sqrt(0.81 + 0.09 + 0.04 + 0.01);
+    for (int k = 0; k < 4; k++)
+        a.quat[k] /= l;
+    sc_contact c1[4], c2[4];
+    memset(c1, 0, sizeof c1);
+    memset(c2, 0, sizeof c2);
+    int n1 = sc_collide(bolt, &a, nut, &b, c1, 4);
+    int n2 = sc_collide(bolt, &a, nut, &b, c2, 4);
+    assert_true(n1 > 0);
+    assert_int_equal(n1, n2);
+    assert_memory_equal(c1, c2, sizeof c1);
+    sc_shape_release(bolt);
+    sc_shape_release(nut);
+}
+
+int main(void)
+{
+    const struct CMUnitTest tests[] = {
+        cmocka_unit_test(test_spheres_overlap_depth_and_normal_from_a_to_b),
+        cmocka_unit_test(test_box_on_plane_gives_four_corner_contacts),
+        cmocka_unit_test(test_max_limits_the_contacts_written),
+        cmocka_unit_test(test_bad_poses_are_rejected),
+        cmocka_unit_test(test_bolt_lying_on_plane_touches_on_its_head),
+        cmocka_unit_test(test_bolt_standing_on_head_gets_a_spread_manifold),
+        cmocka_unit_test(test_bolt_passes_through_nut_hole_without_contact),
+        cmocka_unit_test(test_nut_resting_on_bolt_head_is_pushed_up_the_axis),
+        cmocka_unit_test(test_nuts_stacked_flat_touch_on_their_faces),
+        cmocka_unit_test(test_meshes_against_box_and_sphere),
+        cmocka_unit_test(test_convex_hull_box_on_plane),
+        cmocka_unit_test(test_contacts_are_bit_identical_on_repeat),
+    };
+    return cmocka_run_group_tests(tests, NULL, NULL);
+}

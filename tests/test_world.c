@@ -1,0 +1,327 @@
+/* test_world.c - the world API: defaults, bad input, free motion, contacts
+ * per frame, energy, hashing, both broad phases agreeing. */
+#include <math.h>
+#include <setjmp.h>
+#include <stdarg.h>
+#include <stddef.h>
+#include <stdint.h>
+#include <stdlib.h>
+#include <string.h>
+#include <cmocka.h>
+
+#include "simcluster.h"
+
+#define G 9.81
+
+static sc_world *world_with_floor(void)
+{
+    sc_world *w = sc_world_create(NULL);
+    assert_non_null(w);
+    sc_shape *floor = sc_shape_plane(0, 0, 1, 0);
+    sc_body_desc d = sc_body_desc_default();
+    d.shape = floor;
+    d.mass = 0;
+    assert_int_equal(sc_body_add(w, &d), 0);
+    sc_shape_release(floor);
+    return w;
+}
+
+static int add_body(sc_world *w, sc_shape *s, double mass, double x, double y, double z)
+{
+    sc_body_desc d = sc_body_desc_default();
+    d.shape = s;
+    d.mass = mass;
+    d.pos[0] = x;
+    d.pos[1] = y;
+    d.pos[2] = z;
+    return sc_body_add(w, &d);
+}
+
+static void test_structs_not_from_defaults_are_rejected(void **state)
+{
+    (void)state;
+    sc_world_config c;
+    memset(&c, 0, sizeof c);
+    assert_null(sc_world_create(&c));
+    assert_int_equal(sc_last_error(), SC_ENOINIT);
+    sc_world *w = sc_world_create(NULL);
+    sc_shape *s = sc_shape_sphere(0.1);
+    sc_body_desc d;
+    memset(&d, 0, sizeof d);
+    d.shape = s;
+    d.mass = 1;
+    d.quat[0] = 1;
+    assert_int_equal(sc_body_add(w, &d), SC_ENOINIT);
+    c = sc_world_config_default();
+    c.contact_tol_m = -1;
+    assert_null(sc_world_create(&c));
+    assert_int_equal(sc_last_error(), SC_EINVAL);
+    sc_shape_release(s);
+    sc_world_destroy(w);
+}
+
+static void test_bad_bodies_get_clear_codes_and_change_nothing(void **state)
+{
+    (void)state;
+    sc_world *w = world_with_floor();
+    sc_shape *s = sc_shape_sphere(0.1), *p = sc_shape_plane(0, 0, 1, 0);
+    sc_body_desc d = sc_body_desc_default();
+    d.shape = s;
+    d.mass = NAN;
+    assert_int_equal(sc_body_add(w, &d), SC_EINVAL);
+    d.mass = -2;
+    assert_int_equal(sc_body_add(w, &d), SC_EINVAL);
+    d.mass = 1;
+    d.pos[1] = INFINITY;
+    assert_int_equal(sc_body_add(w, &d), SC_EINVAL);
+    d.pos[1] = 0;
+    d.quat[0] = 0;
+    assert_int_equal(sc_body_add(w, &d), SC_EINVAL);
+    d.quat[0] = 1;
+    d.restitution = 1.5;
+    assert_int_equal(sc_body_add(w, &d), SC_EINVAL);
+    d.restitution = 0.5;
+    d.mass = SC_MASS_FROM_DENSITY;
+    d.density = 0;
+    assert_int_equal(sc_body_add(w, &d), SC_EINVAL);
+    d.mass = 1;
+    d.shape = NULL;
+    assert_int_equal(sc_body_add(w, &d), SC_EINVAL);
+    d.shape = p;                            /* a moving half space */
+    assert_int_equal(sc_body_add(w, &d), SC_ENOTSUP);
+    assert_int_equal(sc_world_body_count(w), 1);
+    assert_int_equal(sc_world_step(w, 0), SC_EINVAL);
+    assert_int_equal(sc_world_step(w, NAN), SC_EINVAL);
+    assert_int_equal(sc_world_step(NULL, 0.01), SC_EINVAL);
+    assert_int_equal(sc_body_state(w, 7), SC_ERANGE);
+    assert_int_equal(sc_body_state(w, -1), SC_ERANGE);
+    double pos[3] = { 9, 9, 9 }, q[4];
+    sc_body_get_pose(w, 42, pos, q);
+    assert_true(pos[0] == 0 && pos[1] == 0 && pos[2] == 0);
+    double f[3] = { 1, 0, 0 };
+    assert_int_equal(sc_body_apply_force(w, 5, f, NULL), SC_ERANGE);
+    assert_int_equal(sc_body_apply_force(w, 0, f, NULL), SC_ENOTSUP);   /* static */
+    sc_shape_release(s);
+    sc_shape_release(p);
+    sc_world_destroy(w);
+}
+
+static void test_density_gives_mass_from_volume(void **state)
+{
+    (void)state;
+    sc_world *w = sc_world_create(NULL);
+    sc_shape *s = sc_shape_box(0.5, 0.5, 0.5);
+    sc_body_desc d = sc_body_desc_default();
+    d.shape = s;
+    d.mass = SC_MASS_FROM_DENSITY;
+    d.density = 7800;
+    d.pos[2] = 2;
+    assert_int_equal(sc_body_add(w, &d), 0);
+    /* energy = m g h with m = 7800 kg */
+    assert_true(fabs(sc_world_energy(w) - 7800 * G * 2) < 1e-6);
+    sc_shape_release(s);
+    sc_world_destroy(w);
+}
+
+/* Symplectic Euler: v_n = -g n dt, z_n = z0 - g dt^2 n (n + 1) / 2; and
+ * within g dt t of the parabola. */
+static void test_free_fall_follows_gravity(void **state)
+{
+    (void)state;
+    sc_world *w = sc_world_create(NULL);
+    sc_shape *s = sc_shape_sphere(0.1);
+    int id = add_body(w, s, 2, 0, 0, 100);
+    const double dt = 0.01;
+    for (int n = 1; n <= 100; n++)
+        assert_int_equal(sc_world_step(w, dt), SC_OK);
+    double p[3], q[4], v[3], om[3];
+    sc_body_get_pose(w, id, p, q);
+    sc_body_get_velocity(w, id, v, om);
+    assert_true(fabs(p[2] - (100 - G * dt * dt * 100 * 101 / 2)) < 1e-9);
+    assert_true(fabs(v[2] + G * 1.0) < 1e-9);
+    assert_true(fabs(p[2] - (100 - 0.5 * G)) <= G * dt * 1.0);
+    assert_int_equal(sc_body_state(w, id), SC_FREE);
+    sc_shape_release(s);
+    sc_world_destroy(w);
+}
+
+static void test_ball_contact_is_reported_when_it_reaches_the_floor(void **state)
+{
+    (void)state;
+    sc_world *w = world_with_floor();
+    sc_shape *s = sc_shape_sphere(0.1);
+    int id = add_body(w, s, 1, 0.3, -0.2, 1.0);
+    const double dt = 0.01;
+    int frame = 0;
+    for (int n = 1; n <= 100 && !frame; n++) {
+        assert_int_equal(sc_world_step(w, dt), SC_OK);
+        double z = 1.0 - G * dt * dt * n * (n + 1) / 2;
+        sc_contact c[4];
+        int k = sc_world_contacts(w, c, 4);
+        if (z > 0.1) {
+            assert_int_equal(k, 0);
+            continue;
+        }
+        frame = n;
+        assert_int_equal(k, 1);
+        assert_int_equal(c[0].body_a, 0);
+        assert_int_equal(c[0].body_b, id);
+        assert_true(fabs(c[0].normal[2] - 1) < 1e-12);
+        assert_true(fabs(c[0].depth - (0.1 - z)) < 1e-9);
+        assert_true(fabs(c[0].pos[0] - 0.3) < 1e-9 && fabs(c[0].pos[1] + 0.2) < 1e-9);
+        assert_int_equal(sc_body_state(w, id), SC_COLLIDING);
+        sc_stats st;
+        sc_world_stats(w, &st);
+        assert_int_equal(st.contacts, 1);
+        assert_int_equal(st.pairs, 1);
+        assert_int_equal(st.bodies, 2);
+        assert_int_equal(st.frames, n);
+        assert_true(fabs(st.max_penetration - (0.1 - z)) < 1e-9);
+    }
+    assert_int_equal(frame, 43);        /* z_42 = 0.1347, z_43 = 0.0720 */
+    sc_shape_release(s);
+    sc_world_destroy(w);
+}
+
+static void test_pose_and_velocity_refer_to_the_shape_origin(void **state)
+{
+    (void)state;
+    /* a box mesh whose centre of mass (1, 1.5, 2) is off its origin */
+    static const double xyz[] = { 0, 0, 0, 2, 0, 0, 2, 3, 0, 0, 3, 0,
+                                  0, 0, 4, 2, 0, 4, 2, 3, 4, 0, 3, 4 };
+    static const int tri[] = { 0, 2, 1, 0, 3, 2, 4, 5, 6, 4, 6, 7, 0, 1, 5, 0, 5, 4,
+                               1, 2, 6, 1, 6, 5, 2, 3, 7, 2, 7, 6, 3, 0, 4, 3, 4, 7 };
+    sc_shape *s = sc_shape_mesh(xyz, 8, tri, 12);
+    sc_world_config c = sc_world_config_default();
+    c.gravity[2] = 0;
+    sc_world *w = sc_world_create(&c);
+    sc_body_desc d = sc_body_desc_default();
+    d.shape = s;
+    d.pos[0] = 1; d.pos[1] = 2; d.pos[2] = 3;
+    d.quat[0] = cos(0.3); d.quat[3] = sin(0.3);
+    d.vel[0] = 0.5;
+    d.omega[2] = 1.0;
+    int id = sc_body_add(w, &d);
+    assert_true(id >= 0);
+    double p[3], q[4], v[3], om[3];
+    sc_body_get_pose(w, id, p, q);
+    sc_body_get_velocity(w, id, v, om);
+    for (int k = 0; k < 3; k++) {
+        assert_true(fabs(p[k] - d.pos[k]) < 1e-12);
+        assert_true(fabs(v[k] - d.vel[k]) < 1e-12);
+        assert_true(fabs(om[k] - d.omega[k]) < 1e-12);
+    }
+    assert_true(fabs(q[0] - d.quat[0]) < 1e-12 && fabs(q[3] - d.quat[3]) < 1e-12);
+    sc_shape_release(s);
+    sc_world_destroy(w);
+}
+
+static void test_applied_force_accelerates_for_one_frame(void **state)
+{
+    (void)state;
+    sc_world_config c = sc_world_config_default();
+    c.gravity[2] = 0;
+    sc_world *w = sc_world_create(&c);
+    sc_shape *s = sc_shape_sphere(0.5);
+    int id = add_body(w, s, 4, 0, 0, 0);
+    double f[3] = { 8, 0, 0 }, at[3] = { 0, 0.5, 0 };
+    assert_int_equal(sc_body_apply_force(w, id, f, at), SC_OK);
+    assert_int_equal(sc_world_step(w, 0.1), SC_OK);
+    double v[3], om[3];
+    sc_body_get_velocity(w, id, v, om);
+    assert_true(fabs(v[0] - 8.0 / 4 * 0.1) < 1e-12);
+    /* torque r x f = (0, 0.5, 0) x (8, 0, 0) = (0, 0, -4); I = 0.4 m r^2 = 0.4 */
+    assert_true(fabs(om[2] - (-4.0 / 0.4 * 0.1)) < 1e-9);
+    /* the force lasts one frame */
+    assert_int_equal(sc_world_step(w, 0.1), SC_OK);
+    sc_body_get_velocity(w, id, v, om);
+    assert_true(fabs(v[0] - 0.2) < 1e-12);
+    sc_shape_release(s);
+    sc_world_destroy(w);
+}
+
+static void test_hash_is_equal_for_equal_worlds_and_changes_with_state(void **state)
+{
+    (void)state;
+    uint64_t h[2];
+    for (int k = 0; k < 2; k++) {
+        sc_world *w = world_with_floor();
+        sc_shape *b = sc_shape_bolt();
+        add_body(w, b, 0.2, 0, 0, 0.5);
+        uint64_t h0 = sc_world_hash(w);
+        for (int n = 0; n < 10; n++)
+            sc_world_step(w, 0.01);
+        h[k] = sc_world_hash(w);
+        assert_true(h[k] != h0);
+        sc_shape_release(b);
+        sc_world_destroy(w);
+    }
+    assert_true(h[0] == h[1]);
+}
+
+/* A dense random heap of mixed shapes: the paper's all-pairs spheres and
+ * sweep and prune must find exactly the same contacts. */
+static void test_both_broad_phases_give_identical_contacts(void **state)
+{
+    (void)state;
+    sc_shape *shapes[4] = { sc_shape_sphere(0.03), sc_shape_box(0.03, 0.02, 0.01),
+                            sc_shape_bolt(), sc_shape_nut() };
+    sc_contact *c[2];
+    int n[2];
+    for (int m = 0; m < 2; m++) {
+        sc_world_config cfg = sc_world_config_default();
+        cfg.broadphase = m ? SC_BROADPHASE_SAP : SC_BROADPHASE_SPHERES;
+        sc_world *w = sc_world_create(&cfg);
+        sc_shape *floor = sc_shape_plane(0, 0, 1, 0);
+        sc_body_desc d = sc_body_desc_default();
+        d.shape = floor;
+        d.mass = 0;
+        sc_body_add(w, &d);
+        sc_shape_release(floor);
+        srand(7);
+        for (int i = 0; i < 400; i++) {
+            d = sc_body_desc_default();
+            d.shape = shapes[i % 4];
+            d.mass = 0.1;
+            d.pos[0] = 0.5 * rand() / RAND_MAX;
+            d.pos[1] = 0.5 * rand() / RAND_MAX;
+            d.pos[2] = 0.2 * rand() / RAND_MAX;
+            double q[4] = { rand() + 1.0, rand(), rand() - RAND_MAX / 2.0, rand() };
+            double l = sqrt(q[0] * q[0] + q[1] * q[1] + q[2] * q[2] + q[3] * q[3]);
+            for (int k = 0; k < 4; k++)
+                d.quat[k] = q[k] / l;
+            assert_true(sc_body_add(w, &d) >= 0);
+        }
+        assert_int_equal(sc_world_step(w, 0.001), SC_OK);
+        n[m] = sc_world_contacts(w, NULL, 0);
+        c[m] = calloc((size_t)n[m] + 1, sizeof(sc_contact));
+        assert_int_equal(sc_world_contacts(w, c[m], n[m]), n[m]);
+        sc_world_destroy(w);
+    }
+    assert_true(n[0] > 100);
+    assert_int_equal(n[0], n[1]);
+    assert_memory_equal(c[0], c[1], (size_t)n[0] * sizeof(sc_contact));
+    for (int i = 1; i < n[0]; i++)   /* canonical order: by pair */
+        assert_true(c[0][i - 1].body_a < c[0][i].body_a ||
+                    (c[0][i - 1].body_a == c[0][i].body_a && c[0][i - 1].body_b <= c[0][i].body_b));
+    free(c[0]);
+    free(c[1]);
+    for (int k = 0; k < 4; k++)
+        sc_shape_release(shapes[k]);
+}
+
+int main(void)
+{
+    const struct CMUnitTest tests[] = {
+        cmocka_unit_test(test_structs_not_from_defaults_are_rejected),
+        cmocka_unit_test(test_bad_bodies_get_clear_codes_and_change_nothing),
+        cmocka_unit_test(test_density_gives_mass_from_volume),
+        cmocka_unit_test(test_free_fall_follows_gravity),
+        cmocka_unit_test(test_ball_contact_is_reported_when_it_reaches_the_floor),
+        cmocka_unit_test(test_pose_and_velocity_refer_to_the_shape_origin),
+        cmocka_unit_test(test_applied_force_accelerates_for_one_frame),
+        cmocka_unit_test(test_hash_is_equal_for_equal_worlds_and_changes_with_state),
+        cmocka_unit_test(test_both_broad_phases_give_identical_contacts),
+    };
+    return cmocka_run_group_tests(tests, NULL, NULL);
+}
