@@ -198,6 +198,8 @@ typedef struct sc_stats {
     int islands;              /* islands, last frame */
     long lcp_pivots;          /* LCP pivots, last frame */
     double max_penetration;   /* deepest contact, m, last frame */
+    long collider_warnings;   /* ODE collider messages (e.g. contact buffer
+                                 overflow), last frame; never printed */
 } sc_stats;
 
 /* A new empty world; cfg NULL = defaults. NULL on error (sc_last_error()). */

@@ -140,7 +140,7 @@ int sc_mesh_check(const double *xyz, int nverts, const int *tri, int ntris, sc_m
     int rc = check_closed(tri, ntris);
     if (rc != SC_OK)
         return rc;
-    sc_mass_props p;
+    sc_mass_props p = { 0 };
     mass_props(xyz, nverts, tri, ntris, ref, &p);
     /* Closed and consistent but inside out: the volume comes out negative. */
     if (p.volume < 0)

@@ -9,10 +9,19 @@
  * ODE on Debian is built without libccd, so there is no convex-trimesh
  * collider: a convex shape meets a trimesh through its own trimesh. Its
  * normals point from o2 into o1; ours point from a to b, so they flip.
+ *
+ * Debian's ODE is also built without thread-local storage (dTLS_ENABLED
+ * off): every trimesh collider then shares one process-global cache
+ * (g_ccTrimeshCollidersCache), and two threads colliding trimeshes at once
+ * corrupt it (ThreadSanitizer reports the race; ODE then aborts on an
+ * internal assertion). Trimesh pairs are therefore serialised by one lock
+ * guarding ODE's global; sphere, box, plane and convex pairs run
+ * concurrently. tests/test_narrowphase.c runs several threads at once.
  */
+#include <pthread.h>
+#include <stdarg.h>
 #include <stdlib.h>
 #include <string.h>
-#include <pthread.h>
 
 #include <ode/ode.h>
 
@@ -22,12 +31,31 @@
 #define RAW_CONTACTS 64
 
 static pthread_once_t ode_once = PTHREAD_ONCE_INIT;
+/* Guards ODE's process-global trimesh collider cache (see above). */
+static pthread_mutex_t ode_trimesh_lock = PTHREAD_MUTEX_INITIALIZER;
+/* ODE messages (e.g. "contact hash table bucket overflow") of this thread. */
+static _Thread_local long ode_messages;
+
+static void ode_message(int num, const char *msg, va_list ap)
+{
+    /* a library must not print on its users' stderr: count instead */
+    (void)num;
+    (void)msg;
+    (void)ap;
+    ode_messages++;
+}
+
+long sc_ode_message_count(void)
+{
+    return ode_messages;
+}
 
 static void ode_init_once(void)
 {
     /* ODE's global init (its own tables, no simulation state); never closed
      * so that worlds in any thread can come and go. */
     dInitODE2(0);
+    dSetMessageHandler(ode_message);
 }
 
 void sc_ode_init(void)
@@ -182,7 +210,12 @@ int sc_np_collide(sc_np_ctx *ctx, const sc_shape *a, const sc_pose *pa, const sc
     place(ga, a, pa);
     place(gb, b, pb);
     dContactGeom raw[RAW_CONTACTS];
+    int trimesh = ra == REP_TRIMESH || rb == REP_TRIMESH;
+    if (trimesh)
+        pthread_mutex_lock(&ode_trimesh_lock);
     int n = dCollide(ga, gb, RAW_CONTACTS, raw, sizeof raw[0]);
+    if (trimesh)
+        pthread_mutex_unlock(&ode_trimesh_lock);
     if (n <= 0)
         return 0;
     sc_contact c[RAW_CONTACTS];

@@ -59,6 +59,8 @@ sc_shape *sc_shape_mesh_centered(double *xyz, int nverts, int *tri, int ntris);
  * (idempotent, cheap); both needed before any ODE collision call. */
 void sc_ode_init(void);
 void sc_ode_thread_init(void);
+/* ODE messages (warnings) raised in the calling thread so far. */
+long sc_ode_message_count(void);
 
 /* ---- narrow phase (narrowphase.c, manifold.c) ---- */
 typedef struct sc_np_ctx sc_np_ctx;     /* one per thread: owns ODE geoms */

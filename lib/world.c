@@ -536,7 +536,9 @@ SC_API int sc_world_step(sc_world *w, double dt)
         return rc;
     w->stats.pairs = npairs;
     t0 = cpu_now();
+    long msgs = sc_ode_message_count();
     rc = narrowphase(w, npairs);
+    w->stats.collider_warnings = sc_ode_message_count() - msgs;
     stage_add(w, SC_STAGE_NARROWPHASE, t0);
     if (rc != SC_OK)
         return rc;

@@ -5,7 +5,7 @@ set -e
 cd "$(dirname "$0")/.."
 d=$(mktemp -d)
 trap 'rm -rf "$d"' EXIT
-make --no-print-directory install PREFIX=/usr/local DESTDIR="$d" >/dev/null
+MAKEFLAGS= make --no-print-directory install PREFIX=/usr/local DESTDIR="$d" >/dev/null
 pc="$d/usr/local/lib/pkgconfig"
 test -f "$pc/simcluster.pc"
 flags=$(PKG_CONFIG_PATH="$pc" pkg-config --define-variable=prefix="$d/usr/local" --cflags --libs simcluster)

@@ -46,6 +46,10 @@ for build in "$@"; do
     done
 done
 
+echo "== static analysis (cppcheck)"
+cppcheck --quiet --error-exitcode=1 --enable=warning,performance,portability --std=c11 \
+    -Iinclude -Ilib --suppress=missingIncludeSystem --inline-suppr $(ls -d lib daemon tools 2>/dev/null) >"$log" 2>&1
+count cppcheck $?
 echo "== man pages (mandoc -T lint)"
 mandoc -T lint -W warning man/*.[1-8] >"$log" 2>&1
 count mandoc $?

@@ -7,6 +7,7 @@
 #include <stdint.h>
 #include <string.h>
 #include <cmocka.h>
+#include <pthread.h>
 
 #include "simcluster.h"
 
@@ -224,6 +225,31 @@ static void test_nut_resting_on_bolt_head_is_pushed_up_the_axis(void **state)
     sc_shape_release(nut);
 }
 
+/* Two lying bolts crossed like a plus sign, B's shaft resting across A's:
+ * the two shafts' vertex lines cross 0.5 mm deep. */
+static void test_crossed_bolts_touch_shaft_on_shaft(void **state)
+{
+    (void)state;
+    sc_shape *bolt = sc_shape_bolt();
+    double lo, hi;
+    z_range(bolt, &lo, &hi);
+    double x = 0.5 * (lo + 0.0125 + hi);     /* middle of A's shaft */
+    sc_pose a = lying(0, 0, 0);               /* along +x, top vertex line at z = 0.01 */
+    sc_pose b = { { x, 0, 0.02 - 0.0005 }, { S2, -S2, 0, 0 } };   /* along +y */
+    sc_contact c[4];
+    int k = sc_collide(bolt, &a, bolt, &b, c, 4);
+    assert_true(k >= 1);
+    assert_true(fabs(max_depth(c, k) - 0.0005) < 2e-4);
+    for (int i = 0; i < k; i++) {
+        assert_true(c[i].normal[2] > 0.7);
+        assert_true(fabs(c[i].pos[0] - x) < 0.005 && fabs(c[i].pos[1]) < 0.005);
+        assert_true(fabs(c[i].pos[2] - 0.01) < 0.001);
+    }
+    b.pos[2] += 0.001;                        /* lifted: 0.5 mm apart */
+    assert_int_equal(sc_collide(bolt, &a, bolt, &b, c, 4), 0);
+    sc_shape_release(bolt);
+}
+
 static void test_nuts_stacked_flat_touch_on_their_faces(void **state)
 {
     (void)state;
@@ -333,6 +359,62 @@ static void test_contacts_are_bit_identical_on_repeat(void **state)
     sc_shape_release(nut);
 }
 
+/* Several threads colliding the same shared shapes at once must get the
+ * same contacts as one thread (per-thread ODE data and geoms). */
+#define MT_THREADS 4
+#define MT_CASES 64
+
+typedef struct mt_job {
+    sc_shape *a, *b;
+    sc_pose pa[MT_CASES], pb[MT_CASES];
+    sc_contact c[MT_CASES][4];
+    int n[MT_CASES];
+} mt_job;
+
+static void *mt_run(void *arg)
+{
+    mt_job *j = arg;
+    for (int rep = 0; rep < 5; rep++)
+        for (int i = 0; i < MT_CASES; i++)
+            j->n[i] = sc_collide(j->a, &j->pa[i], j->b, &j->pb[i], j->c[i], 4);
+    return NULL;
+}
+
+static void test_threads_collide_shared_shapes_concurrently(void **state)
+{
+    (void)state;
+    sc_shape *bolt = sc_shape_bolt(), *nut = sc_shape_nut();
+    static mt_job ref, jobs[MT_THREADS];
+    ref.a = bolt;
+    ref.b = nut;
+    for (int i = 0; i < MT_CASES; i++) {
+        double ang = 0.1 * i;
+        ref.pa[i] = (sc_pose){ { 0, 0, 0 }, { cos(ang), sin(ang), 0, 0 } };
+        ref.pb[i] = (sc_pose){ { 0.002 * (i % 8), 0.001 * (i % 5), 0.03 - 0.001 * i }, { 1, 0, 0, 0 } };
+    }
+    mt_run(&ref);
+    int hits = 0;
+    for (int i = 0; i < MT_CASES; i++)
+        hits += ref.n[i] > 0;
+    assert_true(hits > 10);
+    pthread_t th[MT_THREADS];
+    for (int t = 0; t < MT_THREADS; t++) {
+        jobs[t] = ref;
+        memset(jobs[t].c, 0, sizeof jobs[t].c);
+        assert_int_equal(pthread_create(&th[t], NULL, mt_run, &jobs[t]), 0);
+    }
+    for (int t = 0; t < MT_THREADS; t++) {
+        assert_int_equal(pthread_join(th[t], NULL), 0);
+        for (int i = 0; i < MT_CASES; i++) {
+            assert_int_equal(jobs[t].n[i], ref.n[i]);
+            if (ref.n[i] > 0)
+                assert_memory_equal(jobs[t].c[i], ref.c[i], (size_t)ref.n[i] * sizeof(sc_contact));
+        }
+    }
+    sc_shape_release(bolt);
+    sc_shape_release(nut);
+}
+
 int main(void)
 {
     const struct CMUnitTest tests[] = {
@@ -344,10 +426,12 @@ int main(void)
         cmocka_unit_test(test_bolt_standing_on_head_gets_a_spread_manifold),
         cmocka_unit_test(test_bolt_passes_through_nut_hole_without_contact),
         cmocka_unit_test(test_nut_resting_on_bolt_head_is_pushed_up_the_axis),
+        cmocka_unit_test(test_crossed_bolts_touch_shaft_on_shaft),
         cmocka_unit_test(test_nuts_stacked_flat_touch_on_their_faces),
         cmocka_unit_test(test_meshes_against_box_and_sphere),
         cmocka_unit_test(test_convex_hull_box_on_plane),
         cmocka_unit_test(test_contacts_are_bit_identical_on_repeat),
+        cmocka_unit_test(test_threads_collide_shared_shapes_concurrently),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
 }
