@@ -77,7 +77,8 @@ SC_API sc_shape *sc_shape_box(double hx, double hy, double hz);
 /* The static half space n.x <= d (normal need not be unit); static bodies only. */
 SC_API sc_shape *sc_shape_plane(double nx, double ny, double nz, double d);
 /* A closed, outward-oriented triangle mesh (xyz: 3*nverts, tri: 3*ntris);
- * the data are copied. Non-convex meshes are fine. */
+ * the data are copied, vertices no triangle uses dropped. Non-convex
+ * meshes are fine. */
 SC_API sc_shape *sc_shape_mesh(const double *xyz, int nverts, const int *tri, int ntris);
 /* The convex hull of npoints points (xyz: 3*npoints). */
 SC_API sc_shape *sc_shape_convex(const double *xyz, int npoints);

@@ -184,11 +184,47 @@ static int build_ode_data(sc_shape *s)
     return SC_OK;
 }
 
+/* Drop vertices no triangle uses, keeping order: ODE's trimesh
+ * preprocessing asserts (aborts the process) on a mesh with more vertices
+ * than triangle corners. Indices must be in range (checked before). */
+static int compact_vertices(double *xyz, int *nverts, int *tri, int ntris)
+{
+    int *map = sc_alloc_array((size_t)*nverts, sizeof *map);
+    if (!map)
+        return SC_ENOMEM;
+    for (int i = 0; i < *nverts; i++)
+        map[i] = -1;
+    for (int i = 0; i < 3 * ntris; i++)
+        map[tri[i]] = 0;
+    int n = 0;
+    for (int i = 0; i < *nverts; i++)
+        if (map[i] == 0) {
+            memmove(&xyz[3 * n], &xyz[3 * i], 3 * sizeof *xyz);
+            map[i] = n++;
+        }
+    for (int i = 0; i < 3 * ntris; i++)
+        tri[i] = map[tri[i]];
+    *nverts = n;
+    free(map);
+    return SC_OK;
+}
+
+static int indices_ok(int nverts, const int *tri, int ntris)
+{
+    for (int i = 0; i < 3 * ntris; i++)
+        if (tri[i] < 0 || tri[i] >= nverts)
+            return 0;
+    return 1;
+}
+
 /* Takes ownership of xyz and tri (freed on failure). */
 static sc_shape *mesh_shape_take(int kind, double *xyz, int nverts, int *tri, int ntris)
 {
     sc_mass_props mp;
-    int rc = sc_mesh_check(xyz, nverts, tri, ntris, &mp);
+    int rc = indices_ok(nverts, tri, ntris) ? compact_vertices(xyz, &nverts, tri, ntris)
+                                            : SC_EINVAL;
+    if (rc == SC_OK)
+        rc = sc_mesh_check(xyz, nverts, tri, ntris, &mp);
     sc_shape *s = rc == SC_OK ? shape_new(kind) : NULL;
     if (!s) {
         free(xyz);
@@ -254,7 +290,8 @@ SC_API sc_shape *sc_shape_convex(const double *xyz, int npoints)
 sc_shape *sc_shape_mesh_centered(double *xyz, int nverts, int *tri, int ntris)
 {
     sc_mass_props mp;
-    int rc = sc_mesh_check(xyz, nverts, tri, ntris, &mp);
+    int rc = indices_ok(nverts, tri, ntris) ? sc_mesh_check(xyz, nverts, tri, ntris, &mp)
+                                            : SC_EINVAL;
     if (rc == SC_OK)
         for (int i = 0; i < nverts; i++)
             v3_sub(&xyz[3 * i], &xyz[3 * i], mp.com);

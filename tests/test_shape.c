@@ -183,6 +183,32 @@ static void test_bad_mesh_input_gets_clear_codes(void **state)
     assert_int_equal(sc_last_error(), SC_ETOOBIG);
 }
 
+/* ODE's trimesh preprocessing aborts on vertices no triangle uses: they
+ * must be dropped, not passed on (found by fuzzing the loader). */
+static void test_unused_vertices_are_dropped_not_fatal(void **state)
+{
+    (void)state;
+    double xyz[3 * 40];
+    for (int i = 0; i < 3 * 40; i++)
+        xyz[i] = 0.25 * (i % 7);               /* 32 junk vertices ... */
+    for (int i = 0; i < 24; i++)
+        xyz[3 * 32 + i] = cube_xyz[i];         /* ... then the cube's 8 */
+    int tri[36];
+    for (int i = 0; i < 36; i++)
+        tri[i] = cube_tri[i] + 32;
+    sc_shape *s = sc_shape_mesh(xyz, 40, tri, 12);
+    assert_non_null(s);
+    int nv = 0;
+    const int *t = NULL;
+    assert_int_equal(sc_shape_mesh_data(s, NULL, &nv, &t, NULL), SC_OK);
+    assert_int_equal(nv, 8);
+    assert_int_equal(t[0], cube_tri[0]);
+    sc_mass_props mp;
+    assert_int_equal(sc_shape_mass_props(s, &mp), SC_OK);
+    assert_true(fabs(mp.volume - 24) < 1e-12);
+    sc_shape_release(s);
+}
+
 static void test_bad_analytic_parameters_are_rejected(void **state)
 {
     (void)state;
@@ -258,6 +284,7 @@ int main(void)
         cmocka_unit_test(test_bolt_and_nut_volumes_match_closed_form),
         cmocka_unit_test(test_open_and_inverted_meshes_are_rejected),
         cmocka_unit_test(test_bad_mesh_input_gets_clear_codes),
+        cmocka_unit_test(test_unused_vertices_are_dropped_not_fatal),
         cmocka_unit_test(test_bad_analytic_parameters_are_rejected),
         cmocka_unit_test(test_convex_hull_shape_of_cube_points),
         cmocka_unit_test(test_shapes_are_reference_counted),

@@ -1,0 +1,119 @@
+/* island.c - contact-graph islands (the paper's "extracting the contact
+ * graph"): union-find over the contacts of awake dynamic bodies. Static and
+ * sleeping bodies do not join islands, so a floor does not merge every pile
+ * into one LCP. Output is canonical: islands ordered by their smallest body
+ * id, bodies ascending, contacts in the (canonical) contact order. */
+#include <stdlib.h>
+#include <string.h>
+
+#include "sc_internal.h"
+
+static int find(int *parent, int i)
+{
+    while (parent[i] != i) {
+        parent[i] = parent[parent[i]];   /* path halving */
+        i = parent[i];
+    }
+    return i;
+}
+
+static void unite(int *parent, int a, int b)
+{
+    a = find(parent, a);
+    b = find(parent, b);
+    /* the smaller id becomes the root: roots are then canonical */
+    if (a < b)
+        parent[b] = a;
+    else if (b < a)
+        parent[a] = b;
+}
+
+void sc_islands_free(sc_islands *is)
+{
+    if (!is)
+        return;
+    free(is->body_start);
+    free(is->bodies);
+    free(is->contact_start);
+    free(is->contacts);
+    memset(is, 0, sizeof *is);
+}
+
+int sc_islands_build(int nbodies, const unsigned char *joins, const sc_contact *c,
+                     int ncontacts, sc_islands *is)
+{
+    if (nbodies < 0 || ncontacts < 0 || !joins || !is || (ncontacts && !c))
+        return SC_EINVAL;
+    sc_islands_free(is);
+    int *parent = sc_alloc_array((size_t)nbodies, sizeof *parent);
+    int *slot = sc_alloc_array((size_t)nbodies, sizeof *slot);
+    is->body_start = sc_calloc_array((size_t)nbodies + 1, sizeof *is->body_start);
+    is->bodies = sc_alloc_array((size_t)nbodies, sizeof *is->bodies);
+    is->contact_start = sc_calloc_array((size_t)nbodies + 1, sizeof *is->contact_start);
+    is->contacts = sc_alloc_array((size_t)ncontacts, sizeof *is->contacts);
+    int rc = SC_ENOMEM;
+    if (!parent || !slot || !is->body_start || !is->bodies || !is->contact_start || !is->contacts)
+        goto out;
+    for (int i = 0; i < nbodies; i++)
+        parent[i] = i;
+    for (int k = 0; k < ncontacts; k++) {
+        int a = c[k].body_a, b = c[k].body_b;
+        if (a < 0 || b < 0 || a >= nbodies || b >= nbodies) {
+            rc = SC_EINVAL;
+            goto out;
+        }
+        if (joins[a] && joins[b])
+            unite(parent, a, b);
+    }
+    /* number islands by first appearance of their root in id order */
+    int n = 0;
+    for (int i = 0; i < nbodies; i++)
+        slot[i] = -1;
+    for (int i = 0; i < nbodies; i++) {
+        if (!joins[i])
+            continue;
+        int r = find(parent, i);
+        if (slot[r] < 0)
+            slot[r] = n++;
+        is->body_start[slot[r] + 1]++;
+    }
+    /* an island's contacts: those touching one of its bodies */
+    for (int k = 0; k < ncontacts; k++) {
+        int a = c[k].body_a, b = c[k].body_b;
+        int owner = joins[a] ? a : (joins[b] ? b : -1);
+        if (owner >= 0)
+            is->contact_start[slot[find(parent, owner)] + 1]++;
+    }
+    for (int i = 0; i < n; i++) {
+        is->body_start[i + 1] += is->body_start[i];
+        is->contact_start[i + 1] += is->contact_start[i];
+    }
+    /* island of each body; then parent's storage becomes the fill cursor */
+    for (int i = 0; i < nbodies; i++)
+        if (joins[i])
+            parent[i] = find(parent, i);
+    for (int i = 0; i < nbodies; i++)
+        slot[i] = joins[i] ? slot[parent[i]] : -1;   /* roots come first: r <= i */
+    int *root_of = slot, *fill = parent;
+    for (int i = 0; i < n; i++)
+        fill[i] = is->body_start[i];
+    for (int i = 0; i < nbodies; i++)
+        if (root_of[i] >= 0)
+            is->bodies[fill[root_of[i]]++] = i;
+    for (int i = 0; i < n; i++)
+        fill[i] = is->contact_start[i];
+    for (int k = 0; k < ncontacts; k++) {
+        int a = c[k].body_a, b = c[k].body_b;
+        int owner = joins[a] ? a : (joins[b] ? b : -1);
+        if (owner >= 0)
+            is->contacts[fill[root_of[owner]]++] = k;
+    }
+    is->count = n;
+    rc = SC_OK;
+out:
+    free(parent);
+    free(slot);
+    if (rc != SC_OK)
+        sc_islands_free(is);
+    return rc;
+}
