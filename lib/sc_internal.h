@@ -92,7 +92,7 @@ int sc_hull_build(const double *pts, int n, double **xyz, int *nverts,
                   int **tri, int *ntris);
 
 /* Mesh file parsing (shape_load.c): OBJ, ASCII STL or binary STL from memory,
- * STL vertices welded. Returns SC_OK with arrays the caller frees, or
+ * STL vertices welded, OBJ vertices no face uses dropped. Returns SC_OK with arrays the caller frees, or
  * SC_EFORMAT / SC_ETOOBIG / SC_ENOMEM. Does not check closedness. */
 int sc_mesh_parse(const void *buf, size_t len, double **xyz, int *nverts,
                   int **tri, int *ntris);
@@ -112,6 +112,19 @@ void sc_bp_destroy(sc_broadphase *bp);
 int sc_bp_find_pairs(sc_broadphase *bp, int method, const double *c, const double *r,
                      const unsigned char *active, int n, sc_pair **pairs, int *cap);
 
+/* ---- islands (island.c) ---- */
+typedef struct sc_islands {
+    int count;
+    int *body_start, *bodies;        /* island i: bodies[body_start[i] .. body_start[i+1]) */
+    int *contact_start, *contacts;   /* and contact indices, same layout */
+} sc_islands;
+/* Union-find over contacts between bodies with joins[i] != 0 (awake,
+ * dynamic); a contact with one joining body belongs to that body's island,
+ * one with none to no island. Canonical order throughout. */
+int sc_islands_build(int nbodies, const unsigned char *joins, const sc_contact *c,
+                     int ncontacts, sc_islands *is);
+void sc_islands_free(sc_islands *is);
+
 /* ---- LCP (lcp.c) ---- */
 typedef struct sc_lcp_info {
     long pivots;              /* principal pivots made */
@@ -128,5 +141,42 @@ int sc_lcp_dantzig(int n, const double *M, const double *q, double *z, double *w
 int sc_lcp_boxed(int n, const double *M, const double *q, const double *lo,
                  const double *hi, const int *findex, const double *mu,
                  double *z, double *w, sc_lcp_info *info);
+
+/* L D U factorisation of the clamped block M_CC of an n x n row-major M,
+ * updated as indices enter (sc_ldu_border + sc_ldu_commit) and leave
+ * (sc_ldu_remove), O(m^2) each (lcp_factor.c). U = L^T when sym. */
+typedef struct sc_ldu {
+    int n;                    /* capacity (M is n x n) */
+    int m;                    /* indices in the factorisation */
+    int sym;                  /* M symmetric: ut aliases l */
+    int bordered;             /* M index prepared at position m, or -1 */
+    double *l;                /* row r: L[r][0..r-1], stride n */
+    double *ut;               /* row r: U[0..r-1][r], stride n */
+    double *d;                /* pivots */
+    double *x, *y;            /* scratch */
+    int *idx;                 /* M index of each factor position */
+} sc_ldu;
+/* Bytes of the memory sc_ldu_init() needs (aligned for double). */
+size_t sc_ldu_size(int n, int sym);
+void sc_ldu_init(sc_ldu *f, int n, int sym, void *mem);
+/* Prepare M index j as position m; returns its pivot, *scale (may be NULL)
+ * the magnitude of the terms it cancelled from. */
+double sc_ldu_border(sc_ldu *f, const double *M, int j, double *scale);
+/* Make the prepared border part of the factorisation. */
+void sc_ldu_commit(sc_ldu *f);
+/* x = -M_CC^-1 M_{C,j} for the prepared index j (factor order). */
+void sc_ldu_border_direction(const sc_ldu *f, double *x);
+/* v = M_CC^-1 v in place (factor order). */
+void sc_ldu_solve(const sc_ldu *f, double *v);
+/* Remove position k; SC_OK or SC_ENUMERIC (an updated pivot cancelled). */
+int sc_ldu_remove(sc_ldu *f, int k);
+/* Dense m x m solve a v = b in place, partial pivoting; SC_OK or SC_ENUMERIC. */
+int sc_lu_solve(int m, double *a, double *b);
+/* Cottle-Dantzig in tableau form (lcp_tableau.c), the fallback of
+ * sc_lcp_dantzig for singular principal blocks: z of the final basis
+ * (not yet verified), SC_OK, SC_ENOSOLUTION (ray), SC_EMAXITER or
+ * SC_ENOMEM; *pivots is increased by the pivots made. */
+int sc_lcp_ppm_tableau(int n, const double *M, const double *q, double *z,
+                       long max_pivots, long *pivots);
 
 #endif /* SC_INTERNAL_H */
