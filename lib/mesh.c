@@ -121,8 +121,9 @@ int sc_mesh_check(const double *xyz, int nverts, const int *tri, int ntris, sc_m
     double scale = v3_len(ext);
     if (!(scale > 0) || !isfinite(scale))
         return SC_EDEGENERATE;
-    /* Triangles whose area is below this are slivers no collider can use. */
-    double min_area2 = 1e-24 * scale * scale * scale * scale;
+    /* Triangles whose area is below 1e-12 scale^2 are slivers no collider
+     * can use; ratios divide by scale one factor at a time so that meshes
+     * at 1e+-150 neither overflow nor underflow. */
     for (int t = 0; t < ntris; t++) {
         const int *f = &tri[3 * t];
         for (int k = 0; k < 3; k++)
@@ -134,7 +135,7 @@ int sc_mesh_check(const double *xyz, int nverts, const int *tri, int ntris, sc_m
         v3_sub(e1, &xyz[3 * f[1]], &xyz[3 * f[0]]);
         v3_sub(e2, &xyz[3 * f[2]], &xyz[3 * f[0]]);
         v3_cross(n, e1, e2);
-        if (!(v3_dot(n, n) > min_area2))
+        if (!(v3_len(n) / scale / scale > 1e-12))
             return SC_EDEGENERATE;
     }
     int rc = check_closed(tri, ntris);
@@ -142,10 +143,16 @@ int sc_mesh_check(const double *xyz, int nverts, const int *tri, int ntris, sc_m
         return rc;
     sc_mass_props p = { 0 };
     mass_props(xyz, nverts, tri, ntris, ref, &p);
+    /* Mass properties beyond double range (inertia grows as size^5) */
+    int finite = isfinite(p.volume) && sc_finite3(p.com);
+    for (int k = 0; k < 9; k++)
+        finite = finite && isfinite(p.inertia[k]);
+    if (!finite)
+        return SC_ETOOBIG;
     /* Closed and consistent but inside out: the volume comes out negative. */
     if (p.volume < 0)
         return SC_ENOTCLOSED;
-    if (!(p.volume > 1e-15 * scale * scale * scale))
+    if (!(p.volume / scale / scale / scale > 1e-15))
         return SC_EDEGENERATE;
     if (mp)
         *mp = p;

@@ -129,6 +129,9 @@ void sc_islands_free(sc_islands *is);
 typedef struct sc_lcp_info {
     long pivots;              /* principal pivots made */
     double residual;          /* max complementarity / feasibility violation */
+    int lemke;                /* 1: principal pivoting stalled on a singular
+                                 block and Lemke's method (also exact, also
+                                 verified) gave the answer */
 } sc_lcp_info;
 
 /* The standard LCP by Cottle-Dantzig principal pivoting; info may be NULL. */
@@ -172,11 +175,11 @@ void sc_ldu_solve(const sc_ldu *f, double *v);
 int sc_ldu_remove(sc_ldu *f, int k);
 /* Dense m x m solve a v = b in place, partial pivoting; SC_OK or SC_ENUMERIC. */
 int sc_lu_solve(int m, double *a, double *b);
-/* Cottle-Dantzig in tableau form (lcp_tableau.c), the fallback of
- * sc_lcp_dantzig for singular principal blocks: z of the final basis
- * (not yet verified), SC_OK, SC_ENOSOLUTION (ray), SC_EMAXITER or
- * SC_ENOMEM; *pivots is increased by the pivots made. */
-int sc_lcp_ppm_tableau(int n, const double *M, const double *q, double *z,
-                       long max_pivots, long *pivots);
+/* Lemke's method (lcp_lemke.c), the fallback of sc_lcp_dantzig when a
+ * principal block is singular: z of the final basis (not yet verified),
+ * SC_OK, SC_ENOSOLUTION (secondary ray), SC_EMAXITER (*pivots reached
+ * max_pivots) or SC_ENOMEM; *pivots is increased by the pivots made. */
+int sc_lcp_lemke(int n, const double *M, const double *q, double *z, long max_pivots,
+                 long *pivots);
 
 #endif /* SC_INTERNAL_H */

@@ -38,6 +38,32 @@ static void test_box_mesh_mass_props_match_analytic_box(void **state)
     sc_shape_release(s);
 }
 
+/* Validation ratios must not overflow or underflow at extreme scales (up
+ * to where the inertia, ~L^5, is still a double); beyond, a clear code. */
+static void test_mesh_checks_work_at_extreme_scales(void **state)
+{
+    (void)state;
+    double huge[24];
+    for (int i = 0; i < 24; i++)
+        huge[i] = cube_xyz[i] * 1e100;
+    assert_null(sc_shape_mesh(huge, 8, cube_tri, 12));
+    assert_int_equal(sc_last_error(), SC_ETOOBIG);
+    const double scales[] = { 1e-60, 1e-30, 1e30, 1e60 };
+    for (int k = 0; k < 4; k++) {
+        double xyz[24];
+        for (int i = 0; i < 24; i++)
+            xyz[i] = cube_xyz[i] * scales[k];
+        sc_shape *s = sc_shape_mesh(xyz, 8, cube_tri, 12);
+        assert_non_null(s);
+        sc_mass_props mp;
+        assert_int_equal(sc_shape_mass_props(s, &mp), SC_OK);
+        double v = 24 * scales[k] * scales[k] * scales[k];
+        if (isfinite(v) && v > 0)
+            assert_true(fabs(mp.volume - v) < 1e-9 * v);
+        sc_shape_release(s);
+    }
+}
+
 static void test_analytic_box_matches_its_mesh(void **state)
 {
     (void)state;
@@ -278,6 +304,7 @@ int main(void)
 {
     const struct CMUnitTest tests[] = {
         cmocka_unit_test(test_box_mesh_mass_props_match_analytic_box),
+        cmocka_unit_test(test_mesh_checks_work_at_extreme_scales),
         cmocka_unit_test(test_analytic_box_matches_its_mesh),
         cmocka_unit_test(test_uv_sphere_converges_to_analytic_sphere),
         cmocka_unit_test(test_paper_shapes_have_the_papers_triangle_counts),

@@ -1,0 +1,934 @@
+/* lcp.c - the contact LCP solver (the paper's step (7)): Cottle-Dantzig
+ * principal pivoting as Baraff describes it (D. Baraff, "Fast contact force
+ * computation for nonpenetrating rigid bodies", SIGGRAPH 1994, section 4:
+ * compute-forces / drive-to-zero / fdirection / maxstep), extended to
+ * bounds lo <= z <= hi (the boxed LCP of ODE's dSolveLCP) and to Coulomb
+ * friction bounds +-mu z_normal.
+ *
+ * Problem: w = M z + q with, for every i, one of
+ *   z_i = lo_i and w_i >= 0,   z_i = hi_i and w_i <= 0,   lo_i <= z_i <= hi_i and w_i = 0.
+ * The standard LCP (z >= 0, w >= 0, z.w = 0) is lo = 0, hi = +inf; for
+ * contacts (the paper's V' = A P + V) M = A = J W J^T, z = P, w = V'.
+ *
+ * Method. Indices are taken in order 0..n-1. Each one, d, is driven (Baraff's
+ * drive-to-zero): z_d moves towards making (z_d, w_d) valid while every
+ * index already settled stays valid: clamped ones (set C: w = 0) move z_C
+ * so that w_C stays 0 (fdirection: M_CC dz_C = -M_Cd), free ones (at a
+ * bound) keep z and let w move. The step stops at the first event (maxstep):
+ * d becomes valid (w_d = 0: d joins C; or z_d reaches its bound), a clamped
+ * z reaches a bound (it leaves C), or a free w reaches 0 (it joins C). The
+ * direction solve uses an L D U factorisation of M_CC (lcp_factor.c) that
+ * is bordered when an index joins C and downdated when one leaves. Boxes
+ * that exclude 0 are shifted first (z = c + z', c = clamp(0, lo, hi)), so
+ * z' = 0 is a valid start. After the pass z_C is recomputed from scratch
+ * with one refinement step and any index the drift left invalid is driven
+ * again (finish()).
+ *
+ * Cost per pivot: the direction solve is a bordering (one or two triangular
+ * solves of size m = |C|) plus one back substitution, O(m^2); dw for the
+ * free indices is O(n m); moving an index in or out of the factorisation is
+ * O(m^2). So a pivot is O(n^2), never the O(m^3) of refactorising M_CC.
+ * Memory: one allocation per call, nothing allocated in the pivot loop.
+ *
+ * Singular M_CC (positive semidefinite M: 8 contact points on one box face
+ * give 8 rows of rank 3, and any number of contacts on one body rank <= 6).
+ * For symmetric PSD M the method keeps M_CC nonsingular by itself: an
+ * index j joins C only when its w is pushed through 0 (dw_j < 0), and with
+ * Schur complements s_j, s_d of j and d over C and coupling t = dw_j, the
+ * 2x2 block [s_j t; t s_d] is PSD, so s_j >= t^2 / s_d > 0. Only d's own
+ * pivot s_d = dw_d can vanish: then column d is a combination of the
+ * clamped columns and the whole direction changes no w (dw = 0). We do not
+ * add d then (M_CC would be singular); d's direction moves load from
+ * clamped indices to d at constant w until a clamped z reaches its bound
+ * and leaves C, after which s_d > 0. If no clamped z decreases, dz >= 0
+ * with M dz = 0 and dz.w = w_d < 0 prove that no z >= 0 has M z + q >= 0:
+ * SC_ENOSOLUTION. Numerically "vanish" means |pivot| <= LCP_TAU_PIV times
+ * the terms it cancelled from; any index (also for non-symmetric or
+ * indefinite M) joins C only with a pivot above that, otherwise it is
+ * passed over for that step. A non-symmetric PSD M (e.g. skew-symmetric)
+ * can need a 2x2 block pivot that this form cannot make; when it fails,
+ * sc_lcp_dantzig() runs Lemke's method (lcp_lemke.c), which processes
+ * every PSD problem.
+ *
+ * Friction (findex): the bounds +-mu_i |z_normal| depend on the answer.
+ * Rounds of a fixed point: round 0 with the normals at 0 (frictionless),
+ * each later round with the bounds of the previous answer, warm-started
+ * from its sets so that the load split between redundant contacts stays
+ * put; after each round the same sets are also solved with the coupling
+ * exact (friction_polish()). SC_OK as soon as an answer satisfies the
+ * bounds it implies itself.
+ *
+ * Tolerances (eps = DBL_EPSILON, S_i = |q_i| + sum_j |M_ij z_j|, the size
+ * of the terms that make w_i, so (n+1) eps S_i bounds the rounding of
+ * w_i): an index is driven when its w is wrong by more than
+ * LCP_DRIVE (n+1) eps S_i; SC_OK requires every violation (see verify())
+ * to be at most LCP_VERIFY (n+1) eps S_i.
+ *
+ * Failure is reported, never hidden: no blocking event (unbounded ray) is
+ * SC_ENOSOLUTION, more than LCP_MAX_PIVOTS(n) pivots in one pass (cycling
+ * on degenerate ties, or an exponential path such as Murty's) or friction
+ * rounds that do not settle is SC_EMAXITER, a cancelling downdate or a
+ * final check that fails is SC_ENUMERIC. Before SC_OK the answer is
+ * checked against the original data. On error z and w hold the last
+ * iterate, for diagnostics only.
+ */
+#include <float.h>
+#include <math.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "sc_internal.h"
+
+/* A pivot is singular when |pivot| <= LCP_TAU_PIV * (the magnitude of the
+ * terms it was computed from): exact redundancy leaves ~1e-16 there, a
+ * genuine pivot of a well-posed contact problem is far above 1e-10. */
+#define LCP_TAU_PIV 1e-10
+/* Rounding noise of dw_i and dz_i: LCP_NOISE (n+1) eps times their scale. */
+#define LCP_NOISE 8.0
+/* An index is driven when its w is wrong by more than LCP_DRIVE (n+1) eps
+ * times the scale S_i = |q_i| + sum_j |M_ij z_j| of the terms of w_i. */
+#define LCP_DRIVE 100.0
+/* SC_OK requires every violation <= LCP_VERIFY (n+1) eps S_i (10x the
+ * drive threshold, so that rounding in the final solve never fails it). */
+#define LCP_VERIFY 1000.0
+/* Pivot limit per pass: Cottle-Dantzig needs one to five pivots per index
+ * on contact problems (bench/bench_lcp.c); 2^n - 1 paths exist (Murty's
+ * example) but not on those. */
+#define LCP_MAX_PIVOTS(n) (10L * (n) + 100L)
+/* Refresh-and-redrive rounds after the main pass (see finish()). */
+#define LCP_SWEEPS 4
+/* Friction: fixed-point rounds on the bounds +-mu z_normal. */
+#define LCP_FRICTION_ROUNDS 30
+
+enum { ST_UNSEEN, ST_DRIVE, ST_C, ST_LO, ST_HI, ST_FREE };
+
+/* Events that end a step (Baraff's maxstep). */
+enum { EV_NONE, EV_D_TO_C, EV_D_TO_BOUND, EV_LEAVE_C, EV_ENTER_C };
+
+typedef struct lcp {
+    int n;
+    const double *M;
+    const double *q, *lo, *hi;   /* shifted so that lo <= 0 <= hi */
+    double *z, *w;
+    double *dzc;                 /* dz of C, factor order */
+    double *dw;                  /* dw by index (free indices only) */
+    double *rowabs;              /* sum_j |M_ij| */
+    double *wtol;                /* drive tolerance of each settled index */
+    double *tmp;                 /* n scratch */
+    signed char *st;             /* ST_* by index */
+    long *mark;                  /* pivot stamp: index passed over */
+    long *left_run;              /* run stamp: index left C at a zero step */
+    long run;                    /* counts steps of nonzero length */
+    sc_ldu f;
+    double eps_n;                /* (n + 1) DBL_EPSILON */
+    long pivots, max_pivots;
+} lcp;
+
+typedef struct step {
+    int ev;                      /* EV_* */
+    int who;                     /* index (EV_LEAVE_C: factor position) */
+    double t;                    /* step length along dz */
+    int to_hi;                   /* bound reached is hi */
+} step;
+
+/* ---- small helpers -------------------------------------------------- */
+
+/* Whether a pivot is clearly nonzero. For symmetric M (PSD when it comes
+ * from contacts) it must also be positive: every Schur complement of a PSD
+ * matrix is >= 0, so a negative one is rounding on a near-singular block. */
+static int significant(const lcp *s, double pivot, double scale)
+{
+    return (s->f.sym ? pivot : fabs(pivot)) > LCP_TAU_PIV * scale;
+}
+
+/* S_i = |q_i| + sum_j |M_ij z_j|: the size of the terms that make w_i,
+ * hence of its rounding error. */
+static double w_scale(const double *M, const double *q, const double *z, int n, int i)
+{
+    const double *row = M + (size_t)i * n;
+    double s = fabs(q[i]);
+    for (int j = 0; j < n; j++)
+        s += fabs(row[j] * z[j]);
+    return s;
+}
+
+static double row_dot(const double *M, const double *z, int n, int i)
+{
+    const double *row = M + (size_t)i * n;
+    double s = 0;
+    for (int j = 0; j < n; j++)
+        s += row[j] * z[j];
+    return s;
+}
+
+static int all_finite(const double *v, size_t n)
+{
+    for (size_t i = 0; i < n; i++)
+        if (!isfinite(v[i]))
+            return 0;
+    return 1;
+}
+
+/* ---- index sets ------------------------------------------------------ */
+
+/* Put index d, whose border is prepared, into C. */
+static void join_c(lcp *s, int d)
+{
+    SC_ASSERT(s->f.bordered == d);
+    sc_ldu_commit(&s->f);
+    s->st[d] = ST_C;
+    s->w[d] = 0;
+}
+
+/* If (z_d, w_d) is valid (within tol), file d under its set and return 1.
+ * An interior z_d with w_d = 0 joins C when its pivot allows, otherwise it
+ * is ST_FREE: w_d must stay 0 although d is not in the factorisation. */
+static int try_settle(lcp *s, int d, double tol)
+{
+    double z = s->z[d], w = s->w[d];
+    s->wtol[d] = tol;
+    if (z <= s->lo[d] && w >= -tol) {
+        s->z[d] = s->lo[d];
+        s->st[d] = ST_LO;
+        return 1;
+    }
+    if (z >= s->hi[d] && w <= tol) {
+        s->z[d] = s->hi[d];
+        s->st[d] = ST_HI;
+        return 1;
+    }
+    if (fabs(w) <= tol) {
+        double scale, piv = sc_ldu_border(&s->f, s->M, d, &scale);
+        if (significant(s, piv, scale))
+            join_c(s, d);
+        else
+            s->st[d] = ST_FREE;
+        return 1;
+    }
+    return 0;
+}
+
+/* ---- one pivot ------------------------------------------------------- */
+
+/* Baraff's fdirection for driving d by dir = +-1: dz_d = dir,
+ * dz_C = -dir M_CC^-1 M_Cd, and dw = M dz on the free indices. Returns
+ * d's own dw_d = dir * (its Schur complement), 0 when that pivot is
+ * singular (*null_dir set: then dw = 0 in exact arithmetic for PSD M). */
+static double direction(lcp *s, int d, int dir, int *null_dir, double *dzmax)
+{
+    const int n = s->n, m = s->f.m;
+    double scale, piv = sc_ldu_border(&s->f, s->M, d, &scale);
+    sc_ldu_border_direction(&s->f, s->dzc);
+    double big = 1.0;
+    for (int k = 0; k < m; k++) {
+        s->dzc[k] *= dir;
+        big = fmax(big, fabs(s->dzc[k]));
+    }
+    *dzmax = big;
+    for (int i = 0; i < n; i++) {
+        if (s->st[i] != ST_LO && s->st[i] != ST_HI && s->st[i] != ST_FREE)
+            continue;
+        const double *row = s->M + (size_t)i * n;
+        double acc = dir * row[d];
+        for (int k = 0; k < m; k++)
+            acc += row[s->f.idx[k]] * s->dzc[k];
+        s->dw[i] = acc;
+    }
+    *null_dir = !significant(s, piv, scale);
+    return *null_dir ? 0.0 : dir * piv;
+}
+
+static void consider(step *best, int ev, int who, double t, int to_hi)
+{
+    t = fmax(t, 0.0);   /* rounding can put a value a hair past its bound */
+    if (t < best->t) {
+        best->ev = ev;
+        best->who = who;
+        best->t = t;
+        best->to_hi = to_hi;
+    }
+}
+
+/* maxstep, part 1: events of d itself and of the clamped indices. */
+static step steps_d_and_c(const lcp *s, int d, int dir, double dwd, double dzmax)
+{
+    step best = { EV_NONE, -1, INFINITY, 0 };
+    if (dwd * s->w[d] < 0)
+        consider(&best, EV_D_TO_C, d, -s->w[d] / dwd, 0);
+    if (dir > 0 && isfinite(s->hi[d]))
+        consider(&best, EV_D_TO_BOUND, d, s->hi[d] - s->z[d], 1);
+    if (dir < 0 && isfinite(s->lo[d]))
+        consider(&best, EV_D_TO_BOUND, d, s->z[d] - s->lo[d], 0);
+    double ztol = LCP_NOISE * s->eps_n * dzmax;
+    for (int k = 0; k < s->f.m; k++) {
+        int i = s->f.idx[k];
+        double dz = s->dzc[k];
+        if (dz < -ztol && isfinite(s->lo[i]))
+            consider(&best, EV_LEAVE_C, k, (s->lo[i] - s->z[i]) / dz, 0);
+        else if (dz > ztol && isfinite(s->hi[i]))
+            consider(&best, EV_LEAVE_C, k, (s->hi[i] - s->z[i]) / dz, 1);
+    }
+    return best;
+}
+
+/* A free index whose w is on the wrong side by more than its tolerance:
+ * only after a refresh (finish()), until it is driven. Such an index does
+ * not block others: only valid indices do. */
+static int invalid(const lcp *s, int i)
+{
+    double w = s->w[i], tol = s->wtol[i];
+    switch (s->st[i]) {
+    case ST_LO: return w < -tol;
+    case ST_HI: return w > tol;
+    case ST_FREE: return fabs(w) > tol;
+    default: return 0;
+    }
+}
+
+/* maxstep, part 2: the free index whose w first reaches 0 (skipping those
+ * passed over in this pivot). dw below its noise level counts as 0; in a
+ * null direction the noise level is the singular-pivot one. */
+static void steps_free(const lcp *s, step *best, double dzmax, int null_dir)
+{
+    double rel = null_dir ? LCP_TAU_PIV : LCP_NOISE * s->eps_n;
+    for (int i = 0; i < s->n; i++) {
+        int st = s->st[i];
+        if ((st != ST_LO && st != ST_HI && st != ST_FREE) || s->mark[i] == s->pivots)
+            continue;
+        double dw = s->dw[i], wt = rel * s->rowabs[i] * dzmax, w = s->w[i];
+        if (invalid(s, i))
+            continue;   /* waiting to be driven itself (finish()) */
+        double t;
+        if ((st == ST_LO && dw < -wt) || (st == ST_HI && dw > wt))
+            t = -w / dw;
+        else if (st == ST_FREE && fabs(dw) > wt)
+            t = w * dw < 0 ? -w / dw : 0.0;
+        else
+            continue;
+        /* anti-cycling: an index that left C in this run of zero-length
+         * steps may not come straight back (on a near-singular block,
+         * rounding can make it look blocking both ways) */
+        if (t <= 0 && s->left_run[i] == s->run)
+            continue;
+        consider(best, EV_ENTER_C, i, t, 0);
+    }
+}
+
+/* The full maxstep: a free index may only win if it can join C with a
+ * nonsingular pivot; one that cannot is passed over (marked) and the
+ * choice is made again. */
+static step maxstep(lcp *s, int d, int dir, double dwd, double dzmax, int null_dir)
+{
+    step base = steps_d_and_c(s, d, dir, dwd, dzmax);
+    for (;;) {
+        step best = base;
+        steps_free(s, &best, dzmax, null_dir);
+        if (best.ev != EV_ENTER_C)
+            return best;
+        double scale, piv = sc_ldu_border(&s->f, s->M, best.who, &scale);
+        if (significant(s, piv, scale))
+            return best;
+        s->mark[best.who] = s->pivots;
+    }
+}
+
+/* Move along the direction by t: z on C and d, w on the free indices and d. */
+static void advance(lcp *s, int d, int dir, double dwd, double t)
+{
+    if (t > 0)
+        s->run++;
+    for (int k = 0; k < s->f.m; k++)
+        s->z[s->f.idx[k]] += t * s->dzc[k];
+    s->z[d] += t * dir;
+    s->w[d] += t * dwd;
+    for (int i = 0; i < s->n; i++)
+        if (s->st[i] == ST_LO || s->st[i] == ST_HI || s->st[i] == ST_FREE)
+            s->w[i] += t * s->dw[i];
+}
+
+/* Apply the event that ended the step. Returns 1 to keep driving d, 0 when
+ * d is settled, or a negative code. */
+static int transfer(lcp *s, int d, const step *e)
+{
+    switch (e->ev) {
+    case EV_D_TO_C:
+        if (s->f.bordered != d) {
+            double scale, piv = sc_ldu_border(&s->f, s->M, d, &scale);
+            if (!significant(s, piv, scale))
+                return SC_ENUMERIC;
+        }
+        join_c(s, d);
+        return 0;
+    case EV_D_TO_BOUND:
+        s->z[d] = e->to_hi ? s->hi[d] : s->lo[d];
+        s->st[d] = e->to_hi ? ST_HI : ST_LO;
+        return 0;
+    case EV_LEAVE_C: {
+        int i = s->f.idx[e->who];
+        s->z[i] = e->to_hi ? s->hi[i] : s->lo[i];
+        s->w[i] = 0;
+        s->st[i] = e->to_hi ? ST_HI : ST_LO;
+        if (e->t <= 0)
+            s->left_run[i] = s->run;
+        return sc_ldu_remove(&s->f, e->who) == SC_OK ? 1 : SC_ENUMERIC;
+    }
+    case EV_ENTER_C:
+        SC_ASSERT(s->f.bordered == e->who);
+        join_c(s, e->who);
+        return 1;
+    default:
+        return SC_ENOSOLUTION;
+    }
+}
+
+/* Baraff's drive-to-zero for index d. */
+static int drive(lcp *s, int d)
+{
+    s->st[d] = ST_DRIVE;
+    s->run++;
+    for (;;) {
+        double tol = LCP_DRIVE * s->eps_n * w_scale(s->M, s->q, s->z, s->n, d);
+        if (try_settle(s, d, tol))
+            return SC_OK;
+        if (++s->pivots > s->max_pivots)
+            return SC_EMAXITER;
+        int dir = s->w[d] < 0 ? 1 : -1, null_dir;
+        double dzmax, dwd = direction(s, d, dir, &null_dir, &dzmax);
+        step e = maxstep(s, d, dir, dwd, dzmax, null_dir);
+        if (e.ev == EV_NONE)
+            return SC_ENOSOLUTION;   /* an unbounded ray: see the header */
+        advance(s, d, dir, dwd, e.t);
+        int rc = transfer(s, d, &e);
+        if (rc <= 0)
+            return rc;
+    }
+}
+
+/* ---- end game ---------------------------------------------------------- */
+
+/* Recompute z_C from scratch, M_CC z_C = -(q_C + M_{C,N} z_N), with one
+ * step of iterative refinement, then every w = M z + q: this removes the
+ * drift of the incremental updates. Also sets every drive tolerance. */
+static void refresh(lcp *s)
+{
+    const int n = s->n, m = s->f.m;
+    const int *idx = s->f.idx;
+    double *zc = s->dzc, *r = s->dw;
+    for (int k = 0; k < m; k++)
+        s->z[idx[k]] = 0;
+    for (int k = 0; k < m; k++)
+        r[k] = -s->q[idx[k]] - row_dot(s->M, s->z, n, idx[k]);
+    memcpy(zc, r, (size_t)m * sizeof(double));
+    sc_ldu_solve(&s->f, zc);
+    double *res = s->tmp;
+    for (int k = 0; k < m; k++) {
+        const double *row = s->M + (size_t)idx[k] * n;
+        double a = r[k];
+        for (int l = 0; l < m; l++)
+            a -= row[idx[l]] * zc[l];
+        res[k] = a;
+    }
+    sc_ldu_solve(&s->f, res);
+    for (int k = 0; k < m; k++)
+        s->z[idx[k]] = zc[k] + res[k];
+    for (int i = 0; i < n; i++) {
+        s->w[i] = s->q[i] + row_dot(s->M, s->z, n, i);
+        s->wtol[i] = LCP_DRIVE * s->eps_n * w_scale(s->M, s->q, s->z, n, i);
+    }
+}
+
+/* Take out of C every index whose refreshed z is beyond a bound (at that
+ * bound now); returns how many, or SC_ENUMERIC. */
+static int drop_out_of_bounds(lcp *s)
+{
+    int dropped = 0;
+    double zmax = 0;
+    for (int i = 0; i < s->n; i++)
+        zmax = fmax(zmax, fabs(s->z[i]));
+    double tz = LCP_DRIVE * s->eps_n * zmax;
+    for (int k = s->f.m - 1; k >= 0; k--) {
+        int i = s->f.idx[k];
+        if (s->z[i] < s->lo[i] - tz || s->z[i] > s->hi[i] + tz) {
+            int hi = s->z[i] > s->hi[i];
+            s->z[i] = hi ? s->hi[i] : s->lo[i];
+            s->st[i] = hi ? ST_HI : ST_LO;
+            if (sc_ldu_remove(&s->f, k) != SC_OK)
+                return SC_ENUMERIC;
+            dropped++;
+        } else {
+            s->z[i] = fmin(fmax(s->z[i], s->lo[i]), s->hi[i]);
+            s->w[i] = 0;
+        }
+    }
+    return dropped;
+}
+
+/* After a pass: refresh, then repair - clamped z beyond a bound leave C,
+ * free indices whose refreshed w is off by more than the drive tolerance
+ * are driven again (Baraff's "while some a_i < 0" loop, on exact values).
+ * Dropping rounds are bounded by |C|; driving rounds by LCP_SWEEPS. */
+static int finish(lcp *s)
+{
+    for (int sweeps = 0; sweeps < LCP_SWEEPS;) {
+        refresh(s);
+        int dropped = drop_out_of_bounds(s);
+        if (dropped < 0)
+            return dropped;
+        if (dropped > 0)
+            continue;
+        int driven = 0;
+        for (int i = 0; i < s->n; i++) {
+            if (!invalid(s, i))
+                continue;
+            driven = 1;
+            int rc = drive(s, i);
+            if (rc != SC_OK)
+                return rc;
+        }
+        if (!driven)
+            return SC_OK;
+        sweeps++;
+    }
+    refresh(s);
+    return SC_OK;   /* verify() has the last word */
+}
+
+/* The whole pass for fixed bounds (already shifted: lo <= 0 <= hi). */
+static int pivot_all(lcp *s)
+{
+    const int n = s->n;
+    memset(s->z, 0, (size_t)n * sizeof(double));
+    for (int i = 0; i < n; i++) {
+        s->st[i] = ST_UNSEEN;
+        s->mark[i] = -1;
+    }
+    s->f.m = 0;
+    s->f.bordered = -1;
+    s->max_pivots = s->pivots + LCP_MAX_PIVOTS(n);   /* per pass */
+    for (int d = 0; d < n; d++) {
+        s->w[d] = s->q[d] + row_dot(s->M, s->z, n, d);
+        int rc = drive(s, d);
+        if (rc != SC_OK)
+            return rc;
+    }
+    return finish(s);
+}
+
+/* A pass that starts from the sets of the previous one (friction rounds,
+ * where only some bounds moved, prevlo/prevhi being the old ones): C is
+ * rebuilt by bordering in its old order (O(m^2) each, O(m^3) once per
+ * pass), indices at a bound that did not move stay there, those at a bound
+ * that moved start again from 0 (unseen), finish() repairs what the new
+ * bounds broke and the unseen ones are driven as in a first pass. Keeps
+ * the previous answer's split of load between redundant contacts, which a
+ * fresh pass would choose anew (and so throw the rounds off). */
+static int pivot_warm(lcp *s, const double *prevlo, const double *prevhi)
+{
+    const int n = s->n, m = s->f.m;
+    int *order = (int *)(void *)s->tmp;   /* n ints fit in n doubles */
+    memcpy(order, s->f.idx, (size_t)m * sizeof(int));
+    s->f.m = 0;
+    s->f.bordered = -1;
+    s->max_pivots = s->pivots + LCP_MAX_PIVOTS(n);
+    for (int i = 0; i < n; i++) {
+        s->mark[i] = -1;
+        int st = s->st[i];
+        if ((st == ST_LO || st == ST_HI) && prevlo[i] == prevhi[i] &&
+            (s->lo[i] != prevlo[i] || s->hi[i] != prevhi[i]))
+            s->st[i] = ST_UNSEEN;
+        if (s->st[i] == ST_UNSEEN)
+            s->z[i] = 0;
+        else if (s->st[i] == ST_LO)
+            s->z[i] = s->lo[i];
+        else if (s->st[i] == ST_HI)
+            s->z[i] = s->hi[i];
+        else
+            s->z[i] = fmin(fmax(s->z[i], s->lo[i]), s->hi[i]);
+    }
+    for (int k = 0; k < m; k++) {
+        int i = order[k];
+        double scale, piv = sc_ldu_border(&s->f, s->M, i, &scale);
+        if (significant(s, piv, scale)) {
+            sc_ldu_commit(&s->f);
+        } else {
+            int hi = s->z[i] - s->lo[i] > s->hi[i] - s->z[i];
+            s->z[i] = hi ? s->hi[i] : s->lo[i];
+            s->st[i] = hi ? ST_HI : ST_LO;
+        }
+    }
+    int rc = finish(s);
+    for (int d = 0; d < n && rc == SC_OK; d++) {
+        if (s->st[d] != ST_UNSEEN)
+            continue;
+        s->w[d] = s->q[d] + row_dot(s->M, s->z, n, d);
+        rc = drive(s, d);
+    }
+    return rc == SC_OK ? finish(s) : rc;
+}
+
+/* ---- verification -------------------------------------------------------- */
+
+/* Largest violation (in units of w) of the boxed conditions by (z, w) and
+ * whether each index is within its tolerance tol_i = LCP_VERIFY (n+1) eps
+ * S_i, S_i = |q_i| + sum_j |M_ij z_j| (the rounding bound of w_i scaled up).
+ * For index i with zs = max_j |z_j|:
+ *   w_i > 0 is allowed only at z_i = lo_i: violation min(w_i, (z_i-lo_i) w_i / zs);
+ *   w_i < 0 only at z_i = hi_i:          min(-w_i, (hi_i-z_i)(-w_i) / zs);
+ * for the standard LCP this is exactly w_i >= -tol_i and z_i w_i <= tol_i zs.
+ * z outside [lo, hi] or anything not finite fails. */
+static int verify(int n, const double *M, const double *q, const double *lo,
+                  const double *hi, const double *z, double *w, double eps_n,
+                  double *residual)
+{
+    double zs = DBL_MIN, worst = 0;
+    int ok = 1;
+    for (int i = 0; i < n; i++)
+        zs = fmax(zs, fabs(z[i]));
+    for (int i = 0; i < n; i++) {
+        w[i] = q[i] + row_dot(M, z, n, i);
+        double tol = LCP_VERIFY * eps_n * w_scale(M, q, z, n, i);
+        double wp = fmax(w[i], 0), wm = fmax(-w[i], 0), v = 0;
+        if (!isfinite(z[i]) || !isfinite(w[i]) || z[i] < lo[i] || z[i] > hi[i])
+            v = INFINITY;
+        if (wp > 0)
+            v = fmax(v, isinf(lo[i]) ? wp : fmin(wp, (z[i] - lo[i]) * wp / zs));
+        if (wm > 0)
+            v = fmax(v, isinf(hi[i]) ? wm : fmin(wm, (hi[i] - z[i]) * wm / zs));
+        if (!(v <= tol))
+            ok = 0;
+        worst = fmax(worst, v);
+    }
+    *residual = worst;
+    return ok;
+}
+
+/* ---- workspace ----------------------------------------------------------- */
+
+typedef struct work {
+    void *mem;
+    lcp s;
+    double *lo, *hi, *shift, *qs, *blo, *bhi, *plo, *phi, *zfix, *zprev, *kmat;
+} work;
+
+static int symmetric(int n, const double *M)
+{
+    for (int i = 0; i < n; i++)
+        for (int j = 0; j < i; j++)
+            if (M[(size_t)i * n + j] != M[(size_t)j * n + i])
+                return 0;
+    return 1;
+}
+
+/* One allocation for everything a call needs (nothing is allocated in the
+ * pivot loop): 17 vectors, kmat (n x n, friction only), two stamp arrays,
+ * the factorisation, the set of each index. */
+static int work_init(work *wk, int n, const double *M, int friction)
+{
+    enum { VECS = 17 };
+    int sym = symmetric(n, M);
+    size_t nd = (size_t)n, nn = nd * nd;
+    if (nd > SIZE_MAX / sizeof(double) / (nd + VECS) / 4)
+        return SC_ENOMEM;
+    size_t bytes = (VECS * nd + (friction ? nn : 0)) * sizeof(double) +
+                   2 * nd * sizeof(long) + sc_ldu_size(n, sym) + nd;
+    wk->mem = malloc(bytes);
+    if (!wk->mem)
+        return SC_ENOMEM;
+    double *p = wk->mem;
+    lcp *s = &wk->s;
+    double **vec[VECS] = { &s->z, &s->w, &s->dzc, &s->dw, &s->rowabs, &s->wtol, &s->tmp,
+                           &wk->lo, &wk->hi, &wk->shift, &wk->qs, &wk->blo,
+                           &wk->bhi, &wk->plo, &wk->phi, &wk->zfix, &wk->zprev };
+    for (int v = 0; v < VECS; v++, p += nd)
+        *vec[v] = p;
+    wk->kmat = friction ? p : NULL;
+    p += friction ? nn : 0;
+    _Static_assert(_Alignof(long) <= _Alignof(double), "stamps follow doubles");
+    s->mark = (long *)(void *)p;
+    s->left_run = s->mark + nd;
+    char *c = (char *)(s->left_run + nd);
+    sc_ldu_init(&s->f, n, sym, c);
+    s->st = (signed char *)(c + sc_ldu_size(n, sym));
+    s->n = n;
+    s->M = M;
+    s->eps_n = (n + 1.0) * DBL_EPSILON;
+    s->pivots = 0;
+    s->run = 0;
+    for (int i = 0; i < n; i++) {
+        s->left_run[i] = -1;
+        double a = 0;
+        for (int j = 0; j < n; j++)
+            a += fabs(M[(size_t)i * n + j]);
+        s->rowabs[i] = a;
+    }
+    return SC_OK;
+}
+
+/* Solve for fixed bounds lo <= hi: shift z by c = clamp(0, lo, hi) so that
+ * z = 0 is inside every box (the start point of the method), pivot, shift
+ * back into z, check against the original data. */
+static int solve_fixed(work *wk, const double *q, const double *lo, const double *hi,
+                       int warm, double *z, double *w, double *residual)
+{
+    lcp *s = &wk->s;
+    const int n = s->n;
+    int shifted = 0;
+    if (warm) {
+        memcpy(wk->plo, wk->blo, (size_t)n * sizeof(double));
+        memcpy(wk->phi, wk->bhi, (size_t)n * sizeof(double));
+    }
+    for (int i = 0; i < n; i++) {
+        wk->shift[i] = fmin(fmax(0.0, lo[i]), hi[i]);
+        wk->blo[i] = lo[i] - wk->shift[i];
+        wk->bhi[i] = hi[i] - wk->shift[i];
+        shifted |= wk->shift[i] != 0;
+    }
+    for (int i = 0; i < n; i++)
+        wk->qs[i] = q[i] + (shifted ? row_dot(s->M, wk->shift, n, i) : 0.0);
+    s->q = wk->qs;
+    s->lo = wk->blo;
+    s->hi = wk->bhi;
+    int rc = warm ? pivot_warm(s, wk->plo, wk->phi) : pivot_all(s);
+    if (warm && rc != SC_OK && rc != SC_ENOMEM)
+        rc = pivot_all(s);   /* the warm start lost its way: start afresh */
+    for (int i = 0; i < n; i++)
+        z[i] = fmin(fmax(s->z[i] + wk->shift[i], lo[i]), hi[i]);
+    int ok = verify(n, s->M, q, lo, hi, z, w, s->eps_n, residual);
+    if (rc == SC_OK && !ok)
+        rc = SC_ENUMERIC;
+    return rc;
+}
+
+static void report(sc_lcp_info *info, const work *wk, double residual)
+{
+    if (info) {
+        info->pivots = wk->s.pivots;
+        info->residual = residual;
+        info->lemke = 0;
+    }
+}
+
+/* ---- standard LCP -------------------------------------------------------- */
+
+int sc_lcp_dantzig(int n, const double *M, const double *q, double *z, double *w,
+                   sc_lcp_info *info)
+{
+    if (info) {
+        info->pivots = 0;
+        info->residual = 0;
+        info->lemke = 0;
+    }
+    if (n < 0 || (n > 0 && (!M || !q || !z || !w)))
+        return SC_EINVAL;
+    if (n == 0)
+        return SC_OK;
+    if (!all_finite(M, (size_t)n * (size_t)n) || !all_finite(q, (size_t)n))
+        return SC_EINVAL;
+    int lemke = 0;
+    work wk;
+    int rc = work_init(&wk, n, M, 0);
+    if (rc != SC_OK)
+        return rc;
+    for (int i = 0; i < n; i++) {
+        wk.lo[i] = 0;
+        wk.hi[i] = INFINITY;
+    }
+    double residual;
+    rc = solve_fixed(&wk, q, wk.lo, wk.hi, 0, z, w, &residual);
+    if (rc == SC_ENOSOLUTION || rc == SC_ENUMERIC || rc == SC_EMAXITER) {
+        /* a singular principal block the principal form cannot pass:
+         * Lemke's method can (see lcp_lemke.c) */
+        rc = sc_lcp_lemke(n, M, q, z, wk.s.pivots + LCP_MAX_PIVOTS(n), &wk.s.pivots);
+        int ok = verify(n, M, q, wk.lo, wk.hi, z, w, wk.s.eps_n, &residual);
+        if (rc == SC_OK && !ok)
+            rc = SC_ENUMERIC;
+        lemke = 1;
+    }
+    report(info, &wk, residual);
+    if (info)
+        info->lemke = lemke;    /* never silent: callers can count it */
+    free(wk.mem);
+    return rc;
+}
+
+SC_API int sc_lcp_solve(int n, const double *M, const double *q, double *z, double *w)
+{
+    return sc_lcp_dantzig(n, M, q, z, w, NULL);
+}
+
+/* ---- boxed LCP and friction ---------------------------------------------- */
+
+static int boxed_args_ok(int n, const double *lo, const double *hi, const int *findex,
+                         const double *mu)
+{
+    for (int i = 0; i < n; i++) {
+        int fi = findex ? findex[i] : -1;
+        if (fi >= 0) {
+            /* a friction row's normal must be an ordinary row */
+            if (fi >= n || fi == i || findex[fi] >= 0 || !isfinite(mu[i]) || mu[i] < 0)
+                return 0;
+            continue;
+        }
+        if (isnan(lo[i]) || isnan(hi[i]) || lo[i] > hi[i] || lo[i] == INFINITY ||
+            hi[i] == -INFINITY)
+            return 0;
+    }
+    return 1;
+}
+
+/* Bounds of every row: the given ones, friction rows +-mu |z_normal|
+ * (0 * inf does not arise: normals are finite). */
+static void friction_bounds(int n, const double *lo, const double *hi, const int *findex,
+                            const double *mu, const double *z, double *blo, double *bhi)
+{
+    for (int i = 0; i < n; i++) {
+        if (findex[i] >= 0) {
+            double b = mu[i] * fabs(z[findex[i]]);
+            blo[i] = -b;
+            bhi[i] = b;
+        } else {
+            blo[i] = lo[i];
+            bhi[i] = hi[i];
+        }
+    }
+}
+
+/* Check a candidate against the friction bounds it implies itself. z is
+ * clamped into them first (friction rows after their normals); a clamp by
+ * more than rounding fails. */
+static int verify_coupled(work *wk, const double *q, const double *lo, const double *hi,
+                          const int *findex, const double *mu, double *z, double *w,
+                          double *residual)
+{
+    const int n = wk->s.n;
+    for (int i = 0; i < n; i++)
+        if (findex[i] < 0)
+            z[i] = fmin(fmax(z[i], lo[i]), hi[i]);
+    friction_bounds(n, lo, hi, findex, mu, z, wk->lo, wk->hi);
+    double zs = 0;
+    for (int i = 0; i < n; i++)
+        zs = fmax(zs, fabs(z[i]));
+    int ok = 1;
+    for (int i = 0; i < n; i++) {
+        double c = fmin(fmax(z[i], wk->lo[i]), wk->hi[i]);
+        if (fabs(c - z[i]) > LCP_VERIFY * wk->s.eps_n * zs)
+            ok = 0;
+        z[i] = c;
+    }
+    return verify(n, wk->s.M, q, wk->lo, wk->hi, z, w, wk->s.eps_n, residual) && ok;
+}
+
+/* Friction polish: with the sets of the last pass (C, at lower / upper
+ * bound), solve the coupled equations exactly, friction rows at a bound
+ * being z_i = sigma mu_i |z_normal| also where the normal is in C:
+ *   w_C = 0,  z = z_fixed + E z_C   ->   (M_{C,:} E) z_C = -q_C - M_{C,:} z_fixed.
+ * A dense O(m^3) solve, once per round, not per pivot. Writes z. */
+static int friction_polish(work *wk, const double *q, const int *findex,
+                           const double *mu, double *z)
+{
+    const lcp *s = &wk->s;
+    const int n = s->n, m = s->f.m;
+    const int *idx = s->f.idx;
+    double *K = wk->kmat, *rhs = wk->qs, *zf = wk->zfix;
+    int *pos = (int *)(void *)s->tmp;   /* n ints fit in n doubles */
+    for (int i = 0; i < n; i++)
+        pos[i] = -1;
+    for (int k = 0; k < m; k++)
+        pos[idx[k]] = k;
+    /* the fixed part, and where each coupled friction row is tied */
+    for (int i = 0; i < n; i++) {
+        int f = findex[i];
+        zf[i] = pos[i] >= 0 ? 0.0 : z[i];
+        if (f >= 0 && pos[i] < 0 && (s->st[i] == ST_LO || s->st[i] == ST_HI)) {
+            double sg = s->st[i] == ST_HI ? 1.0 : -1.0;
+            zf[i] = pos[f] >= 0 ? 0.0 : sg * mu[i] * fabs(z[f]);
+        }
+    }
+    for (int r = 0; r < m; r++) {
+        const double *row = s->M + (size_t)idx[r] * n;
+        rhs[r] = -q[idx[r]] - row_dot(s->M, zf, n, idx[r]);
+        for (int k = 0; k < m; k++)
+            K[(size_t)r * m + k] = row[idx[k]];
+        for (int i = 0; i < n; i++) {
+            int f = findex[i];
+            if (f < 0 || pos[i] >= 0 || pos[f] < 0 ||
+                (s->st[i] != ST_LO && s->st[i] != ST_HI))
+                continue;
+            double sg = (s->st[i] == ST_HI ? 1.0 : -1.0) * (z[f] < 0 ? -1.0 : 1.0);
+            K[(size_t)r * m + pos[f]] += row[i] * sg * mu[i];
+        }
+    }
+    if (sc_lu_solve(m, K, rhs) != SC_OK || !all_finite(rhs, (size_t)m))
+        return SC_ENUMERIC;
+    for (int i = 0; i < n; i++)
+        z[i] = pos[i] >= 0 ? rhs[pos[i]] : zf[i];
+    for (int i = 0; i < n; i++) {
+        int f = findex[i];
+        if (f >= 0 && pos[i] < 0 && pos[f] >= 0 && (s->st[i] == ST_LO || s->st[i] == ST_HI))
+            z[i] = (s->st[i] == ST_HI ? 1.0 : -1.0) * mu[i] * fabs(z[f]);
+    }
+    return SC_OK;
+}
+
+/* Coulomb friction: the bounds of a friction row depend on the answer.
+ * Fixed point on them (round 0 with the normals at 0, i.e. frictionless),
+ * each round a full pivoting pass with fixed bounds, then an exact polish
+ * with that round's sets; SC_OK as soon as one satisfies the bounds it
+ * implies, SC_EMAXITER after LCP_FRICTION_ROUNDS. */
+static int solve_friction(work *wk, const double *q, const double *lo, const double *hi,
+                          const int *findex, const double *mu, double *z, double *w,
+                          double *residual)
+{
+    const int n = wk->s.n;
+    double *zprev = wk->zprev;
+    memset(zprev, 0, (size_t)n * sizeof(double));
+    for (int round = 0; round < LCP_FRICTION_ROUNDS; round++) {
+        friction_bounds(n, lo, hi, findex, mu, zprev, wk->lo, wk->hi);
+        int rc = solve_fixed(wk, q, wk->lo, wk->hi, round > 0, z, w, residual);
+        if (rc != SC_OK)
+            return rc;
+        memcpy(zprev, z, (size_t)n * sizeof(double));
+        if (verify_coupled(wk, q, lo, hi, findex, mu, z, w, residual))
+            return SC_OK;
+        memcpy(z, zprev, (size_t)n * sizeof(double));
+        if (friction_polish(wk, q, findex, mu, z) == SC_OK &&
+            verify_coupled(wk, q, lo, hi, findex, mu, z, w, residual))
+            return SC_OK;
+        memcpy(z, zprev, (size_t)n * sizeof(double));
+    }
+    for (int i = 0; i < n; i++)   /* the w of the z handed back */
+        w[i] = q[i] + row_dot(wk->s.M, z, n, i);
+    return SC_EMAXITER;
+}
+
+int sc_lcp_boxed(int n, const double *M, const double *q, const double *lo,
+                 const double *hi, const int *findex, const double *mu,
+                 double *z, double *w, sc_lcp_info *info)
+{
+    if (info) {
+        info->pivots = 0;
+        info->residual = 0;
+    }
+    if (n < 0 || (n > 0 && (!M || !q || !lo || !hi || !z || !w)))
+        return SC_EINVAL;
+    if (n == 0)
+        return SC_OK;
+    int friction = 0;
+    for (int i = 0; findex && i < n; i++)
+        friction |= findex[i] >= 0;
+    if ((friction && !mu) || !all_finite(M, (size_t)n * (size_t)n) ||
+        !all_finite(q, (size_t)n) || !boxed_args_ok(n, lo, hi, friction ? findex : NULL, mu))
+        return SC_EINVAL;
+    work wk;
+    int rc = work_init(&wk, n, M, friction);
+    if (rc != SC_OK)
+        return rc;
+    double residual;
+    if (friction)
+        rc = solve_friction(&wk, q, lo, hi, findex, mu, z, w, &residual);
+    else
+        rc = solve_fixed(&wk, q, lo, hi, 0, z, w, &residual);
+    report(info, &wk, residual);
+    free(wk.mem);
+    return rc;
+}

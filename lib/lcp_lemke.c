@@ -1,0 +1,209 @@
+/* lcp_lemke.c - Lemke's complementary pivoting, the fallback of
+ * sc_lcp_dantzig() when the principal pivoting of lcp.c breaks down.
+ *
+ * Why: lcp.c keeps only complementary bases (Baraff's C / NC sets) and so
+ * needs every clamped block M_CC to be nonsingular. That holds along its
+ * path for P-matrices and symmetric PSD matrices (the contact matrices),
+ * not for a non-symmetric PSD one such as a skew-symmetric M, where a
+ * diagonal pivot can be 0 while a 2x2 block is not. Lemke's method walks
+ * almost complementary bases of [I -M -e] and processes every LCP whose M
+ * is copositive-plus (all PSD matrices, symmetric or not): it ends with a
+ * solution or on a secondary ray, which for such M proves that there is
+ * none (Cottle, Pang and Stone, "The Linear Complementarity Problem", 2009,
+ * section 4.4). Ties in the ratio test go to z0, then lexicographically
+ * (rows of the basis inverse), which keeps degenerate problems from
+ * cycling as long as rounding does not blur the keys.
+ *
+ * Each pivot is a Gauss-Jordan step on the dense n x (2n+1) tableau,
+ * O(n^2); the memory (one allocation) is taken only when the fallback runs.
+ */
+#include <float.h>
+#include <math.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "sc_internal.h"
+
+/* Relative size below which a lexicographic key entry is rounding noise. */
+#define LEMKE_NOISE 1e-11
+
+/* Columns: w_0..w_{n-1} (the basis inverse lives there), z_0..z_{n-1}, z0. */
+typedef struct lemke {
+    int n, cols;
+    double *t;        /* n x cols tableau, row-major */
+    double *rhs;      /* values of the basic variables */
+    int *basis;       /* column of the basic variable of each row */
+} lemke;
+
+static double *row(const lemke *lk, int i)
+{
+    return lk->t + (size_t)i * lk->cols;
+}
+
+static void pivot(lemke *lk, int r, int c)
+{
+    double *tr = row(lk, r), p = tr[c];
+    for (int j = 0; j < lk->cols; j++)
+        tr[j] /= p;
+    lk->rhs[r] /= p;
+    for (int i = 0; i < lk->n; i++) {
+        double *ti = row(lk, i), g = ti[c];
+        if (i == r || g == 0.0)
+            continue;
+        for (int j = 0; j < lk->cols; j++)
+            ti[j] -= g * tr[j];
+        lk->rhs[i] -= g * lk->rhs[r];
+    }
+    lk->basis[r] = c;
+    /* values that rounding left a hair off 0 are 0: degenerate rows must
+     * tie exactly for the lexicographic rule to see them */
+    double big = 0;
+    for (int i = 0; i < lk->n; i++)
+        big = fmax(big, fabs(lk->rhs[i]));
+    for (int i = 0; i < lk->n; i++)
+        if (fabs(lk->rhs[i]) <= 64.0 * (lk->n + 1.0) * DBL_EPSILON * big)
+            lk->rhs[i] = 0;
+}
+
+/* Entry j of row i's lexicographic key, (rhs, basis inverse row) / entry:
+ * entries below LEMKE_NOISE of the row's largest are rounding of an exact
+ * 0 and count as 0 (else noise decides degenerate ties). */
+static double key(const lemke *lk, int i, int j, int c, double big)
+{
+    const double *ti = row(lk, i);
+    double v = (j < 0 ? lk->rhs[i] : ti[j]) / ti[c];
+    return fabs(v) <= LEMKE_NOISE * big ? 0.0 : v;
+}
+
+static double key_scale(const lemke *lk, int i, int c)
+{
+    const double *ti = row(lk, i);
+    double big = fabs(lk->rhs[i]);
+    for (int j = 0; j < lk->n; j++)
+        big = fmax(big, fabs(ti[j]));
+    return big / fabs(ti[c]);
+}
+
+/* Is row a's key lexicographically below row b's for entering column c?
+ * The classic anti-cycling rule (ratios tie, then basis inverse rows). */
+static int lex_less(const lemke *lk, int a, int b, int c)
+{
+    double sa = key_scale(lk, a, c), sb = key_scale(lk, b, c);
+    for (int j = -1; j < lk->n; j++) {
+        double x = key(lk, a, j, c, sa), y = key(lk, b, j, c, sb);
+        if (fabs(x - y) > LEMKE_NOISE * fmax(fabs(x), fabs(y)))
+            return x < y;
+    }
+    return a < b;
+}
+
+/* Ratio test on entering column c: -1 if nothing blocks (a ray). */
+static int leaving_row(const lemke *lk, int c)
+{
+    const int n = lk->n, z0 = 2 * n;
+    double cmax = 0;
+    for (int i = 0; i < n; i++)
+        cmax = fmax(cmax, fabs(row(lk, i)[c]));
+    double ptol = 64.0 * (n + 1.0) * DBL_EPSILON * cmax;
+    int best = -1;
+    for (int i = 0; i < n; i++) {
+        if (row(lk, i)[c] <= ptol)
+            continue;
+        if (best < 0 || lex_less(lk, i, best, c))
+            best = i;
+    }
+    /* z0 leaves on a tie: the path ends there */
+    for (int i = 0; best >= 0 && i < n; i++) {
+        if (lk->basis[i] != z0 || row(lk, i)[c] <= ptol)
+            continue;
+        double x = lk->rhs[i] / row(lk, i)[c], y = lk->rhs[best] / row(lk, best)[c];
+        if (x <= y + 1e-12 * fmax(fabs(x), fabs(y)))
+            best = i;
+    }
+    return best;
+}
+
+static int run(lemke *lk, const double *q, long max_pivots, long *pivots)
+{
+    const int n = lk->n, z0 = 2 * n;
+    /* z0 enters: the most negative q leaves, on a tie the last such row -
+     * the lexicographic choice, which keeps every row of [rhs | B^-1]
+     * lexicographically positive from here on */
+    int r = 0;
+    for (int i = 1; i < n; i++)
+        if (q[i] <= q[r])
+            r = i;
+    if (q[r] >= 0)
+        return SC_OK;   /* z = 0 */
+    int enter = z0;
+    for (;;) {
+        if (++*pivots > max_pivots)
+            return SC_EMAXITER;
+        int leaving = lk->basis[r];
+        pivot(lk, r, enter);
+        if (leaving == z0)
+            return SC_OK;
+        enter = leaving < n ? leaving + n : leaving - n;   /* its complement */
+        r = leaving_row(lk, enter);
+        if (r < 0)
+            return SC_ENOSOLUTION;   /* secondary ray */
+    }
+}
+
+/* Recompute the basic z from the original data, M_BB z_B = -q_B (dense
+ * solve, once), and keep it when it stays >= 0: removes the rounding the
+ * Gauss-Jordan steps accumulated. The tableau memory is reused. */
+static void polish(int n, const double *M, const double *q, double *z, lemke *lk)
+{
+    int *idx = lk->basis, m = 0;
+    for (int i = 0; i < n; i++)
+        if (lk->basis[i] >= n && lk->basis[i] < 2 * n)
+            idx[m++] = lk->basis[i] - n;
+    double *a = lk->t, *b = lk->rhs;
+    for (int r = 0; r < m; r++) {
+        b[r] = -q[idx[r]];
+        for (int c = 0; c < m; c++)
+            a[(size_t)r * m + c] = M[(size_t)idx[r] * n + idx[c]];
+    }
+    if (sc_lu_solve(m, a, b) != SC_OK)
+        return;
+    for (int r = 0; r < m; r++)
+        if (!(b[r] >= 0.0))
+            return;
+    for (int r = 0; r < m; r++)
+        z[idx[r]] = b[r];
+}
+
+int sc_lcp_lemke(int n, const double *M, const double *q, double *z, long max_pivots,
+                 long *pivots)
+{
+    size_t nd = (size_t)n, cols = 2 * nd + 1;
+    lemke lk = { n, (int)cols, NULL, NULL, NULL };
+    if (nd > SIZE_MAX / sizeof(double) / (cols + 2) / 2)
+        return SC_ENOMEM;
+    lk.t = malloc((nd * cols + nd) * sizeof(double) + nd * sizeof(int));
+    if (!lk.t)
+        return SC_ENOMEM;
+    lk.rhs = lk.t + nd * cols;
+    lk.basis = (int *)(void *)(lk.rhs + nd);
+    memset(lk.t, 0, nd * cols * sizeof(double));
+    for (int i = 0; i < n; i++) {
+        double *ti = row(&lk, i);
+        ti[i] = 1;
+        for (int j = 0; j < n; j++)
+            ti[n + j] = -M[(size_t)i * n + j];
+        ti[2 * n] = -1;
+        lk.rhs[i] = q[i];
+        lk.basis[i] = i;
+    }
+    int rc = run(&lk, q, max_pivots, pivots);
+    for (int i = 0; i < n; i++)
+        z[i] = 0;
+    for (int i = 0; i < n; i++)
+        if (lk.basis[i] >= n && lk.basis[i] < 2 * n)
+            z[lk.basis[i] - n] = fmax(lk.rhs[i], 0.0);
+    if (rc == SC_OK)
+        polish(n, M, q, z, &lk);
+    free(lk.t);
+    return rc;
+}
