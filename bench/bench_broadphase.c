@@ -20,6 +20,8 @@
 
 #include "sc_internal.h"
 
+#include "bench_util.h"
+
 typedef struct pile {
     int n;
     double *c, *v, *r;
@@ -81,19 +83,6 @@ static void pile_step(pile *p)
             }
         }
     }
-}
-
-static double now_s(void)
-{
-    struct timespec ts;
-    clock_gettime(CLOCK_MONOTONIC, &ts);
-    return (double)ts.tv_sec + 1e-9 * (double)ts.tv_nsec;
-}
-
-static int cmp_double(const void *a, const void *b)
-{
-    double x = *(const double *)a, y = *(const double *)b;
-    return (x > y) - (x < y);
 }
 
 typedef struct result {

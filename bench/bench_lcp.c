@@ -21,6 +21,8 @@
 
 #include "sc_internal.h"
 
+#include "bench_util.h"
+
 #define G 9.81
 #define DT 0.01
 #define HX 0.3
@@ -145,19 +147,6 @@ static void scene_lcp(const scene *s, double *A, double *q)
         q[i] = a;
     }
     free(wj);
-}
-
-static double now_s(void)
-{
-    struct timespec t;
-    clock_gettime(CLOCK_MONOTONIC, &t);
-    return (double)t.tv_sec + 1e-9 * (double)t.tv_nsec;
-}
-
-static int cmp_double(const void *a, const void *b)
-{
-    double x = *(const double *)a, y = *(const double *)b;
-    return (x > y) - (x < y);
 }
 
 /* Solve one scene `runs` times; print a row. Returns 0 or 1 (failure). */

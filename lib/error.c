@@ -45,6 +45,23 @@ void *sc_alloc_array(size_t n, size_t size)
     return malloc(n && size ? n * size : 1);
 }
 
+int sc_grow(void **p, int *cap, int need, size_t size, int max)
+{
+    if (need <= *cap)
+        return SC_OK;
+    if (need > max)
+        return SC_ETOOBIG;
+    int c = *cap > 0 ? *cap : 64;
+    while (c < need)
+        c = c > max / 2 ? max : 2 * c;
+    void *q = realloc(*p, (size_t)c * size);
+    if (!q)
+        return SC_ENOMEM;
+    *p = q;
+    *cap = c;
+    return SC_OK;
+}
+
 void *sc_calloc_array(size_t n, size_t size)
 {
     if (size && n > SIZE_MAX / size)

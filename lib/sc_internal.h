@@ -23,6 +23,10 @@ int sc_set_error(int err);
 /* Checked allocation helpers: NULL on overflow or failure. */
 void *sc_alloc_array(size_t n, size_t size);
 void *sc_calloc_array(size_t n, size_t size);
+/* Grow the array *p (capacity *cap items of size bytes) to hold need items,
+ * doubling, never past max items: SC_OK, SC_ETOOBIG or SC_ENOMEM (then *p
+ * and *cap are unchanged). */
+int sc_grow(void **p, int *cap, int need, size_t size, int max);
 
 static inline int sc_finite3(const double v[3])
 {

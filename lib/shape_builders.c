@@ -27,20 +27,17 @@ typedef struct mesh_builder {
     double *xyz;
     int *tri;
     int nv, nt, vcap, tcap;
-    int failed;
+    int failed;              /* first error code, SC_OK while fine */
 } mesh_builder;
 
 static int mb_vertex(mesh_builder *mb, double x, double y, double z)
 {
-    if (mb->nv == mb->vcap) {
-        int cap = mb->vcap ? 2 * mb->vcap : 64;
-        double *p = realloc(mb->xyz, (size_t)cap * 3 * sizeof *p);
-        if (!p) {
-            mb->failed = 1;
-            return 0;
-        }
-        mb->xyz = p;
-        mb->vcap = cap;
+    int rc = mb->failed ? mb->failed
+                        : sc_grow((void **)&mb->xyz, &mb->vcap, mb->nv + 1, 3 * sizeof *mb->xyz,
+                                  SC_MESH_MAX_VERTS);
+    if (rc != SC_OK) {
+        mb->failed = rc;
+        return 0;
     }
     double *v = &mb->xyz[3 * mb->nv];
     v[0] = x; v[1] = y; v[2] = z;
@@ -49,17 +46,12 @@ static int mb_vertex(mesh_builder *mb, double x, double y, double z)
 
 static void mb_tri(mesh_builder *mb, int a, int b, int c)
 {
-    if (mb->failed)
+    int rc = mb->failed ? mb->failed
+                        : sc_grow((void **)&mb->tri, &mb->tcap, mb->nt + 1, 3 * sizeof *mb->tri,
+                                  SC_MESH_MAX_TRIS);
+    if (rc != SC_OK) {
+        mb->failed = rc;
         return;
-    if (mb->nt == mb->tcap) {
-        int cap = mb->tcap ? 2 * mb->tcap : 128;
-        int *p = realloc(mb->tri, (size_t)cap * 3 * sizeof *p);
-        if (!p) {
-            mb->failed = 1;
-            return;
-        }
-        mb->tri = p;
-        mb->tcap = cap;
     }
     int *t = &mb->tri[3 * mb->nt++];
     t[0] = a; t[1] = b; t[2] = c;
@@ -130,7 +122,7 @@ static sc_shape *mb_finish(mesh_builder *mb)
     if (mb->failed) {
         free(mb->xyz);
         free(mb->tri);
-        sc_set_error(SC_ENOMEM);
+        sc_set_error(mb->failed);
         return NULL;
     }
     return sc_shape_mesh_centered(mb->xyz, mb->nv, mb->tri, mb->nt);

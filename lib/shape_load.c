@@ -42,48 +42,15 @@ typedef struct mesh_buf {
     int vcap, tcap;         /* capacities in vertices and triangles */
 } mesh_buf;
 
-/* A capacity (in items) of at least need, doubling from cap, at most max;
- * 0 when need is past max. */
-static int next_cap(int cap, int need, int max)
-{
-    if (need > max)
-        return 0;
-    int c = cap ? cap : 64;
-    while (c < need)
-        c = c > max / 2 ? max : 2 * c;
-    return c;
-}
-
-/* Room for need vertices: SC_ETOOBIG past the limit, or SC_ENOMEM. */
+/* Room for need vertices / triangles: SC_ETOOBIG past the limits, or SC_ENOMEM. */
 static int reserve_verts(mesh_buf *m, int need)
 {
-    if (need <= m->vcap)
-        return SC_OK;
-    int c = next_cap(m->vcap, need, SC_MESH_MAX_VERTS);
-    if (!c)
-        return SC_ETOOBIG;
-    double *q = realloc(m->xyz, (size_t)c * 3 * sizeof *q);
-    if (!q)
-        return SC_ENOMEM;
-    m->xyz = q;
-    m->vcap = c;
-    return SC_OK;
+    return sc_grow((void **)&m->xyz, &m->vcap, need, 3 * sizeof *m->xyz, SC_MESH_MAX_VERTS);
 }
 
-/* Room for need triangles: SC_ETOOBIG past the limit, or SC_ENOMEM. */
 static int reserve_tris(mesh_buf *m, int need)
 {
-    if (need <= m->tcap)
-        return SC_OK;
-    int c = next_cap(m->tcap, need, SC_MESH_MAX_TRIS);
-    if (!c)
-        return SC_ETOOBIG;
-    int *q = realloc(m->tri, (size_t)c * 3 * sizeof *q);
-    if (!q)
-        return SC_ENOMEM;
-    m->tri = q;
-    m->tcap = c;
-    return SC_OK;
+    return sc_grow((void **)&m->tri, &m->tcap, need, 3 * sizeof *m->tri, SC_MESH_MAX_TRIS);
 }
 
 static int push_vertex(mesh_buf *m, const double v[3])

@@ -5,6 +5,7 @@
  * with the dynamics stage; until then a frame integrates free motion and
  * reports the contacts it finds (the paper's steps 3 and 4).
  */
+#include <limits.h>
 #include <stdlib.h>
 #include <string.h>
 #include <time.h>
@@ -143,14 +144,9 @@ SC_API int sc_body_add(sc_world *w, const sc_body_desc *d)
         return SC_EINVAL;
     if (d->shape->kind == SC_SHAPE_PLANE && mass != 0)
         return SC_ENOTSUP;              /* an infinite half space cannot move */
-    if (w->nbodies == w->cap) {
-        int cap = w->cap ? 2 * w->cap : 64;
-        sc_body *p = realloc(w->bodies, (size_t)cap * sizeof *p);
-        if (!p)
-            return SC_ENOMEM;
-        w->bodies = p;
-        w->cap = cap;
-    }
+    int err = sc_grow((void **)&w->bodies, &w->cap, w->nbodies + 1, sizeof *w->bodies, INT_MAX);
+    if (err != SC_OK)
+        return err;
     sc_body *b = &w->bodies[w->nbodies];
     memset(b, 0, sizeof *b);
     b->shape = sc_shape_retain(d->shape);
@@ -377,21 +373,6 @@ static void integrate(sc_world *w, double dt)
     }
 }
 
-static int grow(void **p, int *cap, int need, size_t size)
-{
-    if (need <= *cap)
-        return SC_OK;
-    int c = *cap ? *cap : 64;
-    while (c < need)
-        c *= 2;
-    void *q = realloc(*p, (size_t)c * size);
-    if (!q)
-        return SC_ENOMEM;
-    *p = q;
-    *cap = c;
-    return SC_OK;
-}
-
 static int cmp_pair(const void *x, const void *y)
 {
     const sc_pair *a = x, *b = y;
@@ -474,7 +455,7 @@ static int broadphase(sc_world *w, int *npairs)
                 continue;
             if (v3_dot(nrm, &w->centre[3 * i]) - d > w->radius[i])
                 continue;
-            if (grow((void **)&w->pairs, &w->pair_cap, np + 1, sizeof *w->pairs) != SC_OK)
+            if (sc_grow((void **)&w->pairs, &w->pair_cap, np + 1, sizeof *w->pairs, INT_MAX) != SC_OK)
                 return SC_ENOMEM;
             w->pairs[np].a = i < pi ? i : pi;
             w->pairs[np].b = i < pi ? pi : i;
@@ -498,8 +479,8 @@ static int narrowphase(sc_world *w, int npairs)
         sc_pose pa, pb;
         body_pose(a, &pa);
         body_pose(b, &pb);
-        if (grow((void **)&w->contacts, &w->contact_cap,
-                 w->ncontacts + SC_MAX_PAIR_CONTACTS, sizeof *w->contacts) != SC_OK)
+        if (sc_grow((void **)&w->contacts, &w->contact_cap,
+                    w->ncontacts + SC_MAX_PAIR_CONTACTS, sizeof *w->contacts, INT_MAX) != SC_OK)
             return SC_ENOMEM;
         sc_contact *c = &w->contacts[w->ncontacts];
         int n = sc_np_collide(w->np, a->shape, &pa, b->shape, &pb, c, SC_MAX_PAIR_CONTACTS);
