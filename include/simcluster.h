@@ -198,6 +198,9 @@ typedef struct sc_stats {
     int contacts;             /* contact points, last frame */
     int islands;              /* islands, last frame */
     long lcp_pivots;          /* LCP pivots, last frame */
+    int lcp_fallbacks;        /* islands whose friction LCP failed (pivot limit
+                                 or breakdown) and were solved without friction,
+                                 last frame */
     double max_penetration;   /* deepest contact, m, last frame */
     long collider_warnings;   /* ODE collider messages (e.g. contact buffer
                                  overflow), last frame; never printed */
@@ -211,7 +214,8 @@ SC_API void sc_world_destroy(sc_world *w);
 SC_API int sc_body_add(sc_world *w, const sc_body_desc *d);
 /* Number of bodies in w. */
 SC_API int sc_world_body_count(const sc_world *w);
-/* Advance w by one frame of dt seconds; SC_OK or a negative code. */
+/* Advance w by one frame of dt seconds (detection, islands, contact LCP,
+ * integration, time-of-impact back-up); SC_OK or a negative code. */
 SC_API int sc_world_step(sc_world *w, double dt);
 /* Pose of body id (origin of its shape frame); zeros for a bad id. */
 SC_API void sc_body_get_pose(const sc_world *w, int id, double pos[3], double quat[4]);
@@ -233,6 +237,12 @@ SC_API void sc_world_stats(const sc_world *w, sc_stats *s);
 /* Contacts found in the last frame, in canonical order (by body pair, then
  * point); copies at most max and returns how many there are in all. */
 SC_API int sc_world_contacts(const sc_world *w, sc_contact *out, int max);
+
+/* ---- the paper's scenes ---- */
+/* Add Table 1's 27 steel spheres (e = 1) moving in a closed 4 m box to w; SC_OK or a code. */
+SC_API int sc_scene_spheres_box(sc_world *w);
+/* Add a floor and n (1..100000) bolts/nuts at random free poses from seed to w; SC_OK or a code. */
+SC_API int sc_scene_bolts_nuts(sc_world *w, int n, uint64_t seed);
 
 /* ---- LCP ------------------------------------------------------------------ */
 /* Standard LCP: find z with w = M z + q, z >= 0, w >= 0, z.w = 0 (M row-major

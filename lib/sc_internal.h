@@ -66,6 +66,54 @@ void sc_ode_thread_init(void);
 /* ODE messages (warnings) raised in the calling thread so far. */
 long sc_ode_message_count(void);
 
+/* ---- bodies (world.c owns them; the stages read and update them) ---- */
+typedef struct sc_body {
+    /* dynamics are kept at the centre of mass; the shape frame is derived */
+    sc_shape *shape;
+    double mass, inv_mass;          /* 0 inverse mass = static */
+    double inertia[9];              /* about the centre of mass, body frame */
+    double inv_inertia[9];
+    double com[3];                  /* centre of mass in the shape frame */
+    double x[3], q[4];              /* centre of mass position, orientation */
+    double v[3], w[3];              /* of the centre of mass, world frame */
+    double force[3], torque[3];     /* user forces for the next frame */
+    double restitution, friction;
+    int state;
+    /* per substep, set by the world before the contact solve */
+    double v0[3], w0[3];            /* velocity before gravity (restitution) */
+    double iw[9];                   /* world-frame inverse inertia */
+    double rest_s;                  /* how long it has been slow (sleep) */
+    int collided;                   /* 2: collision in this substep, 1: earlier
+                                       in this frame, 0: none this frame */
+} sc_body;
+
+/* Contact model constants (Baraff's velocity-level LCP, the paper's states). */
+typedef struct sc_contact_params {
+    double bounce_speed;            /* m/s: approach faster = collision (restitution),
+                                       slower = resting contact (e = 0) */
+    double slop;                    /* m of penetration left alone */
+    double baumgarte;               /* fraction of the rest removed per substep */
+} sc_contact_params;
+
+typedef struct sc_solve_info {
+    long pivots;
+    int failures;                   /* friction LCPs that failed even regularised
+                                       (the island was solved without friction) */
+    int regularised;                /* LCPs solved only after regularisation */
+    int lemke;                      /* solved by the Lemke fallback */
+    int collisions;                 /* contacts resolved with restitution */
+} sc_solve_info;
+
+/* Contact impulses for one island (the paper's step 7): the velocity LCP
+ * with restitution and Coulomb friction (boxed), then a split-impulse
+ * position correction that moves bodies out of deep penetration without
+ * touching velocities. bodies[*].v/w hold u* (gravity applied), v0/w0 the
+ * velocities before it, iw the world inverse inertia. ci lists the
+ * island's contact indices into c. Updates v, w (and x, q by h * pseudo
+ * velocity). */
+int sc_island_solve(sc_body *bodies, const sc_contact *c, const int *ci, int nc, double h,
+                    const sc_contact_params *p, sc_solve_info *info);
+
 /* ---- narrow phase (narrowphase.c, manifold.c) ---- */
 typedef struct sc_np_ctx sc_np_ctx;     /* one per thread: owns ODE geoms */
 sc_np_ctx *sc_np_create(void);

@@ -16,18 +16,6 @@
 #define CONFIG_COOKIE 0x5c0f1a
 #define BODY_COOKIE 0x5cb0d1
 
-typedef struct sc_body {
-    sc_shape *shape;
-    double mass, inv_mass;          /* 0 inverse mass = static */
-    double inertia[9];              /* about the centre of mass, body frame */
-    double inv_inertia[9];
-    double com[3];                  /* centre of mass in the shape frame */
-    double x[3], q[4];              /* centre of mass position, orientation */
-    double v[3], w[3];              /* of the centre of mass, world frame */
-    double force[3], torque[3];     /* user forces for the next frame */
-    double restitution, friction;
-    int state;
-} sc_body;
 
 struct sc_world {
     sc_world_config cfg;
@@ -43,6 +31,7 @@ struct sc_world {
     int pair_cap;
     sc_contact *contacts;
     int ncontacts, contact_cap;
+    int contacts_valid;       /* contacts match the current state */
     sc_stats stats;
 };
 
@@ -178,6 +167,7 @@ SC_API int sc_body_add(sc_world *w, const sc_body_desc *d)
     }
     b->restitution = d->restitution;
     b->friction = d->friction;
+    w->contacts_valid = 0;
     return w->nbodies++;
 }
 
@@ -240,6 +230,10 @@ SC_API int sc_body_apply_force(sc_world *w, int id, const double f[3], const dou
     sc_body *b = &w->bodies[id];
     if (b->inv_mass == 0)
         return SC_ENOTSUP;
+    if (b->state == SC_ASLEEP) {       /* a push wakes it */
+        b->state = SC_FREE;
+        b->rest_s = 0;
+    }
     v3_add(b->force, b->force, f);
     if (at) {
         double r[3], t[3];
@@ -339,38 +333,6 @@ static void stage_add(sc_world *w, int stage, double t0)
     double dt = cpu_now() - t0;
     w->stats.stage_s[stage] += dt;
     w->stats.stage_total_s[stage] += dt;
-}
-
-/* Step 3: free motion under gravity and user forces (symplectic Euler;
- * gyroscopic term explicit). */
-static void integrate(sc_world *w, double dt)
-{
-    for (int i = 0; i < w->nbodies; i++) {
-        sc_body *b = &w->bodies[i];
-        if (b->inv_mass == 0)
-            continue;
-        double a[3];
-        v3_madd(a, w->cfg.gravity, b->force, b->inv_mass);
-        v3_madd(b->v, b->v, a, dt);
-        double R[9], wb[3], Iw[3], gyro[3], tb[3], dw[3];
-        q_to_m3(R, b->q);
-        m3_tmulv(wb, R, b->w);
-        m3_mulv(Iw, b->inertia, wb);
-        v3_cross(gyro, wb, Iw);
-        m3_tmulv(tb, R, b->torque);
-        v3_sub(tb, tb, gyro);
-        m3_mulv(dw, b->inv_inertia, tb);
-        v3_madd(wb, wb, dw, dt);
-        m3_mulv(b->w, R, wb);
-        v3_madd(b->x, b->x, b->v, dt);
-        double wq[4] = { 0, b->w[0], b->w[1], b->w[2] }, dq[4];
-        q_mul(dq, wq, b->q);
-        for (int k = 0; k < 4; k++)
-            b->q[k] += 0.5 * dt * dq[k];
-        q_normalize(b->q);
-        v3_set(b->force, 0, 0, 0);
-        v3_set(b->torque, 0, 0, 0);
-    }
 }
 
 static int cmp_pair(const void *x, const void *y)
@@ -498,18 +460,96 @@ static int narrowphase(sc_world *w, int npairs)
     return SC_OK;
 }
 
-SC_API int sc_world_step(sc_world *w, double dt)
+/* ---- the frame: the paper's steps (3)-(7) ---------------------------- */
+
+#define MAX_SUBSTEPS 8        /* time-of-impact back-ups per frame */
+#define SLEEP_SPEED 0.02      /* m/s and rad/s below which a body is slow */
+#define SLEEP_TIME 0.5        /* s an island stays slow before it sleeps */
+
+static const sc_contact_params contact_params = {
+    .bounce_speed = 0.1,      /* the paper's threshold speed */
+    .slop = 0.5e-3,
+    .baumgarte = 0.2,
+};
+
+static int movable(const sc_body *b)
 {
-    if (!w || !(dt > 0) || !isfinite(dt))
-        return SC_EINVAL;
-    memset(w->stats.stage_s, 0, sizeof w->stats.stage_s);
+    return b->inv_mass > 0 && b->state != SC_ASLEEP;
+}
+
+/* Rotate q by angle |w| h about w (exact for constant w). */
+static void rotate_by(double q[4], const double w[3], double h)
+{
+    double ang = v3_len(w) * h;
+    if (ang == 0)
+        return;
+    double axis[3], dq[4];
+    v3_scale(axis, w, h / ang);
+    q_from_axis_angle(dq, axis, ang);
+    q_mul(q, dq, q);
+    q_normalize(q);
+}
+
+/* Step 3, first half: u* = u + h (g + F/m), gyroscopic term, and the world
+ * inverse inertia the contact solve needs. v0/w0 keep u for restitution. */
+static void apply_forces(sc_world *w, double h)
+{
+    for (int i = 0; i < w->nbodies; i++) {
+        sc_body *b = &w->bodies[i];
+        if (!movable(b))
+            continue;
+        v3_copy(b->v0, b->v);
+        v3_copy(b->w0, b->w);
+        double a[3], R[9], Rt[9], t[9];
+        v3_madd(a, w->cfg.gravity, b->force, b->inv_mass);
+        v3_madd(b->v, b->v, a, h);
+        q_to_m3(R, b->q);
+        m3_transpose(Rt, R);
+        m3_mul(t, R, b->inv_inertia);
+        m3_mul(b->iw, t, Rt);
+        double wb[3], Iw[3], gyro[3], tb[3], dw[3];
+        m3_tmulv(wb, R, b->w);
+        m3_mulv(Iw, b->inertia, wb);
+        v3_cross(gyro, wb, Iw);
+        m3_tmulv(tb, R, b->torque);
+        v3_sub(tb, tb, gyro);
+        m3_mulv(dw, b->inv_inertia, tb);
+        v3_madd(wb, wb, dw, h);
+        m3_mulv(b->w, R, wb);
+    }
+}
+
+/* Step 3, second half: positions. The trapezoid rule x += h (u0 + u') / 2
+ * is exact for free fall and for a constant friction deceleration; a body
+ * that collided this substep took its impulse at the start and then flew
+ * under the external forces: x += h (u' - a h / 2). */
+static void integrate_positions(sc_world *w, double h)
+{
+    for (int i = 0; i < w->nbodies; i++) {
+        sc_body *b = &w->bodies[i];
+        if (!movable(b))
+            continue;
+        double step[3], avg_w[3];
+        if (b->collided == 2) {
+            double a[3];
+            v3_madd(a, w->cfg.gravity, b->force, b->inv_mass);
+            v3_madd(step, b->v, a, -0.5 * h);
+            v3_copy(avg_w, b->w);
+            b->collided = 1;
+        } else {
+            v3_add(step, b->v0, b->v);
+            v3_scale(step, step, 0.5);
+            v3_add(avg_w, b->w0, b->w);
+            v3_scale(avg_w, avg_w, 0.5);
+        }
+        v3_madd(b->x, b->x, step, h);
+        rotate_by(b->q, avg_w, h);
+    }
+}
+
+static int detect(sc_world *w)
+{
     double t0 = cpu_now();
-    integrate(w, dt);
-    stage_add(w, SC_STAGE_INTEGRATE, t0);
-    for (int i = 0; i < w->nbodies; i++)
-        if (!sc_finite3(w->bodies[i].x) || !sc_finite3(w->bodies[i].v))
-            return SC_ENUMERIC;
-    t0 = cpu_now();
     int npairs = 0;
     int rc = broadphase(w, &npairs);
     stage_add(w, SC_STAGE_BROADPHASE, t0);
@@ -519,18 +559,195 @@ SC_API int sc_world_step(sc_world *w, double dt)
     t0 = cpu_now();
     long msgs = sc_ode_message_count();
     rc = narrowphase(w, npairs);
-    w->stats.collider_warnings = sc_ode_message_count() - msgs;
+    w->stats.collider_warnings += sc_ode_message_count() - msgs;
     stage_add(w, SC_STAGE_NARROWPHASE, t0);
+    /* a sleeping body touched by an awake one wakes up */
+    for (int k = 0; rc == SC_OK && k < w->ncontacts; k++) {
+        sc_body *a = &w->bodies[w->contacts[k].body_a], *b = &w->bodies[w->contacts[k].body_b];
+        if (a->state == SC_ASLEEP && movable(b)) { a->state = SC_CONTACT; a->rest_s = 0; }
+        if (b->state == SC_ASLEEP && movable(a)) { b->state = SC_CONTACT; b->rest_s = 0; }
+    }
+    return rc;
+}
+
+/* Steps (4)-(7) once over h: islands, contact impulses, positions. */
+static int substep(sc_world *w, double h, sc_islands *is, unsigned char *touched)
+
+{
+    int n = w->nbodies;
+    apply_forces(w, h);
+    double t0 = cpu_now();
+    for (int i = 0; i < n; i++)
+        w->active[i] = movable(&w->bodies[i]);
+    int rc = sc_islands_build(n, w->active, w->contacts, w->ncontacts, is);
+    stage_add(w, SC_STAGE_ISLANDS, t0);
     if (rc != SC_OK)
         return rc;
-    for (int i = 0; i < w->nbodies; i++)
-        if (w->bodies[i].inv_mass > 0)
-            w->bodies[i].state = SC_FREE;
+    memset(touched, 0, (size_t)n);
     for (int k = 0; k < w->ncontacts; k++) {
-        sc_body *a = &w->bodies[w->contacts[k].body_a], *b = &w->bodies[w->contacts[k].body_b];
-        if (a->inv_mass > 0) a->state = SC_COLLIDING;
-        if (b->inv_mass > 0) b->state = SC_COLLIDING;
+        touched[w->contacts[k].body_a] = 1;
+        touched[w->contacts[k].body_b] = 1;
     }
-    w->stats.frames++;
+    t0 = cpu_now();
+    sc_solve_info info = { 0 };
+    for (int i = 0; i < is->count && rc == SC_OK; i++)
+        rc = sc_island_solve(w->bodies, w->contacts, &is->contacts[is->contact_start[i]],
+                             is->contact_start[i + 1] - is->contact_start[i], h,
+                             &contact_params, &info);
+    stage_add(w, SC_STAGE_LCP, t0);
+    w->stats.lcp_pivots += info.pivots;
+    w->stats.lcp_fallbacks += info.failures;
+    w->stats.islands = is->count;
+    if (rc != SC_OK)
+        return rc;
+    t0 = cpu_now();
+    integrate_positions(w, h);
+    stage_add(w, SC_STAGE_INTEGRATE, t0);
+    for (int i = 0; i < n; i++) {
+        sc_body *b = &w->bodies[i];
+        if (movable(b) && (!sc_finite3(b->x) || !sc_finite3(b->v) || !sc_finite3(b->w)))
+            return SC_ENUMERIC;
+    }
     return SC_OK;
+}
+
+static int has_pair(const sc_contact *c, int n, int a, int b)
+{
+    int lo = 0, hi = n - 1;
+    while (lo <= hi) {
+        int mid = (lo + hi) / 2;
+        int d = c[mid].body_a != a ? (c[mid].body_a < a ? -1 : 1)
+                                   : (c[mid].body_b != b ? (c[mid].body_b < b ? -1 : 1) : 0);
+        if (d == 0)
+            return 1;
+        if (d < 0)
+            lo = mid + 1;
+        else
+            hi = mid - 1;
+    }
+    return 0;
+}
+
+/* Step 5: the earliest time of impact (fraction of the substep) among new
+ * contacts deeper than the tolerance; 1 when there is none. */
+static int earliest_impact(sc_world *w, const sc_body *saved, const sc_contact *c0, int n0,
+                           double *frac)
+{
+    double t0 = cpu_now();
+    *frac = 1;
+    int rc = SC_OK;
+    for (int k = 0; k < w->ncontacts && rc == SC_OK; k++) {
+        const sc_contact *c = &w->contacts[k];
+        if (c->depth <= w->cfg.contact_tol_m || has_pair(c0, n0, c->body_a, c->body_b))
+            continue;
+        if (k > 0 && c[-1].body_a == c->body_a && c[-1].body_b == c->body_b)
+            continue;    /* one query per pair */
+        sc_pose a0, a1, b0, b1;
+        body_pose(&saved[c->body_a], &a0);
+        body_pose(&w->bodies[c->body_a], &a1);
+        body_pose(&saved[c->body_b], &b0);
+        body_pose(&w->bodies[c->body_b], &b1);
+        double t;
+        int hit = sc_toi_ctx(w->np, w->bodies[c->body_a].shape, &a0, &a1,
+                             w->bodies[c->body_b].shape, &b0, &b1, w->cfg.contact_tol_m, &t);
+        if (hit < 0)
+            rc = hit;
+        else if (hit == 1 && t < *frac)
+            *frac = t;
+    }
+    stage_add(w, SC_STAGE_TOI, t0);
+    return rc;
+}
+
+/* The paper's states: free fall, collision, contact; islands that stay slow
+ * go to sleep and cost nothing until touched. */
+static void update_states(sc_world *w, const sc_islands *is, const unsigned char *touched,
+                          double dt)
+{
+    for (int i = 0; i < w->nbodies; i++) {
+        sc_body *b = &w->bodies[i];
+        if (!movable(b))
+            continue;
+        int slow = v3_len(b->v) < SLEEP_SPEED && v3_len(b->w) < SLEEP_SPEED;
+        b->rest_s = slow && touched[i] ? b->rest_s + dt : 0;
+        b->state = b->collided ? SC_COLLIDING : (touched[i] ? SC_CONTACT : SC_FREE);
+        b->collided = 0;
+    }
+    for (int k = 0; k < is->count; k++) {
+        double rest = INFINITY;
+        for (int j = is->body_start[k]; j < is->body_start[k + 1]; j++)
+            rest = fmin(rest, w->bodies[is->bodies[j]].rest_s);
+        if (rest < SLEEP_TIME)
+            continue;
+        for (int j = is->body_start[k]; j < is->body_start[k + 1]; j++) {
+            sc_body *b = &w->bodies[is->bodies[j]];
+            b->state = SC_ASLEEP;
+            v3_set(b->v, 0, 0, 0);
+            v3_set(b->w, 0, 0, 0);
+        }
+    }
+}
+
+SC_API int sc_world_step(sc_world *w, double dt)
+{
+    if (!w || !(dt > 0) || !isfinite(dt))
+        return SC_EINVAL;
+    int n = w->nbodies;
+    memset(w->stats.stage_s, 0, sizeof w->stats.stage_s);
+    w->stats.lcp_pivots = 0;
+    w->stats.lcp_fallbacks = 0;
+    w->stats.collider_warnings = 0;
+    sc_islands is = { 0 };
+    sc_body *saved = sc_alloc_array((size_t)n, sizeof *saved);
+    unsigned char *touched = sc_calloc_array((size_t)n, 1);
+    sc_contact *c0 = NULL;
+    int c0_cap = 0, rc = saved && touched ? SC_OK : SC_ENOMEM;
+    if (rc == SC_OK && !w->contacts_valid)
+        rc = detect(w);
+    double left = dt;
+    for (int sub = 0; rc == SC_OK && left > 0; sub++) {
+        /* keep the start of the substep: contacts and state */
+        memcpy(saved, w->bodies, (size_t)n * sizeof *saved);
+        int n0 = w->ncontacts;
+        rc = sc_grow((void **)&c0, &c0_cap, n0, sizeof *c0, INT_MAX);
+        if (rc != SC_OK)
+            break;
+        if (n0 > 0)
+            memcpy(c0, w->contacts, (size_t)n0 * sizeof *c0);
+        double h = left;
+        rc = substep(w, h, &is, touched);
+        if (rc == SC_OK)
+            rc = detect(w);
+        double frac = 1;
+        if (rc == SC_OK && sub + 1 < MAX_SUBSTEPS)
+            rc = earliest_impact(w, saved, c0, n0, &frac);
+        if (rc == SC_OK && frac < 1) {
+            /* steps 5-6: back up and advance only until they touch */
+            memcpy(w->bodies, saved, (size_t)n * sizeof *saved);
+            if (n0 > 0)
+                memcpy(w->contacts, c0, (size_t)n0 * sizeof *c0);
+            w->ncontacts = n0;
+            h = fmax(frac * h, 1e-6 * dt);
+            rc = substep(w, h, &is, touched);
+            if (rc == SC_OK)
+                rc = detect(w);
+        }
+        left -= h;
+        if (left < 1e-9 * dt)
+            left = 0;
+    }
+    if (rc == SC_OK) {
+        update_states(w, &is, touched, dt);
+        for (int i = 0; i < n; i++) {
+            v3_set(w->bodies[i].force, 0, 0, 0);
+            v3_set(w->bodies[i].torque, 0, 0, 0);
+        }
+        w->contacts_valid = 1;
+        w->stats.frames++;
+    }
+    sc_islands_free(&is);
+    free(saved);
+    free(touched);
+    free(c0);
+    return rc;
 }

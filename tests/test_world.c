@@ -123,8 +123,7 @@ static void test_density_gives_mass_from_volume(void **state)
     sc_world_destroy(w);
 }
 
-/* Symplectic Euler: v_n = -g n dt, z_n = z0 - g dt^2 n (n + 1) / 2; and
- * within g dt t of the parabola. */
+/* Free flight is integrated exactly: z = z0 - g t^2 / 2, v = -g t. */
 static void test_free_fall_follows_gravity(void **state)
 {
     (void)state;
@@ -137,48 +136,48 @@ static void test_free_fall_follows_gravity(void **state)
     double p[3], q[4], v[3], om[3];
     sc_body_get_pose(w, id, p, q);
     sc_body_get_velocity(w, id, v, om);
-    assert_true(fabs(p[2] - (100 - G * dt * dt * 100 * 101 / 2)) < 1e-9);
+    assert_true(fabs(p[2] - (100 - 0.5 * G)) < 1e-9);
     assert_true(fabs(v[2] + G * 1.0) < 1e-9);
-    assert_true(fabs(p[2] - (100 - 0.5 * G)) <= G * dt * 1.0);
     assert_int_equal(sc_body_state(w, id), SC_FREE);
     sc_shape_release(s);
     sc_world_destroy(w);
 }
 
-static void test_ball_contact_is_reported_when_it_reaches_the_floor(void **state)
+/* The ball falls 1 m, touches the floor within the tolerance (time of
+ * impact), bounces, and never sinks more than the tolerance. */
+static void test_ball_lands_on_the_floor_not_through_it(void **state)
 {
     (void)state;
     sc_world *w = world_with_floor();
     sc_shape *s = sc_shape_sphere(0.1);
-    int id = add_body(w, s, 1, 0.3, -0.2, 1.0);
-    const double dt = 0.01;
-    int frame = 0;
-    for (int n = 1; n <= 100 && !frame; n++) {
-        assert_int_equal(sc_world_step(w, dt), SC_OK);
-        double z = 1.0 - G * dt * dt * n * (n + 1) / 2;
+    int id = add_body(w, s, 1, 0.3, -0.2, 1.1);
+    int seen = 0;
+    for (int n = 1; n <= 300; n++) {
+        assert_int_equal(sc_world_step(w, 0.01), SC_OK);
+        double p[3];
+        sc_body_get_pose(w, id, p, NULL);
+        assert_true(p[2] >= 0.1 - 1e-3 - 1e-9);
         sc_contact c[4];
         int k = sc_world_contacts(w, c, 4);
-        if (z > 0.1) {
-            assert_int_equal(k, 0);
-            continue;
-        }
-        frame = n;
-        assert_int_equal(k, 1);
-        assert_int_equal(c[0].body_a, 0);
-        assert_int_equal(c[0].body_b, id);
-        assert_true(fabs(c[0].normal[2] - 1) < 1e-12);
-        assert_true(fabs(c[0].depth - (0.1 - z)) < 1e-9);
-        assert_true(fabs(c[0].pos[0] - 0.3) < 1e-9 && fabs(c[0].pos[1] + 0.2) < 1e-9);
-        assert_int_equal(sc_body_state(w, id), SC_COLLIDING);
         sc_stats st;
         sc_world_stats(w, &st);
-        assert_int_equal(st.contacts, 1);
-        assert_int_equal(st.pairs, 1);
-        assert_int_equal(st.bodies, 2);
-        assert_int_equal(st.frames, n);
-        assert_true(fabs(st.max_penetration - (0.1 - z)) < 1e-9);
+        assert_int_equal(st.contacts, k);
+        assert_true(st.max_penetration <= 1e-3 + 1e-9);
+        if (k > 0) {
+            seen = 1;
+            assert_int_equal(c[0].body_a, 0);
+            assert_int_equal(c[0].body_b, id);
+            assert_true(fabs(c[0].normal[2] - 1) < 1e-12);
+            assert_true(fabs(c[0].pos[0] - 0.3) < 1e-6 && fabs(c[0].pos[1] + 0.2) < 1e-6);
+        }
     }
-    assert_int_equal(frame, 43);        /* z_42 = 0.1347, z_43 = 0.0720 */
+    assert_true(seen);
+    /* after 3 s it has settled and gone to sleep on the floor */
+    double p[3];
+    sc_body_get_pose(w, id, p, NULL);
+    assert_true(fabs(p[2] - 0.1) < 1e-3);
+    assert_int_equal(sc_body_state(w, id), SC_ASLEEP);
+    assert_true(sc_world_at_rest(w));
     sc_shape_release(s);
     sc_world_destroy(w);
 }
@@ -283,9 +282,9 @@ static void test_both_broad_phases_give_identical_contacts(void **state)
             d = sc_body_desc_default();
             d.shape = shapes[i % 4];
             d.mass = 0.1;
-            d.pos[0] = 0.5 * rand() / RAND_MAX;
-            d.pos[1] = 0.5 * rand() / RAND_MAX;
-            d.pos[2] = 0.2 * rand() / RAND_MAX;
+            d.pos[0] = 2.0 * rand() / RAND_MAX;
+            d.pos[1] = 2.0 * rand() / RAND_MAX;
+            d.pos[2] = 0.3 * rand() / RAND_MAX;
             double q[4] = { rand() + 1.0, rand(), rand() - RAND_MAX / 2.0, rand() };
             double l = sqrt(q[0] * q[0] + q[1] * q[1] + q[2] * q[2] + q[3] * q[3]);
             for (int k = 0; k < 4; k++)
@@ -298,7 +297,7 @@ static void test_both_broad_phases_give_identical_contacts(void **state)
         assert_int_equal(sc_world_contacts(w, c[m], n[m]), n[m]);
         sc_world_destroy(w);
     }
-    assert_true(n[0] > 100);
+    assert_true(n[0] > 50);
     assert_int_equal(n[0], n[1]);
     assert_memory_equal(c[0], c[1], (size_t)n[0] * sizeof(sc_contact));
     for (int i = 1; i < n[0]; i++)   /* canonical order: by pair */
@@ -317,7 +316,7 @@ int main(void)
         cmocka_unit_test(test_bad_bodies_get_clear_codes_and_change_nothing),
         cmocka_unit_test(test_density_gives_mass_from_volume),
         cmocka_unit_test(test_free_fall_follows_gravity),
-        cmocka_unit_test(test_ball_contact_is_reported_when_it_reaches_the_floor),
+        cmocka_unit_test(test_ball_lands_on_the_floor_not_through_it),
         cmocka_unit_test(test_pose_and_velocity_refer_to_the_shape_origin),
         cmocka_unit_test(test_applied_force_accelerates_for_one_frame),
         cmocka_unit_test(test_hash_is_equal_for_equal_worlds_and_changes_with_state),

@@ -1,0 +1,651 @@
+/* bench_drop.c - the bolt/nut drop of the paper's Figs 3-4, side by side
+ * with ODE (DESIGN section 7): the same scene simulated by
+ *   quick  ODE dWorldQuickStep, 20 iterations
+ *   step   ODE dWorldStep (its Dantzig-type LCP)
+ *   sc     simcluster, sc_world_step on a default world
+ * at 100 Hz for up to 10 s of simulated time, stopping early when every
+ * body is at rest.
+ *
+ * Same scene for all three: the poses and velocities are read back from a
+ * world filled by sc_scene_bolts_nuts(N, seed) (sc_body_get_pose/velocity);
+ * ODE gets the same meshes (sc_shape_mesh_data of sc_shape_bolt/nut, as
+ * trimesh geoms in a dHashSpace with its default levels) and the same
+ * masses and inertia (sc_shape_mass_props times the steel density 7800).
+ * ODE contacts: at most 4 per pair (dCollide's limit), a contact joint each
+ * with mode dContactBounce | dContactApprox1, mu 0.5, bounce 0.8, bounce_vel
+ * 0.1 m/s (below it a contact does not bounce; ODE demos use this value),
+ * no soft ERP/CFM (the world defaults: ERP 0.2, CFM 1e-10 in double),
+ * floor dCreatePlane(0, 0, 1, 0), no auto-disable, gravity -9.81.
+ * dGeomTriMeshSetLastTransform is set to each geom's pose after every
+ * collision pass (the trimesh-trimesh collider's temporal coherence).
+ *
+ * Measured per run: wall time of the stepping loop (collision + step for
+ * ODE, sc_world_step for simcluster; setup excluded), the simulated time
+ * reached, real-time factor = simulated / wall, peak total energy over
+ * initial (kinetic + gravitational potential with z = 0 at the floor; our
+ * own sum for ODE, sc_world_energy for simcluster), the deepest penetration
+ * seen (ODE: deepest contact depth of any frame; simcluster: the largest
+ * sc_stats.max_penetration of any frame) and the time at which all bodies
+ * came to rest (every body below 1 cm/s and 0.1 rad/s, and staying so for
+ * REST_HOLD_S; the run stops then). A run stops as "exploded" when the
+ * state has a NaN or the energy passes 100 x the initial; as "budget" when
+ * its wall time passes the budget (-b); a step that returns an error stops
+ * it too. Each run happens in a forked child, so that an abort or crash
+ * inside a peer is reported (as its signal) instead of ending the
+ * benchmark. Nothing is special-cased: each engine is measured as it is.
+ *
+ * Each cell is the median of R runs (default 3, -r) by real-time factor;
+ * the run with the median is reported whole. The physics of a run does not
+ * depend on timing, so only the times differ between runs.
+ *
+ * usage: bench_drop [-r runs] [-T sim_seconds] [-b wall_budget_s]
+ *                   [-s seed] [-e engines] [N ...]
+ *   engines: any of q (quick), s (step), c (simcluster); default qsc
+ *   N: body counts (1..100000), default 10 50 200 1000 */
+#include <errno.h>
+#include <math.h>
+#include <signal.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include <ode/ode.h>
+
+#include "simcluster.h"
+
+#include "bench_util.h"
+
+#define DT 0.01
+#define G 9.81
+#define STEEL 7800.0
+#define MAX_PAIR_CONTACTS 4
+#define QUICK_ITERS 20
+#define MU 0.5
+#define BOUNCE 0.8
+#define BOUNCE_VEL 0.1
+#define REST_V 0.01              /* m/s */
+#define REST_W 0.1               /* rad/s */
+#define REST_HOLD_S 0.5          /* at rest this long before we believe it */
+#define EXPLODE_FACTOR 100.0
+#define MAX_RUNS 15
+
+enum { ENG_QUICK, ENG_STEP, ENG_SC, ENG_COUNT };
+static const char *eng_name[ENG_COUNT] = { "ODE QuickStep", "ODE dWorldStep", "simcluster" };
+static const char eng_key[ENG_COUNT] = { 'q', 's', 'c' };
+
+enum { END_TIME, END_REST, END_EXPLODED, END_BUDGET, END_ERROR, END_CRASH };
+
+typedef struct result {
+    int end;                     /* END_* */
+    int code;                    /* sc error code, or signal / exit status */
+    double wall_s, sim_s;
+    double e0, epeak;
+    double max_pen;
+    double rest_s;               /* -1: not at rest */
+    double vmax, wmax;           /* fastest body at the last frame, m/s and rad/s */
+} result;
+
+/* What both ODE and simcluster start from. */
+typedef struct piece {
+    const double *xyz;
+    const int *tri;
+    int nverts, ntris;
+    double mass, inertia[9], com[3];
+} piece;
+
+typedef struct scene {
+    int n;
+    uint64_t seed;
+    piece kind[2];               /* bolt, nut */
+    double *pos, *quat, *vel, *omega;   /* of the shape origins, from the world */
+} scene;
+
+static double sim_limit_s = 10.0;
+static double budget_s = 120.0;
+
+/* ---- the scene, read back from simcluster ---- */
+
+static int piece_init(piece *p, const sc_shape *s)
+{
+    sc_mass_props mp;
+    if (sc_shape_mesh_data(s, &p->xyz, &p->nverts, &p->tri, &p->ntris) != SC_OK ||
+        sc_shape_mass_props(s, &mp) != SC_OK)
+        return -1;
+    p->mass = STEEL * mp.volume;
+    for (int k = 0; k < 9; k++)
+        p->inertia[k] = STEEL * mp.inertia[k];
+    memcpy(p->com, mp.com, sizeof p->com);
+    return 0;
+}
+
+static int scene_init(scene *sc, int n, uint64_t seed, sc_shape *bolt, sc_shape *nut)
+{
+    sc->n = n;
+    sc->seed = seed;
+    if (piece_init(&sc->kind[0], bolt) || piece_init(&sc->kind[1], nut))
+        return -1;
+    sc_world *w = sc_world_create(NULL);
+    if (!w)
+        return -1;
+    int rc = sc_scene_bolts_nuts(w, n, seed);
+    if (rc != SC_OK) {
+        fprintf(stderr, "sc_scene_bolts_nuts(%d): %s\n", n, sc_strerror(rc));
+        sc_world_destroy(w);
+        return -1;
+    }
+    sc->pos = malloc((size_t)n * 3 * sizeof *sc->pos);
+    sc->quat = malloc((size_t)n * 4 * sizeof *sc->quat);
+    sc->vel = malloc((size_t)n * 3 * sizeof *sc->vel);
+    sc->omega = malloc((size_t)n * 3 * sizeof *sc->omega);
+    if (!sc->pos || !sc->quat || !sc->vel || !sc->omega) {
+        sc_world_destroy(w);
+        return -1;
+    }
+    for (int i = 0; i < n; i++) {   /* body 0 is the floor */
+        sc_body_get_pose(w, i + 1, &sc->pos[3 * i], &sc->quat[4 * i]);
+        sc_body_get_velocity(w, i + 1, &sc->vel[3 * i], &sc->omega[3 * i]);
+    }
+    sc_world_destroy(w);
+    return 0;
+}
+
+static void scene_free(scene *sc)
+{
+    free(sc->pos);
+    free(sc->quat);
+    free(sc->vel);
+    free(sc->omega);
+}
+
+/* ---- rest detection and the stopping rules, common to all engines ---- */
+
+typedef struct watch {
+    double e0, epeak, max_pen;
+    double rest_since;           /* -1 while some body moves */
+} watch;
+
+/* Folds body velocity v, omega w into the frame's fastest speeds r->vmax,
+ * r->wmax; returns 1 if this body is at rest. */
+static int body_at_rest(const double v[3], const double w[3], result *r)
+{
+    double v2 = v[0] * v[0] + v[1] * v[1] + v[2] * v[2];
+    double w2 = w[0] * w[0] + w[1] * w[1] + w[2] * w[2];
+    r->vmax = fmax(r->vmax, sqrt(v2));
+    r->wmax = fmax(r->wmax, sqrt(w2));
+    return v2 < REST_V * REST_V && w2 < REST_W * REST_W;
+}
+
+/* After the frame ending at t: fold in energy e and penetration pen and
+ * the rest flag; returns END_* if the run should stop, -1 to go on. */
+static int watch_frame(watch *wt, double t, double e, double pen, int all_rest, result *r)
+{
+    wt->max_pen = fmax(wt->max_pen, pen);
+    if (!isfinite(e) || e > EXPLODE_FACTOR * fabs(wt->e0)) {
+        wt->epeak = isfinite(e) ? fmax(wt->epeak, e) : e;
+        return END_EXPLODED;
+    }
+    wt->epeak = fmax(wt->epeak, e);
+    if (!all_rest) {
+        wt->rest_since = -1;
+    } else {
+        if (wt->rest_since < 0)
+            wt->rest_since = t;
+        if (t - wt->rest_since >= REST_HOLD_S - 1e-9) {
+            r->rest_s = wt->rest_since;
+            return END_REST;
+        }
+    }
+    return t >= sim_limit_s - 1e-9 ? END_TIME : -1;
+}
+
+/* ---- ODE ---- */
+
+typedef struct ode_sim {
+    dWorldID world;
+    dSpaceID space;
+    dJointGroupID contacts;
+    dTriMeshDataID data[2];
+    dTriIndex *index[2];
+    double *verts[2];
+    dBodyID *body;
+    dGeomID *geom;
+    int *kind;
+    double max_depth;            /* this frame */
+} ode_sim;
+
+static void near_callback(void *ctx, dGeomID o1, dGeomID o2)
+{
+    ode_sim *s = ctx;
+    dBodyID b1 = dGeomGetBody(o1), b2 = dGeomGetBody(o2);
+    if (!b1 && !b2)
+        return;
+    dContact c[MAX_PAIR_CONTACTS];
+    memset(c, 0, sizeof c);
+    int n = dCollide(o1, o2, MAX_PAIR_CONTACTS, &c[0].geom, sizeof c[0]);
+    for (int i = 0; i < n; i++) {
+        c[i].surface.mode = dContactBounce | dContactApprox1;
+        c[i].surface.mu = MU;
+        c[i].surface.bounce = BOUNCE;
+        c[i].surface.bounce_vel = BOUNCE_VEL;
+        s->max_depth = fmax(s->max_depth, c[i].geom.depth);
+        dJointID j = dJointCreateContact(s->world, s->contacts, &c[i]);
+        dJointAttach(j, b1, b2);
+    }
+}
+
+static void set_last_transform(dGeomID g)
+{
+    const dReal *R = dGeomGetRotation(g), *p = dGeomGetPosition(g);
+    dMatrix4 m = { R[0], R[4], R[8], 0, R[1], R[5], R[9], 0,
+                   R[2], R[6], R[10], 0, p[0], p[1], p[2], 1 };
+    dGeomTriMeshSetLastTransform(g, m);
+}
+
+static int ode_build(ode_sim *s, const scene *sc)
+{
+    memset(s, 0, sizeof *s);
+    s->world = dWorldCreate();
+    dWorldSetGravity(s->world, 0, 0, -G);
+    dWorldSetQuickStepNumIterations(s->world, QUICK_ITERS);
+    s->space = dHashSpaceCreate(0);
+    s->contacts = dJointGroupCreate(0);
+    dCreatePlane(s->space, 0, 0, 1, 0);
+    for (int k = 0; k < 2; k++) {
+        const piece *p = &sc->kind[k];
+        /* ODE wants the centre of mass at the body origin */
+        s->verts[k] = malloc((size_t)p->nverts * 3 * sizeof *s->verts[k]);
+        s->index[k] = malloc((size_t)p->ntris * 3 * sizeof *s->index[k]);
+        if (!s->verts[k] || !s->index[k])
+            return -1;
+        for (int i = 0; i < 3 * p->nverts; i++)
+            s->verts[k][i] = p->xyz[i] - p->com[i % 3];
+        for (int i = 0; i < 3 * p->ntris; i++)
+            s->index[k][i] = (dTriIndex)p->tri[i];
+        s->data[k] = dGeomTriMeshDataCreate();
+        dGeomTriMeshDataBuildDouble(s->data[k], s->verts[k], 3 * sizeof(double), p->nverts,
+                                    s->index[k], 3 * p->ntris, 3 * sizeof(dTriIndex));
+    }
+    int n = sc->n;
+    s->body = calloc((size_t)n, sizeof *s->body);
+    s->geom = calloc((size_t)n, sizeof *s->geom);
+    s->kind = calloc((size_t)n, sizeof *s->kind);
+    if (!s->body || !s->geom || !s->kind)
+        return -1;
+    for (int i = 0; i < n; i++) {
+        const piece *p = &sc->kind[i % 2];
+        const double *q = &sc->quat[4 * i], *I = p->inertia;
+        s->kind[i] = i % 2;
+        dBodyID b = dBodyCreate(s->world);
+        dMass m;
+        dMassSetParameters(&m, p->mass, 0, 0, 0, I[0], I[4], I[8], I[1], I[2], I[5]);
+        dBodySetMass(b, &m);
+        dQuaternion dq = { q[0], q[1], q[2], q[3] };
+        dBodySetQuaternion(b, dq);
+        /* the body origin is the centre of mass: shape origin + R com */
+        const dReal *R = dBodyGetRotation(b);
+        double rc[3], wxr[3];
+        for (int k = 0; k < 3; k++)
+            rc[k] = R[4 * k] * p->com[0] + R[4 * k + 1] * p->com[1] + R[4 * k + 2] * p->com[2];
+        const double *x = &sc->pos[3 * i], *v = &sc->vel[3 * i], *w = &sc->omega[3 * i];
+        wxr[0] = w[1] * rc[2] - w[2] * rc[1];
+        wxr[1] = w[2] * rc[0] - w[0] * rc[2];
+        wxr[2] = w[0] * rc[1] - w[1] * rc[0];
+        dBodySetPosition(b, x[0] + rc[0], x[1] + rc[1], x[2] + rc[2]);
+        dBodySetLinearVel(b, v[0] + wxr[0], v[1] + wxr[1], v[2] + wxr[2]);
+        dBodySetAngularVel(b, w[0], w[1], w[2]);
+        dGeomID g = dCreateTriMesh(s->space, s->data[i % 2], NULL, NULL, NULL);
+        dGeomSetBody(g, b);
+        set_last_transform(g);
+        s->body[i] = b;
+        s->geom[i] = g;
+    }
+    return 0;
+}
+
+/* Kinetic + potential energy (z = 0 at the floor); NaN if any state is. */
+static double ode_energy(const ode_sim *s, const scene *sc, int *all_rest, result *r)
+{
+    double e = 0;
+    int rest = 1;
+    r->vmax = r->wmax = 0;
+    for (int i = 0; i < sc->n; i++) {
+        const piece *p = &sc->kind[s->kind[i]];
+        const dReal *x = dBodyGetPosition(s->body[i]), *v = dBodyGetLinearVel(s->body[i]);
+        const dReal *w = dBodyGetAngularVel(s->body[i]), *R = dBodyGetRotation(s->body[i]);
+        double wb[3], Iw[3];
+        for (int k = 0; k < 3; k++)       /* body frame: R^T w (R is 3x4 row-major) */
+            wb[k] = R[k] * w[0] + R[4 + k] * w[1] + R[8 + k] * w[2];
+        for (int k = 0; k < 3; k++)
+            Iw[k] = p->inertia[3 * k] * wb[0] + p->inertia[3 * k + 1] * wb[1] +
+                    p->inertia[3 * k + 2] * wb[2];
+        e += 0.5 * p->mass * (v[0] * v[0] + v[1] * v[1] + v[2] * v[2]) +
+             0.5 * (wb[0] * Iw[0] + wb[1] * Iw[1] + wb[2] * Iw[2]) + p->mass * G * x[2];
+        double vv[3] = { v[0], v[1], v[2] }, ww[3] = { w[0], w[1], w[2] };
+        rest &= body_at_rest(vv, ww, r);
+    }
+    *all_rest = rest;
+    return e;
+}
+
+static void ode_free(ode_sim *s)
+{
+    if (s->contacts)
+        dJointGroupDestroy(s->contacts);
+    if (s->space)
+        dSpaceDestroy(s->space);          /* destroys its geoms */
+    if (s->world)
+        dWorldDestroy(s->world);
+    for (int k = 0; k < 2; k++) {
+        if (s->data[k])
+            dGeomTriMeshDataDestroy(s->data[k]);
+        free(s->verts[k]);
+        free(s->index[k]);
+    }
+    free(s->body);
+    free(s->geom);
+    free(s->kind);
+}
+
+static void run_ode(const scene *sc, int quick, result *r)
+{
+    ode_sim s;
+    dRandSetSeed(0);                      /* QuickStep's row shuffling */
+    if (ode_build(&s, sc) != 0) {
+        r->end = END_ERROR;
+        r->code = -1;
+        ode_free(&s);
+        return;
+    }
+    int rest;
+    watch wt = { .e0 = ode_energy(&s, sc, &rest, r), .rest_since = -1 };
+    wt.epeak = wt.e0;
+    r->e0 = wt.e0;
+    double wall = 0;
+    long frame = 0;
+    int end = -1;
+    while (end < 0) {
+        double t0 = now_s();
+        s.max_depth = 0;
+        dSpaceCollide(s.space, &s, near_callback);
+        int ok = quick ? dWorldQuickStep(s.world, DT) : dWorldStep(s.world, DT);
+        dJointGroupEmpty(s.contacts);
+        for (int i = 0; i < sc->n; i++)
+            set_last_transform(s.geom[i]);
+        wall += now_s() - t0;
+        frame++;
+        double e = ode_energy(&s, sc, &rest, r);
+        end = watch_frame(&wt, frame * DT, e, s.max_depth, rest, r);
+        if (end < 0 && !ok) {
+            end = END_ERROR;              /* ODE ran out of memory */
+            r->code = 0;
+        }
+        if (end < 0 && wall > budget_s)
+            end = END_BUDGET;
+    }
+    r->end = end;
+    r->wall_s = wall;
+    r->sim_s = frame * DT;
+    r->epeak = wt.epeak;
+    r->max_pen = wt.max_pen;
+    ode_free(&s);
+}
+
+/* ---- simcluster ---- */
+
+static void run_sc(const scene *sc, result *r)
+{
+    sc_world_config cfg = sc_world_config_default();
+    sc_world *w = sc_world_create(&cfg);
+    int rc = w ? sc_scene_bolts_nuts(w, sc->n, sc->seed) : sc_last_error();
+    if (rc != SC_OK) {
+        r->end = END_ERROR;
+        r->code = rc;
+        sc_world_destroy(w);
+        return;
+    }
+    watch wt = { .e0 = sc_world_energy(w), .rest_since = -1 };
+    wt.epeak = wt.e0;
+    r->e0 = wt.e0;
+    double wall = 0;
+    long frame = 0;
+    int end = -1;
+    while (end < 0) {
+        double t0 = now_s();
+        rc = sc_world_step(w, DT);
+        wall += now_s() - t0;
+        frame++;
+        if (rc != SC_OK) {
+            end = END_ERROR;
+            r->code = rc;
+            break;
+        }
+        sc_stats st;
+        sc_world_stats(w, &st);
+        int rest = 1;
+        r->vmax = r->wmax = 0;
+        for (int i = 1; i <= sc->n; i++) {
+            double v[3], om[3];
+            sc_body_get_velocity(w, i, v, om);
+            rest &= body_at_rest(v, om, r);
+        }
+        end = watch_frame(&wt, frame * DT, sc_world_energy(w), st.max_penetration, rest, r);
+        if (end < 0 && wall > budget_s)
+            end = END_BUDGET;
+    }
+    r->end = end;
+    r->wall_s = wall;
+    r->sim_s = frame * DT;
+    r->epeak = wt.epeak;
+    r->max_pen = wt.max_pen;
+    sc_world_destroy(w);
+}
+
+/* ---- one run in a child process ---- */
+
+static void run_child(const scene *sc, int eng, result *r)
+{
+    memset(r, 0, sizeof *r);
+    r->rest_s = -1;
+    int fd[2];
+    if (pipe(fd) != 0) {
+        perror("pipe");
+        exit(1);
+    }
+    fflush(NULL);
+    pid_t pid = fork();
+    if (pid < 0) {
+        perror("fork");
+        exit(1);
+    }
+    if (pid == 0) {
+        close(fd[0]);
+        /* a single step far beyond the budget is killed */
+        alarm((unsigned)(budget_s + 300));
+        if (eng == ENG_SC)
+            run_sc(sc, r);
+        else
+            run_ode(sc, eng == ENG_QUICK, r);
+        ssize_t k = write(fd[1], r, sizeof *r);
+        _exit(k == (ssize_t)sizeof *r ? 0 : 1);
+    }
+    close(fd[1]);
+    result got;
+    size_t have = 0;
+    while (have < sizeof got) {
+        ssize_t k = read(fd[0], (char *)&got + have, sizeof got - have);
+        if (k < 0 && errno == EINTR)
+            continue;
+        if (k <= 0)
+            break;
+        have += (size_t)k;
+    }
+    close(fd[0]);
+    int status = 0;
+    while (waitpid(pid, &status, 0) < 0 && errno == EINTR)
+        ;
+    if (have == sizeof got && WIFEXITED(status) && WEXITSTATUS(status) == 0) {
+        *r = got;
+    } else {
+        r->end = END_CRASH;
+        r->code = WIFSIGNALED(status) ? WTERMSIG(status) : -WEXITSTATUS(status);
+    }
+}
+
+/* ---- the table ---- */
+
+static double rtf(const result *r)
+{
+    return r->wall_s > 0 ? r->sim_s / r->wall_s : 0;
+}
+
+static int cmp_rtf(const void *a, const void *b)
+{
+    double x = rtf(a), y = rtf(b);
+    return (x > y) - (x < y);
+}
+
+static void describe_end(const result *r, char *buf, size_t len)
+{
+    switch (r->end) {
+    case END_TIME: snprintf(buf, len, "ran %.1f s", r->sim_s); break;
+    case END_REST: snprintf(buf, len, "at rest"); break;
+    case END_EXPLODED: snprintf(buf, len, "exploded at t = %.2f s", r->sim_s); break;
+    case END_BUDGET: snprintf(buf, len, "wall budget hit at t = %.2f s", r->sim_s); break;
+    case END_ERROR: snprintf(buf, len, "step error %d (%s) at t = %.2f s", r->code,
+                             r->code < 0 ? sc_strerror(r->code) : "ODE", r->sim_s); break;
+    default:
+        if (r->code > 0)
+            snprintf(buf, len, "child died: signal %d (%s)", r->code, strsignal(r->code));
+        else
+            snprintf(buf, len, "child exited %d", -r->code);
+    }
+}
+
+static void print_row(int n, int eng, int runs, const result *r)
+{
+    char end[96], rest[32];
+    describe_end(r, end, sizeof end);
+    if (r->end == END_CRASH) {
+        printf("%6d  %-15s %4d  %9s %8s %9s %9s %10s %11s %10s  %s\n", n, eng_name[eng],
+               runs, "-", "-", "-", "-", "-", "-", "-", end);
+        return;
+    }
+    if (r->rest_s >= 0)
+        snprintf(rest, sizeof rest, "%.2f", r->rest_s);
+    else
+        snprintf(rest, sizeof rest, "not at rest");
+    printf("%6d  %-15s %4d  %9.3f %8.2f %9.3f %9.4f %10.4g %11s %10.3g  %s\n", n,
+           eng_name[eng], runs, r->wall_s, r->sim_s, rtf(r), r->epeak / r->e0, r->max_pen,
+           rest, r->vmax, end);
+}
+
+static void print_ratio(const char *what, double ours, double peer)
+{
+    if (isfinite(ours) && isfinite(peer) && peer != 0)
+        printf("  %-34s %11.6g\n", what, ours / peer);
+    else
+        printf("  %-34s %11s\n", what, "n/a");
+}
+
+static void usage(void)
+{
+    fprintf(stderr, "usage: bench_drop [-r runs] [-T sim_seconds] [-b wall_budget_s] "
+                    "[-s seed] [-e qsc] [N ...]\n");
+    exit(2);
+}
+
+int main(int argc, char **argv)
+{
+    int runs_opt = 0;
+    uint64_t seed = 1;
+    const char *engines = "qsc";
+    int opt;
+    while ((opt = getopt(argc, argv, "r:T:b:s:e:h")) != -1) {
+        switch (opt) {
+        case 'r': runs_opt = atoi(optarg); break;
+        case 'T': sim_limit_s = atof(optarg); break;
+        case 'b': budget_s = atof(optarg); break;
+        case 's': seed = strtoull(optarg, NULL, 0); break;
+        case 'e': engines = optarg; break;
+        default: usage();
+        }
+    }
+    if (runs_opt < 0 || runs_opt > MAX_RUNS || !(sim_limit_s > 0) || !(budget_s > 0))
+        usage();
+    int ns[64], nn = 0;
+    for (int i = optind; i < argc && nn < 64; i++) {
+        ns[nn] = atoi(argv[i]);
+        if (ns[nn] < 1 || ns[nn] > 100000)
+            usage();
+        nn++;
+    }
+    if (nn == 0) {
+        ns[0] = 10;
+        ns[1] = 50;
+        ns[2] = 200;
+        ns[3] = 1000;
+        nn = 4;
+    }
+    dInitODE2(0);
+    dAllocateODEDataForThread(dAllocateMaskAll);
+    sc_shape *bolt = sc_shape_bolt(), *nut = sc_shape_nut();
+    if (!bolt || !nut) {
+        fprintf(stderr, "building the meshes: %s\n", sc_strerror(sc_last_error()));
+        return 1;
+    }
+    printf("bolt/nut drop, %d + %d triangles, steel, e = %.1f, mu = %.1f, dt = %.2f s, "
+           "up to %.1f s simulated, wall budget %.0f s a run, seed %llu\n",
+           sc_shape_triangles(bolt), sc_shape_triangles(nut), BOUNCE, MU, DT, sim_limit_s,
+           budget_s, (unsigned long long)seed);
+    printf("ODE (%s): trimesh in dHashSpace, <= %d contacts a pair, Bounce|Approx1, "
+           "bounce_vel %.1f m/s, default ERP/CFM; QuickStep %d iterations\n",
+           dGetConfiguration(), MAX_PAIR_CONTACTS, BOUNCE_VEL, QUICK_ITERS);
+    printf("rest: all bodies < %.0f cm/s and < %.1f rad/s for %.1f s; "
+           "explosion: NaN or energy > %.0fx initial\n\n",
+           REST_V * 100, REST_W, REST_HOLD_S, EXPLODE_FACTOR);
+    printf("%6s  %-15s %4s  %9s %8s %9s %9s %10s %11s %10s  %s\n", "N", "engine", "runs",
+           "wall s", "sim s", "RT factor", "Epeak/E0", "max pen m", "rest at s", "vmax end",
+           "end");
+    for (int t = 0; t < nn; t++) {
+        int n = ns[t], runs = runs_opt ? runs_opt : 3;
+        scene sc;
+        memset(&sc, 0, sizeof sc);
+        if (scene_init(&sc, n, seed, bolt, nut) != 0) {
+            fprintf(stderr, "scene of %d bodies failed\n", n);
+            scene_free(&sc);
+            return 1;
+        }
+        result med[ENG_COUNT];
+        int have[ENG_COUNT] = { 0 };
+        for (int e = 0; e < ENG_COUNT; e++) {
+            if (!strchr(engines, eng_key[e]))
+                continue;
+            result rs[MAX_RUNS];
+            memset(rs, 0, sizeof rs);
+            for (int k = 0; k < runs; k++)
+                run_child(&sc, e, &rs[k]);
+            qsort(rs, (size_t)runs, sizeof rs[0], cmp_rtf);
+            med[e] = rs[runs / 2];
+            have[e] = 1;
+            print_row(n, e, runs, &med[e]);
+            fflush(stdout);
+        }
+        if (have[ENG_QUICK] && have[ENG_SC]) {
+            const result *q = &med[ENG_QUICK], *c = &med[ENG_SC];
+            int ok = q->end != END_CRASH && c->end != END_CRASH;
+            printf("        simcluster / QuickStep:\n");
+            print_ratio("RT factor", ok ? rtf(c) : NAN, ok ? rtf(q) : NAN);
+            print_ratio("Epeak/E0", ok ? c->epeak / c->e0 : NAN, ok ? q->epeak / q->e0 : NAN);
+            print_ratio("max penetration", ok ? c->max_pen : NAN, ok ? q->max_pen : NAN);
+            print_ratio("time to rest", c->rest_s >= 0 ? c->rest_s : NAN,
+                        q->rest_s >= 0 ? q->rest_s : NAN);
+        }
+        scene_free(&sc);
+    }
+    sc_shape_release(bolt);
+    sc_shape_release(nut);
+    dCloseODE();
+    return 0;
+}

@@ -1,0 +1,150 @@
+/* test_physics.c - physics validation: the numbers of the dynamics issue,
+ * with tolerances from the physics, through the public API only. */
+#include <math.h>
+#include <setjmp.h>
+#include <stdarg.h>
+#include <stddef.h>
+#include <stdint.h>
+#include <cmocka.h>
+
+#include "simcluster.h"
+
+#define G 9.81
+#define DT 0.01
+
+static sc_world *world_with_plane(double nx, double nz, double e, double mu)
+{
+    sc_world *w = sc_world_create(NULL);
+    assert_non_null(w);
+    sc_shape *p = sc_shape_plane(nx, 0, nz, 0);
+    sc_body_desc d = sc_body_desc_default();
+    d.shape = p;
+    d.mass = 0;
+    d.restitution = e;
+    d.friction = mu;
+    assert_int_equal(sc_body_add(w, &d), 0);
+    sc_shape_release(p);
+    return w;
+}
+
+static void test_ball_rebounds_to_e_squared_height(void **state)
+{
+    (void)state;
+    sc_world *w = world_with_plane(0, 1, 0.8, 0.5);
+    sc_shape *s = sc_shape_sphere(0.1);
+    sc_body_desc d = sc_body_desc_default();
+    d.shape = s;
+    d.restitution = 0.8;
+    d.pos[2] = 1.1;                       /* dropped from 1 m above contact */
+    int id = sc_body_add(w, &d);
+    double peak = 0, vz_prev = 0;
+    int bounces = 0;
+    for (int n = 0; n < 200 && bounces < 2; n++) {
+        assert_int_equal(sc_world_step(w, DT), SC_OK);
+        double p[3], v[3];
+        sc_body_get_pose(w, id, p, NULL);
+        sc_body_get_velocity(w, id, v, NULL);
+        if (vz_prev < 0 && v[2] > 0)
+            bounces++;
+        if (bounces == 1)
+            peak = fmax(peak, p[2] - 0.1);
+        vz_prev = v[2];
+    }
+    /* the peak is sampled every frame: allow the sampling error too */
+    assert_true(fabs(peak - 0.64) <= 0.02 * 0.64);
+    sc_shape_release(s);
+    sc_world_destroy(w);
+}
+
+static void test_sliding_box_stops_after_v2_over_2_mu_g(void **state)
+{
+    (void)state;
+    const double mu = 0.5, v0 = 2.0;
+    sc_world *w = world_with_plane(0, 1, 0, mu);
+    sc_shape *s = sc_shape_box(0.1, 0.1, 0.1);
+    sc_body_desc d = sc_body_desc_default();
+    d.shape = s;
+    d.restitution = 0;
+    d.friction = mu;
+    d.pos[2] = 0.1;
+    d.vel[0] = v0;
+    int id = sc_body_add(w, &d);
+    double p[3], v[3];
+    for (int n = 0; n < 100; n++) {
+        assert_int_equal(sc_world_step(w, DT), SC_OK);
+        sc_body_get_velocity(w, id, v, NULL);
+    }
+    sc_body_get_pose(w, id, p, NULL);
+    assert_true(fabs(v[0]) < 1e-9);
+    double expect = v0 * v0 / (2 * mu * G);
+    assert_true(fabs(p[0] - expect) <= 0.02 * expect);
+    assert_true(fabs(p[1]) < 1e-6 && fabs(p[2] - 0.1) < 1e-3);
+    sc_shape_release(s);
+    sc_world_destroy(w);
+}
+
+/* A box on a slope of angle th with mu = 0.5 (friction angle 26.6 deg):
+ * below it the box stays, above it slides with a = g (sin th - mu cos th). */
+static double slide(double th_deg, double *accel)
+{
+    const double mu = 0.5, th = th_deg * M_PI / 180;
+    sc_world *w = world_with_plane(-sin(th), cos(th), 0, mu);
+    sc_shape *s = sc_shape_box(0.1, 0.1, 0.1);
+    sc_body_desc d = sc_body_desc_default();
+    d.shape = s;
+    d.restitution = 0;
+    d.friction = mu;
+    /* resting on the slope: rotated by th about y, centre 0.1 above it */
+    d.quat[0] = cos(th / 2);
+    d.quat[2] = -sin(th / 2);
+    d.pos[0] = -0.1 * sin(th);
+    d.pos[2] = 0.1 * cos(th) - 0.0002;
+    int id = sc_body_add(w, &d);
+    double p0[3], p[3], v[3];
+    sc_body_get_pose(w, id, p0, NULL);
+    double t = 1.0, vt = 0;
+    for (int n = 0; n < (int)(t / DT); n++) {
+        assert_int_equal(sc_world_step(w, DT), SC_OK);
+        if (n == (int)(0.5 / DT) - 1) {
+            sc_body_get_velocity(w, id, v, NULL);
+            vt = -(v[0] * cos(th) + v[2] * sin(th));    /* downhill speed */
+        }
+    }
+    sc_body_get_pose(w, id, p, NULL);
+    sc_body_get_velocity(w, id, v, NULL);
+    double v1 = -(v[0] * cos(th) + v[2] * sin(th));
+    *accel = (v1 - vt) / 0.5;
+    sc_shape_release(s);
+    sc_world_destroy(w);
+    double dx = p[0] - p0[0], dz = p[2] - p0[2];
+    return sqrt(dx * dx + dz * dz);
+}
+
+static void test_box_on_slope_below_friction_angle_stays(void **state)
+{
+    (void)state;
+    double a;
+    double moved = slide(20, &a);
+    assert_true(moved < 1e-3);
+}
+
+static void test_box_on_slope_above_friction_angle_slides(void **state)
+{
+    (void)state;
+    double a;
+    double th = 35 * M_PI / 180;
+    slide(35, &a);
+    double expect = G * (sin(th) - 0.5 * cos(th));
+    assert_true(fabs(a - expect) <= 0.02 * expect);
+}
+
+int main(void)
+{
+    const struct CMUnitTest tests[] = {
+        cmocka_unit_test(test_ball_rebounds_to_e_squared_height),
+        cmocka_unit_test(test_sliding_box_stops_after_v2_over_2_mu_g),
+        cmocka_unit_test(test_box_on_slope_below_friction_angle_stays),
+        cmocka_unit_test(test_box_on_slope_above_friction_angle_slides),
+    };
+    return cmocka_run_group_tests(tests, NULL, NULL);
+}
