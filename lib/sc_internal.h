@@ -131,6 +131,13 @@ int sc_toi_ctx(sc_np_ctx *ctx, const sc_shape *a, const sc_pose *a0, const sc_po
                const sc_shape *b, const sc_pose *b0, const sc_pose *b1, double tol_m,
                double *t);
 
+/* For a pair already in contact: the last time in [0, 1] at which its
+ * penetration is still <= limit_m, when it exceeds limit_m later (1 and
+ * *t), 0 when it never does or already does at t = 0. */
+int sc_toi_deepen_ctx(sc_np_ctx *ctx, const sc_shape *a, const sc_pose *a0, const sc_pose *a1,
+                      const sc_shape *b, const sc_pose *b0, const sc_pose *b1, double limit_m,
+                      double *t);
+
 /* Validate a triangle mesh and compute its mass properties:
  * SC_EINVAL (NaN, bad index), SC_ETOOBIG, SC_EDEGENERATE (zero-area
  * triangles, no volume), SC_ENOTCLOSED (an edge not shared by exactly two

@@ -107,6 +107,45 @@ int sc_toi_ctx(sc_np_ctx *ctx, const sc_shape *a, const sc_pose *a0, const sc_po
     return 0;
 }
 
+int sc_toi_deepen_ctx(sc_np_ctx *ctx, const sc_shape *a, const sc_pose *a0, const sc_pose *a1,
+                      const sc_shape *b, const sc_pose *b0, const sc_pose *b1, double limit_m,
+                      double *t)
+{
+    if (!ctx || !a || !b || !a0 || !a1 || !b0 || !b1 || !t || !(limit_m > 0))
+        return SC_EINVAL;
+    double d;
+    int rc = depth_at(ctx, a, a0, a1, b, b0, b1, 0.0, &d);
+    if (rc < 0)
+        return rc;
+    if (d > limit_m)
+        return 0;                        /* already past it: nothing to back up to */
+    double sweep = sweep_length(a, a0, a1) + sweep_length(b, b0, b1);
+    double step = fmax(0.5 * fmin(feature_size(a), feature_size(b)), limit_m);
+    int samples = (int)fmin(fmax(ceil(sweep / step), 1), TOI_MAX_SAMPLES);
+    for (int k = 1; k <= samples; k++) {
+        double hi = (double)k / samples, lo = (double)(k - 1) / samples;
+        rc = depth_at(ctx, a, a0, a1, b, b0, b1, hi, &d);
+        if (rc < 0)
+            return rc;
+        if (d <= limit_m)
+            continue;
+        /* lo within the limit, hi past it: keep the last time within */
+        for (int it = 0; it < TOI_MAX_BISECT && hi - lo > 1e-9; it++) {
+            double mid = 0.5 * (lo + hi);
+            rc = depth_at(ctx, a, a0, a1, b, b0, b1, mid, &d);
+            if (rc < 0)
+                return rc;
+            if (d <= limit_m)
+                lo = mid;
+            else
+                hi = mid;
+        }
+        *t = lo;
+        return 1;
+    }
+    return 0;
+}
+
 SC_API int sc_toi(const sc_shape *a, const sc_pose *a0, const sc_pose *a1, const sc_shape *b,
                   const sc_pose *b0, const sc_pose *b1, double tol_m, double *t)
 {

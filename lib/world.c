@@ -462,7 +462,7 @@ static int narrowphase(sc_world *w, int npairs)
 
 /* ---- the frame: the paper's steps (3)-(7) ---------------------------- */
 
-#define MAX_SUBSTEPS 8        /* time-of-impact back-ups per frame */
+#define MAX_SUBSTEPS 16       /* time-of-impact back-ups per frame */
 #define SLEEP_SPEED 0.02      /* m/s and rad/s below which a body is slow */
 #define SLEEP_TIME 0.5        /* s an island stays slow before it sleeps */
 
@@ -638,7 +638,7 @@ static int earliest_impact(sc_world *w, const sc_body *saved, const sc_contact *
     int rc = SC_OK;
     for (int k = 0; k < w->ncontacts && rc == SC_OK; k++) {
         const sc_contact *c = &w->contacts[k];
-        if (c->depth <= w->cfg.contact_tol_m || has_pair(c0, n0, c->body_a, c->body_b))
+        if (c->depth <= w->cfg.contact_tol_m)
             continue;
         if (k > 0 && c[-1].body_a == c->body_a && c[-1].body_b == c->body_b)
             continue;    /* one query per pair */
@@ -647,9 +647,15 @@ static int earliest_impact(sc_world *w, const sc_body *saved, const sc_contact *
         body_pose(&w->bodies[c->body_a], &a1);
         body_pose(&saved[c->body_b], &b0);
         body_pose(&w->bodies[c->body_b], &b1);
+        const sc_shape *sa = w->bodies[c->body_a].shape, *sb = w->bodies[c->body_b].shape;
         double t;
-        int hit = sc_toi_ctx(w->np, w->bodies[c->body_a].shape, &a0, &a1,
-                             w->bodies[c->body_b].shape, &b0, &b1, w->cfg.contact_tol_m, &t);
+        /* a new pair: back up to first touch; a pair already touching that
+         * digs in past the tolerance (a bolt rocking onto its other end):
+         * back up to where it reaches the tolerance */
+        int hit = has_pair(c0, n0, c->body_a, c->body_b)
+                      ? sc_toi_deepen_ctx(w->np, sa, &a0, &a1, sb, &b0, &b1,
+                                          w->cfg.contact_tol_m, &t)
+                      : sc_toi_ctx(w->np, sa, &a0, &a1, sb, &b0, &b1, w->cfg.contact_tol_m, &t);
         if (hit < 0)
             rc = hit;
         else if (hit == 1 && t < *frac)

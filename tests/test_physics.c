@@ -138,6 +138,36 @@ static void test_box_on_slope_above_friction_angle_slides(void **state)
     assert_true(fabs(a - expect) <= 0.02 * expect);
 }
 
+/* The paper's experiment at N = 50: energy never grows by more than 1 %,
+ * penetration stays within 1 mm, everything rests within 10 s simulated. */
+static void test_fifty_bolts_and_nuts_drop_stably_and_come_to_rest(void **state)
+{
+    (void)state;
+    sc_world *w = sc_world_create(NULL);
+    assert_int_equal(sc_scene_bolts_nuts(w, 50, 1), SC_OK);
+    double e0 = sc_world_energy(w), peak = e0, pen = 0;
+    int frames = 0, fallbacks = 0;
+    while (!sc_world_at_rest(w) && frames < 1000) {
+        assert_int_equal(sc_world_step(w, DT), SC_OK);
+        frames++;
+        sc_stats st;
+        sc_world_stats(w, &st);
+        pen = fmax(pen, st.max_penetration);
+        peak = fmax(peak, sc_world_energy(w));
+        fallbacks += st.lcp_fallbacks;
+    }
+    /* islands whose friction LCP failed and were solved frictionless are
+     * reported, not hidden (an open item of the solver) */
+    print_message("50 bodies: at rest after %.2f s, peak energy / initial %.6f, "
+                  "max penetration %.3f mm, friction fallbacks %d\n", frames * DT, peak / e0,
+                  1000 * pen, fallbacks);
+    assert_true(sc_world_at_rest(w));
+    assert_true(frames * DT <= 10.0);
+    assert_true(peak <= 1.01 * e0);
+    assert_true(pen <= 1e-3);
+    sc_world_destroy(w);
+}
+
 int main(void)
 {
     const struct CMUnitTest tests[] = {
@@ -145,6 +175,7 @@ int main(void)
         cmocka_unit_test(test_sliding_box_stops_after_v2_over_2_mu_g),
         cmocka_unit_test(test_box_on_slope_below_friction_angle_stays),
         cmocka_unit_test(test_box_on_slope_above_friction_angle_slides),
+        cmocka_unit_test(test_fifty_bolts_and_nuts_drop_stably_and_come_to_rest),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
 }
