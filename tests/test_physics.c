@@ -138,6 +138,57 @@ static void test_box_on_slope_above_friction_angle_slides(void **state)
     assert_true(fabs(a - expect) <= 0.02 * expect);
 }
 
+/* Five 0.2 m boxes stacked, started resting (each interface at the 0.5 mm
+ * slop the contact model keeps): after 10 s the top moved < 1 mm. */
+static void test_stack_of_five_boxes_stands_ten_seconds(void **state)
+{
+    (void)state;
+    sc_world *w = world_with_plane(0, 1, 0, 0.5);
+    sc_shape *s = sc_shape_box(0.1, 0.1, 0.1);
+    int top = -1;
+    for (int i = 0; i < 5; i++) {
+        sc_body_desc d = sc_body_desc_default();
+        d.shape = s;
+        d.restitution = 0;
+        d.pos[2] = 0.1 + 0.2 * i - 0.0005 * (i + 1);
+        top = sc_body_add(w, &d);
+    }
+    double p0[3], p1[3];
+    sc_body_get_pose(w, top, p0, NULL);
+    for (int n = 0; n < 1000; n++)
+        assert_int_equal(sc_world_step(w, DT), SC_OK);
+    sc_body_get_pose(w, top, p1, NULL);
+    double drift = sqrt((p1[0] - p0[0]) * (p1[0] - p0[0]) + (p1[1] - p0[1]) * (p1[1] - p0[1]) +
+                        (p1[2] - p0[2]) * (p1[2] - p0[2]));
+    print_message("stack: top drift %.3f mm after 10 s\n", 1000 * drift);
+    assert_true(drift < 1e-3);
+    sc_shape_release(s);
+    sc_world_destroy(w);
+}
+
+/* Table 1: 27 spheres, e = 1, no friction, 5000 frames of 0.01 s: energy
+ * is conserved within 0.5 %. */
+static void test_table1_spheres_conserve_energy(void **state)
+{
+    (void)state;
+    sc_world *w = sc_world_create(NULL);
+    assert_int_equal(sc_scene_spheres_box(w), SC_OK);
+    double e0 = sc_world_energy(w), worst = 0;
+    long collisions = 0;
+    for (int n = 0; n < 5000; n++) {
+        assert_int_equal(sc_world_step(w, DT), SC_OK);
+        worst = fmax(worst, fabs(sc_world_energy(w) / e0 - 1));
+        sc_stats st;
+        sc_world_stats(w, &st);
+        collisions += st.contacts;
+    }
+    print_message("Table 1 scene: worst |E/E0 - 1| = %.5f over 5000 frames, %ld contact points\n",
+                  worst, collisions);
+    assert_true(collisions > 0);
+    assert_true(worst <= 0.005);
+    sc_world_destroy(w);
+}
+
 /* The paper's experiment at N = 50: energy never grows by more than 1 %,
  * penetration stays within 1 mm, everything rests within 10 s simulated. */
 static void test_fifty_bolts_and_nuts_drop_stably_and_come_to_rest(void **state)
@@ -175,6 +226,8 @@ int main(void)
         cmocka_unit_test(test_sliding_box_stops_after_v2_over_2_mu_g),
         cmocka_unit_test(test_box_on_slope_below_friction_angle_stays),
         cmocka_unit_test(test_box_on_slope_above_friction_angle_slides),
+        cmocka_unit_test(test_stack_of_five_boxes_stands_ten_seconds),
+        cmocka_unit_test(test_table1_spheres_conserve_energy),
         cmocka_unit_test(test_fifty_bolts_and_nuts_drop_stably_and_come_to_rest),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
