@@ -122,8 +122,8 @@ check-run: $(TEST_BIN) $(FUZZ_REPLAY)
 	$(Q)sh tests/run.sh $(BUILD)
 
 demo: deps
-	$(Q)$(MAKE) --no-print-directory $(BUILD)/examples/demo
-	$(Q)./$(BUILD)/examples/demo
+	$(Q)$(MAKE) --no-print-directory $(BUILD)/examples/bolts_nuts
+	$(Q)./$(BUILD)/examples/bolts_nuts 50
 
 bench: all
 	$(Q)for b in $(BENCH_BIN); do echo "== $$b"; ./$$b || exit 1; done

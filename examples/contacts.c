@@ -1,7 +1,6 @@
-/* demo.c - `make demo`: drops a sphere, a box, a bolt and a nut onto a
- * floor and prints, frame by frame, the contacts the engine finds.
- * (Contact response arrives with the dynamics stage; for now bodies fall
- * freely and the demo stops when all of them have reached the floor.) */
+/* contacts.c - drops a sphere, a box, a bolt and a nut onto a
+ * floor and prints, frame by frame, the contacts the engine finds,
+ * until every body has touched the floor. */
 #include <stdio.h>
 
 #include "simcluster.h"
@@ -12,7 +11,7 @@ int main(void)
 {
     sc_world *w = sc_world_create(NULL);
     if (!w) {
-        fprintf(stderr, "demo: %s\n", sc_strerror(sc_last_error()));
+        fprintf(stderr, "contacts: %s\n", sc_strerror(sc_last_error()));
         return 1;
     }
     const char *names[NSHAPES + 1] = { "floor", "sphere", "box", "bolt", "nut" };
@@ -22,7 +21,7 @@ int main(void)
     };
     for (int i = 0; i <= NSHAPES; i++) {
         if (!shapes[i]) {
-            fprintf(stderr, "demo: %s: %s\n", names[i], sc_strerror(sc_last_error()));
+            fprintf(stderr, "contacts: %s: %s\n", names[i], sc_strerror(sc_last_error()));
             return 1;
         }
         sc_body_desc d = sc_body_desc_default();
@@ -40,7 +39,7 @@ int main(void)
         d.omega[2] = 2.0 * i;
         int id = sc_body_add(w, &d);
         if (id < 0) {
-            fprintf(stderr, "demo: %s: %s\n", names[i], sc_strerror(id));
+            fprintf(stderr, "contacts: %s: %s\n", names[i], sc_strerror(id));
             return 1;
         }
         sc_mass_props mp;
@@ -54,7 +53,7 @@ int main(void)
     for (int frame = 1; frame <= 100 && ntouched < NSHAPES; frame++) {
         int rc = sc_world_step(w, dt);
         if (rc != SC_OK) {
-            fprintf(stderr, "demo: step: %s\n", sc_strerror(rc));
+            fprintf(stderr, "contacts: step: %s\n", sc_strerror(rc));
             return 1;
         }
         sc_contact c[64];
