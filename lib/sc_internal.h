@@ -115,6 +115,7 @@ int sc_island_solve(sc_body *bodies, const sc_contact *c, const int *ci, int nc,
                     const sc_contact_params *p, sc_solve_info *info);
 
 /* ---- narrow phase (narrowphase.c, manifold.c) ---- */
+
 typedef struct sc_np_ctx sc_np_ctx;     /* one per thread: owns ODE geoms */
 sc_np_ctx *sc_np_create(void);
 void sc_np_destroy(sc_np_ctx *ctx);
@@ -240,5 +241,43 @@ int sc_lu_solve(int m, double *a, double *b);
  * max_pivots) or SC_ENOMEM; *pivots is increased by the pivots made. */
 int sc_lcp_lemke(int n, const double *M, const double *q, double *z, long max_pivots,
                  long *pivots);
+
+/* ---- the world (world.c) and its frame (detect.c, integrate.c, step.c,
+ * state.c) ---- */
+struct sc_world {
+    sc_world_config cfg;
+    sc_body *bodies;
+    int nbodies, cap;
+    sc_broadphase *bp;
+    sc_np_ctx *np;
+    /* per-frame scratch, grown as needed and kept */
+    double *centre, *radius;
+    unsigned char *active;
+    int scratch_cap;
+    sc_pair *pairs;
+    int pair_cap;
+    sc_contact *contacts;
+    int ncontacts, contact_cap;
+    int contacts_valid;       /* contacts match the current state */
+    sc_stats stats;
+};
+
+static inline int sc_body_movable(const sc_body *b)
+{
+    return b->inv_mass > 0 && b->state != SC_ASLEEP;
+}
+/* Pose of a body's shape frame (the centre of mass is what is stored). */
+void sc_body_pose(const sc_body *b, sc_pose *p);
+/* Thread CPU seconds, and adding the time since t0 to a Table 1 row. */
+double sc_cpu_now(void);
+void sc_stage_add(sc_world *w, int stage, double t0);
+/* Step 4: pairs and contacts of the current state into w->contacts. */
+int sc_detect(sc_world *w);
+/* Step 3: u* = u + h (g + F/m) (keeping u in v0/w0); positions after the
+ * contact solve. */
+void sc_apply_forces(sc_world *w, double h);
+void sc_integrate_positions(sc_world *w, double h);
+/* States after a frame: free / colliding / contact, islands asleep. */
+void sc_update_states(sc_world *w, const sc_islands *is, const unsigned char *touched, double dt);
 
 #endif /* SC_INTERNAL_H */

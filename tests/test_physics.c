@@ -189,6 +189,63 @@ static void test_table1_spheres_conserve_energy(void **state)
     sc_world_destroy(w);
 }
 
+/* The state machine: free -> colliding -> contact -> asleep; a sleeping
+ * body is woken by a body hitting it and by a push. */
+static void test_states_sleep_and_wake(void **state)
+{
+    (void)state;
+    /* boxes: a ball knocked sideways would roll forever (no rolling
+     * resistance), a box stops by friction */
+    sc_world *w = world_with_plane(0, 1, 0.5, 0.5);
+    sc_shape *s = sc_shape_box(0.1, 0.1, 0.1);
+    sc_body_desc d = sc_body_desc_default();
+    d.shape = s;
+    d.pos[2] = 0.5;
+    int a = sc_body_add(w, &d);
+    assert_int_equal(sc_body_state(w, a), SC_FREE);
+    int seen[4] = { 0 };
+    for (int n = 0; n < 300; n++) {
+        assert_int_equal(sc_world_step(w, DT), SC_OK);
+        int st = sc_body_state(w, a);
+        assert_true(st >= SC_FREE && st <= SC_ASLEEP);
+        seen[st] = 1;
+    }
+    assert_true(seen[SC_FREE] && seen[SC_COLLIDING] && seen[SC_CONTACT] && seen[SC_ASLEEP]);
+    assert_int_equal(sc_body_state(w, a), SC_ASLEEP);
+    assert_true(sc_world_at_rest(w));
+    /* a second box falls on its edge, off centre: the sleeper wakes and is
+     * knocked; then both settle and sleep */
+    d.pos[2] = 0.6;
+    d.pos[0] = 0.12;
+    d.quat[0] = cos(0.3);
+    d.quat[2] = sin(0.3);
+    int b = sc_body_add(w, &d);
+    assert_false(sc_world_at_rest(w));
+    int woke = 0;
+    double p0[3], p1[3];
+    sc_body_get_pose(w, a, p0, NULL);
+    for (int n = 0; n < 100; n++) {
+        assert_int_equal(sc_world_step(w, DT), SC_OK);
+        woke |= sc_body_state(w, a) != SC_ASLEEP;
+    }
+    sc_body_get_pose(w, a, p1, NULL);
+    assert_true(woke);
+    assert_true(fabs(p1[0] - p0[0]) > 1e-3);      /* it was moved */
+    for (int n = 0; n < 1000 && !sc_world_at_rest(w); n++)
+        assert_int_equal(sc_world_step(w, DT), SC_OK);
+    assert_true(sc_world_at_rest(w));
+    /* a push wakes a sleeper */
+    double f[3] = { 5, 0, 0 };
+    assert_int_equal(sc_body_apply_force(w, b, f, NULL), SC_OK);
+    assert_int_not_equal(sc_body_state(w, b), SC_ASLEEP);
+    assert_int_equal(sc_world_step(w, DT), SC_OK);
+    double v[3];
+    sc_body_get_velocity(w, b, v, NULL);
+    assert_true(v[0] > 0);
+    sc_shape_release(s);
+    sc_world_destroy(w);
+}
+
 /* The paper's experiment at N = 50: energy never grows by more than 1 %,
  * penetration stays within 1 mm, everything rests within 10 s simulated. */
 static void test_fifty_bolts_and_nuts_drop_stably_and_come_to_rest(void **state)
@@ -226,6 +283,7 @@ int main(void)
         cmocka_unit_test(test_sliding_box_stops_after_v2_over_2_mu_g),
         cmocka_unit_test(test_box_on_slope_below_friction_angle_stays),
         cmocka_unit_test(test_box_on_slope_above_friction_angle_slides),
+        cmocka_unit_test(test_states_sleep_and_wake),
         cmocka_unit_test(test_stack_of_five_boxes_stands_ten_seconds),
         cmocka_unit_test(test_table1_spheres_conserve_energy),
         cmocka_unit_test(test_fifty_bolts_and_nuts_drop_stably_and_come_to_rest),

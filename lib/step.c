@@ -1,0 +1,178 @@
+/* step.c - one frame (the paper's steps 3-7): substeps of force, contact
+ * impulses and integration, each checked for contacts that got deeper than
+ * the tolerance and backed up to their time of impact (steps 5-6). */
+#include <limits.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "sc_internal.h"
+#include "vecmath.h"
+
+/* ---- the frame: the paper's steps (3)-(7) ---------------------------- */
+
+#define MAX_SUBSTEPS 16       /* time-of-impact back-ups per frame */
+
+static const sc_contact_params contact_params = {
+    .bounce_speed = 0.1,      /* the paper's threshold speed */
+    .slop = 0.5e-3,
+    .baumgarte = 0.2,
+};
+
+/* Steps (4)-(7) once over h: islands, contact impulses, positions. */
+static int substep(sc_world *w, double h, sc_islands *is, unsigned char *touched)
+
+{
+    int n = w->nbodies;
+    sc_apply_forces(w, h);
+    double t0 = sc_cpu_now();
+    for (int i = 0; i < n; i++)
+        w->active[i] = sc_body_movable(&w->bodies[i]);
+    int rc = sc_islands_build(n, w->active, w->contacts, w->ncontacts, is);
+    sc_stage_add(w, SC_STAGE_ISLANDS, t0);
+    if (rc != SC_OK)
+        return rc;
+    memset(touched, 0, (size_t)n);
+    for (int k = 0; k < w->ncontacts; k++) {
+        touched[w->contacts[k].body_a] = 1;
+        touched[w->contacts[k].body_b] = 1;
+    }
+    t0 = sc_cpu_now();
+    sc_solve_info info = { 0 };
+    for (int i = 0; i < is->count && rc == SC_OK; i++)
+        rc = sc_island_solve(w->bodies, w->contacts, &is->contacts[is->contact_start[i]],
+                             is->contact_start[i + 1] - is->contact_start[i], h,
+                             &contact_params, &info);
+    sc_stage_add(w, SC_STAGE_LCP, t0);
+    w->stats.lcp_pivots += info.pivots;
+    w->stats.lcp_fallbacks += info.failures;
+    w->stats.islands = is->count;
+    if (rc != SC_OK)
+        return rc;
+    t0 = sc_cpu_now();
+    sc_integrate_positions(w, h);
+    sc_stage_add(w, SC_STAGE_INTEGRATE, t0);
+    for (int i = 0; i < n; i++) {
+        sc_body *b = &w->bodies[i];
+        if (sc_body_movable(b) && (!sc_finite3(b->x) || !sc_finite3(b->v) || !sc_finite3(b->w)))
+            return SC_ENUMERIC;
+    }
+    return SC_OK;
+}
+
+static int has_pair(const sc_contact *c, int n, int a, int b)
+{
+    int lo = 0, hi = n - 1;
+    while (lo <= hi) {
+        int mid = (lo + hi) / 2;
+        int d = c[mid].body_a != a ? (c[mid].body_a < a ? -1 : 1)
+                                   : (c[mid].body_b != b ? (c[mid].body_b < b ? -1 : 1) : 0);
+        if (d == 0)
+            return 1;
+        if (d < 0)
+            lo = mid + 1;
+        else
+            hi = mid - 1;
+    }
+    return 0;
+}
+
+/* Step 5: the earliest time of impact (fraction of the substep) among new
+ * contacts deeper than the tolerance; 1 when there is none. */
+static int earliest_impact(sc_world *w, const sc_body *saved, const sc_contact *c0, int n0,
+                           double *frac)
+{
+    double t0 = sc_cpu_now();
+    *frac = 1;
+    int rc = SC_OK;
+    for (int k = 0; k < w->ncontacts && rc == SC_OK; k++) {
+        const sc_contact *c = &w->contacts[k];
+        if (c->depth <= w->cfg.contact_tol_m)
+            continue;
+        if (k > 0 && c[-1].body_a == c->body_a && c[-1].body_b == c->body_b)
+            continue;    /* one query per pair */
+        sc_pose a0, a1, b0, b1;
+        sc_body_pose(&saved[c->body_a], &a0);
+        sc_body_pose(&w->bodies[c->body_a], &a1);
+        sc_body_pose(&saved[c->body_b], &b0);
+        sc_body_pose(&w->bodies[c->body_b], &b1);
+        const sc_shape *sa = w->bodies[c->body_a].shape, *sb = w->bodies[c->body_b].shape;
+        double t;
+        /* a new pair: back up to first touch; a pair already touching that
+         * digs in past the tolerance (a bolt rocking onto its other end):
+         * back up to where it reaches the tolerance */
+        int hit = has_pair(c0, n0, c->body_a, c->body_b)
+                      ? sc_toi_deepen_ctx(w->np, sa, &a0, &a1, sb, &b0, &b1,
+                                          w->cfg.contact_tol_m, &t)
+                      : sc_toi_ctx(w->np, sa, &a0, &a1, sb, &b0, &b1, w->cfg.contact_tol_m, &t);
+        if (hit < 0)
+            rc = hit;
+        else if (hit == 1 && t < *frac)
+            *frac = t;
+    }
+    sc_stage_add(w, SC_STAGE_TOI, t0);
+    return rc;
+}
+
+SC_API int sc_world_step(sc_world *w, double dt)
+{
+    if (!w || !(dt > 0) || !isfinite(dt))
+        return SC_EINVAL;
+    int n = w->nbodies;
+    memset(w->stats.stage_s, 0, sizeof w->stats.stage_s);
+    w->stats.lcp_pivots = 0;
+    w->stats.lcp_fallbacks = 0;
+    w->stats.collider_warnings = 0;
+    sc_islands is = { 0 };
+    sc_body *saved = sc_alloc_array((size_t)n, sizeof *saved);
+    unsigned char *touched = sc_calloc_array((size_t)n, 1);
+    sc_contact *c0 = NULL;
+    int c0_cap = 0, rc = saved && touched ? SC_OK : SC_ENOMEM;
+    if (rc == SC_OK && !w->contacts_valid)
+        rc = sc_detect(w);
+    double left = dt;
+    for (int sub = 0; rc == SC_OK && left > 0; sub++) {
+        /* keep the start of the substep: contacts and state */
+        memcpy(saved, w->bodies, (size_t)n * sizeof *saved);
+        int n0 = w->ncontacts;
+        rc = sc_grow((void **)&c0, &c0_cap, n0, sizeof *c0, INT_MAX);
+        if (rc != SC_OK)
+            break;
+        if (n0 > 0)
+            memcpy(c0, w->contacts, (size_t)n0 * sizeof *c0);
+        double h = left;
+        rc = substep(w, h, &is, touched);
+        if (rc == SC_OK)
+            rc = sc_detect(w);
+        double frac = 1;
+        if (rc == SC_OK && sub + 1 < MAX_SUBSTEPS)
+            rc = earliest_impact(w, saved, c0, n0, &frac);
+        if (rc == SC_OK && frac < 1) {
+            /* steps 5-6: back up and advance only until they touch */
+            memcpy(w->bodies, saved, (size_t)n * sizeof *saved);
+            if (n0 > 0)
+                memcpy(w->contacts, c0, (size_t)n0 * sizeof *c0);
+            w->ncontacts = n0;
+            h = fmax(frac * h, 1e-6 * dt);
+            rc = substep(w, h, &is, touched);
+            if (rc == SC_OK)
+                rc = sc_detect(w);
+        }
+        left -= h;
+        if (left < 1e-9 * dt)
+            left = 0;
+    }
+    if (rc == SC_OK) {
+        sc_update_states(w, &is, touched, dt);
+        for (int i = 0; i < n; i++) {
+            v3_set(w->bodies[i].force, 0, 0, 0);
+            v3_set(w->bodies[i].torque, 0, 0, 0);
+        }
+        w->contacts_valid = 1;
+        w->stats.frames++;
+    }
+    sc_islands_free(&is);
+    free(saved);
+    free(touched);
+    free(c0);
+    return rc;
+}
