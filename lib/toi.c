@@ -59,6 +59,16 @@ static double feature_size(const sc_shape *s)
     }
 }
 
+/* Samples over [0, 1] so that no sample step moves a surface point by more
+ * than half the smaller feature (or the tolerance, if larger). */
+static int sample_count(const sc_shape *a, const sc_pose *a0, const sc_pose *a1,
+                        const sc_shape *b, const sc_pose *b0, const sc_pose *b1, double tol_m)
+{
+    double sweep = sweep_length(a, a0, a1) + sweep_length(b, b0, b1);
+    double step = fmax(0.5 * fmin(feature_size(a), feature_size(b)), tol_m);
+    return (int)fmin(fmax(ceil(sweep / step), 1), TOI_MAX_SAMPLES);
+}
+
 int sc_toi_ctx(sc_np_ctx *ctx, const sc_shape *a, const sc_pose *a0, const sc_pose *a1,
                const sc_shape *b, const sc_pose *b0, const sc_pose *b1, double tol_m,
                double *t)
@@ -73,11 +83,7 @@ int sc_toi_ctx(sc_np_ctx *ctx, const sc_shape *a, const sc_pose *a0, const sc_po
         *t = 0;
         return 1;
     }
-    double sweep = sweep_length(a, a0, a1) + sweep_length(b, b0, b1);
-    double step = fmax(0.5 * fmin(feature_size(a), feature_size(b)), tol_m);
-    int samples = (int)fmin(ceil(sweep / step), TOI_MAX_SAMPLES);
-    if (samples < 1)
-        samples = 1;
+    int samples = sample_count(a, a0, a1, b, b0, b1, tol_m);
     for (int k = 1; k <= samples; k++) {
         double hi = (double)k / samples, lo = (double)(k - 1) / samples;
         rc = depth_at(ctx, a, a0, a1, b, b0, b1, hi, &d);
@@ -119,9 +125,7 @@ int sc_toi_deepen_ctx(sc_np_ctx *ctx, const sc_shape *a, const sc_pose *a0, cons
         return rc;
     if (d > limit_m)
         return 0;                        /* already past it: nothing to back up to */
-    double sweep = sweep_length(a, a0, a1) + sweep_length(b, b0, b1);
-    double step = fmax(0.5 * fmin(feature_size(a), feature_size(b)), limit_m);
-    int samples = (int)fmin(fmax(ceil(sweep / step), 1), TOI_MAX_SAMPLES);
+    int samples = sample_count(a, a0, a1, b, b0, b1, limit_m);
     for (int k = 1; k <= samples; k++) {
         double hi = (double)k / samples, lo = (double)(k - 1) / samples;
         rc = depth_at(ctx, a, a0, a1, b, b0, b1, hi, &d);
