@@ -198,9 +198,9 @@ typedef struct sc_stats {
     int contacts;             /* contact points, last frame */
     int islands;              /* islands, last frame */
     long lcp_pivots;          /* LCP pivots, last frame */
-    int lcp_fallbacks;        /* islands whose friction LCP failed (pivot limit
-                                 or breakdown) and were solved without friction,
-                                 last frame */
+    int lcp_fallbacks;        /* islands whose coupled friction LCP failed (pivot
+                                 limit or breakdown) and were solved staggered:
+                                 normals, then friction with fixed bounds */
     double max_penetration;   /* deepest contact, m, last frame */
     long collider_warnings;   /* ODE collider messages (e.g. contact buffer
                                  overflow), last frame; never printed */

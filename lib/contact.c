@@ -110,8 +110,8 @@ static int solve(int n, double *A, const double *q, const double *lo, const doub
                  sc_solve_info *info)
 {
     sc_lcp_info li = { 0 };
-    int rc = findex ? sc_lcp_boxed(n, A, q, lo, hi, findex, mu, z, w, &li)
-                    : sc_lcp_dantzig(n, A, q, z, w, &li);
+    int rc = lo ? sc_lcp_boxed(n, A, q, lo, hi, findex, mu, z, w, &li)
+                : sc_lcp_dantzig(n, A, q, z, w, &li);
     info->pivots += li.pivots;
     info->lemke += li.lemke;
     if (rc == SC_OK || rc == SC_EINVAL || rc == SC_ENOMEM)
@@ -121,8 +121,8 @@ static int solve(int n, double *A, const double *q, const double *lo, const doub
         dmax = fmax(dmax, A[i * n + i]);
     for (int i = 0; i < n; i++)
         A[i * n + i] += 1e-9 * dmax + 1e-300;
-    rc = findex ? sc_lcp_boxed(n, A, q, lo, hi, findex, mu, z, w, &li)
-                : sc_lcp_dantzig(n, A, q, z, w, &li);
+    rc = lo ? sc_lcp_boxed(n, A, q, lo, hi, findex, mu, z, w, &li)
+            : sc_lcp_dantzig(n, A, q, z, w, &li);
     info->pivots += li.pivots;
     if (rc == SC_OK)
         info->regularised++;
@@ -157,6 +157,53 @@ static void apply(const row *rw, double z, sc_body *bodies, int pseudo, double h
 /* Tangent directions: t1 along the sliding velocity when the contact
  * slides, so that the friction pyramid's edge opposes the motion exactly
  * (as ODE's fdir1); otherwise a fixed rule, the axis least aligned with n. */
+/* The staggered fallback (see sc_island_solve): rows[nsel[k]] are the
+ * normals; scratch holds 6 n doubles, the first n the rows' q. */
+static int staggered(const row *rows, int nrows, const int *nsel, int nn, const int *findex,
+                     const double *mu, sc_body *bodies, double *A, double *scratch,
+                     sc_solve_info *info)
+{
+    size_t n = (size_t)nrows;
+    double *q = scratch, *lo = scratch + n, *hi = scratch + 2 * n, *z = scratch + 3 * n,
+           *w = scratch + 4 * n, *zrow = scratch + 5 * n;
+    build_a(rows, nsel, nn, A);
+    for (int k = 0; k < nn; k++)
+        q[k] = q[nsel[k]];       /* the normals' q, restitution included; nsel[k] >= k */
+    int rc = solve(nn, A, q, NULL, NULL, NULL, NULL, z, w, info);
+    if (rc != SC_OK)
+        return rc;
+    for (int i = 0; i < nrows; i++)
+        zrow[i] = 0;
+    for (int k = 0; k < nn; k++) {
+        zrow[nsel[k]] = z[k];
+        apply(&rows[nsel[k]], z[k], bodies, 0, 0);
+    }
+    /* tangents, bounds fixed by the normal impulses just applied */
+    int nt = nrows - nn;
+    if (nt == 0)
+        return SC_OK;
+    int *sel = sc_alloc_array((size_t)nt, sizeof *sel);
+    if (!sel)
+        return SC_ENOMEM;
+    nt = 0;
+    for (int i = 0; i < nrows; i++)
+        if (findex[i] >= 0)
+            sel[nt++] = i;
+    build_a(rows, sel, nt, A);
+    for (int k = 0; k < nt; k++) {
+        int r = sel[k];
+        q[k] = row_speed(&rows[r], bodies, 0);
+        hi[k] = mu[r] * zrow[findex[r]];
+        lo[k] = -hi[k];
+    }
+    rc = solve(nt, A, q, lo, hi, NULL, NULL, z, w, info);
+    if (rc == SC_OK)
+        for (int k = 0; k < nt; k++)
+            apply(&rows[sel[k]], z[k], bodies, 0, 0);
+    free(sel);
+    return rc;
+}
+
 static void tangents(const sc_body *bodies, const sc_contact *c, double t1[3], double t2[3])
 {
     const double *n = c->normal;
@@ -248,18 +295,13 @@ int sc_island_solve(sc_body *bodies, const sc_contact *c, const int *ci, int nc,
     rc = solve(nrows, A, q, lo, hi, friction ? findex : NULL, mu, z, w, info);
     if (rc != SC_OK && friction && rc != SC_ENOMEM && rc != SC_EINVAL) {
         /* The friction fixed point can fail (pivot limit, ill-conditioned
-         * near-duplicate rows). Normals alone are a PSD LCP the pivoting
-         * solves; the island then slides freely for this substep. Counted
-         * in sc_stats.lcp_fallbacks, never silent. */
+         * near-duplicate rows). Then stagger: normals alone (a PSD LCP the
+         * pivoting solves), then the tangents as a boxed LCP with the bounds
+         * fixed at +-mu p_n. Exact for each half, the coupling of friction
+         * back into the normals is lost for this substep: counted in
+         * sc_stats.lcp_fallbacks, never silent. */
         info->failures++;
-        build_a(rows, nsel, nn, A);
-        double *qn = lo;    /* lo is free now: the normals' q */
-        for (int k = 0; k < nn; k++)
-            qn[k] = q[nsel[k]];
-        rc = solve(nn, A, qn, NULL, NULL, NULL, NULL, z, w, info);
-        if (rc == SC_OK)
-            for (int k = 0; k < nn; k++)
-                apply(&rows[nsel[k]], z[k], bodies, 0, h);
+        rc = staggered(rows, nrows, nsel, nn, findex, mu, bodies, A, buf, info);
     } else if (rc == SC_OK) {
         for (int i = 0; i < nrows; i++)
             apply(&rows[i], z[i], bodies, 0, h);
