@@ -259,6 +259,14 @@ struct sc_world {
     sc_contact *contacts;
     int ncontacts, contact_cap;
     int contacts_valid;       /* contacts match the current state */
+    /* step.c's scratch: the substep's starting state, kept between frames */
+    sc_body *saved;
+    int saved_cap;
+    unsigned char *touched;
+    int touched_cap;
+    sc_contact *c0;
+    int c0_cap;
+    sc_islands islands;
     sc_stats stats;
 };
 

@@ -122,25 +122,31 @@ SC_API int sc_world_step(sc_world *w, double dt)
     w->stats.lcp_pivots = 0;
     w->stats.lcp_fallbacks = 0;
     w->stats.collider_warnings = 0;
-    sc_islands is = { 0 };
-    sc_body *saved = sc_alloc_array((size_t)n, sizeof *saved);
-    unsigned char *touched = sc_calloc_array((size_t)n, 1);
-    sc_contact *c0 = NULL;
-    int c0_cap = 0, rc = saved && touched ? SC_OK : SC_ENOMEM;
-    if (rc == SC_OK && !w->contacts_valid)
+    /* scratch owned by the world: grows with the body count, no malloc
+     * per frame once it has */
+    int rc = sc_grow((void **)&w->saved, &w->saved_cap, n, sizeof *w->saved, INT_MAX);
+    if (rc == SC_OK)
+        rc = sc_grow((void **)&w->touched, &w->touched_cap, n, 1, INT_MAX);
+    if (rc != SC_OK)
+        return rc;
+    sc_body *saved = w->saved;
+    unsigned char *touched = w->touched;
+    sc_islands *is = &w->islands;
+    if (!w->contacts_valid)
         rc = sc_detect(w);
     double left = dt;
     for (int sub = 0; rc == SC_OK && left > 0; sub++) {
         /* keep the start of the substep: contacts and state */
         memcpy(saved, w->bodies, (size_t)n * sizeof *saved);
         int n0 = w->ncontacts;
-        rc = sc_grow((void **)&c0, &c0_cap, n0, sizeof *c0, INT_MAX);
+        rc = sc_grow((void **)&w->c0, &w->c0_cap, n0, sizeof *w->c0, INT_MAX);
         if (rc != SC_OK)
             break;
+        sc_contact *c0 = w->c0;
         if (n0 > 0)
             memcpy(c0, w->contacts, (size_t)n0 * sizeof *c0);
         double h = left;
-        rc = substep(w, h, &is, touched);
+        rc = substep(w, h, is, touched);
         if (rc == SC_OK)
             rc = sc_detect(w);
         double frac = 1;
@@ -153,7 +159,7 @@ SC_API int sc_world_step(sc_world *w, double dt)
                 memcpy(w->contacts, c0, (size_t)n0 * sizeof *c0);
             w->ncontacts = n0;
             h = fmax(frac * h, 1e-6 * dt);
-            rc = substep(w, h, &is, touched);
+            rc = substep(w, h, is, touched);
             if (rc == SC_OK)
                 rc = sc_detect(w);
         }
@@ -162,7 +168,7 @@ SC_API int sc_world_step(sc_world *w, double dt)
             left = 0;
     }
     if (rc == SC_OK) {
-        sc_update_states(w, &is, touched, dt);
+        sc_update_states(w, is, touched, dt);
         for (int i = 0; i < n; i++) {
             v3_set(w->bodies[i].force, 0, 0, 0);
             v3_set(w->bodies[i].torque, 0, 0, 0);
@@ -170,9 +176,5 @@ SC_API int sc_world_step(sc_world *w, double dt)
         w->contacts_valid = 1;
         w->stats.frames++;
     }
-    sc_islands_free(&is);
-    free(saved);
-    free(touched);
-    free(c0);
     return rc;
 }

@@ -82,6 +82,10 @@ SC_API void sc_world_destroy(sc_world *w)
     free(w->active);
     free(w->pairs);
     free(w->contacts);
+    free(w->saved);
+    free(w->touched);
+    free(w->c0);
+    sc_islands_free(&w->islands);
     free(w);
 }
 
