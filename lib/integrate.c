@@ -20,6 +20,28 @@ static void rotate_by(double q[4], const double w[3], double h)
     q_normalize(q);
 }
 
+/* The gyroscopic term I dw/dt = -w x I w over h, in the body frame,
+ * explicit. It does no work, but the explicit step gains energy, by about
+ * (|w| h)^2 times the body's inertia anisotropy: negligible for most
+ * bodies, and it blew a fast-spinning nut of the 1000-body drop up to
+ * 1e264 rad/s in one frame. So when a step gains more than 0.1 %, w is
+ * scaled back to the energy it had. (Implicit Euler instead loses energy:
+ * 2.4% of the Table 1 scene's in 50 s. Plain explicit steps stay exactly
+ * what they were for every body below the limit.) */
+static void gyroscopic(double wb[3], const double I[9], const double inv_I[9], double h)
+{
+    double Iw[3], g[3], dw[3];
+    m3_mulv(Iw, I, wb);
+    double e0 = v3_dot(wb, Iw);
+    v3_cross(g, wb, Iw);
+    m3_mulv(dw, inv_I, g);
+    v3_madd(wb, wb, dw, -h);
+    m3_mulv(Iw, I, wb);
+    double e1 = v3_dot(wb, Iw);
+    if (e1 > 1.001 * e0 && isfinite(e1))
+        v3_scale(wb, wb, sqrt(e0 / e1));
+}
+
 /* Step 3, first half: u* = u + h (g + F/m), gyroscopic term, and the world
  * inverse inertia the contact solve needs. v0/w0 keep u for restitution. */
 void sc_apply_forces(sc_world *w, double h)
@@ -37,12 +59,10 @@ void sc_apply_forces(sc_world *w, double h)
         m3_transpose(Rt, R);
         m3_mul(t, R, b->inv_inertia);
         m3_mul(b->iw, t, Rt);
-        double wb[3], Iw[3], gyro[3], tb[3], dw[3];
+        double wb[3], tb[3], dw[3];
         m3_tmulv(wb, R, b->w);
-        m3_mulv(Iw, b->inertia, wb);
-        v3_cross(gyro, wb, Iw);
+        gyroscopic(wb, b->inertia, b->inv_inertia, h);
         m3_tmulv(tb, R, b->torque);
-        v3_sub(tb, tb, gyro);
         m3_mulv(dw, b->inv_inertia, tb);
         v3_madd(wb, wb, dw, h);
         m3_mulv(b->w, R, wb);
