@@ -265,8 +265,12 @@ int sc_island_solve(sc_body *bodies, const sc_contact *c, const int *ci, int nc,
         double vpre = row_speed(&rows[r], bodies, 1);
         int collide = vpre < -p->bounce_speed;
         info->collisions += collide;
-        if (collide)
-            bodies[ck->body_a].collided = bodies[ck->body_b].collided = 2;
+        /* only movable bodies are written: static and sleeping ones are
+         * shared by islands solved concurrently */
+        if (collide && movable(A_))
+            bodies[ck->body_a].collided = 2;
+        if (collide && movable(B_))
+            bodies[ck->body_b].collided = 2;
         /* a collision is an impulse at the start of the substep, before the
          * external forces act: target J u' = -e v_pre + (J u* - J u0), so
          * w = A p + (1 + e) v_pre. A resting contact absorbs the forces. */
