@@ -33,7 +33,7 @@ CPPFLAGS += -Iinclude -Ilib -D_GNU_SOURCE
 CFLAGS  += -std=c11 $(OPT) -g -Wall -Wextra -Werror -fPIC -fvisibility=hidden \
            -pthread $(XFLAGS)
 LDFLAGS += -pthread $(XFLAGS)
-LIBS    := $(shell pkg-config --libs $(DEP_PKGS) 2>/dev/null || echo -lode -lgsl -lgslcblas) -lm
+LIBS    := $(shell pkg-config --libs $(DEP_PKGS) 2>/dev/null || echo -lode -lgsl -lgslcblas) -lm -ldl
 TESTLIBS := $(LIBS) -lcmocka
 
 ifeq ($(V),1)

@@ -148,9 +148,11 @@ typedef struct sc_world sc_world;
 
 enum { SC_BROADPHASE_AUTO, SC_BROADPHASE_SPHERES, SC_BROADPHASE_SAP };
 
+#define SC_MAX_WORKERS 64
 typedef struct sc_world_config {
     double gravity[3];        /* default {0, 0, -9.81} */
-    int workers;              /* local threads; 0 = number of online CPUs */
+    int workers;              /* local threads (the caller's included), at most
+                                 SC_MAX_WORKERS; 0 = number of online CPUs */
     const char *cluster;      /* LCM URL of the daemons, NULL = local only */
     const char *key_file;     /* shared cluster key */
     int broadphase;           /* SC_BROADPHASE_*; AUTO = spheres below 256 bodies */
@@ -204,6 +206,19 @@ typedef struct sc_stats {
     double max_penetration;   /* deepest contact, m, last frame */
     long collider_warnings;   /* ODE collider messages (e.g. contact buffer
                                  overflow), last frame; never printed */
+    /* work units and the scheduler (DESIGN.md section 6), last frame */
+    int nodes;                /* nodes the scheduler used (local threads) */
+    int private_ode;          /* of them, with their own copy of ODE (trimesh
+                                 pairs run concurrently only on those) */
+    long units;               /* work units run */
+    double sched_s;           /* wall seconds spent scheduling: cost estimates,
+                                 assignment, model fits */
+    double makespan_s;        /* wall seconds from dispatch to the last unit's
+                                 result, summed over the frame's jobs */
+    double makespan_bound_s;  /* lower bound of the same: per job, the larger of
+                                 total work / total speed and the largest unit */
+    double makespan_ratio;    /* makespan_s / makespan_bound_s (>= 1, 1 ideal);
+                                 0 when there was no work */
 } sc_stats;
 
 /* A new empty world; cfg NULL = defaults. NULL on error (sc_last_error()). */

@@ -104,30 +104,70 @@ static int broadphase(sc_world *w, int *npairs)
     return SC_OK;
 }
 
-/* Step 4, exact: every pair through the narrow phase, in pair order, so the
- * contact list is canonical. */
+int sc_contacts_have_pair(const sc_contact *c, int n, int a, int b)
+{
+    int lo = 0, hi = n - 1;
+    while (lo <= hi) {
+        int mid = (lo + hi) / 2;
+        int d = c[mid].body_a != a ? (c[mid].body_a < a ? -1 : 1)
+                                   : (c[mid].body_b != b ? (c[mid].body_b < b ? -1 : 1) : 0);
+        if (d == 0)
+            return 1;
+        if (d < 0)
+            lo = mid + 1;
+        else
+            hi = mid - 1;
+    }
+    return 0;
+}
+
+/* Step 4, exact: every pair through the narrow phase as work units on the
+ * world's nodes, merged in pair order, so the contact list is canonical. */
 static int narrowphase(sc_world *w, int npairs)
 {
+    if (sc_grow((void **)&w->upairs, &w->upair_cap, npairs, sizeof *w->upairs, INT_MAX) ||
+        sc_grow((void **)&w->uncontact, &w->uncontact_cap, npairs, sizeof *w->uncontact,
+                INT_MAX) ||
+        sc_grow((void **)&w->ucontacts, &w->ucontact_cap, npairs * SC_MAX_PAIR_CONTACTS,
+                sizeof *w->ucontacts, INT_MAX / SC_MAX_PAIR_CONTACTS))
+        return SC_ENOMEM;
+    for (int i = 0; i < npairs; i++) {
+        sc_unit_pair *p = &w->upairs[i];
+        const sc_body *a = &w->bodies[w->pairs[i].a], *b = &w->bodies[w->pairs[i].b];
+        memset(p, 0, sizeof *p);
+        p->sa = a->shape;
+        p->sb = b->shape;
+        p->body_a = w->pairs[i].a;
+        p->body_b = w->pairs[i].b;
+        sc_body_pose(a, &p->a0);
+        sc_body_pose(b, &p->b0);
+        /* the contacts still held are those of the last detection */
+        p->touching = sc_contacts_have_pair(w->contacts, w->ncontacts, p->body_a, p->body_b);
+        w->uncontact[i] = 0;
+    }
+    sc_job job = {
+        .kind = SC_UNIT_COLLIDE,
+        .pairs = w->upairs,
+        .npairs = npairs,
+        .contacts = w->ucontacts,
+        .ncontact = w->uncontact,
+    };
     w->ncontacts = 0;
+    int rc = sc_job_run(w, &job, SC_STAGE_NARROWPHASE);
+    if (rc != SC_OK)
+        return rc;
+    int total = 0;
+    for (int i = 0; i < npairs; i++)
+        total += w->uncontact[i];
+    if (sc_grow((void **)&w->contacts, &w->contact_cap, total, sizeof *w->contacts, INT_MAX))
+        return SC_ENOMEM;
     double maxpen = 0;
     for (int i = 0; i < npairs; i++) {
-        const sc_body *a = &w->bodies[w->pairs[i].a], *b = &w->bodies[w->pairs[i].b];
-        sc_pose pa, pb;
-        sc_body_pose(a, &pa);
-        sc_body_pose(b, &pb);
-        if (sc_grow((void **)&w->contacts, &w->contact_cap,
-                    w->ncontacts + SC_MAX_PAIR_CONTACTS, sizeof *w->contacts, INT_MAX) != SC_OK)
-            return SC_ENOMEM;
-        sc_contact *c = &w->contacts[w->ncontacts];
-        int n = sc_np_collide(w->np, a->shape, &pa, b->shape, &pb, c, SC_MAX_PAIR_CONTACTS);
-        if (n < 0)
-            return n;
-        for (int k = 0; k < n; k++) {
-            c[k].body_a = w->pairs[i].a;
-            c[k].body_b = w->pairs[i].b;
+        const sc_contact *c = &w->ucontacts[(size_t)i * SC_MAX_PAIR_CONTACTS];
+        for (int k = 0; k < w->uncontact[i]; k++) {
+            w->contacts[w->ncontacts++] = c[k];
             maxpen = fmax(maxpen, c[k].depth);
         }
-        w->ncontacts += n;
     }
     w->stats.contacts = w->ncontacts;
     w->stats.max_penetration = maxpen;
@@ -144,9 +184,7 @@ int sc_detect(sc_world *w)
         return rc;
     w->stats.pairs = npairs;
     t0 = sc_cpu_now();
-    long msgs = sc_ode_message_count();
     rc = narrowphase(w, npairs);
-    w->stats.collider_warnings += sc_ode_message_count() - msgs;
     sc_stage_add(w, SC_STAGE_NARROWPHASE, t0);
     /* a sleeping body touched by an awake one wakes up */
     for (int k = 0; rc == SC_OK && k < w->ncontacts; k++) {

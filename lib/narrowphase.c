@@ -14,29 +14,29 @@
  * off): every trimesh collider then shares one process-global cache
  * (g_ccTrimeshCollidersCache), and two threads colliding trimeshes at once
  * corrupt it (ThreadSanitizer reports the race; ODE then aborts on an
- * internal assertion). Trimesh pairs are therefore serialised by one lock
- * guarding ODE's global; sphere, box, plane and convex pairs run
- * concurrently. tests/test_narrowphase.c runs several threads at once.
+ * internal assertion). On the copy of libode the library links against,
+ * trimesh pairs are therefore serialised by one lock guarding that global;
+ * sphere, box, plane and convex pairs run concurrently. A context made on
+ * a private copy (sc_np_create_on(), ode_copy.c) has globals of its own and
+ * needs no lock. tests/test_narrowphase.c runs several threads at once.
  */
 #include <pthread.h>
 #include <stdarg.h>
 #include <stdlib.h>
 #include <string.h>
 
-#include <ode/ode.h>
-
+#include "ode_copy.h"
 #include "sc_internal.h"
 #include "vecmath.h"
 
 #define RAW_CONTACTS 64
 
-static pthread_once_t ode_once = PTHREAD_ONCE_INIT;
-/* Guards ODE's process-global trimesh collider cache (see above). */
+/* Guards the shared copy's global trimesh collider cache (see above). */
 static pthread_mutex_t ode_trimesh_lock = PTHREAD_MUTEX_INITIALIZER;
 /* ODE messages (e.g. "contact hash table bucket overflow") of this thread. */
 static _Thread_local long ode_messages;
 
-static void ode_message(int num, const char *msg, va_list ap)
+void sc_ode_message(int num, const char *msg, va_list ap)
 {
     /* a library must not print on its users' stderr: count instead */
     (void)num;
@@ -50,19 +50,6 @@ long sc_ode_message_count(void)
     return ode_messages;
 }
 
-static void ode_init_once(void)
-{
-    /* ODE's global init (its own tables, no simulation state); never closed
-     * so that worlds in any thread can come and go. */
-    dInitODE2(0);
-    dSetMessageHandler(ode_message);
-}
-
-void sc_ode_init(void)
-{
-    pthread_once(&ode_once, ode_init_once);
-}
-
 void sc_ode_thread_init(void)
 {
     sc_ode_init();
@@ -74,17 +61,26 @@ enum { REP_NATIVE, REP_CONVEX, REP_TRIMESH, REP_COUNT };
 typedef struct geom_slot {
     const sc_shape *shape;
     dGeomID g[2][REP_COUNT];   /* [slot][representation] */
+    dTriMeshDataID tridata;    /* a private copy's own trimesh data */
 } geom_slot;
 
 struct sc_np_ctx {
+    const sc_ode *ode;
     geom_slot *slots;
     int n, cap;
 };
 
+sc_np_ctx *sc_np_create_on(const sc_ode *ode)
+{
+    sc_np_ctx *ctx = calloc(1, sizeof(sc_np_ctx));
+    if (ctx)
+        ctx->ode = ode;
+    return ctx;
+}
+
 sc_np_ctx *sc_np_create(void)
 {
-    sc_ode_init();
-    return calloc(1, sizeof(sc_np_ctx));
+    return sc_np_create_on(sc_ode_shared());
 }
 
 void sc_np_destroy(sc_np_ctx *ctx)
@@ -95,26 +91,53 @@ void sc_np_destroy(sc_np_ctx *ctx)
         for (int s = 0; s < 2; s++)
             for (int r = 0; r < REP_COUNT; r++)
                 if (ctx->slots[i].g[s][r])
-                    dGeomDestroy(ctx->slots[i].g[s][r]);
+                    ctx->ode->dGeomDestroy(ctx->slots[i].g[s][r]);
+    for (int i = 0; i < ctx->n; i++)
+        if (ctx->slots[i].tridata)
+            ctx->ode->dGeomTriMeshDataDestroy(ctx->slots[i].tridata);
     free(ctx->slots);
     free(ctx);
 }
 
-static dGeomID make_geom(const sc_shape *s, int rep)
+/* The trimesh data of s for this context's copy of ODE: the shape's own
+ * (built on the shared copy) or, on a private copy, one built there: ODE's
+ * objects must not cross copies. */
+static dTriMeshDataID tridata(const sc_ode *o, geom_slot *gs)
 {
+    const sc_shape *s = gs->shape;
+    if (!sc_ode_is_private(o))
+        return (dTriMeshDataID)s->ode_tridata;
+    if (!gs->tridata) {
+        dTriMeshDataID td = o->dGeomTriMeshDataCreate();
+        if (!td)
+            return NULL;
+        o->dGeomTriMeshDataBuildDouble(td, s->xyz, 3 * sizeof(double), s->nverts,
+                                       s->ode_index, 3 * s->ntris, 3 * sizeof(dTriIndex));
+        o->dGeomTriMeshDataPreprocess2(td, 1U << dTRIDATAPREPROCESS_BUILD_CONCAVE_EDGES, NULL);
+        gs->tridata = td;
+    }
+    return gs->tridata;
+}
+
+static dGeomID make_geom(const sc_ode *o, geom_slot *gs, int rep)
+{
+    const sc_shape *s = gs->shape;
     switch (rep) {
     case REP_NATIVE:
         switch (s->kind) {
-        case SC_SHAPE_SPHERE: return dCreateSphere(0, s->radius);
-        case SC_SHAPE_BOX: return dCreateBox(0, 2 * s->half[0], 2 * s->half[1], 2 * s->half[2]);
-        case SC_SHAPE_PLANE: return dCreatePlane(0, 0, 0, 1, 0);
+        case SC_SHAPE_SPHERE: return o->dCreateSphere(0, s->radius);
+        case SC_SHAPE_BOX:
+            return o->dCreateBox(0, 2 * s->half[0], 2 * s->half[1], 2 * s->half[2]);
+        case SC_SHAPE_PLANE: return o->dCreatePlane(0, 0, 0, 1, 0);
         default: return NULL;
         }
     case REP_CONVEX:
-        return dCreateConvex(0, s->ode_planes, (unsigned)s->ntris, s->xyz,
-                             (unsigned)s->nverts, s->ode_polys);
-    case REP_TRIMESH:
-        return dCreateTriMesh(0, (dTriMeshDataID)s->ode_tridata, NULL, NULL, NULL);
+        return o->dCreateConvex(0, s->ode_planes, (unsigned)s->ntris, s->xyz,
+                                (unsigned)s->nverts, s->ode_polys);
+    case REP_TRIMESH: {
+        dTriMeshDataID td = tridata(o, gs);
+        return td ? o->dCreateTriMesh(0, td, NULL, NULL, NULL) : NULL;
+    }
     }
     return NULL;
 }
@@ -141,7 +164,7 @@ static dGeomID get_geom(sc_np_ctx *ctx, const sc_shape *s, int slot, int rep)
         gs->shape = s;
     }
     if (!gs->g[slot][rep])
-        gs->g[slot][rep] = make_geom(s, rep);
+        gs->g[slot][rep] = make_geom(ctx->ode, gs, rep);
     return gs->g[slot][rep];
 }
 
@@ -161,25 +184,25 @@ static void choose_reps(const sc_shape *a, const sc_shape *b, int *ra, int *rb)
         *ra = *rb = REP_TRIMESH;
 }
 
-static void place(dGeomID g, const sc_shape *s, const sc_pose *p)
+static void place(const sc_ode *o, dGeomID g, const sc_shape *s, const sc_pose *p)
 {
     if (s->kind == SC_SHAPE_PLANE) {
         /* the plane is given in the body frame: move it to the world */
         double n[3];
         q_rotate(n, p->quat, s->plane);
-        dGeomPlaneSetParams(g, n[0], n[1], n[2], s->plane[3] + v3_dot(n, p->pos));
+        o->dGeomPlaneSetParams(g, n[0], n[1], n[2], s->plane[3] + v3_dot(n, p->pos));
         return;
     }
-    dGeomSetPosition(g, p->pos[0], p->pos[1], p->pos[2]);
+    o->dGeomSetPosition(g, p->pos[0], p->pos[1], p->pos[2]);
     dQuaternion q = { p->quat[0], p->quat[1], p->quat[2], p->quat[3] };
-    dGeomSetQuaternion(g, q);
-    if (dGeomGetClass(g) == dTriMeshClass) {
+    o->dGeomSetQuaternion(g, q);
+    if (o->dGeomGetClass(g) == o->trimesh_class) {
         /* no previous pose is tracked: the trimesh colliders must not
          * extrapolate from a stale one */
-        const dReal *R = dGeomGetRotation(g);
+        const dReal *R = o->dGeomGetRotation(g);
         dMatrix4 m = { R[0], R[4], R[8], 0, R[1], R[5], R[9], 0,
                        R[2], R[6], R[10], 0, p->pos[0], p->pos[1], p->pos[2], 1 };
-        dGeomTriMeshSetLastTransform(g, m);
+        o->dGeomTriMeshSetLastTransform(g, m);
     }
 }
 
@@ -201,20 +224,24 @@ int sc_np_collide(sc_np_ctx *ctx, const sc_shape *a, const sc_pose *pa, const sc
         return SC_EINVAL;
     if (a->kind == SC_SHAPE_PLANE && b->kind == SC_SHAPE_PLANE)
         return 0;
-    sc_ode_thread_init();
+    const sc_ode *o = ctx->ode;
+    if (sc_ode_is_private(o))
+        o->dAllocateODEDataForThread(dAllocateMaskAll);
+    else
+        sc_ode_thread_init();
     int ra, rb;
     choose_reps(a, b, &ra, &rb);
     dGeomID ga = get_geom(ctx, a, 0, ra), gb = get_geom(ctx, b, 1, rb);
     if (!ga || !gb)
         return SC_ENOMEM;
-    place(ga, a, pa);
-    place(gb, b, pb);
+    place(o, ga, a, pa);
+    place(o, gb, b, pb);
     dContactGeom raw[RAW_CONTACTS];
-    int trimesh = ra == REP_TRIMESH || rb == REP_TRIMESH;
-    if (trimesh)
+    int lock = (ra == REP_TRIMESH || rb == REP_TRIMESH) && !sc_ode_is_private(o);
+    if (lock)
         pthread_mutex_lock(&ode_trimesh_lock);
-    int n = dCollide(ga, gb, RAW_CONTACTS, raw, sizeof raw[0]);
-    if (trimesh)
+    int n = o->dCollide(ga, gb, RAW_CONTACTS, raw, sizeof raw[0]);
+    if (lock)
         pthread_mutex_unlock(&ode_trimesh_lock);
     if (n <= 0)
         return 0;

@@ -11,6 +11,7 @@
 #include <stdatomic.h>
 #include <stddef.h>
 #include <stdint.h>
+#include <string.h>
 
 #include "simcluster.h"
 
@@ -116,8 +117,25 @@ int sc_island_solve(sc_body *bodies, const sc_contact *c, const int *ci, int nc,
 
 /* ---- narrow phase (narrowphase.c, manifold.c) ---- */
 
+/* A copy of libode (ode_copy.c). The process's linked copy is shared by
+ * every thread and serialises trimesh pairs (Debian's ODE keeps its
+ * trimesh collider cache in a global); worker threads take a private copy
+ * loaded with dlmopen() into its own link namespace when one can be had, so
+ * their trimesh pairs run concurrently. Copies are process-wide and kept
+ * (glibc cannot reliably unload a namespace, and allows only a few). */
+typedef struct sc_ode sc_ode;
+const sc_ode *sc_ode_shared(void);
+/* A private copy for the calling thread, or the shared one when none can be
+ * loaded (limit reached, dlmopen unsupported). Never NULL. */
+const sc_ode *sc_ode_acquire(void);
+/* Give a copy from sc_ode_acquire() back for other threads; NULL is a no-op. */
+void sc_ode_release(const sc_ode *o);
+/* 1 when o is a private copy (no lock needed). */
+int sc_ode_is_private(const sc_ode *o);
+
 typedef struct sc_np_ctx sc_np_ctx;     /* one per thread: owns ODE geoms */
-sc_np_ctx *sc_np_create(void);
+sc_np_ctx *sc_np_create(void);          /* on the shared copy of ODE */
+sc_np_ctx *sc_np_create_on(const sc_ode *ode);
 void sc_np_destroy(sc_np_ctx *ctx);
 /* Contacts of a at pa with b at pb, normals from a to b, reduced to at most
  * SC_MAX_PAIR_CONTACTS; returns how many were written (<= max) or a code. */
@@ -242,6 +260,169 @@ int sc_lu_solve(int m, double *a, double *b);
 int sc_lcp_lemke(int n, const double *M, const double *q, double *z, long max_pivots,
                  long *pivots);
 
+/* ---- work units (unit.c, unit_wire.c), nodes (node_local.c) and the
+ * scheduler (sched.c): DESIGN.md sections 1, 3 and 6 ---- */
+
+/* The expensive stages of a substep are batches ("jobs") of work units of
+ * one kind. A unit reads only its job's inputs and writes only its own
+ * outputs, so units run on any node in any order and the merge, in unit
+ * order, gives the same bits whoever computed what. */
+enum { SC_UNIT_COLLIDE, SC_UNIT_TOI, SC_UNIT_ISLAND, SC_UNIT_KINDS };
+
+/* One body pair of a COLLIDE or TOI unit. */
+typedef struct sc_unit_pair {
+    const sc_shape *sa, *sb;        /* serialised as content hashes */
+    int body_a, body_b;             /* world ids (a < b), carried through */
+    int deepen;                     /* TOI: the pair touched at the start */
+    int touching;                   /* COLLIDE: in contact at the last detection
+                                       (only a cost feature, not sent) */
+    sc_pose a0, b0;                 /* COLLIDE: the poses; TOI: start ... */
+    sc_pose a1, b1;                 /* ... and end of the substep */
+} sc_unit_pair;
+
+typedef struct sc_unit {
+    int kind;                       /* SC_UNIT_* (the job's kind) */
+    int first, count;               /* pairs [first, first + count) of the job,
+                                       or island `first` (count = contacts) */
+    double cost;                    /* the paper's estimate: sum of polygon count
+                                       products, or contacts^3 */
+    double feat[3];                 /* cost model features: 1, then for pairs
+                                       the cost of those touching at the last
+                                       detection and of the others, for islands
+                                       contacts and contacts^3 */
+    size_t bytes;                   /* wire size of the unit (transfer time) */
+    int node;                       /* assigned node */
+    int rc;                         /* SC_OK or the unit's error */
+    double time_s;                  /* measured wall time on its node */
+    long messages;                  /* ODE messages raised while running it */
+    sc_solve_info info;             /* ISLAND: the solve's counters */
+} sc_unit;
+
+typedef struct sc_job {
+    int kind;
+    sc_unit *units;
+    int nunits;
+    /* COLLIDE and TOI */
+    const sc_unit_pair *pairs;
+    int npairs;
+    sc_contact *contacts;           /* COLLIDE: SC_MAX_PAIR_CONTACTS per pair */
+    int *ncontact;                  /* COLLIDE: contacts of each pair */
+    double tol_m;                   /* TOI: contact tolerance */
+    double *toi;                    /* TOI: per pair, 1 = no impact */
+    /* ISLAND: bodies are updated in place (islands share no movable body;
+     * static and sleeping ones are only read) */
+    sc_body *bodies;
+    const sc_contact *c;
+    const sc_islands *islands;
+    double h;
+    const sc_contact_params *params;
+} sc_job;
+
+/* Run unit u of job on the calling thread with its narrow-phase context;
+ * sets u->rc, u->messages, u->info (not u->time_s). */
+void sc_unit_run(sc_np_ctx *np, const sc_job *job, sc_unit *u);
+/* The paper's cost estimate of a pair (product of polygon counts). */
+double sc_pair_cost(const sc_shape *a, const sc_shape *b);
+
+/* Wire form of units and results (unit_wire.c): self-contained,
+ * little-endian, versioned, every size bounded; shapes travel as content
+ * hashes (sc_shape.hash) resolved by the receiver's lookup. */
+typedef const sc_shape *(*sc_shape_lookup_fn)(void *ctx, uint64_t hash);
+/* Bytes unit u of job needs; written to buf when cap is enough. */
+size_t sc_wire_unit_pack(const sc_job *job, const sc_unit *u, unsigned char *buf, size_t cap);
+/* A received unit: a job of its own holding that one unit. */
+typedef struct sc_wire_unit {
+    sc_job job;
+    sc_unit unit;
+    sc_unit_pair *pairs;      /* owned arrays */
+    sc_contact *contacts;
+    int *ncontact;
+    double *toi;
+    sc_body *bodies;
+    int nbodies;
+    sc_contact *c;
+    sc_islands islands;
+    sc_contact_params params;
+} sc_wire_unit;
+/* Decode; SC_EFORMAT for anything malformed (truncated, bad version/kind,
+ * counts out of range, NaN, unknown shape hash), SC_ENOMEM. */
+int sc_wire_unit_decode(const unsigned char *buf, size_t len, sc_shape_lookup_fn lookup,
+                        void *lookup_ctx, sc_wire_unit *out);
+void sc_wire_unit_free(sc_wire_unit *wu);
+/* Results of a decoded unit after sc_unit_run(&np, &wu->job, &wu->unit). */
+size_t sc_wire_result_pack(const sc_wire_unit *wu, unsigned char *buf, size_t cap);
+/* Merge received results into the master's job exactly as if u had run
+ * locally (u->rc, u->messages, u->info and the job's outputs for u).
+ * SC_EFORMAT when buf does not match u (kind, counts) or is malformed. */
+int sc_wire_result_apply(const sc_job *job, sc_unit *u, const unsigned char *buf, size_t len);
+
+/* A node: something that runs units. Local worker threads now; daemons
+ * behind the same interface later. submit() starts the units (indices into
+ * job->units) and returns at once; wait() returns when they are done, with
+ * each unit's rc and time_s set and *cpu_s the CPU seconds the node used. */
+typedef struct sc_node sc_node;
+typedef struct sc_node_ops {
+    int (*submit)(sc_node *n, const sc_job *job, const int *units, int count);
+    int (*wait)(sc_node *n, double *cpu_s);
+    double (*transfer_s)(const sc_node *n, size_t bytes);   /* to and back */
+    double (*latency_s)(const sc_node *n);   /* per job: wake-up and reply */
+    void (*destroy)(sc_node *n);
+} sc_node_ops;
+struct sc_node {
+    const sc_node_ops *ops;
+    int id;
+};
+/* A local node. inline_node = 1: the calling thread itself (runs its units
+ * inside wait(), on the shared ODE); 0: a worker thread of its own (with a
+ * private ODE copy when one can be had). NULL on error. */
+sc_node *sc_node_local_create(int id, int inline_node);
+/* 1 when a local node runs on a private copy of ODE. */
+int sc_node_local_private_ode(const sc_node *n);
+
+/* The scheduler. Per node and unit kind: the paper's speed (cost per
+ * second, from recent response times) and a least-squares cost model
+ * (time = c . feat, fitted with GSL over the last measurements). */
+#define SC_MODEL_WINDOW 128
+typedef struct sc_cost_model {
+    double x[SC_MODEL_WINDOW][3], y[SC_MODEL_WINDOW];
+    int n, pos, fresh;              /* samples held, next slot, since last fit */
+    double c[3];
+    int ok;                         /* c is a usable fit */
+} sc_cost_model;
+typedef struct sc_sched_node {
+    double speed[SC_UNIT_KINDS];    /* cost units per second (EWMA) */
+    int measured[SC_UNIT_KINDS];
+    int idle[SC_UNIT_KINDS];        /* jobs since it last got work */
+    sc_cost_model model[SC_UNIT_KINDS];
+    double ready;                   /* predicted finish in the current job */
+    double busy;                    /* measured busy time in the current job */
+    double done;                    /* cost done in the current job */
+} sc_sched_node;
+typedef struct sc_sched {
+    int nnodes;
+    sc_sched_node *nodes;
+    void *keys;                     /* scratch: the LPT order */
+    int *assigned, *start, *cursor; /* per-node unit lists */
+    int order_cap;
+    int use_models;                 /* 0: the paper's cost / speed only */
+    uint64_t shuffle;               /* tests: != 0 seeds a random assignment */
+} sc_sched;
+int sc_sched_init(sc_sched *s, int nnodes);
+void sc_sched_free(sc_sched *s);
+/* Predicted time of u on node k (cost model, or cost / speed). */
+double sc_sched_predict(const sc_sched *s, int k, const sc_unit *u);
+/* Greedy longest-first: units sorted by cost, each to the node with the
+ * earliest predicted finish (ready + transfer + predicted time). Sets
+ * u->node and the per-node lists s->assigned[s->start[k] .. start[k+1]). */
+int sc_sched_assign(sc_sched *s, sc_node *const *nodes, sc_unit *units, int n);
+/* After a job: learn from the measured times; *bound_s the lower bound on
+ * its makespan (max of total work / total speed and the largest unit). */
+void sc_sched_observe(sc_sched *s, const sc_unit *units, int n, double *bound_s);
+
+/* Run a job on the world's nodes: cost, assign, submit, wait, learn, and
+ * account it in w->stats (stage CPU of the other nodes, makespan). */
+int sc_job_run(sc_world *w, sc_job *job, int stage);
+
 /* ---- the world (world.c) and its frame (detect.c, integrate.c, step.c,
  * state.c) ---- */
 struct sc_world {
@@ -249,7 +430,6 @@ struct sc_world {
     sc_body *bodies;
     int nbodies, cap;
     sc_broadphase *bp;
-    sc_np_ctx *np;
     /* per-frame scratch, grown as needed and kept */
     double *centre, *radius;
     unsigned char *active;
@@ -267,6 +447,21 @@ struct sc_world {
     sc_contact *c0;
     int c0_cap;
     sc_islands islands;
+    /* work units: nodes (node 0 = the calling thread), scheduler, and the
+     * jobs' scratch (grown, kept) */
+    sc_node **nodes;
+    int nnodes;
+    sc_sched sched;
+    sc_unit *units;
+    int unit_cap;
+    sc_unit_pair *upairs;
+    int upair_cap;
+    sc_contact *ucontacts;
+    int ucontact_cap;
+    int *uncontact;
+    int uncontact_cap;
+    double *utoi;
+    int utoi_cap;
     sc_stats stats;
 };
 
@@ -276,9 +471,13 @@ static inline int sc_body_movable(const sc_body *b)
 }
 /* Pose of a body's shape frame (the centre of mass is what is stored). */
 void sc_body_pose(const sc_body *b, sc_pose *p);
-/* Thread CPU seconds, and adding the time since t0 to a Table 1 row. */
+/* Thread CPU seconds, monotonic wall seconds, and adding the CPU time
+ * since t0 to a Table 1 row. */
 double sc_cpu_now(void);
+double sc_wall_now(void);
 void sc_stage_add(sc_world *w, int stage, double t0);
+/* 1 if the contact list c (sorted by pair) has a contact of pair (a, b). */
+int sc_contacts_have_pair(const sc_contact *c, int n, int a, int b);
 /* Step 4: pairs and contacts of the current state into w->contacts. */
 int sc_detect(sc_world *w);
 /* Step 3: u* = u + h (g + F/m) (keeping u in v0/w0); positions after the

@@ -36,15 +36,22 @@ static int substep(sc_world *w, double h, sc_islands *is, unsigned char *touched
         touched[w->contacts[k].body_a] = 1;
         touched[w->contacts[k].body_b] = 1;
     }
+    /* step 7: one work unit per island (islands share no movable body) */
     t0 = sc_cpu_now();
-    sc_solve_info info = { 0 };
-    for (int i = 0; i < is->count && rc == SC_OK; i++)
-        rc = sc_island_solve(w->bodies, w->contacts, &is->contacts[is->contact_start[i]],
-                             is->contact_start[i + 1] - is->contact_start[i], h,
-                             &contact_params, &info);
+    sc_job job = {
+        .kind = SC_UNIT_ISLAND,
+        .bodies = w->bodies,
+        .c = w->contacts,
+        .islands = is,
+        .h = h,
+        .params = &contact_params,
+    };
+    rc = sc_job_run(w, &job, SC_STAGE_LCP);
     sc_stage_add(w, SC_STAGE_LCP, t0);
-    w->stats.lcp_pivots += info.pivots;
-    w->stats.lcp_fallbacks += info.failures;
+    for (int i = 0; i < job.nunits; i++) {
+        w->stats.lcp_pivots += job.units[i].info.pivots;
+        w->stats.lcp_fallbacks += job.units[i].info.failures;
+    }
     w->stats.islands = is->count;
     if (rc != SC_OK)
         return rc;
@@ -59,55 +66,55 @@ static int substep(sc_world *w, double h, sc_islands *is, unsigned char *touched
     return SC_OK;
 }
 
-static int has_pair(const sc_contact *c, int n, int a, int b)
-{
-    int lo = 0, hi = n - 1;
-    while (lo <= hi) {
-        int mid = (lo + hi) / 2;
-        int d = c[mid].body_a != a ? (c[mid].body_a < a ? -1 : 1)
-                                   : (c[mid].body_b != b ? (c[mid].body_b < b ? -1 : 1) : 0);
-        if (d == 0)
-            return 1;
-        if (d < 0)
-            lo = mid + 1;
-        else
-            hi = mid - 1;
-    }
-    return 0;
-}
-
 /* Step 5: the earliest time of impact (fraction of the substep) among new
- * contacts deeper than the tolerance; 1 when there is none. */
+ * contacts deeper than the tolerance; 1 when there is none. One query per
+ * pair, as work units; the minimum does not depend on who ran what. */
 static int earliest_impact(sc_world *w, const sc_body *saved, const sc_contact *c0, int n0,
                            double *frac)
 {
     double t0 = sc_cpu_now();
     *frac = 1;
-    int rc = SC_OK;
-    for (int k = 0; k < w->ncontacts && rc == SC_OK; k++) {
+    int np = 0;
+    for (int k = 0; k < w->ncontacts; k++) {
         const sc_contact *c = &w->contacts[k];
         if (c->depth <= w->cfg.contact_tol_m)
             continue;
-        if (k > 0 && c[-1].body_a == c->body_a && c[-1].body_b == c->body_b)
+        if (np > 0 && w->upairs[np - 1].body_a == c->body_a &&
+            w->upairs[np - 1].body_b == c->body_b)
             continue;    /* one query per pair */
-        sc_pose a0, a1, b0, b1;
-        sc_body_pose(&saved[c->body_a], &a0);
-        sc_body_pose(&w->bodies[c->body_a], &a1);
-        sc_body_pose(&saved[c->body_b], &b0);
-        sc_body_pose(&w->bodies[c->body_b], &b1);
-        const sc_shape *sa = w->bodies[c->body_a].shape, *sb = w->bodies[c->body_b].shape;
-        double t;
-        /* a new pair: back up to first touch; a pair already touching that
-         * digs in past the tolerance (a bolt rocking onto its other end):
-         * back up to where it reaches the tolerance */
-        int hit = has_pair(c0, n0, c->body_a, c->body_b)
-                      ? sc_toi_deepen_ctx(w->np, sa, &a0, &a1, sb, &b0, &b1,
-                                          w->cfg.contact_tol_m, &t)
-                      : sc_toi_ctx(w->np, sa, &a0, &a1, sb, &b0, &b1, w->cfg.contact_tol_m, &t);
-        if (hit < 0)
-            rc = hit;
-        else if (hit == 1 && t < *frac)
-            *frac = t;
+        if (sc_grow((void **)&w->upairs, &w->upair_cap, np + 1, sizeof *w->upairs, INT_MAX))
+            return SC_ENOMEM;
+        sc_unit_pair *p = &w->upairs[np++];
+        p->sa = w->bodies[c->body_a].shape;
+        p->sb = w->bodies[c->body_b].shape;
+        p->body_a = c->body_a;
+        p->body_b = c->body_b;
+        /* a new pair backs up to first touch; a pair already touching that
+         * digs in past the tolerance (a bolt rocking onto its other end)
+         * backs up to where it reaches the tolerance */
+        p->deepen = sc_contacts_have_pair(c0, n0, c->body_a, c->body_b);
+        sc_body_pose(&saved[c->body_a], &p->a0);
+        sc_body_pose(&w->bodies[c->body_a], &p->a1);
+        sc_body_pose(&saved[c->body_b], &p->b0);
+        sc_body_pose(&w->bodies[c->body_b], &p->b1);
+    }
+    int rc = SC_OK;
+    if (np > 0) {
+        rc = sc_grow((void **)&w->utoi, &w->utoi_cap, np, sizeof *w->utoi, INT_MAX);
+        if (rc != SC_OK)
+            return rc;
+        sc_job job = {
+            .kind = SC_UNIT_TOI,
+            .pairs = w->upairs,
+            .npairs = np,
+            .tol_m = w->cfg.contact_tol_m,
+            .toi = w->utoi,
+        };
+        for (int i = 0; i < np; i++)
+            w->utoi[i] = 1;
+        rc = sc_job_run(w, &job, SC_STAGE_TOI);
+        for (int i = 0; rc == SC_OK && i < np; i++)
+            *frac = fmin(*frac, w->utoi[i]);
     }
     sc_stage_add(w, SC_STAGE_TOI, t0);
     return rc;
@@ -122,6 +129,10 @@ SC_API int sc_world_step(sc_world *w, double dt)
     w->stats.lcp_pivots = 0;
     w->stats.lcp_fallbacks = 0;
     w->stats.collider_warnings = 0;
+    w->stats.units = 0;
+    w->stats.sched_s = 0;
+    w->stats.makespan_s = 0;
+    w->stats.makespan_bound_s = 0;
     /* scratch owned by the world: grows with the body count, no malloc
      * per frame once it has */
     int rc = sc_grow((void **)&w->saved, &w->saved_cap, n, sizeof *w->saved, INT_MAX);
@@ -175,6 +186,9 @@ SC_API int sc_world_step(sc_world *w, double dt)
         }
         w->contacts_valid = 1;
         w->stats.frames++;
+        w->stats.makespan_ratio = w->stats.makespan_bound_s > 0
+                                      ? w->stats.makespan_s / w->stats.makespan_bound_s
+                                      : 0;
     }
     return rc;
 }

@@ -6,6 +6,7 @@
 #include <stdlib.h>
 #include <string.h>
 #include <time.h>
+#include <unistd.h>
 
 #include "sc_internal.h"
 #include "vecmath.h"
@@ -44,7 +45,7 @@ SC_API sc_world *sc_world_create(const sc_world_config *cfg)
         sc_set_error(SC_ENOINIT);
         return NULL;
     }
-    if (!sc_finite3(c.gravity) || c.workers < 0 || !(c.contact_tol_m > 0) ||
+    if (!sc_finite3(c.gravity) || c.workers < 0 || c.workers > SC_MAX_WORKERS || !(c.contact_tol_m > 0) ||
         !isfinite(c.contact_tol_m) || c.broadphase < SC_BROADPHASE_AUTO ||
         c.broadphase > SC_BROADPHASE_SAP) {
         sc_set_error(SC_EINVAL);
@@ -59,12 +60,35 @@ SC_API sc_world *sc_world_create(const sc_world_config *cfg)
     w->cfg.cluster = NULL;   /* not kept: the caller's strings may go away */
     w->cfg.key_file = NULL;
     w->bp = sc_bp_create();
-    w->np = sc_np_create();
-    if (!w->bp || !w->np) {
+    if (!w->bp) {
         sc_world_destroy(w);
         sc_set_error(SC_ENOMEM);
         return NULL;
     }
+    /* nodes: this thread (node 0) and workers - 1 worker threads */
+    int nodes = c.workers;
+    if (nodes == 0) {
+        long cpus = sysconf(_SC_NPROCESSORS_ONLN);
+        nodes = cpus < 1 ? 1 : cpus > SC_MAX_WORKERS ? SC_MAX_WORKERS : (int)cpus;
+    }
+    w->cfg.workers = nodes;
+    w->nodes = sc_calloc_array((size_t)nodes, sizeof *w->nodes);
+    int rc = w->nodes ? sc_sched_init(&w->sched, nodes) : SC_ENOMEM;
+    for (int k = 0; k < nodes && rc == SC_OK; k++) {
+        w->nodes[k] = sc_node_local_create(k, k == 0);
+        if (!w->nodes[k])
+            rc = SC_ENOMEM;
+        else
+            w->nnodes++;
+        if (w->nodes[k] && sc_node_local_private_ode(w->nodes[k]))
+            w->stats.private_ode++;
+    }
+    if (rc != SC_OK) {
+        sc_world_destroy(w);
+        sc_set_error(rc);
+        return NULL;
+    }
+    w->stats.nodes = w->nnodes;
     return w;
 }
 
@@ -76,7 +100,15 @@ SC_API void sc_world_destroy(sc_world *w)
         sc_shape_release(w->bodies[i].shape);
     free(w->bodies);
     sc_bp_destroy(w->bp);
-    sc_np_destroy(w->np);
+    for (int k = 0; k < w->nnodes; k++)
+        w->nodes[k]->ops->destroy(w->nodes[k]);
+    free(w->nodes);
+    sc_sched_free(&w->sched);
+    free(w->units);
+    free(w->upairs);
+    free(w->ucontacts);
+    free(w->uncontact);
+    free(w->utoi);
     free(w->centre);
     free(w->radius);
     free(w->active);
@@ -170,6 +202,13 @@ double sc_cpu_now(void)
 {
     struct timespec ts;
     clock_gettime(CLOCK_THREAD_CPUTIME_ID, &ts);
+    return (double)ts.tv_sec + 1e-9 * (double)ts.tv_nsec;
+}
+
+double sc_wall_now(void)
+{
+    struct timespec ts;
+    clock_gettime(CLOCK_MONOTONIC, &ts);
     return (double)ts.tv_sec + 1e-9 * (double)ts.tv_nsec;
 }
 

@@ -1,0 +1,141 @@
+/* dispatch.c - a job through the world's nodes: units cut and costed,
+ * assigned by the scheduler, submitted, waited for, learned from, and
+ * accounted in the frame's statistics. Outputs are merged by the stages in
+ * unit order, so the result does not depend on who ran what. */
+#include <limits.h>
+#include <stdlib.h>
+
+#include "sc_internal.h"
+
+#define UNITS_PER_NODE 8      /* pair units per node and job (balance) */
+#define MAX_UNIT_PAIRS 256    /* pairs per unit at most */
+
+/* Wire sizes (the transfer estimate): header, per pair, per island part. */
+#define WIRE_HEADER 32
+#define WIRE_PAIR 128
+#define WIRE_TOI_PAIR 240
+#define WIRE_BODY 400
+#define WIRE_CONTACT 64
+
+static int grow_units(sc_world *w, int n)
+{
+    return sc_grow((void **)&w->units, &w->unit_cap, n, sizeof *w->units, INT_MAX);
+}
+
+static void unit_init(sc_unit *u, int kind, int first, int count, double cost, double f1,
+                      double f2, size_t bytes)
+{
+    memset(u, 0, sizeof *u);
+    u->kind = kind;
+    u->first = first;
+    u->count = count;
+    u->cost = cost;
+    u->feat[0] = 1;
+    u->feat[1] = f1;
+    u->feat[2] = f2;
+    u->bytes = bytes;
+}
+
+/* Pairs cut into contiguous units of about equal estimated cost: a few per
+ * node, so the scheduler has something to balance. */
+static int pair_units(sc_world *w, sc_job *job)
+{
+    double total = 0;
+    for (int i = 0; i < job->npairs; i++)
+        total += sc_pair_cost(job->pairs[i].sa, job->pairs[i].sb);
+    int want = w->nnodes > 1 ? UNITS_PER_NODE * w->nnodes : 1;
+    double target = total / want;
+    int rc = grow_units(w, want + job->npairs / MAX_UNIT_PAIRS + 2);
+    if (rc != SC_OK)
+        return rc;
+    size_t per = job->kind == SC_UNIT_TOI ? WIRE_TOI_PAIR : WIRE_PAIR;
+    int n = 0, first = 0;
+    double cost = 0, touching = 0;
+    for (int i = 0; i < job->npairs; i++) {
+        const sc_unit_pair *p = &job->pairs[i];
+        double c = sc_pair_cost(p->sa, p->sb);
+        cost += c;
+        /* pairs in contact cost far more than pairs that only came near
+         * (TOI pairs all touch): a model feature of their own */
+        touching += (job->kind == SC_UNIT_TOI || p->touching) ? c : 0;
+        int count = i + 1 - first;
+        if (cost >= target || count == MAX_UNIT_PAIRS || i + 1 == job->npairs) {
+            if (n == w->unit_cap && (rc = grow_units(w, n + 1)) != SC_OK)
+                return rc;
+            unit_init(&w->units[n++], job->kind, first, count, cost, touching,
+                      cost - touching, WIRE_HEADER + per * (size_t)count);
+            first = i + 1;
+            cost = touching = 0;
+        }
+    }
+    job->units = w->units;
+    job->nunits = n;
+    return SC_OK;
+}
+
+/* One unit per island: its contacts^3 (the paper). */
+static int island_units(sc_world *w, sc_job *job)
+{
+    const sc_islands *is = job->islands;
+    int rc = grow_units(w, is->count);
+    if (rc != SC_OK)
+        return rc;
+    for (int i = 0; i < is->count; i++) {
+        int nc = is->contact_start[i + 1] - is->contact_start[i];
+        int nb = is->body_start[i + 1] - is->body_start[i];
+        double c = (double)nc;
+        unit_init(&w->units[i], SC_UNIT_ISLAND, i, nc, c * c * c, c, c * c * c,
+                  WIRE_HEADER + WIRE_BODY * (size_t)(nb + 1) + WIRE_CONTACT * (size_t)nc);
+    }
+    job->units = w->units;
+    job->nunits = is->count;
+    return SC_OK;
+}
+
+int sc_job_run(sc_world *w, sc_job *job, int stage)
+{
+    double t0 = sc_wall_now();
+    int rc = job->kind == SC_UNIT_ISLAND ? island_units(w, job) : pair_units(w, job);
+    if (rc != SC_OK)
+        return rc;
+    if (job->nunits == 0)
+        return SC_OK;
+    sc_sched *s = &w->sched;
+    rc = sc_sched_assign(s, w->nodes, job->units, job->nunits);
+    if (rc != SC_OK)
+        return rc;
+    double t1 = sc_wall_now();
+    /* the others first, then this thread's own share (node 0) */
+    for (int k = w->nnodes - 1; k >= 0; k--) {
+        int cnt = s->start[k + 1] - s->start[k];
+        if (cnt > 0)
+            rc = w->nodes[k]->ops->submit(w->nodes[k], job, &s->assigned[s->start[k]], cnt);
+        SC_ASSERT(rc == SC_OK);
+    }
+    double cpu_others = 0;
+    for (int k = 0; k < w->nnodes; k++) {
+        if (s->start[k + 1] == s->start[k])
+            continue;
+        double cpu = 0;
+        w->nodes[k]->ops->wait(w->nodes[k], &cpu);
+        if (k > 0)
+            cpu_others += cpu;
+    }
+    double t2 = sc_wall_now();
+    double bound = 0;
+    sc_sched_observe(s, job->units, job->nunits, &bound);
+    /* CPU of the other nodes is CPU of this stage too (Table 1) */
+    w->stats.stage_s[stage] += cpu_others;
+    w->stats.stage_total_s[stage] += cpu_others;
+    w->stats.units += job->nunits;
+    w->stats.makespan_s += t2 - t1;
+    w->stats.makespan_bound_s += bound;
+    for (int i = 0; i < job->nunits; i++) {
+        const sc_unit *u = &job->units[i];
+        w->stats.collider_warnings += u->messages;
+        if (u->rc != SC_OK && rc == SC_OK)
+            rc = u->rc;    /* the first in unit order: the same for any assignment */
+    }
+    w->stats.sched_s += (t1 - t0) + (sc_wall_now() - t2);
+    return rc;
+}

@@ -1,0 +1,141 @@
+/* ode_copy.c - copies of libode for the worker threads.
+ *
+ * Debian's ODE is built without thread-local storage: its trimesh
+ * colliders share one process-global cache, so trimesh pairs on the copy
+ * the library links against are serialised by a lock (narrowphase.c).
+ * bench/bench_ode_threads measured the way out: a second copy of libode,
+ * loaded with dlmopen(LM_ID_NEWLM) into a link namespace of its own, has
+ * its own globals, and threads on different copies collide trimeshes
+ * concurrently (1.89x on 2 threads). Each worker thread takes one copy.
+ *
+ * Copies are process-wide and never unloaded: glibc has 16 namespaces and
+ * a small static TLS reserve (about 11 copies by default), and unloading a
+ * namespace does not reliably give them back. A copy is handed to one
+ * thread at a time; when none can be loaded the caller gets the shared,
+ * locked copy, which is slower, never wrong. Sanitizer builds use the
+ * shared copy only: a namespace copy of libc bypasses their interceptors.
+ */
+#include <dlfcn.h>
+#include <pthread.h>
+#include <stdarg.h>
+#include <stdlib.h>
+
+#include "ode_copy.h"
+#include "sc_internal.h"
+
+#define MAX_COPIES 15
+
+#if defined(__SANITIZE_ADDRESS__) || defined(__SANITIZE_THREAD__)
+#define PRIVATE_COPIES 0
+#else
+#define PRIVATE_COPIES 1
+#endif
+
+static pthread_once_t shared_once = PTHREAD_ONCE_INIT;
+static struct sc_ode shared;
+
+static pthread_mutex_t copies_lock = PTHREAD_MUTEX_INITIALIZER;
+static struct sc_ode *copies[MAX_COPIES];
+static int ncopies;
+static unsigned char in_use[MAX_COPIES];
+static int load_failed;
+
+static void shared_init(void)
+{
+#define SC_ODE_LINKED(f) shared.f = f;
+    SC_ODE_FUNCS(SC_ODE_LINKED)
+#undef SC_ODE_LINKED
+    shared.trimesh_class = dTriMeshClass;
+    /* ODE's global init (its own tables, no simulation state); never closed
+     * so that worlds in any thread can come and go. */
+    dInitODE2(0);
+    dSetMessageHandler(sc_ode_message);
+}
+
+void sc_ode_init(void)
+{
+    pthread_once(&shared_once, shared_init);
+}
+
+const sc_ode *sc_ode_shared(void)
+{
+    sc_ode_init();
+    return &shared;
+}
+
+int sc_ode_is_private(const sc_ode *o)
+{
+    return o && o->handle != NULL;
+}
+
+/* A new copy of the libode this library is linked with; NULL if it cannot
+ * be had. Called with copies_lock held. */
+static struct sc_ode *load_copy(void)
+{
+    Dl_info di;
+    if (!dladdr((void *)dCollide, &di) || !di.dli_fname)
+        return NULL;
+    void *h = dlmopen(LM_ID_NEWLM, di.dli_fname, RTLD_NOW | RTLD_LOCAL);
+    if (!h)
+        return NULL;
+    struct sc_ode *o = calloc(1, sizeof *o);
+    if (!o) {
+        dlclose(h);
+        return NULL;
+    }
+    o->handle = h;
+    int ok = 1;
+#define SC_ODE_LOOKUP(f) \
+    *(void **)&o->f = dlsym(h, #f); \
+    ok &= o->f != NULL;
+    SC_ODE_FUNCS(SC_ODE_LOOKUP)
+#undef SC_ODE_LOOKUP
+    if (!ok) {
+        free(o);
+        dlclose(h);
+        return NULL;
+    }
+    o->trimesh_class = dTriMeshClass;   /* class numbers are ODE's constants */
+    o->dInitODE2(0);
+    o->dSetMessageHandler(sc_ode_message);
+    return o;
+}
+
+const sc_ode *sc_ode_acquire(void)
+{
+    sc_ode_init();
+    if (!PRIVATE_COPIES)
+        return &shared;
+    struct sc_ode *o = NULL;
+    pthread_mutex_lock(&copies_lock);
+    for (int i = 0; i < ncopies && !o; i++)
+        if (!in_use[i]) {
+            in_use[i] = 1;
+            o = copies[i];
+        }
+    if (!o && !load_failed && ncopies < MAX_COPIES) {
+        o = load_copy();
+        if (o) {
+            in_use[ncopies] = 1;
+            copies[ncopies++] = o;
+        } else {
+            load_failed = 1;    /* the limit of this process: stop trying */
+        }
+    }
+    pthread_mutex_unlock(&copies_lock);
+    if (!o)
+        return &shared;
+    o->dAllocateODEDataForThread(dAllocateMaskAll);
+    return o;
+}
+
+void sc_ode_release(const sc_ode *o)
+{
+    if (!sc_ode_is_private(o))
+        return;
+    pthread_mutex_lock(&copies_lock);
+    for (int i = 0; i < ncopies; i++)
+        if (copies[i] == o)
+            in_use[i] = 0;
+    pthread_mutex_unlock(&copies_lock);
+}

@@ -1,0 +1,262 @@
+/* sched.c - the scheduler of the paper (DESIGN.md section 6) and what goes
+ * beyond it.
+ *
+ * The paper: estimate each unit's cost (pairs: product of polygon counts;
+ * islands: contacts^3), sort the units longest first, and give each to the
+ * node predicted to finish it soonest, a node's speed being measured from
+ * its recent responses (cost per second, averaged over recent jobs).
+ *
+ * Beyond it: per node and unit kind, a least-squares model of the measured
+ * unit time on its features (1 and two costs: for pairs, of those touching
+ * at the last detection and of the rest; for islands, contacts and
+ * contacts^3), refitted with GSL over the
+ * last SC_MODEL_WINDOW units, predicts better than cost / speed (a unit's
+ * fixed overhead, pairs that miss early); the finish estimate includes the
+ * node's transfer time and its measured latency (waking a thread, a round
+ * trip to a daemon), so a job too small to be worth sharing stays on the
+ * calling thread; and each job's makespan is compared with a lower
+ * bound (total work over total speed, and the largest unit).
+ */
+#include <stdlib.h>
+
+#include <gsl/gsl_matrix.h>
+#include <gsl/gsl_multifit.h>
+#include <gsl/gsl_vector.h>
+
+#include "sc_internal.h"
+
+#define SPEED_KEEP 0.7        /* EWMA weight of the old speed per job */
+#define MIN_FIT 8             /* samples before a model is used */
+#define REFIT 16              /* new samples between fits */
+#define IDLE_DRIFT 0.2        /* per idle job, towards the mean speed */
+#define IDLE_FORGET 4         /* idle jobs before a node's model is set aside */
+
+typedef struct sort_key {
+    double cost;
+    int idx;
+} sort_key;
+
+int sc_sched_init(sc_sched *s, int nnodes)
+{
+    memset(s, 0, sizeof *s);
+    s->nodes = sc_calloc_array((size_t)nnodes, sizeof *s->nodes);
+    s->start = sc_calloc_array((size_t)nnodes + 1, sizeof *s->start);
+    s->cursor = sc_calloc_array((size_t)nnodes, sizeof *s->cursor);
+    if (!s->nodes || !s->start || !s->cursor) {
+        sc_sched_free(s);
+        return SC_ENOMEM;
+    }
+    s->nnodes = nnodes;
+    s->use_models = 1;
+    return SC_OK;
+}
+
+void sc_sched_free(sc_sched *s)
+{
+    free(s->nodes);
+    free(s->start);
+    free(s->keys);
+    free(s->assigned);
+    free(s->cursor);
+    memset(s, 0, sizeof *s);
+}
+
+/* A node's speed for a kind; before it has answered, the mean of those
+ * measured (or 1: all alike). */
+static double speed_of(const sc_sched *s, int k, int kind)
+{
+    if (s->nodes[k].measured[kind])
+        return s->nodes[k].speed[kind];
+    double sum = 0;
+    int n = 0;
+    for (int i = 0; i < s->nnodes; i++)
+        if (s->nodes[i].measured[kind]) {
+            sum += s->nodes[i].speed[kind];
+            n++;
+        }
+    return n ? sum / n : 1.0;
+}
+
+double sc_sched_predict(const sc_sched *s, int k, const sc_unit *u)
+{
+    const sc_cost_model *m = &s->nodes[k].model[u->kind];
+    if (s->use_models && m->ok) {
+        double t = m->c[0] * u->feat[0] + m->c[1] * u->feat[1] + m->c[2] * u->feat[2];
+        if (t > 0 && isfinite(t))
+            return t;
+    }
+    return u->cost / speed_of(s, k, u->kind);
+}
+
+static int cmp_key(const void *x, const void *y)
+{
+    const sort_key *a = x, *b = y;
+    if (a->cost != b->cost)
+        return a->cost < b->cost ? 1 : -1;    /* longest first */
+    return (a->idx > b->idx) - (a->idx < b->idx);
+}
+
+int sc_sched_assign(sc_sched *s, sc_node *const *nodes, sc_unit *units, int n)
+{
+    if (n > s->order_cap) {
+        int cap = n > 2 * s->order_cap ? n : 2 * s->order_cap;
+        void *o = realloc(s->keys, (size_t)cap * sizeof(sort_key));
+        if (!o)
+            return SC_ENOMEM;
+        s->keys = o;
+        int *a = realloc(s->assigned, (size_t)cap * sizeof *a);
+        if (!a)
+            return SC_ENOMEM;
+        s->assigned = a;
+        s->order_cap = cap;
+    }
+    sort_key *key = s->keys;
+    /* the estimate to sort by: the calling thread's fitted model once it
+     * has one (it always has measurements), else the paper's cost */
+    for (int i = 0; i < n; i++) {
+        key[i].cost = s->nnodes > 1 ? sc_sched_predict(s, 0, &units[i]) : 0;
+        key[i].idx = i;
+    }
+    if (s->nnodes > 1)
+        qsort(key, (size_t)n, sizeof *key, cmp_key);
+    for (int k = 0; k < s->nnodes; k++)
+        s->nodes[k].ready = 0;
+    memset(s->start, 0, (size_t)(s->nnodes + 1) * sizeof *s->start);
+    for (int i = 0; i < n; i++) {
+        sc_unit *u = &units[key[i].idx];
+        int best = 0;
+        double best_t = INFINITY;
+        for (int k = 0; k < s->nnodes && s->nnodes > 1; k++) {
+            /* the first unit a node gets in a job pays its latency */
+            double t = s->nodes[k].ready + nodes[k]->ops->transfer_s(nodes[k], u->bytes) +
+                       sc_sched_predict(s, k, u) +
+                       (s->start[k + 1] ? 0 : nodes[k]->ops->latency_s(nodes[k]));
+            if (t < best_t) {
+                best_t = t;
+                best = k;
+            }
+        }
+        if (s->shuffle) {
+            /* tests: any assignment must give the same result */
+            s->shuffle ^= s->shuffle << 13;
+            s->shuffle ^= s->shuffle >> 7;
+            s->shuffle ^= s->shuffle << 17;
+            best = (int)(s->shuffle % (uint64_t)s->nnodes);
+        }
+        if (s->nnodes > 1)
+            s->nodes[best].ready = best_t;
+        u->node = best;
+        s->start[best + 1]++;
+    }
+    /* per-node lists, each in longest-first order */
+    s->start[0] = 0;
+    for (int k = 0; k < s->nnodes; k++)
+        s->start[k + 1] += s->start[k];
+    memcpy(s->cursor, s->start, (size_t)s->nnodes * sizeof *s->cursor);
+    for (int i = 0; i < n; i++) {
+        int idx = key[i].idx;
+        s->assigned[s->cursor[units[idx].node]++] = idx;
+    }
+    return SC_OK;
+}
+
+/* Least squares time = c . (1, count, cost) over the window (GSL, SVD:
+ * rank-deficient windows, e.g. all units alike, still give a fit). */
+static void fit(sc_cost_model *m)
+{
+    m->fresh = 0;
+    if (m->n < MIN_FIT)
+        return;
+    gsl_matrix_view X = gsl_matrix_view_array(&m->x[0][0], (size_t)m->n, 3);
+    gsl_vector_view y = gsl_vector_view_array(m->y, (size_t)m->n);
+    gsl_vector *c = gsl_vector_alloc(3);
+    gsl_matrix *cov = gsl_matrix_alloc(3, 3);
+    gsl_multifit_linear_workspace *ws = gsl_multifit_linear_alloc((size_t)m->n, 3);
+    double chisq;
+    m->ok = 0;
+    if (c && cov && ws && gsl_multifit_linear(&X.matrix, &y.vector, c, cov, &chisq, ws) == 0) {
+        for (int i = 0; i < 3; i++)
+            m->c[i] = gsl_vector_get(c, (size_t)i);
+        m->ok = isfinite(m->c[0]) && isfinite(m->c[1]) && isfinite(m->c[2]);
+    }
+    if (ws)
+        gsl_multifit_linear_free(ws);
+    if (cov)
+        gsl_matrix_free(cov);
+    if (c)
+        gsl_vector_free(c);
+}
+
+void sc_sched_observe(sc_sched *s, const sc_unit *units, int n, double *bound_s)
+{
+    *bound_s = 0;
+    if (n == 0)
+        return;
+    int kind = units[0].kind;
+    for (int k = 0; k < s->nnodes; k++) {
+        s->nodes[k].busy = 0;
+        s->nodes[k].done = 0;
+    }
+    for (int i = 0; i < n; i++) {
+        const sc_unit *u = &units[i];
+        sc_sched_node *nd = &s->nodes[u->node];
+        nd->busy += u->time_s;
+        nd->done += u->cost;
+        sc_cost_model *m = &nd->model[kind];
+        memcpy(m->x[m->pos], u->feat, sizeof u->feat);
+        m->y[m->pos] = u->time_s;
+        m->pos = (m->pos + 1) % SC_MODEL_WINDOW;
+        if (m->n < SC_MODEL_WINDOW)
+            m->n++;
+        m->fresh++;
+    }
+    /* the paper's speed: cost per second of each node's recent responses */
+    double mean_speed = 0;
+    int nmeasured = 0;
+    for (int k = 0; k < s->nnodes; k++) {
+        sc_sched_node *nd = &s->nodes[k];
+        if (nd->busy > 0 && nd->done > 0) {
+            double v = nd->done / nd->busy;
+            nd->speed[kind] = nd->measured[kind] ? SPEED_KEEP * nd->speed[kind] +
+                                                       (1 - SPEED_KEEP) * v
+                                                 : v;
+            nd->measured[kind] = 1;
+            nd->idle[kind] = 0;
+        } else {
+            nd->idle[kind]++;
+        }
+        if (nd->model[kind].fresh >= REFIT)
+            fit(&nd->model[kind]);
+        if (nd->measured[kind]) {
+            mean_speed += nd->speed[kind];
+            nmeasured++;
+        }
+    }
+    /* A node judged slow gets no work and so no chance to show otherwise
+     * (a slow first unit, a busy moment): while it idles, its speed drifts
+     * back to the mean and, after a while, its model is set aside. */
+    for (int k = 0; k < s->nnodes && nmeasured > 0; k++) {
+        sc_sched_node *nd = &s->nodes[k];
+        if (nd->idle[kind] == 0 || !nd->measured[kind])
+            continue;
+        nd->speed[kind] += IDLE_DRIFT * (mean_speed / nmeasured - nd->speed[kind]);
+        if (nd->idle[kind] >= IDLE_FORGET)
+            nd->model[kind].ok = 0;
+    }
+    /* lower bound: a unit's work is its time scaled to the mean speed */
+    double rsum = 0, rmax = 0, mean = 0;
+    for (int k = 0; k < s->nnodes; k++)
+        mean += speed_of(s, k, kind) / s->nnodes;
+    for (int k = 0; k < s->nnodes; k++) {
+        double r = speed_of(s, k, kind) / mean;
+        rsum += r;
+        rmax = fmax(rmax, r);
+    }
+    double total = 0, largest = 0;
+    for (int i = 0; i < n; i++) {
+        double work = units[i].time_s * speed_of(s, units[i].node, kind) / mean;
+        total += work;
+        largest = fmax(largest, work);
+    }
+    *bound_s = fmax(total / rsum, largest / rmax);
+}

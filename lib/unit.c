@@ -1,0 +1,76 @@
+/* unit.c - running one work unit (DESIGN.md sections 1 and 3): a batch of
+ * body pairs through the narrow phase or the time-of-impact search, or one
+ * island through the contact LCP. A unit reads its job's inputs and writes
+ * only its own outputs (its pairs' slots, its island's bodies). */
+#include "sc_internal.h"
+
+/* Polygons the paper counts for a shape: primitives count as one. */
+static double polygons(const sc_shape *s)
+{
+    return (s->kind == SC_SHAPE_MESH || s->kind == SC_SHAPE_CONVEX) ? (double)s->ntris : 1.0;
+}
+
+double sc_pair_cost(const sc_shape *a, const sc_shape *b)
+{
+    return polygons(a) * polygons(b);
+}
+
+static int run_collide(sc_np_ctx *np, const sc_job *job, const sc_unit *u)
+{
+    for (int i = u->first; i < u->first + u->count; i++) {
+        const sc_unit_pair *p = &job->pairs[i];
+        sc_contact *c = &job->contacts[(size_t)i * SC_MAX_PAIR_CONTACTS];
+        int n = sc_np_collide(np, p->sa, &p->a0, p->sb, &p->b0, c, SC_MAX_PAIR_CONTACTS);
+        if (n < 0)
+            return n;
+        for (int k = 0; k < n; k++) {
+            c[k].body_a = p->body_a;
+            c[k].body_b = p->body_b;
+        }
+        job->ncontact[i] = n;
+    }
+    return SC_OK;
+}
+
+static int run_toi(sc_np_ctx *np, const sc_job *job, const sc_unit *u)
+{
+    for (int i = u->first; i < u->first + u->count; i++) {
+        const sc_unit_pair *p = &job->pairs[i];
+        double t = 1;
+        /* a new pair: back up to first touch; a pair already touching that
+         * digs in past the tolerance: back up to where it reaches it */
+        int hit = p->deepen ? sc_toi_deepen_ctx(np, p->sa, &p->a0, &p->a1, p->sb, &p->b0,
+                                                &p->b1, job->tol_m, &t)
+                            : sc_toi_ctx(np, p->sa, &p->a0, &p->a1, p->sb, &p->b0, &p->b1,
+                                         job->tol_m, &t);
+        if (hit < 0)
+            return hit;
+        job->toi[i] = hit == 1 ? t : 1;
+    }
+    return SC_OK;
+}
+
+void sc_unit_run(sc_np_ctx *np, const sc_job *job, sc_unit *u)
+{
+    long msgs = sc_ode_message_count();
+    memset(&u->info, 0, sizeof u->info);
+    switch (job->kind) {
+    case SC_UNIT_COLLIDE:
+        u->rc = run_collide(np, job, u);
+        break;
+    case SC_UNIT_TOI:
+        u->rc = run_toi(np, job, u);
+        break;
+    case SC_UNIT_ISLAND: {
+        const sc_islands *is = job->islands;
+        int i = u->first;
+        u->rc = sc_island_solve(job->bodies, job->c, &is->contacts[is->contact_start[i]],
+                                is->contact_start[i + 1] - is->contact_start[i], job->h,
+                                job->params, &u->info);
+        break;
+    }
+    default:
+        u->rc = SC_EINVAL;
+    }
+    u->messages = sc_ode_message_count() - msgs;
+}

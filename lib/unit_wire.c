@@ -1,0 +1,636 @@
+/* unit_wire.c - the wire form of work units and of their results (DESIGN.md
+ * sections 1 and 3): what a remote node needs to run a unit, and what it
+ * sends back, so that the master's merge gives the bits a local run gives.
+ *
+ * Self-contained: shapes travel as content hashes resolved in the
+ * receiver's cache; an island carries copies of its bodies and of every
+ * static or sleeping body its contacts reach, re-indexed 0..m-1 (members
+ * first, in island order, then the others by world id). The solve uses
+ * body indices only to look bodies up and to compare them, so a one-to-one
+ * re-indexing leaves its arithmetic, and its result, unchanged.
+ *
+ * Little-endian whatever the host, doubles as their IEEE bits:
+ *   header    magic u32 ("SCWU" unit, "SCWR" result), version u16, kind u16
+ *   pose      pos f64[3], quat f64[4]
+ *   contact   body_a i32, body_b i32, pos f64[3], normal f64[3], depth f64
+ *   COLLIDE / TOI unit: count u32, (TOI) tol_m f64, per pair: hash_a u64,
+ *             hash_b u64, body_a i32, body_b i32, deepen u8, a0, b0, (TOI) a1, b1
+ *   ISLAND unit: bodies u32, members u32, contacts u32, h, bounce_speed,
+ *             slop, baumgarte f64, per body: see put_body(), per contact:
+ *             a contact (local body indices)
+ *   result:   count u32 (pairs, or island members), rc i32, messages i64,
+ *             pivots i64, failures, regularised, lemke, collisions i32, then
+ *             per pair: n u8 and n contacts (COLLIDE), toi f64 (TOI); per
+ *             member: x f64[3], q f64[4], v, w f64[3], collided i32 (ISLAND)
+ * A unit's counts are bounded and its length checked exactly before
+ * anything is allocated; its doubles must be finite. A result's doubles
+ * are carried verbatim (a solve that blew up reaches the master as NaN, as
+ * it would locally, for step.c's check); its kind, counts and body ids must
+ * match the master's unit, and nothing is written unless all of it is
+ * valid. Outputs of a unit that failed (rc < 0) are as undefined as after
+ * a local failure.
+ */
+#include <limits.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "sc_internal.h"
+
+#define WIRE_VERSION 1
+#define MAGIC_UNIT 0x55574353u        /* "SCWU" */
+#define MAGIC_RESULT 0x52574353u      /* "SCWR" */
+#define MAX_PAIRS (1 << 16)
+#define MAX_CONTACTS (1 << 16)
+#define MAX_BODIES (1 << 17)
+
+#define POSE_BYTES (7 * 8)
+#define PAIR_BYTES(nposes) (8 + 8 + 4 + 4 + 1 + (size_t)(nposes) * POSE_BYTES)
+#define BODY_BYTES (31 * 8 + 2 * 4)
+#define CONTACT_BYTES (2 * 4 + 7 * 8)
+
+/* ---- little-endian writer and reader ---- */
+
+typedef struct wbuf {
+    unsigned char *p;       /* NULL: only count */
+    size_t n;
+} wbuf;
+
+static void put(wbuf *w, uint64_t v, int bytes)
+{
+    if (w->p)
+        for (int i = 0; i < bytes; i++)
+            w->p[w->n + (size_t)i] = (unsigned char)(v >> (8 * i));
+    w->n += (size_t)bytes;
+}
+
+static void put_i32(wbuf *w, int v)
+{
+    put(w, (uint32_t)v, 4);
+}
+
+static void put_f64s(wbuf *w, const double *d, int n)
+{
+    for (int i = 0; i < n; i++) {
+        uint64_t u;
+        memcpy(&u, &d[i], sizeof u);
+        put(w, u, 8);
+    }
+}
+
+static void put_header(wbuf *w, uint32_t magic, int kind)
+{
+    put(w, magic, 4);
+    put(w, WIRE_VERSION, 2);
+    put(w, (uint64_t)kind, 2);
+}
+
+static void put_contact(wbuf *w, const sc_contact *c, int a, int b)
+{
+    put_i32(w, a);
+    put_i32(w, b);
+    put_f64s(w, c->pos, 3);
+    put_f64s(w, c->normal, 3);
+    put_f64s(w, &c->depth, 1);
+}
+
+/* Bytes fn writes; written to buf too when cap is enough. */
+static size_t emit(void (*fn)(wbuf *, const void *, const void *), const void *x,
+                   const void *y, unsigned char *buf, size_t cap)
+{
+    wbuf w = { NULL, 0 };
+    fn(&w, x, y);
+    if (buf && cap >= w.n) {
+        wbuf out = { buf, 0 };
+        fn(&out, x, y);
+    }
+    return w.n;
+}
+
+typedef struct rbuf {
+    const unsigned char *p;
+    size_t n, len;
+    int bad;                /* read past the end, or a value out of range */
+} rbuf;
+
+static uint64_t get(rbuf *r, int bytes)
+{
+    if (r->bad || r->len - r->n < (size_t)bytes) {
+        r->bad = 1;
+        return 0;
+    }
+    uint64_t v = 0;
+    for (int i = 0; i < bytes; i++)
+        v |= (uint64_t)r->p[r->n + (size_t)i] << (8 * i);
+    r->n += (size_t)bytes;
+    return v;
+}
+
+/* Two's complement of the given width, without overflow. */
+static int64_t get_signed(rbuf *r, int bytes)
+{
+    uint64_t u = get(r, bytes), sign = (uint64_t)1 << (8 * bytes - 1);
+    return u < sign ? (int64_t)u : (int64_t)(u - sign) - (int64_t)(sign - 1) - 1;
+}
+
+static int get_i32(rbuf *r)
+{
+    return (int)get_signed(r, 4);
+}
+
+/* Doubles as sent (results) or checked finite (units). */
+static void get_f64s(rbuf *r, double *d, int n, int finite)
+{
+    for (int i = 0; i < n; i++) {
+        uint64_t u = get(r, 8);
+        memcpy(&d[i], &u, sizeof u);
+        if (finite && !isfinite(d[i]))
+            r->bad = 1;
+    }
+}
+
+static void get_contact(rbuf *r, sc_contact *c, int finite)
+{
+    c->body_a = get_i32(r);
+    c->body_b = get_i32(r);
+    get_f64s(r, c->pos, 3, finite);
+    get_f64s(r, c->normal, 3, finite);
+    get_f64s(r, &c->depth, 1, finite);
+}
+
+/* The header's kind, or -1 when magic, version or kind are wrong. */
+static int get_header(rbuf *r, uint32_t magic)
+{
+    uint32_t m = (uint32_t)get(r, 4);
+    unsigned version = (unsigned)get(r, 2), kind = (unsigned)get(r, 2);
+    if (r->bad || m != magic || version != WIRE_VERSION || kind >= SC_UNIT_KINDS)
+        return -1;
+    return (int)kind;
+}
+
+/* ---- units ---- */
+
+static void write_pairs(wbuf *w, const void *job_, const void *u_)
+{
+    const sc_job *job = job_;
+    const sc_unit *u = u_;
+    int toi = job->kind == SC_UNIT_TOI;
+    put_header(w, MAGIC_UNIT, job->kind);
+    put(w, (uint64_t)u->count, 4);
+    if (toi)
+        put_f64s(w, &job->tol_m, 1);
+    for (int i = u->first; i < u->first + u->count; i++) {
+        const sc_unit_pair *p = &job->pairs[i];
+        put(w, p->sa->hash, 8);
+        put(w, p->sb->hash, 8);
+        put_i32(w, p->body_a);
+        put_i32(w, p->body_b);
+        put(w, p->deepen != 0, 1);
+        const sc_pose *pose[4] = { &p->a0, &p->b0, &p->a1, &p->b1 };
+        for (int k = 0; k < (toi ? 4 : 2); k++) {
+            put_f64s(w, pose[k]->pos, 3);
+            put_f64s(w, pose[k]->quat, 4);
+        }
+    }
+}
+
+/* The doubles of a body sc_island_solve() reads or writes (contact.c:
+ * movable() reads inv_mass and state; rows x and iw; mu and e friction and
+ * restitution; speeds and tangents v, w, v0, w0; it writes v, w, x, q and
+ * collided), then state and collided. A result carries fields 2-5 back. */
+#define NBODY_F64 10
+#define MEMBER_F64 2, 6
+static const int body_n[NBODY_F64] = { 1, 9, 3, 4, 3, 3, 3, 3, 1, 1 };
+
+static void body_fields(sc_body *b, double *f[NBODY_F64])
+{
+    double *p[NBODY_F64] = { &b->inv_mass, b->iw, b->x, b->q, b->v, b->w,
+                             b->v0, b->w0, &b->restitution, &b->friction };
+    memcpy(f, p, sizeof p);
+}
+
+/* Fields [from, to); of a copy, so that b stays const. */
+static void put_body_f64(wbuf *w, sc_body b, int from, int to)
+{
+    double *f[NBODY_F64];
+    body_fields(&b, f);
+    for (int k = from; k < to; k++)
+        put_f64s(w, f[k], body_n[k]);
+}
+
+static void get_body_f64(rbuf *r, sc_body *b, int from, int to, int finite)
+{
+    double *f[NBODY_F64];
+    body_fields(b, f);
+    for (int k = from; k < to; k++)
+        get_f64s(r, f[k], body_n[k], finite);
+}
+
+static void put_body(wbuf *w, const sc_body *b)
+{
+    put_body_f64(w, *b, 0, NBODY_F64);
+    put_i32(w, b->state);
+    put_i32(w, b->collided);
+}
+
+static void get_body(rbuf *r, sc_body *b)
+{
+    get_body_f64(r, b, 0, NBODY_F64, 1);
+    b->state = get_i32(r);
+    b->collided = get_i32(r);
+    if (!(b->inv_mass >= 0) || b->state < SC_FREE || b->state > SC_STATIC ||
+        b->collided < 0 || b->collided > 2)
+        r->bad = 1;
+}
+
+/* An island's bodies in local order (world ids) and its contacts' ends
+ * (local indices). */
+typedef struct island_map {
+    int nm, m, nc;
+    const int *ci;          /* the island's contacts (indices into job->c) */
+    int *world;             /* m world ids */
+    int *ends;              /* 2 nc local indices */
+} island_map;
+
+typedef struct idmap {
+    int id, local;
+} idmap;
+
+static int cmp_id(const void *x, const void *y)
+{
+    const idmap *a = x, *b = y;
+    return (a->id > b->id) - (a->id < b->id);
+}
+
+static int find_local(const idmap *m, int n, int id)
+{
+    const idmap key = { id, 0 };
+    const idmap *hit = n > 0 ? bsearch(&key, m, (size_t)n, sizeof *m, cmp_id) : NULL;
+    return hit ? hit->local : -1;
+}
+
+static int contact_end(const sc_job *job, const island_map *im, int k)
+{
+    const sc_contact *c = &job->c[im->ci[k / 2]];
+    return k % 2 ? c->body_b : c->body_a;
+}
+
+static int map_island(const sc_job *job, int i, island_map *im)
+{
+    const sc_islands *is = job->islands;
+    const int *mem = &is->bodies[is->body_start[i]];
+    im->nm = is->body_start[i + 1] - is->body_start[i];
+    im->nc = is->contact_start[i + 1] - is->contact_start[i];
+    im->ci = &is->contacts[is->contact_start[i]];
+    if (im->nm < 1 || im->nm > MAX_BODIES || im->nc > MAX_CONTACTS)
+        return SC_ETOOBIG;
+    size_t most = (size_t)im->nm + 2 * (size_t)im->nc;
+    idmap *map = sc_alloc_array(most, sizeof *map);
+    im->world = sc_alloc_array(most, sizeof *im->world);
+    im->ends = sc_alloc_array(2 * (size_t)im->nc, sizeof *im->ends);
+    int rc = SC_ENOMEM;
+    if (!map || !im->world || !im->ends)
+        goto out;
+    for (int k = 0; k < im->nm; k++) {
+        map[k].id = im->world[k] = mem[k];
+        map[k].local = k;
+    }
+    qsort(map, (size_t)im->nm, sizeof *map, cmp_id);
+    /* the others: contact ends that are not members, by world id, once */
+    idmap *ext = map + im->nm;
+    int ne = 0, nu = 0;
+    for (int k = 0; k < 2 * im->nc; k++)
+        if (find_local(map, im->nm, contact_end(job, im, k)) < 0)
+            ext[ne++].id = contact_end(job, im, k);
+    qsort(ext, (size_t)ne, sizeof *ext, cmp_id);
+    rc = SC_OK;
+    for (int k = 0; k < ne && rc == SC_OK; k++) {
+        if (nu > 0 && ext[nu - 1].id == ext[k].id)
+            continue;
+        ext[nu] = (idmap){ ext[k].id, im->nm + nu };
+        im->world[im->nm + nu++] = ext[k].id;
+        /* the solve changes movable bodies; the result carries members only */
+        if (sc_body_movable(&job->bodies[ext[k].id]))
+            rc = SC_EINVAL;
+    }
+    im->m = im->nm + nu;
+    if (rc == SC_OK && im->m > MAX_BODIES)
+        rc = SC_ETOOBIG;
+    for (int k = 0; k < 2 * im->nc && rc == SC_OK; k++) {
+        int id = contact_end(job, im, k), l = find_local(map, im->nm, id);
+        im->ends[k] = l >= 0 ? l : find_local(ext, nu, id);
+    }
+out:
+    free(map);
+    return rc;
+}
+
+static void write_island(wbuf *w, const void *job_, const void *im_)
+{
+    const sc_job *job = job_;
+    const island_map *im = im_;
+    put_header(w, MAGIC_UNIT, SC_UNIT_ISLAND);
+    put(w, (uint64_t)im->m, 4);
+    put(w, (uint64_t)im->nm, 4);
+    put(w, (uint64_t)im->nc, 4);
+    const sc_contact_params *p = job->params;
+    double head[4] = { job->h, p->bounce_speed, p->slop, p->baumgarte };
+    put_f64s(w, head, 4);
+    for (int k = 0; k < im->m; k++)
+        put_body(w, &job->bodies[im->world[k]]);
+    for (int k = 0; k < im->nc; k++)
+        put_contact(w, &job->c[im->ci[k]], im->ends[2 * k], im->ends[2 * k + 1]);
+}
+
+size_t sc_wire_unit_pack(const sc_job *job, const sc_unit *u, unsigned char *buf, size_t cap)
+{
+    if (!job || !u || u->kind != job->kind)
+        return 0;
+    if (job->kind == SC_UNIT_COLLIDE || job->kind == SC_UNIT_TOI) {
+        if (u->count < 0 || u->count > MAX_PAIRS || u->first < 0 ||
+            u->first > job->npairs - u->count)
+            return 0;
+        return emit(write_pairs, job, u, buf, cap);
+    }
+    if (job->kind != SC_UNIT_ISLAND || !job->islands || u->first < 0 ||
+        u->first >= job->islands->count)
+        return 0;
+    /* 0 also for an island the wire cannot carry (see map_island()) */
+    island_map im = { 0 };
+    size_t n = map_island(job, u->first, &im) == SC_OK ? emit(write_island, job, &im, buf, cap)
+                                                       : 0;
+    free(im.world);
+    free(im.ends);
+    return n;
+}
+
+static int decode_pairs(rbuf *r, int kind, sc_shape_lookup_fn lookup, void *ctx,
+                        sc_wire_unit *wu)
+{
+    int toi = kind == SC_UNIT_TOI;
+    uint32_t n = (uint32_t)get(r, 4);
+    double tol = 0;
+    if (toi)
+        get_f64s(r, &tol, 1, 1);
+    if (r->bad || n > MAX_PAIRS || !(tol >= 0) ||
+        r->len - r->n != (size_t)n * PAIR_BYTES(toi ? 4 : 2))
+        return SC_EFORMAT;
+    if (n > 0 && !lookup)
+        return SC_EINVAL;
+    wu->pairs = sc_calloc_array(n, sizeof *wu->pairs);
+    if (toi) {
+        wu->toi = sc_alloc_array(n, sizeof *wu->toi);
+    } else {
+        wu->contacts = sc_calloc_array((size_t)n * SC_MAX_PAIR_CONTACTS, sizeof *wu->contacts);
+        wu->ncontact = sc_calloc_array(n, sizeof *wu->ncontact);
+    }
+    if (!wu->pairs || (toi ? !wu->toi : !wu->contacts || !wu->ncontact))
+        return SC_ENOMEM;
+    for (uint32_t i = 0; i < n; i++) {
+        sc_unit_pair *p = &wu->pairs[i];
+        uint64_t ha = get(r, 8), hb = get(r, 8);
+        p->body_a = get_i32(r);
+        p->body_b = get_i32(r);
+        uint64_t deepen = get(r, 1);
+        p->deepen = deepen != 0;
+        sc_pose *pose[4] = { &p->a0, &p->b0, &p->a1, &p->b1 };
+        for (int k = 0; k < (toi ? 4 : 2); k++) {
+            get_f64s(r, pose[k]->pos, 3, 1);
+            get_f64s(r, pose[k]->quat, 4, 1);
+        }
+        if (toi)
+            wu->toi[i] = 1;
+        if (r->bad || p->body_a < 0 || p->body_b <= p->body_a || deepen > 1)
+            return SC_EFORMAT;
+        p->sa = lookup(ctx, ha);
+        p->sb = lookup(ctx, hb);
+        if (!p->sa || !p->sb || p->sa->hash != ha || p->sb->hash != hb)
+            return SC_EFORMAT;
+    }
+    sc_job *job = &wu->job;
+    job->pairs = wu->pairs;
+    job->npairs = (int)n;
+    job->contacts = wu->contacts;
+    job->ncontact = wu->ncontact;
+    job->tol_m = tol;
+    job->toi = wu->toi;
+    wu->unit.count = (int)n;
+    return SC_OK;
+}
+
+static int decode_island(rbuf *r, sc_wire_unit *wu)
+{
+    uint32_t m = (uint32_t)get(r, 4), nm = (uint32_t)get(r, 4), nc = (uint32_t)get(r, 4);
+    double head[4];
+    get_f64s(r, head, 4, 1);
+    if (r->bad || nm < 1 || nm > m || m > MAX_BODIES || nc > MAX_CONTACTS || !(head[0] > 0) ||
+        head[1] < 0 || head[2] < 0 || head[3] < 0 ||
+        r->len - r->n != (size_t)m * BODY_BYTES + (size_t)nc * CONTACT_BYTES)
+        return SC_EFORMAT;
+    sc_islands *is = &wu->islands;
+    wu->bodies = sc_calloc_array(m, sizeof *wu->bodies);
+    wu->c = sc_calloc_array(nc, sizeof *wu->c);
+    is->body_start = sc_calloc_array(2, sizeof *is->body_start);
+    is->bodies = sc_alloc_array(nm, sizeof *is->bodies);
+    is->contact_start = sc_calloc_array(2, sizeof *is->contact_start);
+    is->contacts = sc_alloc_array(nc, sizeof *is->contacts);
+    if (!wu->bodies || !wu->c || !is->body_start || !is->bodies || !is->contact_start ||
+        !is->contacts)
+        return SC_ENOMEM;
+    for (uint32_t k = 0; k < m; k++) {
+        get_body(r, &wu->bodies[k]);
+        /* only members may change: the others are static or asleep */
+        if (r->bad || (k >= nm && sc_body_movable(&wu->bodies[k])))
+            return SC_EFORMAT;
+    }
+    for (uint32_t k = 0; k < nc; k++) {
+        sc_contact *c = &wu->c[k];
+        get_contact(r, c, 1);
+        int a = c->body_a, b = c->body_b;
+        if (r->bad || a < 0 || b < 0 || a >= (int)m || b >= (int)m || a == b ||
+            (a >= (int)nm && b >= (int)nm))
+            return SC_EFORMAT;
+        is->contacts[k] = (int)k;
+    }
+    for (uint32_t k = 0; k < nm; k++)
+        is->bodies[k] = (int)k;
+    is->count = 1;
+    is->body_start[1] = (int)nm;
+    is->contact_start[1] = (int)nc;
+    wu->nbodies = (int)m;
+    wu->params = (sc_contact_params){ .bounce_speed = head[1], .slop = head[2],
+                                      .baumgarte = head[3] };
+    sc_job *job = &wu->job;
+    job->bodies = wu->bodies;
+    job->c = wu->c;
+    job->islands = is;
+    job->h = head[0];
+    job->params = &wu->params;
+    wu->unit.count = (int)nc;
+    return SC_OK;
+}
+
+int sc_wire_unit_decode(const unsigned char *buf, size_t len, sc_shape_lookup_fn lookup,
+                        void *lookup_ctx, sc_wire_unit *out)
+{
+    if (!out)
+        return SC_EINVAL;
+    memset(out, 0, sizeof *out);
+    if (!buf && len)
+        return SC_EINVAL;
+    rbuf r = { buf, 0, len, 0 };
+    int kind = get_header(&r, MAGIC_UNIT);
+    int rc = kind < 0 ? SC_EFORMAT
+           : kind == SC_UNIT_ISLAND ? decode_island(&r, out)
+                                    : decode_pairs(&r, kind, lookup, lookup_ctx, out);
+    if (rc == SC_OK && r.n != len)
+        rc = SC_EFORMAT;
+    if (rc != SC_OK) {
+        sc_wire_unit_free(out);
+        return rc;
+    }
+    /* the job points into out: out must not be moved or copied */
+    out->job.kind = out->unit.kind = kind;
+    out->job.units = &out->unit;
+    out->job.nunits = 1;
+    out->unit.bytes = len;
+    return SC_OK;
+}
+
+void sc_wire_unit_free(sc_wire_unit *wu)
+{
+    if (!wu)
+        return;
+    free(wu->pairs);
+    free(wu->contacts);
+    free(wu->ncontact);
+    free(wu->toi);
+    free(wu->bodies);
+    free(wu->c);
+    sc_islands_free(&wu->islands);
+    memset(wu, 0, sizeof *wu);
+}
+
+/* ---- results ---- */
+
+static void write_result(wbuf *w, const void *wu_, const void *unused)
+{
+    (void)unused;
+    const sc_wire_unit *wu = wu_;
+    const sc_job *job = &wu->job;
+    const sc_unit *u = &wu->unit;
+    int island = job->kind == SC_UNIT_ISLAND;
+    int nm = island ? job->islands->body_start[1] : 0;
+    put_header(w, MAGIC_RESULT, job->kind);
+    put(w, (uint64_t)(island ? nm : u->count), 4);
+    put_i32(w, u->rc);
+    put(w, (uint64_t)u->messages, 8);
+    put(w, (uint64_t)u->info.pivots, 8);
+    put_i32(w, u->info.failures);
+    put_i32(w, u->info.regularised);
+    put_i32(w, u->info.lemke);
+    put_i32(w, u->info.collisions);
+    for (int i = 0; !island && i < u->count; i++) {
+        if (job->kind == SC_UNIT_TOI) {
+            put_f64s(w, &job->toi[i], 1);
+            continue;
+        }
+        int n = job->ncontact[i];
+        SC_ASSERT(n >= 0 && n <= SC_MAX_PAIR_CONTACTS);
+        put(w, (uint64_t)n, 1);
+        for (int k = 0; k < n; k++) {
+            const sc_contact *c = &job->contacts[(size_t)i * SC_MAX_PAIR_CONTACTS + (size_t)k];
+            put_contact(w, c, c->body_a, c->body_b);
+        }
+    }
+    for (int k = 0; k < nm; k++) {
+        const sc_body *b = &job->bodies[job->islands->bodies[k]];
+        put_body_f64(w, *b, MEMBER_F64);
+        put_i32(w, b->collided);
+    }
+}
+
+size_t sc_wire_result_pack(const sc_wire_unit *wu, unsigned char *buf, size_t cap)
+{
+    if (!wu || wu->job.units != &wu->unit)
+        return 0;
+    return emit(write_result, wu, NULL, buf, cap);
+}
+
+/* Read a result for u; write it to the job and u only when write is set
+ * (the caller validates the whole buffer first, then writes). */
+static int read_result(rbuf *r, const sc_job *job, sc_unit *u, int write)
+{
+    int island = job->kind == SC_UNIT_ISLAND;
+    const sc_islands *is = job->islands;
+    int i0 = island ? is->body_start[u->first] : u->first;
+    int count = island ? is->body_start[u->first + 1] - i0 : u->count;
+    if (get_header(r, MAGIC_RESULT) != job->kind || get(r, 4) != (uint64_t)count)
+        return SC_EFORMAT;
+    int rc = get_i32(r);
+    int64_t msgs = get_signed(r, 8), pivots = get_signed(r, 8);
+    sc_solve_info info = { 0 };
+    info.failures = get_i32(r);
+    info.regularised = get_i32(r);
+    info.lemke = get_i32(r);
+    info.collisions = get_i32(r);
+    if (r->bad || rc > 0 || msgs < 0 || msgs > LONG_MAX || pivots < 0 || pivots > LONG_MAX ||
+        info.failures < 0 || info.regularised < 0 || info.lemke < 0 || info.collisions < 0)
+        return SC_EFORMAT;
+    info.pivots = (long)pivots;
+    for (int i = i0; !island && i < i0 + count; i++) {
+        if (job->kind == SC_UNIT_TOI) {
+            double t;
+            get_f64s(r, &t, 1, 0);
+            if (write)
+                job->toi[i] = t;
+            continue;
+        }
+        const sc_unit_pair *p = &job->pairs[i];
+        int n = (int)get(r, 1);
+        if (n > SC_MAX_PAIR_CONTACTS)
+            return SC_EFORMAT;
+        for (int k = 0; k < n; k++) {
+            sc_contact c;
+            get_contact(r, &c, 0);
+            if (c.body_a != p->body_a || c.body_b != p->body_b)
+                return SC_EFORMAT;
+            if (write)
+                job->contacts[(size_t)i * SC_MAX_PAIR_CONTACTS + (size_t)k] = c;
+        }
+        if (write)
+            job->ncontact[i] = n;
+    }
+    sc_body scratch = { 0 };
+    for (int k = 0; island && k < count; k++) {
+        sc_body *b = write ? &job->bodies[is->bodies[i0 + k]] : &scratch;
+        int collided;
+        get_body_f64(r, b, MEMBER_F64, 0);
+        if ((collided = get_i32(r)) < 0 || collided > 2)
+            return SC_EFORMAT;
+        b->collided = collided;
+    }
+    if (r->bad || r->n != r->len)
+        return SC_EFORMAT;
+    if (write) {
+        u->rc = rc;
+        u->messages = (long)msgs;
+        u->info = info;
+    }
+    return SC_OK;
+}
+
+int sc_wire_result_apply(const sc_job *job, sc_unit *u, const unsigned char *buf, size_t len)
+{
+    if (!job || !u || (!buf && len) || u->kind != job->kind || u->first < 0)
+        return SC_EINVAL;
+    if (job->kind == SC_UNIT_ISLAND ? !job->islands || u->first >= job->islands->count
+                                    : job->kind < 0 || job->kind >= SC_UNIT_KINDS ||
+                                          u->count < 0 || u->first > job->npairs - u->count)
+        return SC_EINVAL;
+    rbuf r = { buf, 0, len, 0 };
+    int rc = read_result(&r, job, u, 0);
+    if (rc != SC_OK)
+        return rc;
+    r.n = 0;
+    return read_result(&r, job, u, 1);
+}

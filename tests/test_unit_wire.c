@@ -1,0 +1,667 @@
+/* test_unit_wire.c - the wire form of work units (lib/unit_wire.c): a unit
+ * packed, decoded, run elsewhere and its result applied gives the bits a
+ * local run gives, for narrow-phase, time-of-impact and island units of a
+ * real bolts-and-nuts scene; malformed buffers are refused, never crash.
+ * (Internal API: lib/sc_internal.h.) */
+#include <math.h>
+#include <setjmp.h>
+#include <stdarg.h>
+#include <stddef.h>
+#include <stdint.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <cmocka.h>
+
+#include "sc_internal.h"
+
+#define NBODIES 30
+#define DT (1.0 / 60.0)
+#define FRAMES 100            /* the bolts land from frame 60 on (seed 7) */
+#define TOI_BACK 5            /* TOI units span frames FRAMES - TOI_BACK .. FRAMES */
+
+/* The contact parameters of lib/step.c. */
+static const sc_contact_params params = { .bounce_speed = 0.1, .slop = 0.5e-3, .baumgarte = 0.2 };
+
+static uint64_t rng = 0x853c49e6748fea9bULL;
+static uint64_t next_rand(void)
+{
+    rng ^= rng << 13;
+    rng ^= rng >> 7;
+    rng ^= rng << 17;
+    return rng;
+}
+
+static sc_world *make_world(void)
+{
+    sc_world_config cfg = sc_world_config_default();
+    cfg.workers = 1;
+    sc_world *w = sc_world_create(&cfg);
+    assert_non_null(w);
+    assert_int_equal(sc_scene_bolts_nuts(w, NBODIES, 7), SC_OK);
+    return w;
+}
+
+/* The receiver's shape cache: the world's shapes by content hash; skip
+ * (when not 0) is a hash the cache does not hold. */
+typedef struct cache {
+    const sc_world *w;
+    uint64_t skip;
+} cache;
+
+static const sc_shape *lookup(void *ctx, uint64_t hash)
+{
+    const cache *c = ctx;
+    for (int i = 0; i < c->w->nbodies; i++) {
+        const sc_shape *s = c->w->bodies[i].shape;
+        if (s->hash == hash && hash != c->skip)
+            return s;
+    }
+    return NULL;
+}
+
+static unsigned char *pack_unit(const sc_job *job, const sc_unit *u, size_t *len)
+{
+    size_t n = sc_wire_unit_pack(job, u, NULL, 0);
+    assert_true(n > 0);
+    unsigned char *buf = malloc(n);
+    assert_non_null(buf);
+    /* too small a buffer is left alone */
+    memset(buf, 0xEE, n);
+    assert_int_equal(sc_wire_unit_pack(job, u, buf, n - 1), n);
+    for (size_t i = 0; i < n; i++)
+        assert_int_equal(buf[i], 0xEE);
+    assert_int_equal(sc_wire_unit_pack(job, u, buf, n), n);
+    *len = n;
+    return buf;
+}
+
+/* What a remote node does with a unit: decode, run, pack the result. */
+static unsigned char *remote_run(sc_np_ctx *np, const unsigned char *unit, size_t len,
+                                 cache *cc, size_t *rlen)
+{
+    sc_wire_unit wu;
+    assert_int_equal(sc_wire_unit_decode(unit, len, lookup, cc, &wu), SC_OK);
+    sc_unit_run(np, &wu.job, &wu.unit);
+    size_t n = sc_wire_result_pack(&wu, NULL, 0);
+    assert_true(n > 0);
+    unsigned char *buf = malloc(n);
+    assert_non_null(buf);
+    assert_int_equal(sc_wire_result_pack(&wu, buf, n), n);
+    sc_wire_unit_free(&wu);
+    *rlen = n;
+    return buf;
+}
+
+/* Unit u of job_l run here, and the same unit of job_r (same inputs, its
+ * own outputs) run through the wire: rc, messages and info must agree. */
+static sc_unit run_both(sc_np_ctx *local, sc_np_ctx *remote, cache *cc, const sc_job *job_l,
+                        const sc_job *job_r, const sc_unit *u)
+{
+    sc_unit ul = *u, ur = *u;
+    sc_unit_run(local, job_l, &ul);
+    size_t len, rlen;
+    unsigned char *buf = pack_unit(job_r, &ur, &len);
+    unsigned char *res = remote_run(remote, buf, len, cc, &rlen);
+    ur.rc = 99;
+    ur.messages = -1;
+    assert_int_equal(sc_wire_result_apply(job_r, &ur, res, rlen), SC_OK);
+    assert_int_equal(ul.rc, SC_OK);
+    assert_int_equal(ur.rc, ul.rc);
+    assert_int_equal(ur.messages, ul.messages);
+    assert_memory_equal(&ur.info, &ul.info, sizeof ul.info);
+    free(buf);
+    free(res);
+    return ul;
+}
+
+/* ---- pair units (narrow phase, time of impact) ---- */
+
+typedef struct pairs {
+    sc_unit_pair *p;
+    int n;
+    int hits;                 /* pairs touching at the end */
+} pairs;
+
+static int touching(const sc_contact *c, int n, int a, int b)
+{
+    for (int k = 0; k < n; k++)
+        if (c[k].body_a == a && c[k].body_b == b)
+            return 1;
+    return 0;
+}
+
+/* Every pair in contact at the end plus every neighbour pair (i, i + 1)
+ * (mostly apart, the floor with body 1), moving from the poses of `from`
+ * to those of w (COLLIDE units read the first only). */
+static pairs make_pairs(const sc_world *w, const sc_body *from, const sc_contact *c0, int n0)
+{
+    pairs ps = { 0 };
+    ps.p = calloc((size_t)w->ncontacts + (size_t)w->nbodies, sizeof *ps.p);
+    assert_non_null(ps.p);
+    for (int k = 0; k < w->ncontacts + w->nbodies - 1; k++) {
+        int a, b;
+        if (k < w->ncontacts) {
+            const sc_contact *c = &w->contacts[k];
+            if (k > 0 && c[-1].body_a == c->body_a && c[-1].body_b == c->body_b)
+                continue;
+            a = c->body_a;
+            b = c->body_b;
+            ps.hits++;
+        } else {
+            a = k - w->ncontacts;
+            b = a + 1;
+        }
+        sc_unit_pair *p = &ps.p[ps.n++];
+        p->sa = w->bodies[a].shape;
+        p->sb = w->bodies[b].shape;
+        p->body_a = a;
+        p->body_b = b;
+        p->deepen = touching(c0, n0, a, b);
+        sc_body_pose(&from[a], &p->a0);
+        sc_body_pose(&from[b], &p->b0);
+        sc_body_pose(&w->bodies[a], &p->a1);
+        sc_body_pose(&w->bodies[b], &p->b1);
+    }
+    return ps;
+}
+
+typedef struct scene {
+    sc_world *w;
+    sc_body *from;            /* bodies TOI_BACK frames before the end */
+    sc_contact *c0;           /* and their contacts */
+    int n0;
+    pairs pc, pt;             /* COLLIDE: at the end; TOI: from `from` to the end */
+} scene;
+
+static int scene_setup(void **state)
+{
+    scene *s = calloc(1, sizeof *s);
+    assert_non_null(s);
+    s->w = make_world();
+    for (int f = 0; f < FRAMES; f++) {
+        if (f == FRAMES - TOI_BACK) {
+            size_t nb = (size_t)s->w->nbodies, nc = (size_t)s->w->ncontacts;
+            s->from = malloc(nb * sizeof *s->from);
+            s->c0 = malloc((nc ? nc : 1) * sizeof *s->c0);
+            assert_true(s->from && s->c0);
+            memcpy(s->from, s->w->bodies, nb * sizeof *s->from);
+            memcpy(s->c0, s->w->contacts, nc * sizeof *s->c0);
+            s->n0 = (int)nc;
+        }
+        assert_int_equal(sc_world_step(s->w, DT), SC_OK);
+    }
+    s->pc = make_pairs(s->w, s->w->bodies, s->c0, s->n0);
+    s->pt = make_pairs(s->w, s->from, s->c0, s->n0);
+    assert_true(s->pc.hits > 0);
+    *state = s;
+    return 0;
+}
+
+static int scene_teardown(void **state)
+{
+    scene *s = *state;
+    if (!s)
+        return 0;
+    sc_world_destroy(s->w);
+    free(s->from);
+    free(s->c0);
+    free(s->pc.p);
+    free(s->pt.p);
+    free(s);
+    return 0;
+}
+
+/* Outputs of a pair job, pre-filled with a pattern so that any slot
+ * written in one copy and not the other shows. */
+typedef struct outputs {
+    sc_contact *contacts;
+    int *ncontact;
+    double *toi;
+} outputs;
+
+static void outputs_init(outputs *o, int n)
+{
+    o->contacts = malloc((size_t)n * SC_MAX_PAIR_CONTACTS * sizeof *o->contacts);
+    o->ncontact = malloc((size_t)n * sizeof *o->ncontact);
+    o->toi = malloc((size_t)n * sizeof *o->toi);
+    assert_true(o->contacts && o->ncontact && o->toi);
+    memset(o->contacts, 0xA5, (size_t)n * SC_MAX_PAIR_CONTACTS * sizeof *o->contacts);
+    memset(o->ncontact, 0x5A, (size_t)n * sizeof *o->ncontact);
+    for (int i = 0; i < n; i++)
+        o->toi[i] = -7;
+}
+
+static void outputs_free(outputs *o)
+{
+    free(o->contacts);
+    free(o->ncontact);
+    free(o->toi);
+}
+
+static sc_job pair_job(int kind, const scene *s, outputs *o)
+{
+    sc_job job;
+    memset(&job, 0, sizeof job);
+    job.kind = kind;
+    const pairs *ps = kind == SC_UNIT_TOI ? &s->pt : &s->pc;
+    job.pairs = ps->p;
+    job.npairs = ps->n;
+    job.contacts = o->contacts;
+    job.ncontact = o->ncontact;
+    job.toi = o->toi;
+    job.tol_m = s->w->cfg.contact_tol_m;
+    return job;
+}
+
+/* Units [0, n/3), [n/3, 2n/3), [2n/3, n) and an empty one. */
+static void check_pair_kind(const scene *s, int kind)
+{
+    int n = s->pc.n;
+    outputs ol, or_;
+    outputs_init(&ol, n);
+    outputs_init(&or_, n);
+    sc_job jl = pair_job(kind, s, &ol), jr = pair_job(kind, s, &or_);
+    sc_np_ctx *local = sc_np_create(), *remote = sc_np_create();
+    assert_true(local && remote);
+    cache cc = { s->w, 0 };
+    int cut[] = { 0, n / 3, 2 * n / 3, n, n };
+    for (int k = 0; k < 4; k++) {
+        sc_unit u = { .kind = kind, .first = cut[k], .count = cut[k + 1] - cut[k] };
+        run_both(local, remote, &cc, &jl, &jr, &u);
+    }
+    if (kind == SC_UNIT_COLLIDE) {
+        assert_memory_equal(ol.ncontact, or_.ncontact, (size_t)n * sizeof *ol.ncontact);
+        assert_memory_equal(ol.contacts, or_.contacts,
+                            (size_t)n * SC_MAX_PAIR_CONTACTS * sizeof *ol.contacts);
+        int with = 0;
+        for (int i = 0; i < n; i++)
+            with += ol.ncontact[i] > 0;
+        /* the pairs in contact at the end of the frame still are */
+        assert_true(with >= s->pc.hits);
+        print_message("collide: %d pairs, %d with contacts\n", n, with);
+    } else {
+        assert_memory_equal(ol.toi, or_.toi, (size_t)n * sizeof *ol.toi);
+        int hits = 0;
+        for (int i = 0; i < n; i++) {
+            assert_true(ol.toi[i] >= 0 && ol.toi[i] <= 1);
+            hits += ol.toi[i] < 1;
+        }
+        print_message("toi: %d pairs, %d impacts\n", n, hits);
+    }
+    sc_np_destroy(local);
+    sc_np_destroy(remote);
+    outputs_free(&ol);
+    outputs_free(&or_);
+}
+
+static void test_collide_unit_through_wire_is_bit_identical(void **state)
+{
+    check_pair_kind(*state, SC_UNIT_COLLIDE);
+}
+
+static void test_toi_unit_through_wire_is_bit_identical(void **state)
+{
+    check_pair_kind(*state, SC_UNIT_TOI);
+}
+
+/* ---- island units ---- */
+
+typedef struct islands_job {
+    sc_islands is;
+    unsigned char *joins;
+    sc_body *b0, *bl, *br;    /* the bodies before, and local and remote copies */
+    sc_job jl, jr;
+} islands_job;
+
+static void islands_job_init(islands_job *ij, const sc_world *w)
+{
+    size_t n = (size_t)w->nbodies;
+    memset(ij, 0, sizeof *ij);
+    ij->joins = malloc(n);
+    ij->b0 = malloc(n * sizeof *ij->b0);
+    ij->bl = malloc(n * sizeof *ij->bl);
+    ij->br = malloc(n * sizeof *ij->br);
+    assert_true(ij->joins && ij->b0 && ij->bl && ij->br);
+    for (size_t i = 0; i < n; i++)
+        ij->joins[i] = (unsigned char)sc_body_movable(&w->bodies[i]);
+    assert_int_equal(sc_islands_build(w->nbodies, ij->joins, w->contacts, w->ncontacts, &ij->is),
+                     SC_OK);
+    memcpy(ij->b0, w->bodies, n * sizeof *ij->b0);
+    /* non-members' collided cleared, so that a solve marking them shows */
+    for (size_t i = 0; i < n; i++)
+        if (!ij->joins[i])
+            ij->b0[i].collided = 0;
+    memcpy(ij->bl, ij->b0, n * sizeof *ij->bl);
+    memcpy(ij->br, ij->b0, n * sizeof *ij->br);
+    sc_job job;
+    memset(&job, 0, sizeof job);
+    job.kind = SC_UNIT_ISLAND;
+    job.c = w->contacts;
+    job.islands = &ij->is;
+    job.h = DT;
+    job.params = &params;
+    ij->jl = ij->jr = job;
+    ij->jl.bodies = ij->bl;
+    ij->jr.bodies = ij->br;
+}
+
+static void islands_job_free(islands_job *ij)
+{
+    sc_islands_free(&ij->is);
+    free(ij->joins);
+    free(ij->b0);
+    free(ij->bl);
+    free(ij->br);
+}
+
+static sc_unit island_unit(const sc_islands *is, int i)
+{
+    sc_unit u = { .kind = SC_UNIT_ISLAND, .first = i,
+                  .count = is->contact_start[i + 1] - is->contact_start[i] };
+    return u;
+}
+
+/* Every island of several frames of the scene solved here and through the
+ * wire: every body matches bit for bit, and the static and sleeping ones
+ * (shared by islands, not carried back) are only read, collided included. */
+static void test_island_units_through_wire_are_bit_identical(void **state)
+{
+    (void)state;
+    sc_world *w = make_world();
+    sc_np_ctx *local = sc_np_create(), *remote = sc_np_create();
+    assert_true(local && remote);
+    cache cc = { w, 0 };
+    int islands = 0, collisions = 0, deep = 0;
+    for (int f = 1; f <= 120; f++) {
+        assert_int_equal(sc_world_step(w, DT), SC_OK);
+        if (f < 60 || f % 5)
+            continue;
+        islands_job ij;
+        islands_job_init(&ij, w);
+        for (int i = 0; i < ij.is.count; i++) {
+            sc_unit u = island_unit(&ij.is, i);
+            collisions += run_both(local, remote, &cc, &ij.jl, &ij.jr, &u).info.collisions;
+            islands++;
+        }
+        for (int k = 0; k < w->ncontacts; k++)
+            deep += w->contacts[k].depth > params.slop;
+        assert_memory_equal(ij.br, ij.bl, (size_t)w->nbodies * sizeof *ij.bl);
+        for (int j = 0; j < w->nbodies; j++)
+            if (!ij.joins[j])
+                assert_memory_equal(&ij.bl[j], &ij.b0[j], sizeof ij.b0[j]);
+        islands_job_free(&ij);
+    }
+    print_message("island: %d islands, %d collisions, %d deep contacts\n", islands, collisions,
+                  deep);
+    assert_true(islands > 0);
+    assert_true(collisions > 0);
+    assert_true(deep > 0);
+    sc_np_destroy(local);
+    sc_np_destroy(remote);
+    sc_world_destroy(w);
+}
+
+/* ---- malformed input ---- */
+
+/* One packed unit of each kind from the scene (caller frees). */
+typedef struct samples {
+    unsigned char *buf[SC_UNIT_KINDS];
+    size_t len[SC_UNIT_KINDS];
+    islands_job ij;
+    outputs o;
+} samples;
+
+static void samples_init(samples *sm, const scene *s)
+{
+    outputs_init(&sm->o, s->pc.n);
+    for (int kind = SC_UNIT_COLLIDE; kind <= SC_UNIT_TOI; kind++) {
+        sc_job job = pair_job(kind, s, &sm->o);
+        sc_unit u = { .kind = kind, .first = 1, .count = s->pc.n - 2 };
+        sm->buf[kind] = pack_unit(&job, &u, &sm->len[kind]);
+    }
+    islands_job_init(&sm->ij, s->w);
+    /* the island with the most contacts */
+    int best = 0;
+    for (int i = 1; i < sm->ij.is.count; i++)
+        if (island_unit(&sm->ij.is, i).count > island_unit(&sm->ij.is, best).count)
+            best = i;
+    sc_unit u = island_unit(&sm->ij.is, best);
+    assert_true(u.count > 0);
+    sm->buf[SC_UNIT_ISLAND] = pack_unit(&sm->ij.jl, &u, &sm->len[SC_UNIT_ISLAND]);
+}
+
+static void samples_free(samples *sm)
+{
+    for (int k = 0; k < SC_UNIT_KINDS; k++)
+        free(sm->buf[k]);
+    islands_job_free(&sm->ij);
+    outputs_free(&sm->o);
+}
+
+static void test_every_truncation_is_a_format_error(void **state)
+{
+    const scene *s = *state;
+    samples sm;
+    samples_init(&sm, s);
+    cache cc = { s->w, 0 };
+    for (int kind = 0; kind < SC_UNIT_KINDS; kind++) {
+        sc_wire_unit wu;
+        for (size_t n = 0; n < sm.len[kind]; n++)
+            assert_int_equal(sc_wire_unit_decode(sm.buf[kind], n, lookup, &cc, &wu), SC_EFORMAT);
+        /* one byte too many as well */
+        unsigned char *more = malloc(sm.len[kind] + 1);
+        assert_non_null(more);
+        memcpy(more, sm.buf[kind], sm.len[kind]);
+        more[sm.len[kind]] = 0;
+        assert_int_equal(sc_wire_unit_decode(more, sm.len[kind] + 1, lookup, &cc, &wu),
+                         SC_EFORMAT);
+        free(more);
+        assert_int_equal(sc_wire_unit_decode(sm.buf[kind], sm.len[kind], lookup, &cc, &wu),
+                         SC_OK);
+        assert_int_equal(wu.job.kind, kind);
+        sc_wire_unit_free(&wu);
+    }
+    samples_free(&sm);
+}
+
+static void test_corrupted_units_are_refused_or_run_safely(void **state)
+{
+    const scene *s = *state;
+    samples sm;
+    samples_init(&sm, s);
+    cache cc = { s->w, 0 };
+    sc_np_ctx *np = sc_np_create();
+    assert_non_null(np);
+    int ok = 0, bad = 0, runs_failed = 0;
+    for (int t = 0; t < 2000; t++) {
+        int kind = t % SC_UNIT_KINDS;
+        size_t len = sm.len[kind];
+        unsigned char *b = malloc(len);
+        assert_non_null(b);
+        memcpy(b, sm.buf[kind], len);
+        size_t at = (size_t)(next_rand() % len);
+        b[at] ^= (unsigned char)(1 + next_rand() % 255);
+        sc_wire_unit wu;
+        int rc = sc_wire_unit_decode(b, len, lookup, &cc, &wu);
+        assert_true(rc == SC_OK || rc == SC_EFORMAT);
+        if (rc == SC_OK) {
+            ok++;
+            assert_int_equal(wu.job.kind, kind);
+            /* what decodes may run: a daemon would */
+            sc_unit_run(np, &wu.job, &wu.unit);
+            assert_true(wu.unit.rc <= 0);
+            runs_failed += wu.unit.rc != SC_OK;
+            sc_wire_unit_free(&wu);
+        } else {
+            bad++;
+        }
+        free(b);
+    }
+    print_message("corruptions: %d decoded (%d of them failed to run), %d refused\n", ok,
+                  runs_failed, bad);
+    assert_true(ok > 0 && bad > 0);
+    sc_np_destroy(np);
+    samples_free(&sm);
+}
+
+static void put_u64(unsigned char *p, uint64_t v)
+{
+    for (int i = 0; i < 8; i++)
+        p[i] = (unsigned char)(v >> (8 * i));
+}
+
+static void test_bad_fields_are_format_errors(void **state)
+{
+    const scene *s = *state;
+    samples sm;
+    samples_init(&sm, s);
+    cache cc = { s->w, 0 };
+    sc_wire_unit wu;
+    unsigned char *b = sm.buf[SC_UNIT_COLLIDE];
+    size_t len = sm.len[SC_UNIT_COLLIDE];
+    /* layout: magic 4, version 2, kind 2, count 4, then pair 0: hashes */
+    const size_t ver = 4, kind = 6, count = 8, hash0 = 12;
+    unsigned char keep[8];
+    memcpy(keep, b, sizeof keep);
+    b[ver] = 2;
+    assert_int_equal(sc_wire_unit_decode(b, len, lookup, &cc, &wu), SC_EFORMAT);
+    memcpy(b, keep, sizeof keep);
+    b[kind] = SC_UNIT_KINDS;
+    assert_int_equal(sc_wire_unit_decode(b, len, lookup, &cc, &wu), SC_EFORMAT);
+    memcpy(b, keep, sizeof keep);
+    b[0] ^= 1;
+    assert_int_equal(sc_wire_unit_decode(b, len, lookup, &cc, &wu), SC_EFORMAT);
+    memcpy(b, keep, sizeof keep);
+    /* a count out of range (the length cannot match either) */
+    memcpy(keep, b + count, 4);
+    b[count + 2] = 2;   /* 1 << 17 pairs */
+    assert_int_equal(sc_wire_unit_decode(b, len, lookup, &cc, &wu), SC_EFORMAT);
+    memcpy(b + count, keep, 4);
+    /* an unknown shape: not in the cache, or a hash nobody has */
+    uint64_t h = s->pc.p[1].sa->hash;
+    cache miss = { s->w, h };
+    assert_int_equal(sc_wire_unit_decode(b, len, lookup, &miss, &wu), SC_EFORMAT);
+    memcpy(keep, b + hash0, 8);
+    put_u64(b + hash0, h ^ 0x1234);
+    assert_int_equal(sc_wire_unit_decode(b, len, lookup, &cc, &wu), SC_EFORMAT);
+    memcpy(b + hash0, keep, 8);
+    /* NaN and infinity in a pose (pair 0's a0.pos[0], after hashes, ids, deepen) */
+    const size_t pos0 = hash0 + 8 + 8 + 4 + 4 + 1;
+    memcpy(keep, b + pos0, 8);
+    double bad[2] = { NAN, INFINITY };
+    for (int k = 0; k < 2; k++) {
+        uint64_t u;
+        memcpy(&u, &bad[k], sizeof u);
+        put_u64(b + pos0, u);
+        assert_int_equal(sc_wire_unit_decode(b, len, lookup, &cc, &wu), SC_EFORMAT);
+    }
+    memcpy(b + pos0, keep, 8);
+    assert_int_equal(sc_wire_unit_decode(b, len, lookup, &cc, &wu), SC_OK);
+    sc_wire_unit_free(&wu);
+    /* an island whose non-member body is awake and dynamic: the result
+     * would not carry what the solve changed */
+    unsigned char *ib = sm.buf[SC_UNIT_ISLAND];
+    assert_int_equal(sc_wire_unit_decode(ib, sm.len[SC_UNIT_ISLAND], NULL, NULL, &wu), SC_OK);
+    int m = wu.nbodies, nm = wu.islands.body_start[1];
+    sc_wire_unit_free(&wu);
+    if (m > nm) {
+        /* body nm's inv_mass (after the island header of 8 + 12 + 32 bytes) */
+        size_t at = 8 + 12 + 32 + (size_t)nm * (31 * 8 + 8);
+        memcpy(keep, ib + at, 8);
+        double one = 1;
+        uint64_t u;
+        memcpy(&u, &one, sizeof u);
+        put_u64(ib + at, u);
+        /* and its state, after the 31 doubles */
+        unsigned char st = ib[at + 31 * 8];
+        ib[at + 31 * 8] = SC_FREE;
+        assert_int_equal(sc_wire_unit_decode(ib, sm.len[SC_UNIT_ISLAND], NULL, NULL, &wu),
+                         SC_EFORMAT);
+        memcpy(ib + at, keep, 8);
+        ib[at + 31 * 8] = st;
+        assert_int_equal(sc_wire_unit_decode(ib, sm.len[SC_UNIT_ISLAND], NULL, NULL, &wu), SC_OK);
+        sc_wire_unit_free(&wu);
+    }
+    samples_free(&sm);
+}
+
+/* A result must match the unit it is applied to; a mismatched or
+ * malformed one changes nothing. */
+static void test_result_for_another_unit_is_a_format_error(void **state)
+{
+    const scene *s = *state;
+    int n = s->pc.n;
+    outputs o;
+    outputs_init(&o, n);
+    sc_job job = pair_job(SC_UNIT_COLLIDE, s, &o);
+    sc_unit u = { .kind = SC_UNIT_COLLIDE, .first = 0, .count = n / 2 };
+    sc_np_ctx *np = sc_np_create();
+    assert_non_null(np);
+    cache cc = { s->w, 0 };
+    size_t len, rlen;
+    unsigned char *buf = pack_unit(&job, &u, &len);
+    unsigned char *res = remote_run(np, buf, len, &cc, &rlen);
+    unsigned char *before = malloc((size_t)n * SC_MAX_PAIR_CONTACTS * sizeof *o.contacts);
+    assert_non_null(before);
+    memcpy(before, o.contacts, (size_t)n * SC_MAX_PAIR_CONTACTS * sizeof *o.contacts);
+    /* another count; the same count over other pairs (their body ids) */
+    sc_unit other = { .kind = SC_UNIT_COLLIDE, .first = 0, .count = n / 2 - 1 };
+    assert_int_equal(sc_wire_result_apply(&job, &other, res, rlen), SC_EFORMAT);
+    other.first = n - n / 2;
+    other.count = n / 2;
+    assert_int_equal(sc_wire_result_apply(&job, &other, res, rlen), SC_EFORMAT);
+    /* another kind */
+    sc_job tjob = pair_job(SC_UNIT_TOI, s, &o);
+    sc_unit tu = u;
+    tu.kind = SC_UNIT_TOI;
+    assert_int_equal(sc_wire_result_apply(&tjob, &tu, res, rlen), SC_EFORMAT);
+    /* every truncation */
+    for (size_t k = 0; k < rlen; k++)
+        assert_int_equal(sc_wire_result_apply(&job, &u, res, k), SC_EFORMAT);
+    /* a unit buffer is not a result */
+    assert_int_equal(sc_wire_result_apply(&job, &u, buf, len), SC_EFORMAT);
+    assert_memory_equal(before, o.contacts, (size_t)n * SC_MAX_PAIR_CONTACTS * sizeof *o.contacts);
+    assert_int_equal(sc_wire_result_apply(&job, &u, res, rlen), SC_OK);
+    /* an island's result against another island (other member count) */
+    islands_job ij;
+    islands_job_init(&ij, s->w);
+    int a = -1, b = -1;
+    for (int i = 0; i < ij.is.count && b < 0; i++) {
+        int nb = ij.is.body_start[i + 1] - ij.is.body_start[i];
+        if (a < 0)
+            a = i;
+        else if (nb != ij.is.body_start[a + 1] - ij.is.body_start[a])
+            b = i;
+    }
+    if (b >= 0) {
+        sc_unit ua = island_unit(&ij.is, a), ub = island_unit(&ij.is, b);
+        free(buf);
+        free(res);
+        buf = pack_unit(&ij.jr, &ua, &len);
+        res = remote_run(np, buf, len, &cc, &rlen);
+        assert_int_equal(sc_wire_result_apply(&ij.jr, &ub, res, rlen), SC_EFORMAT);
+        assert_memory_equal(ij.br, ij.bl, (size_t)s->w->nbodies * sizeof *ij.bl);
+        assert_int_equal(sc_wire_result_apply(&ij.jr, &ua, res, rlen), SC_OK);
+    }
+    islands_job_free(&ij);
+    free(before);
+    free(buf);
+    free(res);
+    sc_np_destroy(np);
+    outputs_free(&o);
+}
+
+int main(void)
+{
+    const struct CMUnitTest tests[] = {
+        cmocka_unit_test(test_collide_unit_through_wire_is_bit_identical),
+        cmocka_unit_test(test_toi_unit_through_wire_is_bit_identical),
+        cmocka_unit_test(test_island_units_through_wire_are_bit_identical),
+        cmocka_unit_test(test_every_truncation_is_a_format_error),
+        cmocka_unit_test(test_corrupted_units_are_refused_or_run_safely),
+        cmocka_unit_test(test_bad_fields_are_format_errors),
+        cmocka_unit_test(test_result_for_another_unit_is_a_format_error),
+    };
+    return cmocka_run_group_tests(tests, scene_setup, scene_teardown);
+}

@@ -1,0 +1,283 @@
+/* test_units.c - work units, local worker nodes and the scheduler:
+ * results bit-identical for any number of workers and any assignment, the
+ * paper's longest-first rule, learned node speeds and cost models, the
+ * makespan statistics. (Internal API: lib/sc_internal.h.) */
+#include <setjmp.h>
+#include <stdarg.h>
+#include <stddef.h>
+#include <stdint.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <cmocka.h>
+
+#include "sc_internal.h"
+
+#define FRAMES 500
+#define BODIES 50
+
+static uint64_t run_bolts(int workers, uint64_t shuffle, int frames, sc_stats *st)
+{
+    sc_world_config c = sc_world_config_default();
+    c.workers = workers;
+    sc_world *w = sc_world_create(&c);
+    assert_non_null(w);
+    assert_int_equal(w->nnodes, workers);
+    w->sched.shuffle = shuffle;
+    assert_int_equal(sc_scene_bolts_nuts(w, BODIES, 7), SC_OK);
+    long units = 0;
+    for (int f = 0; f < frames; f++) {
+        assert_int_equal(sc_world_step(w, 0.01), SC_OK);
+        sc_world_stats(w, st);
+        units += st->units;
+        if (st->makespan_bound_s > 0) {
+            /* the bound is below the makespan (clock granularity aside) */
+            assert_true(st->makespan_ratio >= 0.99);
+        }
+    }
+    assert_true(units > frames);
+    uint64_t h = sc_world_hash(w);
+    sc_world_destroy(w);
+    return h;
+}
+
+static void test_same_bits_for_1_2_3_8_workers(void **state)
+{
+    (void)state;
+    sc_stats st;
+    uint64_t h1 = run_bolts(1, 0, FRAMES, &st);
+    assert_int_equal(st.nodes, 1);
+    const int workers[] = { 2, 3, 8 };
+    for (int i = 0; i < 3; i++) {
+        uint64_t h = run_bolts(workers[i], 0, FRAMES, &st);
+        printf("  %d workers (%d with a private ODE): hash %016llx (1 worker: %016llx)\n",
+               workers[i], st.private_ode, (unsigned long long)h, (unsigned long long)h1);
+        assert_true(h == h1);
+        assert_int_equal(st.nodes, workers[i]);
+    }
+}
+
+static void test_same_bits_for_random_assignments(void **state)
+{
+    (void)state;
+    sc_stats st;
+    /* 200 frames: past the landings, where most units are */
+    uint64_t h1 = run_bolts(1, 0, 200, &st);
+    assert_true(run_bolts(3, 0x9e3779b97f4a7c15ull, 200, &st) == h1);
+    assert_true(run_bolts(2, 12345, 200, &st) == h1);
+}
+
+/* A node that runs nothing: for the scheduler alone. */
+static double fake_latency;
+static int fake_submit(sc_node *n, const sc_job *j, const int *u, int c)
+{
+    (void)n; (void)j; (void)u; (void)c;
+    return SC_OK;
+}
+static int fake_wait(sc_node *n, double *cpu)
+{
+    (void)n;
+    *cpu = 0;
+    return SC_OK;
+}
+static double fake_transfer(const sc_node *n, size_t bytes)
+{
+    (void)n;
+    return bytes * 1e-9;
+}
+static double fake_lat(const sc_node *n)
+{
+    return n->id == 0 ? 0 : fake_latency;
+}
+static void fake_destroy(sc_node *n) { (void)n; }
+static const sc_node_ops fake_ops = { fake_submit, fake_wait, fake_transfer, fake_lat,
+                                      fake_destroy };
+
+static void make_units(sc_unit *u, const double *cost, int n)
+{
+    memset(u, 0, (size_t)n * sizeof *u);
+    for (int i = 0; i < n; i++) {
+        u[i].kind = SC_UNIT_ISLAND;
+        u[i].first = i;
+        u[i].cost = cost[i];
+        u[i].feat[0] = 1;
+        u[i].feat[1] = cost[i];
+        u[i].feat[2] = 0;
+    }
+}
+
+static void test_longest_first_onto_earliest_finish(void **state)
+{
+    (void)state;
+    sc_node n0 = { &fake_ops, 0 }, n1 = { &fake_ops, 1 };
+    sc_node *nodes[2] = { &n0, &n1 };
+    fake_latency = 0;
+    sc_sched s;
+    assert_int_equal(sc_sched_init(&s, 2), SC_OK);
+    s.use_models = 0;
+    /* LPT with equal speeds: 7 -> n0, 5 -> n1, 4 -> n1, 3 -> n0, 3 -> n1 */
+    double cost[] = { 3, 7, 4, 5, 3 };
+    sc_unit u[5];
+    make_units(u, cost, 5);
+    assert_int_equal(sc_sched_assign(&s, nodes, u, 5), SC_OK);
+    assert_int_equal(u[1].node, 0);
+    assert_int_equal(u[3].node, 1);
+    assert_int_equal(u[2].node, 1);
+    double load[2] = { 0, 0 };
+    for (int i = 0; i < 5; i++)
+        load[u[i].node] += cost[i];
+    assert_true(load[0] == 10 && load[1] == 12);
+    /* per-node lists hold every unit once, longest first */
+    assert_int_equal(s.start[2], 5);
+    for (int k = 0; k < 2; k++)
+        for (int i = s.start[k] + 1; i < s.start[k + 1]; i++)
+            assert_true(cost[s.assigned[i - 1]] >= cost[s.assigned[i]]);
+    sc_sched_free(&s);
+}
+
+static void test_speed_is_learned_and_slow_nodes_get_less(void **state)
+{
+    (void)state;
+    sc_node n0 = { &fake_ops, 0 }, n1 = { &fake_ops, 1 };
+    sc_node *nodes[2] = { &n0, &n1 };
+    fake_latency = 0;
+    sc_sched s;
+    assert_int_equal(sc_sched_init(&s, 2), SC_OK);
+    s.use_models = 0;
+    double cost[40];
+    for (int i = 0; i < 40; i++)
+        cost[i] = 1 + i % 7;
+    sc_unit u[40];
+    double share1 = 0;
+    for (int round = 0; round < 10; round++) {
+        make_units(u, cost, 40);
+        assert_int_equal(sc_sched_assign(&s, nodes, u, 40), SC_OK);
+        share1 = 0;
+        double total = 0;
+        for (int i = 0; i < 40; i++) {
+            /* node 1 is three times slower: 3 us per cost unit */
+            u[i].time_s = cost[i] * (u[i].node == 1 ? 3e-6 : 1e-6);
+            share1 += u[i].node == 1 ? cost[i] : 0;
+            total += cost[i];
+        }
+        share1 /= total;
+        double bound;
+        sc_sched_observe(&s, u, 40, &bound);
+        assert_true(bound > 0);
+    }
+    /* ideal share of a node 3x slower: 1/4 */
+    printf("  slow node's share of the work: %.3f (ideal 0.25)\n", share1);
+    assert_true(share1 > 0.18 && share1 < 0.32);
+    assert_true(s.nodes[0].speed[SC_UNIT_ISLAND] > 2.5 * s.nodes[1].speed[SC_UNIT_ISLAND]);
+    sc_sched_free(&s);
+}
+
+static void test_cost_model_is_fitted(void **state)
+{
+    (void)state;
+    sc_node n0 = { &fake_ops, 0 };
+    sc_node *nodes[1] = { &n0 };
+    sc_sched s;
+    assert_int_equal(sc_sched_init(&s, 1), SC_OK);
+    sc_unit u[32];
+    double cost[32];
+    for (int i = 0; i < 32; i++)
+        cost[i] = 1 + (i * 37) % 50;
+    make_units(u, cost, 32);
+    for (int i = 0; i < 32; i++) {
+        u[i].feat[2] = cost[i] * cost[i] * cost[i];
+        /* 5 us overhead, 1 us per contact, 10 ns per contact^3 */
+        u[i].time_s = 5e-6 + 1e-6 * u[i].feat[1] + 1e-8 * u[i].feat[2];
+    }
+    assert_int_equal(sc_sched_assign(&s, nodes, u, 32), SC_OK);
+    double bound;
+    sc_sched_observe(&s, u, 32, &bound);
+    const sc_cost_model *m = &s.nodes[0].model[SC_UNIT_ISLAND];
+    assert_true(m->ok);
+    assert_true(fabs(m->c[0] - 5e-6) < 1e-9 && fabs(m->c[1] - 1e-6) < 1e-10 &&
+                fabs(m->c[2] - 1e-8) < 1e-13);
+    sc_unit probe = u[0];
+    probe.feat[1] = 20;
+    probe.feat[2] = 8000;
+    assert_true(fabs(sc_sched_predict(&s, 0, &probe) - 105e-6) < 1e-9);
+    /* one node: the bound is all the work */
+    double total = 0;
+    for (int i = 0; i < 32; i++)
+        total += u[i].time_s;
+    assert_true(fabs(bound - total) < 1e-12);
+    sc_sched_free(&s);
+}
+
+static void test_latency_keeps_small_jobs_home(void **state)
+{
+    (void)state;
+    sc_node n0 = { &fake_ops, 0 }, n1 = { &fake_ops, 1 };
+    sc_node *nodes[2] = { &n0, &n1 };
+    sc_sched s;
+    assert_int_equal(sc_sched_init(&s, 2), SC_OK);
+    s.use_models = 0;
+    double cost[4] = { 1, 1, 1, 1 };
+    sc_unit u[4];
+    make_units(u, cost, 4);
+    /* speed 1 cost/s: units of 1 s; a 10 s latency: all stay on node 0 */
+    fake_latency = 10;
+    assert_int_equal(sc_sched_assign(&s, nodes, u, 4), SC_OK);
+    for (int i = 0; i < 4; i++)
+        assert_int_equal(u[i].node, 0);
+    fake_latency = 0.5;
+    make_units(u, cost, 4);
+    assert_int_equal(sc_sched_assign(&s, nodes, u, 4), SC_OK);
+    assert_int_equal(s.start[2] - s.start[1], 2);
+    sc_sched_free(&s);
+    fake_latency = 0;
+}
+
+static void test_bad_worker_counts(void **state)
+{
+    (void)state;
+    sc_world_config c = sc_world_config_default();
+    c.workers = -1;
+    assert_null(sc_world_create(&c));
+    assert_int_equal(sc_last_error(), SC_EINVAL);
+    c.workers = SC_MAX_WORKERS + 1;
+    assert_null(sc_world_create(&c));
+    assert_int_equal(sc_last_error(), SC_EINVAL);
+    c.workers = 0;   /* online CPUs */
+    sc_world *w = sc_world_create(&c);
+    assert_non_null(w);
+    sc_stats st;
+    sc_world_stats(w, &st);
+    assert_true(st.nodes >= 1 && st.nodes <= SC_MAX_WORKERS);
+    sc_world_destroy(w);
+}
+
+static void test_worlds_come_and_go(void **state)
+{
+    (void)state;
+    /* private ODE copies are reused, not leaked: many worlds in turn */
+    for (int i = 0; i < 30; i++) {
+        sc_world_config c = sc_world_config_default();
+        c.workers = 4;
+        sc_world *w = sc_world_create(&c);
+        assert_non_null(w);
+        assert_int_equal(sc_scene_bolts_nuts(w, 6, (uint64_t)i + 1), SC_OK);
+        for (int f = 0; f < 5; f++)
+            assert_int_equal(sc_world_step(w, 0.01), SC_OK);
+        sc_world_destroy(w);
+    }
+}
+
+int main(void)
+{
+    const struct CMUnitTest tests[] = {
+        cmocka_unit_test(test_same_bits_for_1_2_3_8_workers),
+        cmocka_unit_test(test_same_bits_for_random_assignments),
+        cmocka_unit_test(test_longest_first_onto_earliest_finish),
+        cmocka_unit_test(test_speed_is_learned_and_slow_nodes_get_less),
+        cmocka_unit_test(test_cost_model_is_fitted),
+        cmocka_unit_test(test_latency_keeps_small_jobs_home),
+        cmocka_unit_test(test_bad_worker_counts),
+        cmocka_unit_test(test_worlds_come_and_go),
+    };
+    return cmocka_run_group_tests(tests, NULL, NULL);
+}
