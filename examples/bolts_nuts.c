@@ -2,7 +2,7 @@
  * (alternating, e = 0.8, mu = 0.5) dropped from random non-overlapping poses
  * onto a floor, simulated at 100 Hz until all are at rest. `make demo` runs
  * it with N = 50.
- *   usage: bolts_nuts [N [SEED]]   (defaults 50, 1) */
+ *   usage: bolts_nuts [N [SEED [WORKERS]]]   (defaults 50, 1, online CPUs) */
 #include <errno.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -34,12 +34,16 @@ static int parse_int(const char *s, long lo, long hi, long *out)
 int main(int argc, char **argv)
 {
     long n = 50, seed = 1;
-    if (argc > 3 || (argc > 1 && !parse_int(argv[1], 1, 100000, &n)) ||
-        (argc > 2 && !parse_int(argv[2], 0, 0x7fffffffL, &seed))) {
-        fprintf(stderr, "usage: bolts_nuts [N (1..100000) [SEED]]\n");
+    long workers = 0;
+    if (argc > 4 || (argc > 1 && !parse_int(argv[1], 1, 100000, &n)) ||
+        (argc > 2 && !parse_int(argv[2], 0, 0x7fffffffL, &seed)) ||
+        (argc > 3 && !parse_int(argv[3], 0, SC_MAX_WORKERS, &workers))) {
+        fprintf(stderr, "usage: bolts_nuts [N (1..100000) [SEED [WORKERS (0 = CPUs)]]]\n");
         return 2;
     }
-    sc_world *w = sc_world_create(NULL);
+    sc_world_config cfg = sc_world_config_default();
+    cfg.workers = (int)workers;
+    sc_world *w = sc_world_create(&cfg);
     if (!w) {
         fprintf(stderr, "bolts_nuts: %s\n", sc_strerror(sc_last_error()));
         return 1;
@@ -70,7 +74,8 @@ int main(int argc, char **argv)
     double wall = now_s() - t0, sim = frames * DT;
     sc_stats st;
     sc_world_stats(w, &st);
-    printf("bolts and nuts: %ld bodies, seed %ld, one thread, frame %.2f s\n", n, seed, DT);
+    printf("bolts and nuts: %ld bodies, seed %ld, %d worker thread%s (%d on a private ODE), "
+           "frame %.2f s\n", n, seed, st.nodes, st.nodes == 1 ? "" : "s", st.private_ode, DT);
     if (sc_world_at_rest(w))
         printf("  all at rest after      %8.2f s simulated\n", sim);
     else

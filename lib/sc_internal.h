@@ -406,6 +406,7 @@ typedef struct sc_sched {
     int order_cap;
     int use_models;                 /* 0: the paper's cost / speed only */
     uint64_t shuffle;               /* tests: != 0 seeds a random assignment */
+    int learn_alone;                /* tests: learn with a single node too */
 } sc_sched;
 int sc_sched_init(sc_sched *s, int nnodes);
 void sc_sched_free(sc_sched *s);

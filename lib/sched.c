@@ -27,7 +27,7 @@
 
 #define SPEED_KEEP 0.7        /* EWMA weight of the old speed per job */
 #define MIN_FIT 8             /* samples before a model is used */
-#define REFIT 16              /* new samples between fits */
+#define REFIT 64              /* new samples between fits */
 #define IDLE_DRIFT 0.2        /* per idle job, towards the mean speed */
 #define IDLE_FORGET 4         /* idle jobs before a node's model is set aside */
 
@@ -192,6 +192,13 @@ void sc_sched_observe(sc_sched *s, const sc_unit *units, int n, double *bound_s)
     *bound_s = 0;
     if (n == 0)
         return;
+    if (s->nnodes == 1 && !s->learn_alone) {
+        /* nothing to choose between: no speeds or models to learn, and
+         * the bound is all the work */
+        for (int i = 0; i < n; i++)
+            *bound_s += units[i].time_s;
+        return;
+    }
     int kind = units[0].kind;
     for (int k = 0; k < s->nnodes; k++) {
         s->nodes[k].busy = 0;

@@ -179,19 +179,20 @@ static void test_cost_model_is_fitted(void **state)
     sc_node *nodes[1] = { &n0 };
     sc_sched s;
     assert_int_equal(sc_sched_init(&s, 1), SC_OK);
-    sc_unit u[32];
-    double cost[32];
-    for (int i = 0; i < 32; i++)
+    s.learn_alone = 1;
+    sc_unit u[64];
+    double cost[64];
+    for (int i = 0; i < 64; i++)
         cost[i] = 1 + (i * 37) % 50;
-    make_units(u, cost, 32);
-    for (int i = 0; i < 32; i++) {
+    make_units(u, cost, 64);
+    for (int i = 0; i < 64; i++) {
         u[i].feat[2] = cost[i] * cost[i] * cost[i];
         /* 5 us overhead, 1 us per contact, 10 ns per contact^3 */
         u[i].time_s = 5e-6 + 1e-6 * u[i].feat[1] + 1e-8 * u[i].feat[2];
     }
-    assert_int_equal(sc_sched_assign(&s, nodes, u, 32), SC_OK);
+    assert_int_equal(sc_sched_assign(&s, nodes, u, 64), SC_OK);
     double bound;
-    sc_sched_observe(&s, u, 32, &bound);
+    sc_sched_observe(&s, u, 64, &bound);
     const sc_cost_model *m = &s.nodes[0].model[SC_UNIT_ISLAND];
     assert_true(m->ok);
     assert_true(fabs(m->c[0] - 5e-6) < 1e-9 && fabs(m->c[1] - 1e-6) < 1e-10 &&
@@ -202,7 +203,7 @@ static void test_cost_model_is_fitted(void **state)
     assert_true(fabs(sc_sched_predict(&s, 0, &probe) - 105e-6) < 1e-9);
     /* one node: the bound is all the work */
     double total = 0;
-    for (int i = 0; i < 32; i++)
+    for (int i = 0; i < 64; i++)
         total += u[i].time_s;
     assert_true(fabs(bound - total) < 1e-12);
     sc_sched_free(&s);
