@@ -9,6 +9,7 @@
 
 #define UNITS_PER_NODE 8      /* pair units per node and job (balance) */
 #define MAX_UNIT_PAIRS 256    /* pairs per unit at most */
+#define GROUP_CONTACTS 24     /* small islands share a unit up to this */
 
 /* Wire sizes (the transfer estimate): header, per pair, per island part. */
 #define WIRE_HEADER 32
@@ -73,22 +74,36 @@ static int pair_units(sc_world *w, sc_job *job)
     return SC_OK;
 }
 
-/* One unit per island: its contacts^3 (the paper). */
+/* Islands cost contacts^3 (the paper). One unit per island of at least
+ * GROUP_CONTACTS contacts; smaller neighbours (most are one body on the
+ * floor) share a unit up to that many contacts, each still solved on its
+ * own, so that a thousand tiny islands are not a thousand units to cost,
+ * sort, time and learn from. Grouping does not depend on the nodes. */
 static int island_units(sc_world *w, sc_job *job)
 {
     const sc_islands *is = job->islands;
     int rc = grow_units(w, is->count);
     if (rc != SC_OK)
         return rc;
-    for (int i = 0; i < is->count; i++) {
-        int nc = is->contact_start[i + 1] - is->contact_start[i];
-        int nb = is->body_start[i + 1] - is->body_start[i];
-        double c = (double)nc;
-        unit_init(&w->units[i], SC_UNIT_ISLAND, i, nc, c * c * c, c, c * c * c,
-                  WIRE_HEADER + WIRE_BODY * (size_t)(nb + 1) + WIRE_CONTACT * (size_t)nc);
+    int n = 0;
+    for (int i = 0; i < is->count;) {
+        int first = i, nc = 0, nb = 0;
+        double cost = 0;
+        do {
+            double c = is->contact_start[i + 1] - is->contact_start[i];
+            nc += (int)c;
+            nb += is->body_start[i + 1] - is->body_start[i] + 1;
+            cost += c * c * c;
+            i++;
+        } while (i < is->count && nc < GROUP_CONTACTS &&
+                 nc + is->contact_start[i + 1] - is->contact_start[i] <= GROUP_CONTACTS);
+        sc_unit *u = &w->units[n++];
+        unit_init(u, SC_UNIT_ISLAND, first, nc, cost, nc, cost,
+                  WIRE_HEADER + WIRE_BODY * (size_t)nb + WIRE_CONTACT * (size_t)nc);
+        u->islands = i - first;
     }
     job->units = w->units;
-    job->nunits = is->count;
+    job->nunits = n;
     return SC_OK;
 }
 
@@ -105,8 +120,8 @@ int sc_job_run(sc_world *w, sc_job *job, int stage)
     if (rc != SC_OK)
         return rc;
     double t1 = sc_wall_now();
-    /* the others first, then this thread's own share (node 0) */
-    for (int k = w->nnodes - 1; k >= 0; k--) {
+    /* every list is in place before any node can look for more */
+    for (int k = 0; k < w->nnodes; k++) {
         int cnt = s->start[k + 1] - s->start[k];
         if (cnt > 0)
             rc = w->nodes[k]->ops->submit(w->nodes[k], job, &s->assigned[s->start[k]], cnt);

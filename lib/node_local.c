@@ -3,12 +3,19 @@
  * context on a private copy of ODE when one can be had (ode_copy.c).
  * The embedded default: no network, no daemons.
  *
+ * The scheduler's assignment is a prediction; the local nodes of a world
+ * form a pool in which a node that runs out of work takes the smallest
+ * not-yet-started unit from the tail of another's list (each list is a
+ * deque: its owner takes from the head, the largest first). A unit's
+ * result does not depend on who runs it, and whoever runs it is recorded
+ * in u->node, so the scheduler learns from what really happened.
+ *
  * Waking a sleeping thread costs 0.1-3 ms on a virtual machine (measured
  * on the 2-core CI machine), longer than many jobs. So a worker spins for
  * a while after each batch before it sleeps, and the caller spins before
  * it sleeps waiting for results: jobs of one frame come back to back.
- * Handing work over is an atomic generation count; the mutex and condition
- * variables are only for sleeping. */
+ * Handing work over is atomic; the mutex and condition variables are only
+ * for sleeping. */
 #include <pthread.h>
 #include <stdatomic.h>
 #include <stdlib.h>
@@ -18,8 +25,16 @@
 #define WORKER_SPIN_S 3e-3    /* a worker stays awake this long for more */
 #define WAITER_SPIN_S 2e-3    /* the caller spins this long for results */
 
-typedef struct local_node {
+typedef struct local_node local_node;
+
+struct sc_local_pool {
+    local_node **members;
+    int n, cap;
+};
+
+struct local_node {
     sc_node base;
+    sc_local_pool *pool;
     int inline_node;
     sc_np_ctx *np;
     const sc_ode *ode;
@@ -27,19 +42,53 @@ typedef struct local_node {
     int thread_ok;
     pthread_mutex_t lock;
     pthread_cond_t go, done;
-    /* the current batch: written by submit() before gen is raised */
+    /* the current batch: written by submit() before range and gen */
     const sc_job *job;
     const int *units;
-    int count;
+    _Atomic uint64_t range;   /* list positions not started: head | tail << 32 */
+    atomic_int left;          /* units of the list not finished (by anyone) */
     atomic_uint gen;          /* batches submitted */
-    atomic_uint done_gen;     /* batches finished */
+    atomic_uint started_gen;  /* batches this node has started working on */
+    atomic_uint done_gen;     /* batches this node has finished working on */
     atomic_int quit;
     double cpu_s;             /* CPU seconds of the last batch */
     double t_submit, t_start; /* wall clock: submitted, picked up */
     double latency;           /* EWMA of the wake-up time, 0 = none yet */
     int init_rc;              /* worker thread start-up */
     int started;
-} local_node;
+};
+
+sc_local_pool *sc_local_pool_create(void)
+{
+    return calloc(1, sizeof(sc_local_pool));
+}
+
+static void stop_thread(local_node *n)
+{
+    if (!n->thread_ok)
+        return;
+    atomic_store(&n->quit, 1);
+    pthread_mutex_lock(&n->lock);
+    pthread_cond_signal(&n->go);
+    pthread_mutex_unlock(&n->lock);
+    pthread_join(n->thread, NULL);
+    n->thread_ok = 0;
+}
+
+void sc_local_pool_stop(sc_local_pool *p)
+{
+    /* all threads first: a late worker may still be looking at the others */
+    for (int k = 0; p && k < p->n; k++)
+        stop_thread(p->members[k]);
+}
+
+void sc_local_pool_destroy(sc_local_pool *p)
+{
+    if (!p)
+        return;
+    free(p->members);
+    free(p);
+}
 
 static inline void cpu_relax(void)
 {
@@ -61,17 +110,55 @@ static int spin_until_changed(const atomic_uint *v, unsigned old, double spin_s)
     }
 }
 
-/* Run the batch on the calling thread, timing every unit. */
-static double run_batch(sc_np_ctx *np, const sc_job *job, const int *units, int count)
+/* Take the next unit of m's list: from the head (m's own) or the tail (a
+ * thief's); -1 when none is left. */
+static int take(local_node *m, int from_tail)
+{
+    uint64_t r = atomic_load_explicit(&m->range, memory_order_acquire);
+    for (;;) {
+        uint32_t h = (uint32_t)r, t = (uint32_t)(r >> 32);
+        if (h >= t)
+            return -1;
+        uint64_t next = from_tail ? ((uint64_t)(t - 1) << 32 | h) : ((uint64_t)t << 32 | (h + 1));
+        if (atomic_compare_exchange_weak_explicit(&m->range, &r, next, memory_order_acq_rel,
+                                                  memory_order_acquire))
+            return (int)(from_tail ? t - 1 : h);
+    }
+}
+
+/* Run position pos of m's list on n, timed; tell m's waiter when its list
+ * is finished. */
+static void run_one(local_node *n, local_node *m, int pos, double *t)
+{
+    sc_unit *u = &m->job->units[m->units[pos]];
+    sc_unit_run(n->np, m->job, u);
+    double t1 = sc_wall_now();
+    u->time_s = t1 - *t;
+    u->node = n->base.id;
+    *t = t1;
+    if (atomic_fetch_sub_explicit(&m->left, 1, memory_order_acq_rel) == 1 && m != n) {
+        pthread_mutex_lock(&m->lock);
+        pthread_cond_broadcast(&m->done);
+        pthread_mutex_unlock(&m->lock);
+    }
+}
+
+/* A node's batch: its own list from the head, then the other nodes' from
+ * their tails. Returns the CPU seconds it took. */
+static double run_batch(local_node *n)
 {
     double c0 = sc_cpu_now();
     double t = sc_wall_now();
-    for (int i = 0; i < count; i++) {
-        sc_unit *u = &job->units[units[i]];
-        sc_unit_run(np, job, u);
-        double t1 = sc_wall_now();
-        u->time_s = t1 - t;
-        t = t1;
+    int pos;
+    while ((pos = take(n, 0)) >= 0)
+        run_one(n, n, pos, &t);
+    sc_local_pool *p = n->pool;
+    for (int k = 0; p && k < p->n; k++) {
+        local_node *m = p->members[(n->base.id + 1 + k) % p->n];
+        if (m == n)
+            continue;
+        while ((pos = take(m, 1)) >= 0)
+            run_one(n, m, pos, &t);
     }
     return sc_cpu_now() - c0;
 }
@@ -99,10 +186,11 @@ static void *worker(void *arg)
             break;
         seen = atomic_load_explicit(&n->gen, memory_order_acquire);
         n->t_start = sc_wall_now();
-        n->cpu_s = run_batch(n->np, n->job, n->units, n->count);
+        atomic_store_explicit(&n->started_gen, seen, memory_order_release);
+        n->cpu_s = run_batch(n);
         atomic_store_explicit(&n->done_gen, seen, memory_order_release);
         pthread_mutex_lock(&n->lock);
-        pthread_cond_signal(&n->done);
+        pthread_cond_broadcast(&n->done);
         pthread_mutex_unlock(&n->lock);
     }
     sc_np_destroy(n->np);
@@ -116,9 +204,10 @@ static int local_submit(sc_node *base, const sc_job *job, const int *units, int 
     local_node *n = (local_node *)base;
     n->job = job;
     n->units = units;
-    n->count = count;
     n->cpu_s = 0;
     n->t_submit = sc_wall_now();
+    atomic_store_explicit(&n->left, count, memory_order_relaxed);
+    atomic_store_explicit(&n->range, (uint64_t)(uint32_t)count << 32, memory_order_release);
     atomic_fetch_add_explicit(&n->gen, 1, memory_order_release);
     if (!n->inline_node) {
         pthread_mutex_lock(&n->lock);
@@ -128,30 +217,43 @@ static int local_submit(sc_node *base, const sc_job *job, const int *units, int 
     return SC_OK;
 }
 
+/* Done: every unit of n's list finished (by n or by others) and n not in
+ * the middle of this batch. A worker still asleep when the others have
+ * taken all its units is not waited for. */
+static int finished(local_node *n, unsigned gen)
+{
+    return atomic_load_explicit(&n->left, memory_order_acquire) == 0 &&
+           (atomic_load_explicit(&n->started_gen, memory_order_acquire) != gen ||
+            atomic_load_explicit(&n->done_gen, memory_order_acquire) == gen);
+}
+
 static int local_wait(sc_node *base, double *cpu_s)
 {
     local_node *n = (local_node *)base;
     unsigned gen = atomic_load(&n->gen);
-    if (n->inline_node) {
-        if (atomic_load(&n->done_gen) != gen) {
-            n->cpu_s = run_batch(n->np, n->job, n->units, n->count);
-            atomic_store(&n->done_gen, gen);
+    if (n->inline_node && atomic_load(&n->done_gen) != gen) {
+        atomic_store(&n->started_gen, gen);
+        n->cpu_s = run_batch(n);
+        atomic_store(&n->done_gen, gen);
+    }
+    if (!finished(n, gen)) {
+        double end = sc_wall_now() + WAITER_SPIN_S;
+        for (int i = 1; !finished(n, gen) && ((i & 63) || sc_wall_now() < end); i++)
+            cpu_relax();
+        if (!finished(n, gen)) {
+            pthread_mutex_lock(&n->lock);
+            while (!finished(n, gen))
+                pthread_cond_wait(&n->done, &n->lock);
+            pthread_mutex_unlock(&n->lock);
         }
-        *cpu_s = n->cpu_s;
-        return SC_OK;
     }
-    if (atomic_load_explicit(&n->done_gen, memory_order_acquire) != gen &&
-        !spin_until_changed(&n->done_gen, gen - 1, WAITER_SPIN_S)) {
-        pthread_mutex_lock(&n->lock);
-        while (atomic_load(&n->done_gen) != gen)
-            pthread_cond_wait(&n->done, &n->lock);
-        pthread_mutex_unlock(&n->lock);
+    int ran = atomic_load(&n->done_gen) == gen;
+    *cpu_s = ran ? n->cpu_s : 0;
+    if (!n->inline_node && ran) {
+        /* there and back: twice the wake-up the worker saw */
+        double l = 2 * (n->t_start - n->t_submit);
+        n->latency = n->latency > 0 ? 0.8 * n->latency + 0.2 * l : l;
     }
-    atomic_thread_fence(memory_order_acquire);
-    *cpu_s = n->cpu_s;
-    /* there and back: twice the wake-up the worker saw */
-    double l = 2 * (n->t_start - n->t_submit);
-    n->latency = n->latency > 0 ? 0.8 * n->latency + 0.2 * l : l;
     return SC_OK;
 }
 
@@ -175,13 +277,9 @@ static void local_destroy(sc_node *base)
     local_node *n = (local_node *)base;
     if (!n)
         return;
-    if (n->thread_ok) {
-        atomic_store(&n->quit, 1);
-        pthread_mutex_lock(&n->lock);
-        pthread_cond_signal(&n->go);
-        pthread_mutex_unlock(&n->lock);
-        pthread_join(n->thread, NULL);
-    }
+    if (n->pool)
+        sc_local_pool_stop(n->pool);   /* its members go away with it */
+    stop_thread(n);
     if (n->inline_node)
         sc_np_destroy(n->np);
     pthread_cond_destroy(&n->go);
@@ -198,8 +296,11 @@ static const sc_node_ops local_ops = {
     .destroy = local_destroy,
 };
 
-sc_node *sc_node_local_create(int id, int inline_node)
+sc_node *sc_node_local_create(sc_local_pool *pool, int id, int inline_node)
 {
+    if (pool && sc_grow((void **)&pool->members, &pool->cap, pool->n + 1,
+                        sizeof *pool->members, SC_MAX_WORKERS) != SC_OK)
+        return NULL;
     local_node *n = calloc(1, sizeof *n);
     if (!n)
         return NULL;
@@ -216,22 +317,27 @@ sc_node *sc_node_local_create(int id, int inline_node)
             local_destroy(&n->base);
             return NULL;
         }
-        return &n->base;
+    } else {
+        if (pthread_create(&n->thread, NULL, worker, n) != 0) {
+            local_destroy(&n->base);
+            return NULL;
+        }
+        n->thread_ok = 1;
+        pthread_mutex_lock(&n->lock);
+        while (!n->started)
+            pthread_cond_wait(&n->done, &n->lock);
+        int rc = n->init_rc;
+        pthread_mutex_unlock(&n->lock);
+        if (rc != SC_OK) {
+            local_destroy(&n->base);
+            return NULL;
+        }
     }
-    if (pthread_create(&n->thread, NULL, worker, n) != 0) {
-        local_destroy(&n->base);
-        return NULL;
-    }
-    n->thread_ok = 1;
-    pthread_mutex_lock(&n->lock);
-    while (!n->started)
-        pthread_cond_wait(&n->done, &n->lock);
-    int rc = n->init_rc;
-    pthread_mutex_unlock(&n->lock);
-    if (rc != SC_OK) {
-        local_destroy(&n->base);
-        return NULL;
-    }
+    /* joins the pool only once it can run units (the pool is read by the
+     * other members only while a job runs, never during create/destroy) */
+    n->pool = pool;
+    if (pool)
+        pool->members[pool->n++] = n;
     return &n->base;
 }
 

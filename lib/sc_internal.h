@@ -283,9 +283,12 @@ typedef struct sc_unit_pair {
 typedef struct sc_unit {
     int kind;                       /* SC_UNIT_* (the job's kind) */
     int first, count;               /* pairs [first, first + count) of the job,
-                                       or island `first` (count = contacts) */
+                                       or islands [first, first + islands),
+                                       each solved on its own (count = their
+                                       contacts) */
+    int islands;
     double cost;                    /* the paper's estimate: sum of polygon count
-                                       products, or contacts^3 */
+                                       products, or of contacts^3 */
     double feat[3];                 /* cost model features: 1, then for pairs
                                        the cost of those touching at the last
                                        detection and of the others, for islands
@@ -364,7 +367,8 @@ typedef struct sc_node sc_node;
 typedef struct sc_node_ops {
     int (*submit)(sc_node *n, const sc_job *job, const int *units, int count);
     int (*wait)(sc_node *n, double *cpu_s);
-    double (*transfer_s)(const sc_node *n, size_t bytes);   /* to and back */
+    double (*transfer_s)(const sc_node *n, size_t bytes);   /* to and back,
+                                       affine in bytes */
     double (*latency_s)(const sc_node *n);   /* per job: wake-up and reply */
     void (*destroy)(sc_node *n);
 } sc_node_ops;
@@ -372,10 +376,17 @@ struct sc_node {
     const sc_node_ops *ops;
     int id;
 };
-/* A local node. inline_node = 1: the calling thread itself (runs its units
- * inside wait(), on the shared ODE); 0: a worker thread of its own (with a
- * private ODE copy when one can be had). NULL on error. */
-sc_node *sc_node_local_create(int id, int inline_node);
+/* A local node. inline_node = 1: the calling thread itself (runs its
+ * units inside wait(), on the shared ODE); 0: a worker thread of its own
+ * (with a private ODE copy when one can be had). Nodes of one pool take
+ * not-yet-started units from each other's lists when they run out; pool
+ * may be NULL. NULL on error. */
+typedef struct sc_local_pool sc_local_pool;
+sc_local_pool *sc_local_pool_create(void);
+/* Stop every worker thread of the pool (before destroying its nodes). */
+void sc_local_pool_stop(sc_local_pool *p);
+void sc_local_pool_destroy(sc_local_pool *p);   /* after its nodes */
+sc_node *sc_node_local_create(sc_local_pool *pool, int id, int inline_node);
 /* 1 when a local node runs on a private copy of ODE. */
 int sc_node_local_private_ode(const sc_node *n);
 
@@ -386,6 +397,7 @@ int sc_node_local_private_ode(const sc_node *n);
 typedef struct sc_cost_model {
     double x[SC_MODEL_WINDOW][3], y[SC_MODEL_WINDOW];
     int n, pos, fresh;              /* samples held, next slot, since last fit */
+    int jobs;                       /* jobs since the last fit */
     double c[3];
     int ok;                         /* c is a usable fit */
 } sc_cost_model;
@@ -397,6 +409,8 @@ typedef struct sc_sched_node {
     double ready;                   /* predicted finish in the current job */
     double busy;                    /* measured busy time in the current job */
     double done;                    /* cost done in the current job */
+    double job_speed, job_latency;  /* for the current job's assignment */
+    double job_tr0, job_tr1;        /* transfer: seconds fixed, per byte */
 } sc_sched_node;
 typedef struct sc_sched {
     int nnodes;
@@ -452,6 +466,7 @@ struct sc_world {
      * jobs' scratch (grown, kept) */
     sc_node **nodes;
     int nnodes;
+    sc_local_pool *pool;
     sc_sched sched;
     sc_unit *units;
     int unit_cap;

@@ -28,6 +28,7 @@
 #define SPEED_KEEP 0.7        /* EWMA weight of the old speed per job */
 #define MIN_FIT 8             /* samples before a model is used */
 #define REFIT 64              /* new samples between fits */
+#define REFIT_JOBS 8          /* jobs between fits of a fitted model */
 #define IDLE_DRIFT 0.2        /* per idle job, towards the mean speed */
 #define IDLE_FORGET 4         /* idle jobs before a node's model is set aside */
 
@@ -77,15 +78,22 @@ static double speed_of(const sc_sched *s, int k, int kind)
     return n ? sum / n : 1.0;
 }
 
-double sc_sched_predict(const sc_sched *s, int k, const sc_unit *u)
+/* Predicted time from a node's model, or cost / speed. */
+static inline double predict(const sc_sched *s, const sc_sched_node *nd, double speed,
+                             const sc_unit *u)
 {
-    const sc_cost_model *m = &s->nodes[k].model[u->kind];
+    const sc_cost_model *m = &nd->model[u->kind];
     if (s->use_models && m->ok) {
         double t = m->c[0] * u->feat[0] + m->c[1] * u->feat[1] + m->c[2] * u->feat[2];
         if (t > 0 && isfinite(t))
             return t;
     }
-    return u->cost / speed_of(s, k, u->kind);
+    return u->cost / speed;
+}
+
+double sc_sched_predict(const sc_sched *s, int k, const sc_unit *u)
+{
+    return predict(s, &s->nodes[k], speed_of(s, k, u->kind), u);
 }
 
 static int cmp_key(const void *x, const void *y)
@@ -111,26 +119,53 @@ int sc_sched_assign(sc_sched *s, sc_node *const *nodes, sc_unit *units, int n)
         s->order_cap = cap;
     }
     sort_key *key = s->keys;
-    /* the estimate to sort by: the calling thread's fitted model once it
-     * has one (it always has measurements), else the paper's cost */
-    for (int i = 0; i < n; i++) {
-        key[i].cost = s->nnodes > 1 ? sc_sched_predict(s, 0, &units[i]) : 0;
-        key[i].idx = i;
+    int kind = n > 0 ? units[0].kind : 0;
+    for (int k = 0; k < s->nnodes; k++) {
+        sc_sched_node *nd = &s->nodes[k];
+        nd->ready = 0;
+        nd->job_speed = speed_of(s, k, kind);
+        nd->job_latency = s->nnodes > 1 ? nodes[k]->ops->latency_s(nodes[k]) : 0;
+        /* transfer time as fixed + per byte, asked once per job */
+        nd->job_tr0 = s->nnodes > 1 ? nodes[k]->ops->transfer_s(nodes[k], 0) : 0;
+        nd->job_tr1 = s->nnodes > 1
+                          ? (nodes[k]->ops->transfer_s(nodes[k], 1 << 20) - nd->job_tr0) / (1 << 20)
+                          : 0;
     }
-    if (s->nnodes > 1)
-        qsort(key, (size_t)n, sizeof *key, cmp_key);
-    for (int k = 0; k < s->nnodes; k++)
-        s->nodes[k].ready = 0;
+    /* the estimate to sort by: the calling thread's fitted model once it
+     * has one (it always has measurements), else the paper's cost. Units
+     * below 1/64 of a node's fair share are not worth sorting: they keep
+     * their order after the sorted ones (and idle nodes take them anyway) */
+    double total = 0;
+    for (int i = 0; i < n; i++) {
+        key[i].cost = s->nnodes > 1 ? predict(s, &s->nodes[0], s->nodes[0].job_speed, &units[i])
+                                    : 0;
+        key[i].idx = i;
+        total += key[i].cost;
+    }
+    double small = total / (64.0 * s->nnodes);
+    int nbig = 0, nsmall = 0;
+    for (int i = 0; i < n && s->nnodes > 1; i++) {
+        if (key[i].cost >= small)
+            key[nbig++] = key[i];    /* nbig <= i: not yet read ones stay */
+        else
+            s->assigned[nsmall++] = key[i].idx;    /* scratch until below */
+    }
+    for (int j = 0; j < nsmall; j++) {
+        key[nbig + j].cost = 0;
+        key[nbig + j].idx = s->assigned[j];
+    }
+    if (nbig > 1)
+        qsort(key, (size_t)nbig, sizeof *key, cmp_key);
     memset(s->start, 0, (size_t)(s->nnodes + 1) * sizeof *s->start);
     for (int i = 0; i < n; i++) {
         sc_unit *u = &units[key[i].idx];
         int best = 0;
         double best_t = INFINITY;
         for (int k = 0; k < s->nnodes && s->nnodes > 1; k++) {
+            const sc_sched_node *nd = &s->nodes[k];
             /* the first unit a node gets in a job pays its latency */
-            double t = s->nodes[k].ready + nodes[k]->ops->transfer_s(nodes[k], u->bytes) +
-                       sc_sched_predict(s, k, u) +
-                       (s->start[k + 1] ? 0 : nodes[k]->ops->latency_s(nodes[k]));
+            double t = nd->ready + nd->job_tr0 + nd->job_tr1 * (double)u->bytes +
+                       predict(s, nd, nd->job_speed, u) + (s->start[k + 1] ? 0 : nd->job_latency);
             if (t < best_t) {
                 best_t = t;
                 best = k;
@@ -165,6 +200,7 @@ int sc_sched_assign(sc_sched *s, sc_node *const *nodes, sc_unit *units, int n)
 static void fit(sc_cost_model *m)
 {
     m->fresh = 0;
+    m->jobs = 0;
     if (m->n < MIN_FIT)
         return;
     gsl_matrix_view X = gsl_matrix_view_array(&m->x[0][0], (size_t)m->n, 3);
@@ -232,8 +268,12 @@ void sc_sched_observe(sc_sched *s, const sc_unit *units, int n, double *bound_s)
         } else {
             nd->idle[kind]++;
         }
-        if (nd->model[kind].fresh >= REFIT)
-            fit(&nd->model[kind]);
+        /* refit after REFIT new samples, but not more often than every
+         * REFIT_JOBS jobs once fitted: a fit costs tens of microseconds */
+        sc_cost_model *m = &nd->model[kind];
+        m->jobs++;
+        if (m->fresh >= REFIT && (!m->ok || m->jobs >= REFIT_JOBS))
+            fit(m);
         if (nd->measured[kind]) {
             mean_speed += nd->speed[kind];
             nmeasured++;

@@ -62,11 +62,13 @@ void sc_unit_run(sc_np_ctx *np, const sc_job *job, sc_unit *u)
         u->rc = run_toi(np, job, u);
         break;
     case SC_UNIT_ISLAND: {
+        /* small islands travel together, each solved on its own */
         const sc_islands *is = job->islands;
-        int i = u->first;
-        u->rc = sc_island_solve(job->bodies, job->c, &is->contacts[is->contact_start[i]],
-                                is->contact_start[i + 1] - is->contact_start[i], job->h,
-                                job->params, &u->info);
+        u->rc = SC_OK;
+        for (int i = u->first; i < u->first + u->islands && u->rc == SC_OK; i++)
+            u->rc = sc_island_solve(job->bodies, job->c, &is->contacts[is->contact_start[i]],
+                                    is->contact_start[i + 1] - is->contact_start[i], job->h,
+                                    job->params, &u->info);
         break;
     }
     default:

@@ -15,9 +15,11 @@
  *   contact   body_a i32, body_b i32, pos f64[3], normal f64[3], depth f64
  *   COLLIDE / TOI unit: count u32, (TOI) tol_m f64, per pair: hash_a u64,
  *             hash_b u64, body_a i32, body_b i32, deepen u8, a0, b0, (TOI) a1, b1
- *   ISLAND unit: bodies u32, members u32, contacts u32, h, bounce_speed,
- *             slop, baumgarte f64, per body: see put_body(), per contact:
- *             a contact (local body indices)
+ *   ISLAND unit (consecutive islands, each solved on its own): bodies u32,
+ *             members u32, contacts u32, islands u32, h, bounce_speed, slop,
+ *             baumgarte f64, per island: members u32, contacts u32; per
+ *             body: see put_body(), per contact: a contact (local body
+ *             indices)
  *   result:   count u32 (pairs, or island members), rc i32, messages i64,
  *             pivots i64, failures, regularised, lemke, collisions i32, then
  *             per pair: n u8 and n contacts (COLLIDE), toi f64 (TOI); per
@@ -36,7 +38,7 @@
 
 #include "sc_internal.h"
 
-#define WIRE_VERSION 1
+#define WIRE_VERSION 2
 #define MAGIC_UNIT 0x55574353u        /* "SCWU" */
 #define MAGIC_RESULT 0x52574353u      /* "SCWR" */
 #define MAX_PAIRS (1 << 16)
@@ -245,6 +247,7 @@ static void get_body(rbuf *r, sc_body *b)
 /* An island's bodies in local order (world ids) and its contacts' ends
  * (local indices). */
 typedef struct island_map {
+    int first, nisl;        /* the unit's islands */
     int nm, m, nc;
     const int *ci;          /* the island's contacts (indices into job->c) */
     int *world;             /* m world ids */
@@ -274,12 +277,15 @@ static int contact_end(const sc_job *job, const island_map *im, int k)
     return k % 2 ? c->body_b : c->body_a;
 }
 
-static int map_island(const sc_job *job, int i, island_map *im)
+static int map_island(const sc_job *job, int i, int nisl, island_map *im)
 {
     const sc_islands *is = job->islands;
     const int *mem = &is->bodies[is->body_start[i]];
-    im->nm = is->body_start[i + 1] - is->body_start[i];
-    im->nc = is->contact_start[i + 1] - is->contact_start[i];
+    im->first = i;
+    im->nisl = nisl;
+    /* consecutive islands: their members and contacts are consecutive too */
+    im->nm = is->body_start[i + nisl] - is->body_start[i];
+    im->nc = is->contact_start[i + nisl] - is->contact_start[i];
     im->ci = &is->contacts[is->contact_start[i]];
     if (im->nm < 1 || im->nm > MAX_BODIES || im->nc > MAX_CONTACTS)
         return SC_ETOOBIG;
@@ -332,9 +338,15 @@ static void write_island(wbuf *w, const void *job_, const void *im_)
     put(w, (uint64_t)im->m, 4);
     put(w, (uint64_t)im->nm, 4);
     put(w, (uint64_t)im->nc, 4);
+    put(w, (uint64_t)im->nisl, 4);
     const sc_contact_params *p = job->params;
     double head[4] = { job->h, p->bounce_speed, p->slop, p->baumgarte };
     put_f64s(w, head, 4);
+    const sc_islands *is = job->islands;
+    for (int i = im->first; i < im->first + im->nisl; i++) {
+        put(w, (uint64_t)(is->body_start[i + 1] - is->body_start[i]), 4);
+        put(w, (uint64_t)(is->contact_start[i + 1] - is->contact_start[i]), 4);
+    }
     for (int k = 0; k < im->m; k++)
         put_body(w, &job->bodies[im->world[k]]);
     for (int k = 0; k < im->nc; k++)
@@ -351,13 +363,14 @@ size_t sc_wire_unit_pack(const sc_job *job, const sc_unit *u, unsigned char *buf
             return 0;
         return emit(write_pairs, job, u, buf, cap);
     }
-    if (job->kind != SC_UNIT_ISLAND || !job->islands || u->first < 0 ||
-        u->first >= job->islands->count)
+    if (job->kind != SC_UNIT_ISLAND || !job->islands || u->first < 0 || u->islands < 1 ||
+        u->first > job->islands->count - u->islands)
         return 0;
     /* 0 also for an island the wire cannot carry (see map_island()) */
     island_map im = { 0 };
-    size_t n = map_island(job, u->first, &im) == SC_OK ? emit(write_island, job, &im, buf, cap)
-                                                       : 0;
+    size_t n = map_island(job, u->first, u->islands, &im) == SC_OK
+                   ? emit(write_island, job, &im, buf, cap)
+                   : 0;
     free(im.world);
     free(im.ends);
     return n;
@@ -420,22 +433,35 @@ static int decode_pairs(rbuf *r, int kind, sc_shape_lookup_fn lookup, void *ctx,
 static int decode_island(rbuf *r, sc_wire_unit *wu)
 {
     uint32_t m = (uint32_t)get(r, 4), nm = (uint32_t)get(r, 4), nc = (uint32_t)get(r, 4);
+    uint32_t nisl = (uint32_t)get(r, 4);
     double head[4];
     get_f64s(r, head, 4, 1);
-    if (r->bad || nm < 1 || nm > m || m > MAX_BODIES || nc > MAX_CONTACTS || !(head[0] > 0) ||
-        head[1] < 0 || head[2] < 0 || head[3] < 0 ||
-        r->len - r->n != (size_t)m * BODY_BYTES + (size_t)nc * CONTACT_BYTES)
+    if (r->bad || nm < 1 || nm > m || m > MAX_BODIES || nc > MAX_CONTACTS || nisl < 1 ||
+        nisl > nm || !(head[0] > 0) || head[1] < 0 || head[2] < 0 || head[3] < 0 ||
+        r->len - r->n != (size_t)nisl * 8 + (size_t)m * BODY_BYTES + (size_t)nc * CONTACT_BYTES)
         return SC_EFORMAT;
     sc_islands *is = &wu->islands;
     wu->bodies = sc_calloc_array(m, sizeof *wu->bodies);
     wu->c = sc_calloc_array(nc, sizeof *wu->c);
-    is->body_start = sc_calloc_array(2, sizeof *is->body_start);
+    is->body_start = sc_calloc_array((size_t)nisl + 1, sizeof *is->body_start);
     is->bodies = sc_alloc_array(nm, sizeof *is->bodies);
-    is->contact_start = sc_calloc_array(2, sizeof *is->contact_start);
+    is->contact_start = sc_calloc_array((size_t)nisl + 1, sizeof *is->contact_start);
     is->contacts = sc_alloc_array(nc, sizeof *is->contacts);
     if (!wu->bodies || !wu->c || !is->body_start || !is->bodies || !is->contact_start ||
         !is->contacts)
         return SC_ENOMEM;
+    for (uint32_t i = 0; i < nisl; i++) {
+        uint32_t bm = (uint32_t)get(r, 4), bc = (uint32_t)get(r, 4);
+        /* every island has a member; the counts add up (checked below) */
+        if (r->bad || bm < 1 || bm > nm || bc > nc)
+            return SC_EFORMAT;
+        is->body_start[i + 1] = is->body_start[i] + (int)bm;
+        is->contact_start[i + 1] = is->contact_start[i] + (int)bc;
+        if (is->body_start[i + 1] > (int)nm || is->contact_start[i + 1] > (int)nc)
+            return SC_EFORMAT;
+    }
+    if (is->body_start[nisl] != (int)nm || is->contact_start[nisl] != (int)nc)
+        return SC_EFORMAT;
     for (uint32_t k = 0; k < m; k++) {
         get_body(r, &wu->bodies[k]);
         /* only members may change: the others are static or asleep */
@@ -453,9 +479,7 @@ static int decode_island(rbuf *r, sc_wire_unit *wu)
     }
     for (uint32_t k = 0; k < nm; k++)
         is->bodies[k] = (int)k;
-    is->count = 1;
-    is->body_start[1] = (int)nm;
-    is->contact_start[1] = (int)nc;
+    is->count = (int)nisl;
     wu->nbodies = (int)m;
     wu->params = (sc_contact_params){ .bounce_speed = head[1], .slop = head[2],
                                       .baumgarte = head[3] };
@@ -466,6 +490,7 @@ static int decode_island(rbuf *r, sc_wire_unit *wu)
     job->h = head[0];
     job->params = &wu->params;
     wu->unit.count = (int)nc;
+    wu->unit.islands = (int)nisl;
     return SC_OK;
 }
 
@@ -519,7 +544,7 @@ static void write_result(wbuf *w, const void *wu_, const void *unused)
     const sc_job *job = &wu->job;
     const sc_unit *u = &wu->unit;
     int island = job->kind == SC_UNIT_ISLAND;
-    int nm = island ? job->islands->body_start[1] : 0;
+    int nm = island ? job->islands->body_start[job->islands->count] : 0;
     put_header(w, MAGIC_RESULT, job->kind);
     put(w, (uint64_t)(island ? nm : u->count), 4);
     put_i32(w, u->rc);
@@ -563,7 +588,7 @@ static int read_result(rbuf *r, const sc_job *job, sc_unit *u, int write)
     int island = job->kind == SC_UNIT_ISLAND;
     const sc_islands *is = job->islands;
     int i0 = island ? is->body_start[u->first] : u->first;
-    int count = island ? is->body_start[u->first + 1] - i0 : u->count;
+    int count = island ? is->body_start[u->first + u->islands] - i0 : u->count;
     if (get_header(r, MAGIC_RESULT) != job->kind || get(r, 4) != (uint64_t)count)
         return SC_EFORMAT;
     int rc = get_i32(r);
@@ -623,7 +648,8 @@ int sc_wire_result_apply(const sc_job *job, sc_unit *u, const unsigned char *buf
 {
     if (!job || !u || (!buf && len) || u->kind != job->kind || u->first < 0)
         return SC_EINVAL;
-    if (job->kind == SC_UNIT_ISLAND ? !job->islands || u->first >= job->islands->count
+    if (job->kind == SC_UNIT_ISLAND ? !job->islands || u->islands < 1 ||
+                                          u->first > job->islands->count - u->islands
                                     : job->kind < 0 || job->kind >= SC_UNIT_KINDS ||
                                           u->count < 0 || u->first > job->npairs - u->count)
         return SC_EINVAL;

@@ -73,9 +73,10 @@ SC_API sc_world *sc_world_create(const sc_world_config *cfg)
     }
     w->cfg.workers = nodes;
     w->nodes = sc_calloc_array((size_t)nodes, sizeof *w->nodes);
-    int rc = w->nodes ? sc_sched_init(&w->sched, nodes) : SC_ENOMEM;
+    w->pool = sc_local_pool_create();
+    int rc = w->nodes && w->pool ? sc_sched_init(&w->sched, nodes) : SC_ENOMEM;
     for (int k = 0; k < nodes && rc == SC_OK; k++) {
-        w->nodes[k] = sc_node_local_create(k, k == 0);
+        w->nodes[k] = sc_node_local_create(w->pool, k, k == 0);
         if (!w->nodes[k])
             rc = SC_ENOMEM;
         else
@@ -100,9 +101,11 @@ SC_API void sc_world_destroy(sc_world *w)
         sc_shape_release(w->bodies[i].shape);
     free(w->bodies);
     sc_bp_destroy(w->bp);
+    sc_local_pool_stop(w->pool);
     for (int k = 0; k < w->nnodes; k++)
         w->nodes[k]->ops->destroy(w->nodes[k]);
     free(w->nodes);
+    sc_local_pool_destroy(w->pool);
     sc_sched_free(&w->sched);
     free(w->units);
     free(w->upairs);

@@ -355,10 +355,11 @@ static void islands_job_free(islands_job *ij)
     free(ij->br);
 }
 
-static sc_unit island_unit(const sc_islands *is, int i)
+/* A unit of islands [i, i + n), each solved on its own. */
+static sc_unit island_unit(const sc_islands *is, int i, int n)
 {
-    sc_unit u = { .kind = SC_UNIT_ISLAND, .first = i,
-                  .count = is->contact_start[i + 1] - is->contact_start[i] };
+    sc_unit u = { .kind = SC_UNIT_ISLAND, .first = i, .islands = n,
+                  .count = is->contact_start[i + n] - is->contact_start[i] };
     return u;
 }
 
@@ -379,10 +380,13 @@ static void test_island_units_through_wire_are_bit_identical(void **state)
             continue;
         islands_job ij;
         islands_job_init(&ij, w);
-        for (int i = 0; i < ij.is.count; i++) {
-            sc_unit u = island_unit(&ij.is, i);
+        /* units of 1, 2 and 3 islands in turn */
+        for (int i = 0, g = 1; i < ij.is.count; i += g, g = g % 3 + 1) {
+            if (g > ij.is.count - i)
+                g = ij.is.count - i;
+            sc_unit u = island_unit(&ij.is, i, g);
             collisions += run_both(local, remote, &cc, &ij.jl, &ij.jr, &u).info.collisions;
-            islands++;
+            islands += g;
         }
         for (int k = 0; k < w->ncontacts; k++)
             deep += w->contacts[k].depth > params.slop;
@@ -424,9 +428,10 @@ static void samples_init(samples *sm, const scene *s)
     /* the island with the most contacts */
     int best = 0;
     for (int i = 1; i < sm->ij.is.count; i++)
-        if (island_unit(&sm->ij.is, i).count > island_unit(&sm->ij.is, best).count)
+        if (island_unit(&sm->ij.is, i, 1).count > island_unit(&sm->ij.is, best, 1).count)
             best = i;
-    sc_unit u = island_unit(&sm->ij.is, best);
+    /* with its neighbour when it has one: the per-island counts travel too */
+    sc_unit u = island_unit(&sm->ij.is, best, best + 1 < sm->ij.is.count ? 2 : 1);
     assert_true(u.count > 0);
     sm->buf[SC_UNIT_ISLAND] = pack_unit(&sm->ij.jl, &u, &sm->len[SC_UNIT_ISLAND]);
 }
@@ -524,7 +529,7 @@ static void test_bad_fields_are_format_errors(void **state)
     const size_t ver = 4, kind = 6, count = 8, hash0 = 12;
     unsigned char keep[8];
     memcpy(keep, b, sizeof keep);
-    b[ver] = 2;
+    b[ver] = 0x7f;    /* a version nobody speaks */
     assert_int_equal(sc_wire_unit_decode(b, len, lookup, &cc, &wu), SC_EFORMAT);
     memcpy(b, keep, sizeof keep);
     b[kind] = SC_UNIT_KINDS;
@@ -563,11 +568,29 @@ static void test_bad_fields_are_format_errors(void **state)
      * would not carry what the solve changed */
     unsigned char *ib = sm.buf[SC_UNIT_ISLAND];
     assert_int_equal(sc_wire_unit_decode(ib, sm.len[SC_UNIT_ISLAND], NULL, NULL, &wu), SC_OK);
-    int m = wu.nbodies, nm = wu.islands.body_start[1];
+    int nisl = wu.islands.count, m = wu.nbodies, nm = wu.islands.body_start[nisl];
     sc_wire_unit_free(&wu);
+    /* island header: magic, version, kind 8; bodies, members, contacts,
+     * islands 16; h and parameters 32; per island 8 */
+    const size_t isl0 = 8 + 16 + 32;
+    print_message("island sample: %d islands, %d members, %d bodies\n", nisl, nm, m);
+    if (nisl > 1) {
+        /* per-island member counts that do not add up to the members */
+        memcpy(keep, ib + isl0, 4);
+        ib[isl0] ^= 1;
+        assert_int_equal(sc_wire_unit_decode(ib, sm.len[SC_UNIT_ISLAND], NULL, NULL, &wu),
+                         SC_EFORMAT);
+        memcpy(ib + isl0, keep, 4);
+        /* an island count beyond the members */
+        memcpy(keep, ib + 20, 4);
+        ib[22] = 1;
+        assert_int_equal(sc_wire_unit_decode(ib, sm.len[SC_UNIT_ISLAND], NULL, NULL, &wu),
+                         SC_EFORMAT);
+        memcpy(ib + 20, keep, 4);
+    }
     if (m > nm) {
-        /* body nm's inv_mass (after the island header of 8 + 12 + 32 bytes) */
-        size_t at = 8 + 12 + 32 + (size_t)nm * (31 * 8 + 8);
+        /* body nm's inv_mass, after the header and the per-island counts */
+        size_t at = isl0 + 8 * (size_t)nisl + (size_t)nm * (31 * 8 + 8);
         memcpy(keep, ib + at, 8);
         double one = 1;
         uint64_t u;
@@ -635,7 +658,7 @@ static void test_result_for_another_unit_is_a_format_error(void **state)
             b = i;
     }
     if (b >= 0) {
-        sc_unit ua = island_unit(&ij.is, a), ub = island_unit(&ij.is, b);
+        sc_unit ua = island_unit(&ij.is, a, 1), ub = island_unit(&ij.is, b, 1);
         free(buf);
         free(res);
         buf = pack_unit(&ij.jr, &ua, &len);
