@@ -277,8 +277,7 @@ static void local_destroy(sc_node *base)
     local_node *n = (local_node *)base;
     if (!n)
         return;
-    if (n->pool)
-        sc_local_pool_stop(n->pool);   /* its members go away with it */
+    /* the pool's owner stopped every thread first (sc_local_pool_stop) */
     stop_thread(n);
     if (n->inline_node)
         sc_np_destroy(n->np);
