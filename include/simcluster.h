@@ -157,6 +157,11 @@ typedef struct sc_world_config {
     const char *key_file;     /* shared cluster key */
     int broadphase;           /* SC_BROADPHASE_*; AUTO = spheres below 256 bodies */
     double contact_tol_m;     /* allowed penetration, default 1e-3 */
+    int motion_groups;        /* 1: bodies that cannot meet within a frame step
+                                 apart, each group with its own time-of-impact
+                                 back-ups, one work unit per group (faster;
+                                 see simcluster(3)); default 0: the paper's
+                                 world-wide back-up */
     int internal_cookie;      /* set by sc_world_config_default(); do not touch */
 } sc_world_config;
 /* The default configuration. */
@@ -207,6 +212,8 @@ typedef struct sc_stats {
     long collider_warnings;   /* ODE collider messages (e.g. contact buffer
                                  overflow), last frame; never printed */
     /* work units and the scheduler (DESIGN.md section 6), last frame */
+    int groups;               /* motion groups stepped apart (bodies that cannot
+                                 meet within the frame), last frame */
     int nodes;                /* nodes the scheduler used (local threads) */
     int private_ode;          /* of them, with their own copy of ODE (trimesh
                                  pairs run concurrently only on those) */

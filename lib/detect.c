@@ -17,23 +17,28 @@ static int cmp_pair(const void *x, const void *y)
     return (a->b > b->b) - (a->b < b->b);
 }
 
+int sc_body_scratch(sc_world *w)
+{
+    if (w->nbodies <= w->scratch_cap)
+        return SC_OK;
+    /* grows with the body count only, not every frame */
+    free(w->centre);
+    free(w->radius);
+    free(w->active);
+    w->centre = sc_alloc_array((size_t)w->cap * 3, sizeof *w->centre);
+    w->radius = sc_alloc_array((size_t)w->cap, sizeof *w->radius);
+    w->active = sc_alloc_array((size_t)w->cap, sizeof *w->active);
+    w->scratch_cap = w->centre && w->radius && w->active ? w->cap : 0;
+    return w->scratch_cap ? SC_OK : SC_ENOMEM;
+}
+
 /* Step 4, coarse: bounding spheres (or sweep and prune), plus every active
  * body against every static plane (planes have no bounding sphere). */
 static int broadphase(sc_world *w, int *npairs)
 {
     int n = w->nbodies, np = 0;
-    if (n > w->scratch_cap) {
-        /* grows with the body count only, not every frame */
-        free(w->centre);
-        free(w->radius);
-        free(w->active);
-        w->centre = sc_alloc_array((size_t)w->cap * 3, sizeof *w->centre);
-        w->radius = sc_alloc_array((size_t)w->cap, sizeof *w->radius);
-        w->active = sc_alloc_array((size_t)w->cap, sizeof *w->active);
-        w->scratch_cap = w->centre && w->radius && w->active ? w->cap : 0;
-        if (!w->scratch_cap)
-            return SC_ENOMEM;
-    }
+    if (sc_body_scratch(w) != SC_OK)
+        return SC_ENOMEM;
     int nplanes = 0;
     double margin = w->cfg.contact_tol_m;
     for (int i = 0; i < n; i++) {

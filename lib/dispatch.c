@@ -39,12 +39,12 @@ static void unit_init(sc_unit *u, int kind, int first, int count, double cost, d
 
 /* Pairs cut into contiguous units of about equal estimated cost: a few per
  * node, so the scheduler has something to balance. */
-static int pair_units(sc_world *w, sc_job *job)
+static int pair_units(sc_world *w, sc_job *job, int nnodes)
 {
     double total = 0;
     for (int i = 0; i < job->npairs; i++)
         total += sc_pair_cost(job->pairs[i].sa, job->pairs[i].sb);
-    int want = w->nnodes > 1 ? UNITS_PER_NODE * w->nnodes : 1;
+    int want = nnodes > 1 ? UNITS_PER_NODE * nnodes : 1;
     double target = total / want;
     int rc = grow_units(w, want + job->npairs / MAX_UNIT_PAIRS + 2);
     if (rc != SC_OK)
@@ -79,8 +79,9 @@ static int pair_units(sc_world *w, sc_job *job)
  * floor) share a unit up to that many contacts, each still solved on its
  * own, so that a thousand tiny islands are not a thousand units to cost,
  * sort, time and learn from. Grouping does not depend on the nodes. */
-static int island_units(sc_world *w, sc_job *job)
+static int island_units(sc_world *w, sc_job *job, int nnodes)
 {
+    (void)nnodes;    /* grouping does not depend on the nodes */
     const sc_islands *is = job->islands;
     int rc = grow_units(w, is->count);
     if (rc != SC_OK)
@@ -107,41 +108,69 @@ static int island_units(sc_world *w, sc_job *job)
     return SC_OK;
 }
 
+/* A group's sub-world running as one unit: everything on this thread. */
+static int run_inline(sc_world *w, sc_job *job)
+{
+    int rc = SC_OK;
+    for (int i = 0; i < job->nunits; i++) {
+        sc_unit *u = &job->units[i];
+        sc_unit_run(w->inline_np, job, u);
+        w->stats.collider_warnings += u->messages;
+        if (u->rc != SC_OK && rc == SC_OK)
+            rc = u->rc;
+    }
+    w->stats.units += job->nunits;
+    return rc;
+}
+
 int sc_job_run(sc_world *w, sc_job *job, int stage)
 {
     double t0 = sc_wall_now();
-    int rc = job->kind == SC_UNIT_ISLAND ? island_units(w, job) : pair_units(w, job);
+    /* a sub-world (group.c) uses its parent's nodes and scheduler */
+    sc_world *top = w->parent ? w->parent : w;
+    int nnodes = w->inline_np ? 1 : top->nnodes;
+    int rc = SC_OK;
+    if (job->kind == SC_UNIT_ISLAND)
+        rc = island_units(w, job, nnodes);
+    else if (job->kind != SC_UNIT_GROUP)    /* group units come made */
+        rc = pair_units(w, job, nnodes);
     if (rc != SC_OK)
         return rc;
     if (job->nunits == 0)
         return SC_OK;
-    sc_sched *s = &w->sched;
-    rc = sc_sched_assign(s, w->nodes, job->units, job->nunits);
+    if (w->inline_np)
+        return run_inline(w, job);
+    sc_sched *s = &top->sched;
+    sc_node **nodes = top->nodes;
+    rc = sc_sched_assign(s, nodes, job->units, job->nunits);
     if (rc != SC_OK)
         return rc;
     double t1 = sc_wall_now();
     /* every list is in place before any node can look for more */
-    for (int k = 0; k < w->nnodes; k++) {
+    for (int k = 0; k < nnodes; k++) {
         int cnt = s->start[k + 1] - s->start[k];
         if (cnt > 0)
-            rc = w->nodes[k]->ops->submit(w->nodes[k], job, &s->assigned[s->start[k]], cnt);
+            rc = nodes[k]->ops->submit(nodes[k], job, &s->assigned[s->start[k]], cnt);
         SC_ASSERT(rc == SC_OK);
     }
     double cpu_others = 0;
-    for (int k = 0; k < w->nnodes; k++) {
+    for (int k = 0; k < nnodes; k++) {
         if (s->start[k + 1] == s->start[k])
             continue;
         double cpu = 0;
-        w->nodes[k]->ops->wait(w->nodes[k], &cpu);
+        nodes[k]->ops->wait(nodes[k], &cpu);
         if (k > 0)
             cpu_others += cpu;
     }
     double t2 = sc_wall_now();
     double bound = 0;
     sc_sched_observe(s, job->units, job->nunits, &bound);
-    /* CPU of the other nodes is CPU of this stage too (Table 1) */
-    w->stats.stage_s[stage] += cpu_others;
-    w->stats.stage_total_s[stage] += cpu_others;
+    /* CPU of the other nodes is CPU of this stage too (Table 1); group
+     * units count their own */
+    if (stage >= 0) {
+        w->stats.stage_s[stage] += cpu_others;
+        w->stats.stage_total_s[stage] += cpu_others;
+    }
     w->stats.units += job->nunits;
     w->stats.makespan_s += t2 - t1;
     w->stats.makespan_bound_s += bound;

@@ -68,7 +68,16 @@ struct sc_np_ctx {
     const sc_ode *ode;
     geom_slot *slots;
     int n, cap;
+    void *scratch;                 /* the thread's scratch world (group.c) */
+    void (*scratch_free)(void *);
 };
+
+void **sc_np_scratch(sc_np_ctx *ctx, void (**free_fn)(void *))
+{
+    if (free_fn)
+        ctx->scratch_free = *free_fn;
+    return &ctx->scratch;
+}
 
 sc_np_ctx *sc_np_create_on(const sc_ode *ode)
 {
@@ -87,6 +96,8 @@ void sc_np_destroy(sc_np_ctx *ctx)
 {
     if (!ctx)
         return;
+    if (ctx->scratch && ctx->scratch_free)
+        ctx->scratch_free(ctx->scratch);
     for (int i = 0; i < ctx->n; i++)
         for (int s = 0; s < 2; s++)
             for (int r = 0; r < REP_COUNT; r++)

@@ -134,6 +134,9 @@ void sc_ode_release(const sc_ode *o);
 int sc_ode_is_private(const sc_ode *o);
 
 typedef struct sc_np_ctx sc_np_ctx;     /* one per thread: owns ODE geoms */
+/* A slot for the thread's scratch world (group.c), freed with the context
+ * by free_fn. */
+void **sc_np_scratch(sc_np_ctx *ctx, void (**free_fn)(void *));
 sc_np_ctx *sc_np_create(void);          /* on the shared copy of ODE */
 sc_np_ctx *sc_np_create_on(const sc_ode *ode);
 void sc_np_destroy(sc_np_ctx *ctx);
@@ -152,7 +155,8 @@ int sc_toi_ctx(sc_np_ctx *ctx, const sc_shape *a, const sc_pose *a0, const sc_po
 
 /* For a pair already in contact: the last time in [0, 1] at which its
  * penetration is still <= limit_m, when it exceeds limit_m later (1 and
- * *t), 0 when it never does or already does at t = 0. */
+ * *t), 0 when it never does. A pair already deeper than limit_m at t = 0
+ * is held to its depth there plus a tenth of limit_m. */
 int sc_toi_deepen_ctx(sc_np_ctx *ctx, const sc_shape *a, const sc_pose *a0, const sc_pose *a1,
                       const sc_shape *b, const sc_pose *b0, const sc_pose *b1, double limit_m,
                       double *t);
@@ -267,7 +271,7 @@ int sc_lcp_lemke(int n, const double *M, const double *q, double *z, long max_pi
  * one kind. A unit reads only its job's inputs and writes only its own
  * outputs, so units run on any node in any order and the merge, in unit
  * order, gives the same bits whoever computed what. */
-enum { SC_UNIT_COLLIDE, SC_UNIT_TOI, SC_UNIT_ISLAND, SC_UNIT_KINDS };
+enum { SC_UNIT_COLLIDE, SC_UNIT_TOI, SC_UNIT_ISLAND, SC_UNIT_GROUP, SC_UNIT_KINDS };
 
 /* One body pair of a COLLIDE or TOI unit. */
 typedef struct sc_unit_pair {
@@ -319,6 +323,10 @@ typedef struct sc_job {
     const sc_islands *islands;
     double h;
     const sc_contact_params *params;
+    /* GROUP: a motion group's whole frame (group.c) */
+    struct sc_world *world;
+    double dt;
+    struct sc_group_out *gout;      /* per group */
 } sc_job;
 
 /* Run unit u of job on the calling thread with its narrow-phase context;
@@ -438,6 +446,21 @@ void sc_sched_observe(sc_sched *s, const sc_unit *units, int n, double *bound_s)
  * account it in w->stats (stage CPU of the other nodes, makespan). */
 int sc_job_run(sc_world *w, sc_job *job, int stage);
 
+/* ---- motion groups (group.c): bodies that cannot meet within a frame
+ * step apart, each with its own substeps and back-ups ---- */
+typedef struct sc_group_out {
+    int rc;
+    sc_contact *contacts;           /* world ids, canonical order; malloc'd */
+    int ncontacts;
+    sc_stats stats;                 /* of the group's frame */
+} sc_group_out;
+/* The frame of w by motion groups: sc_frame() on each group's sub-world,
+ * the groups as work units. */
+int sc_groups_step(sc_world *w, double dt);
+/* Run GROUP unit u (group.c; called by sc_unit_run). */
+int sc_group_unit_run(sc_np_ctx *np, const sc_job *job, const sc_unit *u);
+void sc_world_scratch_free(void *sub);
+
 /* ---- the world (world.c) and its frame (detect.c, integrate.c, step.c,
  * state.c) ---- */
 struct sc_world {
@@ -467,6 +490,23 @@ struct sc_world {
     sc_node **nodes;
     int nnodes;
     sc_local_pool *pool;
+    /* a group's sub-world runs its jobs either on this context alone (a
+     * group unit on some node) or on its parent's nodes (a big group) */
+    sc_np_ctx *inline_np;
+    struct sc_world *parent;
+    /* motion groups (group.c) */
+    sc_broadphase *gbp;
+    double *gcentre, *gradius;
+    unsigned char *gactive;
+    int *gparent, *gstart, *gmembers, *gid, *gcstart, *gcontacts, *statics;
+    int gcap, ngroups, nstatics;
+    sc_pair *gpairs;
+    int gpair_cap;
+    sc_group_out *gout;
+    int gout_cap, gcontact_cap;
+    struct sc_world *bigsub;        /* scratch for a group on all nodes */
+    int *sub_ids;                   /* a sub-world's world ids */
+    int sub_ids_cap;
     sc_sched sched;
     sc_unit *units;
     int unit_cap;
@@ -494,6 +534,10 @@ double sc_wall_now(void);
 void sc_stage_add(sc_world *w, int stage, double t0);
 /* 1 if the contact list c (sorted by pair) has a contact of pair (a, b). */
 int sc_contacts_have_pair(const sc_contact *c, int n, int a, int b);
+/* The per-body scratch (centre, radius, active) for w->nbodies. */
+int sc_body_scratch(sc_world *w);
+/* One frame of w as a whole (step.c): substeps, back-ups, states. */
+int sc_frame(sc_world *w, double dt);
 /* Step 4: pairs and contacts of the current state into w->contacts. */
 int sc_detect(sc_world *w);
 /* Step 3: u* = u + h (g + F/m) (keeping u in v0/w0); positions after the

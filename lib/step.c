@@ -11,6 +11,7 @@
 /* ---- the frame: the paper's steps (3)-(7) ---------------------------- */
 
 #define MAX_SUBSTEPS 16       /* time-of-impact back-ups per frame */
+#define TOI_AIM 0.9           /* back up to this share of the tolerance */
 
 static const sc_contact_params contact_params = {
     .bounce_speed = 0.1,      /* the paper's threshold speed */
@@ -107,7 +108,10 @@ static int earliest_impact(sc_world *w, const sc_body *saved, const sc_contact *
             .kind = SC_UNIT_TOI,
             .pairs = w->upairs,
             .npairs = np,
-            .tol_m = w->cfg.contact_tol_m,
+            /* aim below the tolerance: the backed-up substep's impulses
+             * and push-out differ a little from the path the search
+             * interpolated */
+            .tol_m = TOI_AIM * w->cfg.contact_tol_m,
             .toi = w->utoi,
         };
         for (int i = 0; i < np; i++)
@@ -120,22 +124,14 @@ static int earliest_impact(sc_world *w, const sc_body *saved, const sc_contact *
     return rc;
 }
 
-SC_API int sc_world_step(sc_world *w, double dt)
+int sc_frame(sc_world *w, double dt)
 {
-    if (!w || !(dt > 0) || !isfinite(dt))
-        return SC_EINVAL;
     int n = w->nbodies;
-    memset(w->stats.stage_s, 0, sizeof w->stats.stage_s);
-    w->stats.lcp_pivots = 0;
-    w->stats.lcp_fallbacks = 0;
-    w->stats.collider_warnings = 0;
-    w->stats.units = 0;
-    w->stats.sched_s = 0;
-    w->stats.makespan_s = 0;
-    w->stats.makespan_bound_s = 0;
     /* scratch owned by the world: grows with the body count, no malloc
      * per frame once it has */
     int rc = sc_grow((void **)&w->saved, &w->saved_cap, n, sizeof *w->saved, INT_MAX);
+    if (rc == SC_OK)
+        rc = sc_body_scratch(w);
     if (rc == SC_OK)
         rc = sc_grow((void **)&w->touched, &w->touched_cap, n, 1, INT_MAX);
     if (rc != SC_OK)
@@ -185,6 +181,29 @@ SC_API int sc_world_step(sc_world *w, double dt)
             v3_set(w->bodies[i].torque, 0, 0, 0);
         }
         w->contacts_valid = 1;
+    }
+    return rc;
+}
+
+SC_API int sc_world_step(sc_world *w, double dt)
+{
+    if (!w || !(dt > 0) || !isfinite(dt))
+        return SC_EINVAL;
+    memset(w->stats.stage_s, 0, sizeof w->stats.stage_s);
+    w->stats.lcp_pivots = 0;
+    w->stats.lcp_fallbacks = 0;
+    w->stats.collider_warnings = 0;
+    w->stats.units = 0;
+    w->stats.sched_s = 0;
+    w->stats.makespan_s = 0;
+    w->stats.makespan_bound_s = 0;
+    w->stats.groups = 0;
+    w->stats.pairs = 0;
+    w->stats.contacts = 0;
+    w->stats.islands = 0;
+    w->stats.max_penetration = 0;
+    int rc = w->cfg.motion_groups ? sc_groups_step(w, dt) : sc_frame(w, dt);
+    if (rc == SC_OK) {
         w->stats.frames++;
         w->stats.makespan_ratio = w->stats.makespan_bound_s > 0
                                       ? w->stats.makespan_s / w->stats.makespan_bound_s

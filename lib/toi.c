@@ -123,8 +123,11 @@ int sc_toi_deepen_ctx(sc_np_ctx *ctx, const sc_shape *a, const sc_pose *a0, cons
     int rc = depth_at(ctx, a, a0, a1, b, b0, b1, 0.0, &d);
     if (rc < 0)
         return rc;
+    /* already past it (a back-up left it there, or a push did not undo
+     * it): it may not get deeper than it is by more than a tenth of the
+     * limit */
     if (d > limit_m)
-        return 0;                        /* already past it: nothing to back up to */
+        limit_m = d + 0.1 * limit_m;
     int samples = sample_count(a, a0, a1, b, b0, b1, limit_m);
     for (int k = 1; k <= samples; k++) {
         double hi = (double)k / samples, lo = (double)(k - 1) / samples;

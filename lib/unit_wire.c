@@ -164,7 +164,8 @@ static int get_header(rbuf *r, uint32_t magic)
 {
     uint32_t m = (uint32_t)get(r, 4);
     unsigned version = (unsigned)get(r, 2), kind = (unsigned)get(r, 2);
-    if (r->bad || m != magic || version != WIRE_VERSION || kind >= SC_UNIT_KINDS)
+    /* group units (a motion group's whole frame) do not travel */
+    if (r->bad || m != magic || version != WIRE_VERSION || kind > SC_UNIT_ISLAND)
         return -1;
     return (int)kind;
 }
@@ -650,7 +651,7 @@ int sc_wire_result_apply(const sc_job *job, sc_unit *u, const unsigned char *buf
         return SC_EINVAL;
     if (job->kind == SC_UNIT_ISLAND ? !job->islands || u->islands < 1 ||
                                           u->first > job->islands->count - u->islands
-                                    : job->kind < 0 || job->kind >= SC_UNIT_KINDS ||
+                                    : job->kind < 0 || job->kind > SC_UNIT_ISLAND ||
                                           u->count < 0 || u->first > job->npairs - u->count)
         return SC_EINVAL;
     rbuf r = { buf, 0, len, 0 };

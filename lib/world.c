@@ -47,7 +47,7 @@ SC_API sc_world *sc_world_create(const sc_world_config *cfg)
     }
     if (!sc_finite3(c.gravity) || c.workers < 0 || c.workers > SC_MAX_WORKERS || !(c.contact_tol_m > 0) ||
         !isfinite(c.contact_tol_m) || c.broadphase < SC_BROADPHASE_AUTO ||
-        c.broadphase > SC_BROADPHASE_SAP) {
+        c.broadphase > SC_BROADPHASE_SAP || (c.motion_groups != 0 && c.motion_groups != 1)) {
         sc_set_error(SC_EINVAL);
         return NULL;
     }
@@ -99,13 +99,36 @@ SC_API void sc_world_destroy(sc_world *w)
         return;
     for (int i = 0; i < w->nbodies; i++)
         sc_shape_release(w->bodies[i].shape);
-    free(w->bodies);
-    sc_bp_destroy(w->bp);
     sc_local_pool_stop(w->pool);
     for (int k = 0; k < w->nnodes; k++)
         w->nodes[k]->ops->destroy(w->nodes[k]);
     free(w->nodes);
     sc_local_pool_destroy(w->pool);
+    sc_world_scratch_free(w->bigsub);
+    sc_world_scratch_free(w);
+}
+
+/* Everything a world owns but its bodies' shapes and its nodes
+ * (also a group's scratch sub-world, whose bodies are copies). */
+void sc_world_scratch_free(void *world)
+{
+    sc_world *w = world;
+    if (!w)
+        return;
+    sc_bp_destroy(w->gbp);
+    free(w->gcentre);
+    free(w->gradius);
+    free(w->gactive);
+    free(w->gparent);
+    free(w->gstart);
+    free(w->gmembers);
+    free(w->gid);
+    free(w->gcstart);
+    free(w->gcontacts);
+    free(w->statics);
+    free(w->gpairs);
+    free(w->gout);
+    free(w->sub_ids);
     sc_sched_free(&w->sched);
     free(w->units);
     free(w->upairs);
@@ -121,6 +144,8 @@ SC_API void sc_world_destroy(sc_world *w)
     free(w->touched);
     free(w->c0);
     sc_islands_free(&w->islands);
+    free(w->bodies);
+    sc_bp_destroy(w->bp);
     free(w);
 }
 

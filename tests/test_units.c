@@ -16,10 +16,13 @@
 #define FRAMES 500
 #define BODIES 50
 
+static int motion_groups;    /* the mode the determinism tests run in */
+
 static uint64_t run_bolts(int workers, uint64_t shuffle, int frames, sc_stats *st)
 {
     sc_world_config c = sc_world_config_default();
     c.workers = workers;
+    c.motion_groups = motion_groups;
     sc_world *w = sc_world_create(&c);
     assert_non_null(w);
     assert_int_equal(w->nnodes, workers);
@@ -55,6 +58,20 @@ static void test_same_bits_for_1_2_3_8_workers(void **state)
         assert_true(h == h1);
         assert_int_equal(st.nodes, workers[i]);
     }
+}
+
+/* Motion groups: each group a unit of its own, with its own back-ups. */
+static void test_groups_same_bits_for_1_2_3_8_workers(void **state)
+{
+    motion_groups = 1;
+    sc_stats st;
+    uint64_t h1 = run_bolts(1, 0, FRAMES, &st);
+    const int workers[] = { 2, 3, 8 };
+    for (int i = 0; i < 3; i++)
+        assert_true(run_bolts(workers[i], 0, FRAMES, &st) == h1);
+    assert_true(run_bolts(2, 777, 200, &st) == run_bolts(1, 0, 200, &st));
+    motion_groups = 0;
+    (void)state;
 }
 
 static void test_same_bits_for_random_assignments(void **state)
@@ -259,6 +276,7 @@ static void test_worlds_come_and_go(void **state)
     for (int i = 0; i < 30; i++) {
         sc_world_config c = sc_world_config_default();
         c.workers = 4;
+        c.motion_groups = i % 2;    /* group scratch worlds freed too */
         sc_world *w = sc_world_create(&c);
         assert_non_null(w);
         assert_int_equal(sc_scene_bolts_nuts(w, 6, (uint64_t)i + 1), SC_OK);
@@ -273,6 +291,7 @@ int main(void)
     const struct CMUnitTest tests[] = {
         cmocka_unit_test(test_same_bits_for_1_2_3_8_workers),
         cmocka_unit_test(test_same_bits_for_random_assignments),
+        cmocka_unit_test(test_groups_same_bits_for_1_2_3_8_workers),
         cmocka_unit_test(test_longest_first_onto_earliest_finish),
         cmocka_unit_test(test_speed_is_learned_and_slow_nodes_get_less),
         cmocka_unit_test(test_cost_model_is_fitted),
