@@ -2,8 +2,9 @@
  * threads: wall time, real-time factor, speedup, the scheduler's makespan
  * over its lower bound and its own overhead (issue 4).
  *
- * Usage: bench_workers [-r RUNS] [-s SECONDS] [-w W1,W2,...] [N ...]
- *   defaults: 3 runs (medians), 1 s simulated, workers 1,2, N = 50 200 1000
+ * Usage: bench_workers [-r RUNS] [-s SECONDS] [-w W1,W2,...] [-m MODES] [N ...]
+ *   defaults: 3 runs (medians), 1 s simulated, workers 1,2, modes "wg"
+ *   (w: the paper's world-wide back-up, g: motion groups), N = 50 200 1000
  * Every run checks that the final state hash is the same for every worker
  * count (the result must not depend on the threads). */
 #include <stdio.h>
@@ -23,10 +24,11 @@ typedef struct result {
     unsigned long long hash;
 } result;
 
-static int run(int n, int workers, double seconds, result *r)
+static int run(int n, int workers, int groups, double seconds, result *r)
 {
     sc_world_config c = sc_world_config_default();
     c.workers = workers;
+    c.motion_groups = groups;
     sc_world *w = sc_world_create(&c);
     if (!w || sc_scene_bolts_nuts(w, n, 1) < 0) {
         fprintf(stderr, "bench_workers: %s\n", sc_strerror(sc_last_error()));
@@ -74,6 +76,7 @@ int main(int argc, char **argv)
 {
     int runs = 3, nw = 2, ws[MAX_W] = { 1, 2 };
     double seconds = 1.0;
+    const char *modes = "wg";
     int ns[16], nn = 0;
     for (int i = 1; i < argc; i++) {
         if (!strcmp(argv[i], "-r") && i + 1 < argc) {
@@ -84,16 +87,20 @@ int main(int argc, char **argv)
             nw = 0;
             for (char *t = strtok(argv[++i], ","); t && nw < MAX_W; t = strtok(NULL, ","))
                 ws[nw++] = atoi(t);
+        } else if (!strcmp(argv[i], "-m") && i + 1 < argc) {
+            modes = argv[++i];
         } else if (argv[i][0] != '-' && nn < 16) {
             ns[nn++] = atoi(argv[i]);
         } else {
-            fprintf(stderr, "usage: bench_workers [-r RUNS] [-s SECONDS] [-w W1,W2,...] [N ...]\n");
+            fprintf(stderr, "usage: bench_workers [-r RUNS] [-s SECONDS] [-w W1,W2,...] "
+                            "[-m MODES (w, g)] [N ...]\n");
             return 2;
         }
     }
-    if (runs < 1 || runs > MAX_RUNS || !(seconds > 0) || nw < 1) {
-        fprintf(stderr, "bench_workers: runs 1..%d, seconds > 0, at least one worker count\n",
-                MAX_RUNS);
+    if (runs < 1 || runs > MAX_RUNS || !(seconds > 0) || nw < 1 || !*modes ||
+        strspn(modes, "wg") != strlen(modes)) {
+        fprintf(stderr, "bench_workers: runs 1..%d, seconds > 0, at least one worker count, "
+                        "modes of w and g\n", MAX_RUNS);
         return 2;
     }
     for (int k = 0; k < nw; k++)
@@ -109,25 +116,28 @@ int main(int argc, char **argv)
     }
     printf("bolts/nuts drop, %.2f s simulated (frames of %.2f s), medians of %d runs\n", seconds,
            DT, runs);
-    printf("%6s %8s %6s %10s %9s %8s %10s %9s %10s\n", "N", "workers", "priv", "wall s",
-           "RT factor", "speedup", "makespan/", "sched %", "units/fr");
-    printf("%6s %8s %6s %10s %9s %8s %10s %9s %10s\n", "", "", "ODE", "", "", "", "bound", "",
-           "");
+    printf("%6s %7s %8s %6s %10s %9s %8s %10s %9s %10s\n", "N", "mode", "workers", "priv",
+           "wall s", "RT factor", "speedup", "makespan/", "sched %", "units/fr");
+    printf("%6s %7s %8s %6s %10s %9s %8s %10s %9s %10s\n", "", "", "", "ODE", "", "", "", "bound",
+           "", "");
     int bad = 0;
-    for (int i = 0; i < nn; i++) {
+    for (int i = 0; i < nn; i++)
+    for (const char *m = modes; *m; m++) {
+        int groups = *m == 'g';
         double base = 0;
         unsigned long long h0 = 0;
         for (int k = 0; k < nw; k++) {
             double wall[MAX_RUNS], ratio[MAX_RUNS], sched[MAX_RUNS];
             result r = { 0 };
             for (int j = 0; j < runs; j++) {
-                if (run(ns[i], ws[k], seconds, &r) != 0)
+                if (run(ns[i], ws[k], groups, seconds, &r) != 0)
                     return 1;
                 if (k == 0 && j == 0)
                     h0 = r.hash;
                 if (r.hash != h0) {
-                    fprintf(stderr, "bench_workers: N=%d workers=%d: state hash %016llx != "
-                            "%016llx of %d workers\n", ns[i], ws[k], r.hash, h0, ws[0]);
+                    fprintf(stderr, "bench_workers: N=%d %s workers=%d: state hash %016llx != "
+                            "%016llx of %d workers\n", ns[i], groups ? "groups" : "world",
+                            ws[k], r.hash, h0, ws[0]);
                     bad = 1;
                 }
                 wall[j] = r.wall;
@@ -137,15 +147,17 @@ int main(int argc, char **argv)
             double mw = median(wall, runs);
             if (k == 0)
                 base = mw;
-            printf("%6d %8d %6d %10.3f %9.3f %8.2f %10.2f %9.2f %10.0f\n", ns[i], ws[k],
-                   r.private_ode, mw, seconds / mw, base / mw, median(ratio, runs),
+            printf("%6d %7s %8d %6d %10.3f %9.3f %8.2f %10.2f %9.2f %10.0f\n", ns[i],
+                   groups ? "groups" : "world", ws[k], r.private_ode, mw, seconds / mw, base / mw, median(ratio, runs),
                    100 * median(sched, runs), r.units);
             fflush(stdout);
         }
     }
-    printf("RT factor: simulated / wall (>= 1 is real time). speedup: wall of %d worker(s) / "
-           "wall. makespan/bound: measured job makespans over max(total work / total speed, "
-           "largest unit), summed over all jobs. sched %%: scheduling time / wall.\n", ws[0]);
+    printf("mode: world = the paper's world-wide time-of-impact back-up, groups = motion "
+           "groups (sc_world_config.motion_groups). RT factor: simulated / wall (>= 1 is real "
+           "time). speedup: wall of %d worker(s) / wall, same mode. makespan/bound: measured job "
+           "makespans over max(total work / total speed, largest unit), summed over all jobs. "
+           "sched %%: scheduling time / wall.\n", ws[0]);
     if (bad)
         printf("FAILED: the final state depends on the worker count\n");
     return bad;

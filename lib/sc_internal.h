@@ -155,8 +155,9 @@ int sc_toi_ctx(sc_np_ctx *ctx, const sc_shape *a, const sc_pose *a0, const sc_po
 
 /* For a pair already in contact: the last time in [0, 1] at which its
  * penetration is still <= limit_m, when it exceeds limit_m later (1 and
- * *t), 0 when it never does. A pair already deeper than limit_m at t = 0
- * is held to its depth there plus a tenth of limit_m. */
+ * *t), 0 when it never does. A pair deeper than limit_m at t = 0 is held
+ * to its depth there plus a tenth of limit_m, unless it is deeper than
+ * twice limit_m (0: left to the push-out). */
 int sc_toi_deepen_ctx(sc_np_ctx *ctx, const sc_shape *a, const sc_pose *a0, const sc_pose *a1,
                       const sc_shape *b, const sc_pose *b0, const sc_pose *b1, double limit_m,
                       double *t);
