@@ -35,25 +35,6 @@
 #define REACH_MARGIN 2e-3     /* m added to every body's reach */
 #define BIG_GROUP 0.5         /* share of the awake bodies that makes a pile */
 
-static int find(int *p, int i)
-{
-    while (p[i] != i) {
-        p[i] = p[p[i]];
-        i = p[i];
-    }
-    return i;
-}
-
-static void unite(int *p, int a, int b)
-{
-    a = find(p, a);
-    b = find(p, b);
-    if (a < b)
-        p[b] = a;
-    else if (b < a)
-        p[a] = b;
-}
-
 /* Whether bodies a and b (spheres overlapping) can touch within dt: the
  * gap between their bounds closes at most at twice their relative speed,
  * plus the sweep of their shape origins, their relative acceleration and a
@@ -147,30 +128,30 @@ static int build_groups(sc_world *w, double dt)
         const sc_pair *pr = &w->gpairs[k];
         if (w->bodies[pr->a].inv_mass > 0 && w->bodies[pr->b].inv_mass > 0 &&
             may_meet(w, pr->a, pr->b, dt))
-            unite(w->gparent, pr->a, pr->b);
+            sc_uf_unite(w->gparent, pr->a, pr->b);
     }
     /* bodies touching at the end of the last frame stay together, asleep
      * ones too (an awake neighbour may wake them) */
     for (int k = 0; w->contacts_valid && k < w->ncontacts; k++) {
         const sc_contact *c = &w->contacts[k];
         if (w->bodies[c->body_a].inv_mass > 0 && w->bodies[c->body_b].inv_mass > 0)
-            unite(w->gparent, c->body_a, c->body_b);
+            sc_uf_unite(w->gparent, c->body_a, c->body_b);
     }
     /* a group needs an awake body; groups numbered by their first member */
     for (int i = 0; i < n; i++)
         if (w->gactive[i])
-            w->gid[find(w->gparent, i)] = 0;
+            w->gid[sc_uf_find(w->gparent, i)] = 0;
     int ng = 0;
     for (int i = 0; i < n; i++) {
         if (w->bodies[i].inv_mass == 0)
             continue;
-        int r = find(w->gparent, i);
+        int r = sc_uf_find(w->gparent, i);
         if (r == i && w->gid[i] == 0)
             w->gid[i] = ++ng;    /* 1-based while numbering */
     }
     for (int i = 0; i < n; i++)
-        if (w->bodies[i].inv_mass > 0 && find(w->gparent, i) != i)
-            w->gid[i] = w->gid[find(w->gparent, i)];
+        if (w->bodies[i].inv_mass > 0 && sc_uf_find(w->gparent, i) != i)
+            w->gid[i] = w->gid[sc_uf_find(w->gparent, i)];
     memset(w->gstart, 0, (size_t)(ng + 1) * sizeof *w->gstart);
     for (int i = 0; i < n; i++) {
         if (w->gid[i] > 0)

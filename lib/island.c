@@ -8,7 +8,7 @@
 
 #include "sc_internal.h"
 
-static int find(int *parent, int i)
+int sc_uf_find(int *parent, int i)
 {
     while (parent[i] != i) {
         parent[i] = parent[parent[i]];   /* path halving */
@@ -17,10 +17,10 @@ static int find(int *parent, int i)
     return i;
 }
 
-static void unite(int *parent, int a, int b)
+void sc_uf_unite(int *parent, int a, int b)
 {
-    a = find(parent, a);
-    b = find(parent, b);
+    a = sc_uf_find(parent, a);
+    b = sc_uf_find(parent, b);
     /* the smaller id becomes the root: roots are then canonical */
     if (a < b)
         parent[b] = a;
@@ -63,7 +63,7 @@ int sc_islands_build(int nbodies, const unsigned char *joins, const sc_contact *
             goto out;
         }
         if (joins[a] && joins[b])
-            unite(parent, a, b);
+            sc_uf_unite(parent, a, b);
     }
     /* number islands by first appearance of their root in id order */
     int n = 0;
@@ -72,7 +72,7 @@ int sc_islands_build(int nbodies, const unsigned char *joins, const sc_contact *
     for (int i = 0; i < nbodies; i++) {
         if (!joins[i])
             continue;
-        int r = find(parent, i);
+        int r = sc_uf_find(parent, i);
         if (slot[r] < 0)
             slot[r] = n++;
         is->body_start[slot[r] + 1]++;
@@ -82,7 +82,7 @@ int sc_islands_build(int nbodies, const unsigned char *joins, const sc_contact *
         int a = c[k].body_a, b = c[k].body_b;
         int owner = joins[a] ? a : (joins[b] ? b : -1);
         if (owner >= 0)
-            is->contact_start[slot[find(parent, owner)] + 1]++;
+            is->contact_start[slot[sc_uf_find(parent, owner)] + 1]++;
     }
     for (int i = 0; i < n; i++) {
         is->body_start[i + 1] += is->body_start[i];
@@ -91,7 +91,7 @@ int sc_islands_build(int nbodies, const unsigned char *joins, const sc_contact *
     /* island of each body; then parent's storage becomes the fill cursor */
     for (int i = 0; i < nbodies; i++)
         if (joins[i])
-            parent[i] = find(parent, i);
+            parent[i] = sc_uf_find(parent, i);
     for (int i = 0; i < nbodies; i++)
         slot[i] = joins[i] ? slot[parent[i]] : -1;   /* roots come first: r <= i */
     int *root_of = slot, *fill = parent;

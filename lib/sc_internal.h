@@ -206,6 +206,9 @@ typedef struct sc_islands {
  * one with none to no island. Canonical order throughout. */
 int sc_islands_build(int nbodies, const unsigned char *joins, const sc_contact *c,
                      int ncontacts, sc_islands *is);
+/* Union-find with path halving; the smaller id becomes the root. */
+int sc_uf_find(int *parent, int i);
+void sc_uf_unite(int *parent, int a, int b);
 void sc_islands_free(sc_islands *is);
 
 /* ---- LCP (lcp.c) ---- */
