@@ -25,10 +25,12 @@ int sc_body_scratch(sc_world *w)
     free(w->centre);
     free(w->radius);
     free(w->active);
+    free(w->poses);
     w->centre = sc_alloc_array((size_t)w->cap * 3, sizeof *w->centre);
     w->radius = sc_alloc_array((size_t)w->cap, sizeof *w->radius);
     w->active = sc_alloc_array((size_t)w->cap, sizeof *w->active);
-    w->scratch_cap = w->centre && w->radius && w->active ? w->cap : 0;
+    w->poses = sc_alloc_array((size_t)w->cap, sizeof *w->poses);
+    w->scratch_cap = w->centre && w->radius && w->active && w->poses ? w->cap : 0;
     return w->scratch_cap ? SC_OK : SC_ENOMEM;
 }
 
@@ -43,9 +45,9 @@ static int broadphase(sc_world *w, int *npairs)
     double margin = w->cfg.contact_tol_m;
     for (int i = 0; i < n; i++) {
         const sc_body *b = &w->bodies[i];
-        sc_pose p;
-        sc_body_pose(b, &p);
-        v3_copy(&w->centre[3 * i], p.pos);
+        sc_pose *p = &w->poses[i];    /* kept for the narrow phase */
+        sc_body_pose(b, p);
+        v3_copy(&w->centre[3 * i], p->pos);
         int plane = b->shape->kind == SC_SHAPE_PLANE;
         nplanes += plane;
         /* planes join the sweep as far-away points and pair below */
@@ -139,13 +141,13 @@ static int narrowphase(sc_world *w, int npairs)
     for (int i = 0; i < npairs; i++) {
         sc_unit_pair *p = &w->upairs[i];
         const sc_body *a = &w->bodies[w->pairs[i].a], *b = &w->bodies[w->pairs[i].b];
-        memset(p, 0, sizeof *p);
-        p->sa = a->shape;
+        p->sa = a->shape;    /* a1, b1 are the TOI's only */
+        p->deepen = 0;
         p->sb = b->shape;
         p->body_a = w->pairs[i].a;
         p->body_b = w->pairs[i].b;
-        sc_body_pose(a, &p->a0);
-        sc_body_pose(b, &p->b0);
+        p->a0 = w->poses[w->pairs[i].a];
+        p->b0 = w->poses[w->pairs[i].b];
         /* the contacts still held are those of the last detection */
         p->touching = sc_contacts_have_pair(w->contacts, w->ncontacts, p->body_a, p->body_b);
         w->uncontact[i] = 0;

@@ -475,6 +475,7 @@ struct sc_world {
     /* per-frame scratch, grown as needed and kept */
     double *centre, *radius;
     unsigned char *active;
+    sc_pose *poses;           /* of the last broad phase (detect.c) */
     int scratch_cap;
     sc_pair *pairs;
     int pair_cap;

@@ -95,9 +95,9 @@ static int earliest_impact(sc_world *w, const sc_body *saved, const sc_contact *
          * backs up to where it reaches the tolerance */
         p->deepen = sc_contacts_have_pair(c0, n0, c->body_a, c->body_b);
         sc_body_pose(&saved[c->body_a], &p->a0);
-        sc_body_pose(&w->bodies[c->body_a], &p->a1);
         sc_body_pose(&saved[c->body_b], &p->b0);
-        sc_body_pose(&w->bodies[c->body_b], &p->b1);
+        p->a1 = w->poses[c->body_a];    /* the detection just before */
+        p->b1 = w->poses[c->body_b];
     }
     int rc = SC_OK;
     if (np > 0) {

@@ -136,6 +136,7 @@ void sc_world_scratch_free(void *world)
     free(w->uncontact);
     free(w->utoi);
     free(w->centre);
+    free(w->poses);
     free(w->radius);
     free(w->active);
     free(w->pairs);
