@@ -28,12 +28,14 @@ BUILD   ?= build
 XFLAGS  :=
 endif
 
-DEP_PKGS := ode gsl
-CPPFLAGS += -Iinclude -Ilib -D_GNU_SOURCE
+DEP_PKGS := ode gsl lcm libsodium
+GEN     := $(BUILD)/gen
+CPPFLAGS += -Iinclude -Ilib -I$(GEN) -D_GNU_SOURCE
 CFLAGS  += -std=c11 $(OPT) -g -Wall -Wextra -Werror -fPIC -fvisibility=hidden \
            -pthread $(XFLAGS)
 LDFLAGS += -pthread $(XFLAGS)
-LIBS    := $(shell pkg-config --libs $(DEP_PKGS) 2>/dev/null || echo -lode -lgsl -lgslcblas) -lm -ldl
+LIBS    := $(shell pkg-config --libs $(DEP_PKGS) 2>/dev/null || \
+             echo -lode -lgsl -lgslcblas -llcm -lsodium) -lm -ldl
 TESTLIBS := $(LIBS) -lcmocka
 
 ifeq ($(V),1)
@@ -43,7 +45,13 @@ Q := @
 endif
 
 LIB_SRC   := $(sort $(wildcard lib/*.c))
-LIB_OBJ   := $(LIB_SRC:%.c=$(BUILD)/%.o)
+# Message types: C generated from proto/*.lcm by lcm-gen into $(GEN)/ (one
+# sclcm_<struct>.c/.h per struct), linked into the library, never committed.
+PROTO     := $(sort $(wildcard proto/*.lcm))
+GEN_NAMES := $(shell sed -n 's/^struct  *\([A-Za-z0-9_]*\).*/sclcm_\1/p' $(PROTO))
+GEN_SRC   := $(GEN_NAMES:%=$(GEN)/%.c)
+GEN_OBJ   := $(GEN_SRC:.c=.o)
+LIB_OBJ   := $(LIB_SRC:%.c=$(BUILD)/%.o) $(GEN_OBJ)
 TEST_SRC  := $(sort $(wildcard tests/test_*.c))
 TEST_BIN  := $(TEST_SRC:%.c=$(BUILD)/%)
 EX_SRC    := $(sort $(wildcard examples/*.c))
@@ -69,6 +77,26 @@ $(BUILD)/%.o: %.c $(wildcard include/*.h lib/*.h) Makefile
 	@mkdir -p $(dir $@)
 	@$(if $(Q),echo "  CC      $<")
 	$(Q)$(CC) $(CPPFLAGS) $(CFLAGS) -c $< -o $@
+
+# --c-no-pubsub: messages go out as sealed bytes through lcm_publish
+# (lib/cluster_msg.c), and the generated subscribe stubs print to stderr.
+$(GEN)/stamp: $(PROTO) Makefile
+	@mkdir -p $(GEN)
+	@$(if $(Q),echo "  LCMGEN  $(PROTO)")
+	$(Q)rm -f $(GEN)/sclcm_*
+	$(Q)lcm-gen -c --c-no-pubsub --c-cpath $(GEN) --c-hpath $(GEN) $(PROTO)
+	$(Q)touch $@
+$(GEN_SRC): $(GEN)/stamp ;
+
+# Generated headers exist before any library object is compiled.
+$(filter $(BUILD)/lib/%,$(LIB_OBJ)): | $(GEN)/stamp
+$(BUILD)/lib/cluster_msg.o: $(GEN)/stamp
+
+# lcm-gen's cleanup functions for types without arrays or strings do not
+# use their argument: -Wno-unused-parameter, for these files only.
+$(GEN)/%.o: $(GEN)/%.c $(GEN)/stamp
+	@$(if $(Q),echo "  CC      $<")
+	$(Q)$(CC) $(CPPFLAGS) $(CFLAGS) -Wno-unused-parameter -c $< -o $@
 
 $(STATIC): $(LIB_OBJ)
 	@$(if $(Q),echo "  AR      $@")

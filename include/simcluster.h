@@ -35,7 +35,7 @@ enum {
     SC_EINVAL = -1,        /* an argument is NULL, NaN, infinite or out of range */
     SC_ENOMEM = -2,        /* out of memory */
     SC_EIO = -3,           /* a file could not be opened or read */
-    SC_EFORMAT = -4,       /* a file is not valid OBJ/STL (or is truncated) */
+    SC_EFORMAT = -4,       /* a file or message is malformed or truncated (OBJ/STL, key, cluster) */
     SC_ETOOBIG = -5,       /* a file or mesh exceeds the size limits */
     SC_ENOTCLOSED = -6,    /* a mesh is not a closed, consistently oriented surface */
     SC_EDEGENERATE = -7,   /* a mesh or hull has no volume (flat, collinear, zero area) */
@@ -44,7 +44,9 @@ enum {
     SC_ENOINIT = -10,      /* a desc/config struct was not made by its *_default() */
     SC_ENOSOLUTION = -11,  /* the LCP has no solution the solver can find */
     SC_EMAXITER = -12,     /* the solver hit its pivot limit (cycling) */
-    SC_ENUMERIC = -13      /* numerical breakdown (singular pivot, NaN in state) */
+    SC_ENUMERIC = -13,     /* numerical breakdown (singular pivot, NaN in state) */
+    SC_EAUTH = -14,        /* a message failed authentication or was replayed */
+    SC_EPERM = -15         /* a key file is accessible by others: its mode must be 0600 */
 };
 
 /* A sentence describing the error code err (never NULL). */

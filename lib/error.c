@@ -24,7 +24,7 @@ SC_API const char *sc_strerror(int err)
     case SC_EINVAL: return "invalid argument (NULL, NaN, infinite or out of range)";
     case SC_ENOMEM: return "out of memory";
     case SC_EIO: return "file could not be opened or read";
-    case SC_EFORMAT: return "file is not valid OBJ or STL, or is truncated";
+    case SC_EFORMAT: return "file or message is malformed or truncated";
     case SC_ETOOBIG: return "file or mesh exceeds the size limits";
     case SC_ENOTCLOSED: return "mesh is not a closed, consistently outward-oriented surface";
     case SC_EDEGENERATE: return "mesh or point set has no volume (flat, collinear or zero-area)";
@@ -34,6 +34,8 @@ SC_API const char *sc_strerror(int err)
     case SC_ENOSOLUTION: return "LCP has no solution the solver can find";
     case SC_EMAXITER: return "LCP solver hit its pivot limit";
     case SC_ENUMERIC: return "numerical breakdown (singular pivot or NaN)";
+    case SC_EAUTH: return "message failed authentication or was replayed";
+    case SC_EPERM: return "key file is accessible by others: its mode must be 0600";
     default: return "unknown error code";
     }
 }

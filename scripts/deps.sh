@@ -3,7 +3,7 @@
 # installs the missing ones (apt-get update first); otherwise it prints the
 # exact install line and fails.
 PKGS="build-essential pkg-config libode-dev libccd-dev liblcm-dev liblcm-bin libglib2.0-dev \
-libgsl-dev libcmocka-dev libosmesa6-dev libpng-dev mandoc cppcheck"
+libgsl-dev libsodium-dev libcmocka-dev libosmesa6-dev libpng-dev mandoc cppcheck"
 missing=""
 for p in $PKGS; do
     st=$(dpkg-query -W -f='${Status}' "$p" 2>/dev/null)

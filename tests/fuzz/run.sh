@@ -18,10 +18,13 @@ secs=${1:-60}
 out=${FUZZ_BUILD:-build/fuzz}
 cc=${CLANG:-clang}
 findings=tests/fuzz/findings
-flags="-std=c11 -D_GNU_SOURCE -Iinclude -Ilib -O1 -g -fno-omit-frame-pointer -pthread
+flags="-std=c11 -D_GNU_SOURCE -Iinclude -Ilib -I$out/gen -O1 -g -fno-omit-frame-pointer -pthread
        -fsanitize=address,undefined -fno-sanitize-recover=all"
-libs=$(pkg-config --libs ode gsl 2>/dev/null || echo -lode -lgsl -lgslcblas)
-mkdir -p "$out/obj" "$findings"
+libs=$(pkg-config --libs ode gsl lcm libsodium 2>/dev/null ||
+       echo -lode -lgsl -lgslcblas -llcm -lsodium)
+mkdir -p "$out/obj" "$out/gen" "$findings"
+rm -f "$out"/gen/sclcm_*
+lcm-gen -c --c-no-pubsub --c-cpath "$out/gen" --c-hpath "$out/gen" proto/*.lcm
 
 # Keywords libFuzzer cannot easily guess, per target (name after fuzz_).
 dict_load() {
@@ -52,7 +55,7 @@ EOF
 # The library, instrumented for coverage, as an archive: each target links
 # only the objects it needs.
 objs=""
-for src in lib/*.c; do
+for src in lib/*.c "$out"/gen/sclcm_*.c; do
     o="$out/obj/$(basename "$src" .c).o"
     $cc $flags -fsanitize=fuzzer-no-link -c "$src" -o "$o"
     objs="$objs $o"

@@ -1,0 +1,381 @@
+/* cluster_msg.c - sealed cluster messages, their payloads and the key file
+ * (DESIGN.md section 6; formats in proto/simcluster.lcm).
+ *
+ * A sealed message is the LCM encoding of an envelope_t (big-endian, as LCM
+ * is: type fingerprint u64, version i16, node i64, seq i64, kind i16, len
+ * i32, payload[len], mac[32]). mac is HMAC-SHA256 under the cluster key of
+ * every byte before it, fingerprint included, so a receiver checks it on
+ * the bytes as received, before it decodes or allocates anything.
+ *
+ * lcm-gen's decoders trust the length fields they read: a negative or huge
+ * array or string length reaches malloc and memcpy unchecked, strings are
+ * not checked for their NUL, and what was allocated before an error stays
+ * allocated. So every length is checked here on the raw bytes first (the
+ * whole input must be exactly what the fields say), decoding starts from a
+ * zeroed struct, and its cleanup runs on every path.
+ */
+#include <errno.h>
+#include <fcntl.h>
+#include <sodium.h>
+#include <stdlib.h>
+#include <sys/stat.h>
+#include <unistd.h>
+
+#include "cluster_msg.h"
+#include "sc_internal.h"
+#include "sclcm_announce_t.h"
+#include "sclcm_envelope_t.h"
+#include "sclcm_result_t.h"
+#include "sclcm_unit_t.h"
+
+#define FP_BYTES 8                      /* LCM type fingerprint */
+#define MAC_BYTES crypto_auth_hmacsha256_BYTES
+#define ENV_LEN_AT (FP_BYTES + 2 + 8 + 8 + 2)
+#define ENV_HEAD (ENV_LEN_AT + 4)
+#define WORK_HEAD (FP_BYTES + 8 + 4 + 4)
+#define ANN_HOSTLEN_AT (FP_BYTES + 8)     /* then the bytes, NUL included */
+#define ANN_FIXED (FP_BYTES + 8 + 4 + 2 + 8 + 8 + 1 + 2 + 8)
+#define MAX_CORES 4096
+
+_Static_assert(SC_MSG_OVERHEAD == ENV_HEAD + MAC_BYTES, "envelope overhead");
+_Static_assert(SC_MSG_MAX_WIRE == SC_MSG_MAX_PAYLOAD - WORK_HEAD, "unit_t overhead");
+_Static_assert(SC_KEY_BYTES == crypto_auth_hmacsha256_KEYBYTES, "key size");
+
+/* A big-endian i32 of the raw bytes, without overflow. */
+static int64_t be32(const uint8_t *p)
+{
+    uint32_t u = (uint32_t)p[0] << 24 | (uint32_t)p[1] << 16 | (uint32_t)p[2] << 8 | p[3];
+    return u < 0x80000000u ? (int64_t)u : (int64_t)u - 0x100000000;
+}
+
+static int known_kind(int64_t kind)
+{
+    return kind >= SC_MSG_ANNOUNCE && kind <= SC_MSG_RESULT;
+}
+
+/* ---- envelopes ---- */
+
+int sc_msg_seal(const uint8_t key[SC_KEY_BYTES], int64_t node, int64_t seq, int kind,
+                const void *payload, size_t len, uint8_t **out, size_t *outlen)
+{
+    if (!key || !payload || !out || !outlen || !known_kind(kind) || seq < 0 ||
+        len < FP_BYTES || len > SC_MSG_MAX_PAYLOAD)
+        return SC_EINVAL;               /* a payload is an LCM encoding: >= 8 bytes */
+    *out = NULL;
+    *outlen = 0;
+    if (sodium_init() < 0)
+        return SC_ENOMEM;
+    size_t n = SC_MSG_OVERHEAD + len;
+    uint8_t *buf = malloc(n);
+    if (!buf)
+        return SC_ENOMEM;
+    sclcm_envelope_t e = { .version = SC_MSG_VERSION, .node = node, .seq = seq,
+                           .kind = (int16_t)kind, .len = (int32_t)len,
+                           .payload = (uint8_t *)payload };
+    int w = sclcm_envelope_t_encode(buf, 0, (int)n, &e);
+    SC_ASSERT(w == (int)n);
+    (void)w;
+    crypto_auth_hmacsha256(buf + n - MAC_BYTES, buf, n - MAC_BYTES, key);
+    *out = buf;
+    *outlen = n;
+    return SC_OK;
+}
+
+/* Record seq from node unless it was seen or is older than the window. */
+static int guard_accept(sc_msg_guard *g, int64_t node, uint64_t seq)
+{
+    int found = -1, victim = 0;
+    for (int i = 0; i < SC_MSG_SENDERS && found < 0; i++) {
+        if (g->slot[i].used && g->slot[i].node == node)
+            found = i;
+        else if (g->slot[i].used < g->slot[victim].used)
+            victim = i;                 /* a free slot (0) or the stalest */
+    }
+    g->clock++;
+    if (found < 0) {                    /* new (or forgotten) sender: its first seq */
+        g->slot[victim].node = node;
+        g->slot[victim].top = seq;
+        g->slot[victim].seen = 1;
+        g->slot[victim].used = g->clock;
+        return 1;
+    }
+    uint64_t top = g->slot[found].top, seen = g->slot[found].seen;
+    if (seq > top) {
+        uint64_t d = seq - top;
+        seen = d >= SC_MSG_WINDOW ? 1 : seen << d | 1;
+        top = seq;
+    } else {
+        uint64_t d = top - seq;
+        if (d >= SC_MSG_WINDOW || (seen >> d & 1))
+            return 0;
+        seen |= (uint64_t)1 << d;
+    }
+    g->slot[found].top = top;
+    g->slot[found].seen = seen;
+    g->slot[found].used = g->clock;
+    return 1;
+}
+
+int sc_msg_open(const uint8_t key[SC_KEY_BYTES], sc_msg_guard *g, const void *buf, size_t len,
+                sc_msg *out)
+{
+    if (!key || !g || !out)
+        return SC_EINVAL;
+    memset(out, 0, sizeof *out);
+    const uint8_t *p = buf;
+    if (!p || len < SC_MSG_OVERHEAD + FP_BYTES || len > SC_MSG_MAX_BYTES ||
+        be32(p + ENV_LEN_AT) != (int64_t)(len - SC_MSG_OVERHEAD)) {
+        g->dropped_format++;
+        return SC_EFORMAT;
+    }
+    if (sodium_init() < 0)
+        return SC_ENOMEM;
+    if (crypto_auth_hmacsha256_verify(p + len - MAC_BYTES, p, len - MAC_BYTES, key) != 0) {
+        g->dropped_auth++;
+        return SC_EAUTH;
+    }
+    sclcm_envelope_t e;
+    memset(&e, 0, sizeof e);
+    int rc = SC_EFORMAT;
+    if (sclcm_envelope_t_decode(p, 0, (int)len, &e) == (int)len && e.version == SC_MSG_VERSION &&
+        known_kind(e.kind) && e.seq >= 0 && e.payload) {
+        rc = SC_ENOMEM;
+        out->payload = malloc((size_t)e.len);
+        if (out->payload) {
+            memcpy(out->payload, e.payload, (size_t)e.len);
+            rc = guard_accept(g, e.node, (uint64_t)e.seq) ? SC_OK : SC_EAUTH;
+        }
+    }
+    if (rc == SC_OK) {
+        out->node = e.node;
+        out->seq = e.seq;
+        out->kind = e.kind;
+        out->len = (size_t)e.len;
+        g->accepted++;
+    } else {
+        sc_msg_free(out);
+        if (rc == SC_EFORMAT)
+            g->dropped_format++;
+        else if (rc == SC_EAUTH)
+            g->dropped_replay++;
+    }
+    sclcm_envelope_t_decode_cleanup(&e);
+    return rc;
+}
+
+void sc_msg_free(sc_msg *m)
+{
+    if (m) {
+        free(m->payload);
+        m->payload = NULL;
+        m->len = 0;
+    }
+}
+
+/* ---- payloads ---- */
+
+static int announce_ok(const sc_msg_announce *a)
+{
+    size_t n = strnlen(a->host, SC_MSG_HOST_MAX);
+    return n < SC_MSG_HOST_MAX && a->cores >= 1 && a->cores <= MAX_CORES &&
+           isfinite(a->speed) && a->speed > 0 && isfinite(a->idle_fraction) &&
+           a->idle_fraction >= 0 && a->idle_fraction <= 1 &&
+           (a->owner_busy == 0 || a->owner_busy == 1) && a->version >= 0 &&
+           a->version <= INT16_MAX;
+}
+
+int sc_msg_announce_encode(const sc_msg_announce *a, uint8_t **out, size_t *len)
+{
+    if (!a || !out || !len || !announce_ok(a))
+        return SC_EINVAL;
+    sclcm_announce_t m = { .node = a->node, .host = (char *)a->host, .cores = (int16_t)a->cores,
+                           .speed = a->speed, .idle_fraction = a->idle_fraction,
+                           .owner_busy = (int8_t)a->owner_busy, .version = (int16_t)a->version,
+                           .time_us = a->time_us };
+    int n = sclcm_announce_t_encoded_size(&m);
+    *out = malloc((size_t)n);
+    if (!*out)
+        return SC_ENOMEM;
+    int w = sclcm_announce_t_encode(*out, 0, n, &m);
+    SC_ASSERT(w == n);
+    (void)w;
+    *len = (size_t)n;
+    return SC_OK;
+}
+
+int sc_msg_announce_decode(const void *buf, size_t len, sc_msg_announce *a)
+{
+    if (!a)
+        return SC_EINVAL;
+    memset(a, 0, sizeof *a);
+    const uint8_t *p = buf;
+    /* the host string: 1..SC_MSG_HOST_MAX bytes, its NUL last and only there */
+    if (!p || len <= ANN_FIXED || len > ANN_FIXED + SC_MSG_HOST_MAX)
+        return SC_EFORMAT;
+    int64_t hl = be32(p + ANN_HOSTLEN_AT);
+    const uint8_t *host = p + ANN_HOSTLEN_AT + 4;
+    if (hl < 1 || (size_t)hl != len - ANN_FIXED || memchr(host, 0, (size_t)hl) != host + hl - 1)
+        return SC_EFORMAT;
+    sclcm_announce_t m;
+    memset(&m, 0, sizeof m);
+    int rc = SC_EFORMAT;
+    if (sclcm_announce_t_decode(p, 0, (int)len, &m) == (int)len && m.host) {
+        memcpy(a->host, m.host, (size_t)hl);
+        a->node = m.node;
+        a->cores = m.cores;
+        a->speed = m.speed;
+        a->idle_fraction = m.idle_fraction;
+        a->owner_busy = m.owner_busy;
+        a->version = m.version;
+        a->time_us = m.time_us;
+        rc = announce_ok(a) ? SC_OK : SC_EFORMAT;
+    }
+    sclcm_announce_t_decode_cleanup(&m);
+    if (rc != SC_OK)
+        memset(a, 0, sizeof *a);
+    return rc;
+}
+
+int sc_msg_work_encode(int kind, const sc_msg_work *w, uint8_t **out, size_t *len)
+{
+    if (!w || !out || !len || (kind != SC_MSG_UNIT && kind != SC_MSG_RESULT) || !w->wire ||
+        w->len < 1 || w->len > SC_MSG_MAX_WIRE || w->unit < 0)
+        return SC_EINVAL;
+    size_t n = WORK_HEAD + w->len;
+    *out = malloc(n);
+    if (!*out)
+        return SC_ENOMEM;
+    int wrote;
+    if (kind == SC_MSG_UNIT) {
+        sclcm_unit_t m = { w->frame, w->unit, (int32_t)w->len, w->wire };
+        wrote = sclcm_unit_t_encode(*out, 0, (int)n, &m);
+    } else {
+        sclcm_result_t m = { w->frame, w->unit, (int32_t)w->len, w->wire };
+        wrote = sclcm_result_t_encode(*out, 0, (int)n, &m);
+    }
+    SC_ASSERT(wrote == (int)n);
+    (void)wrote;
+    *len = n;
+    return SC_OK;
+}
+
+int sc_msg_work_decode(int kind, const void *buf, size_t len, sc_msg_work *w)
+{
+    if (!w || (kind != SC_MSG_UNIT && kind != SC_MSG_RESULT))
+        return SC_EINVAL;
+    memset(w, 0, sizeof *w);
+    const uint8_t *p = buf;
+    if (!p || len <= WORK_HEAD || len > WORK_HEAD + SC_MSG_MAX_WIRE ||
+        be32(p + WORK_HEAD - 4) != (int64_t)(len - WORK_HEAD))
+        return SC_EFORMAT;
+    /* the same layout; the fingerprint tells them apart (simcluster.lcm) */
+    int n;
+    if (kind == SC_MSG_UNIT) {
+        sclcm_unit_t m;
+        memset(&m, 0, sizeof m);
+        n = sclcm_unit_t_decode(p, 0, (int)len, &m);
+        *w = (sc_msg_work){ m.frame, m.unit, m.wire, (size_t)len - WORK_HEAD };
+    } else {
+        sclcm_result_t m;
+        memset(&m, 0, sizeof m);
+        n = sclcm_result_t_decode(p, 0, (int)len, &m);
+        *w = (sc_msg_work){ m.frame, m.unit, m.result, (size_t)len - WORK_HEAD };
+    }
+    if (n != (int)len || !w->wire || w->unit < 0) {
+        sc_msg_work_free(w);
+        return SC_EFORMAT;
+    }
+    return SC_OK;
+}
+
+void sc_msg_work_free(sc_msg_work *w)
+{
+    if (w) {
+        free(w->wire);
+        memset(w, 0, sizeof *w);
+    }
+}
+
+/* ---- key files ---- */
+
+int sc_key_generate(const char *path)
+{
+    if (!path)
+        return SC_EINVAL;
+    if (sodium_init() < 0)
+        return SC_EIO;
+    uint8_t key[SC_KEY_BYTES];
+    char hex[2 * SC_KEY_BYTES + 1];
+    randombytes_buf(key, sizeof key);
+    sodium_bin2hex(hex, sizeof hex, key, sizeof key);
+    hex[2 * SC_KEY_BYTES] = '\n';
+    sodium_memzero(key, sizeof key);
+    /* O_EXCL: never replaces a key (or follows a link planted in its place) */
+    int fd = open(path, O_WRONLY | O_CREAT | O_EXCL | O_CLOEXEC, 0600);
+    int rc = fd < 0 ? SC_EIO : SC_OK;
+    if (fd >= 0) {
+        size_t done = 0;
+        while (rc == SC_OK && done < sizeof hex) {
+            ssize_t w = write(fd, hex + done, sizeof hex - done);
+            if (w > 0)
+                done += (size_t)w;
+            else if (w < 0 && errno != EINTR)
+                rc = SC_EIO;
+        }
+        if (rc == SC_OK && fsync(fd) != 0)
+            rc = SC_EIO;
+        if (close(fd) != 0)
+            rc = SC_EIO;
+        if (rc != SC_OK)
+            unlink(path);
+    }
+    sodium_memzero(hex, sizeof hex);
+    return rc;
+}
+
+static int hexval(char c)
+{
+    return c >= '0' && c <= '9' ? c - '0'
+         : c >= 'a' && c <= 'f' ? c - 'a' + 10
+         : c >= 'A' && c <= 'F' ? c - 'A' + 10 : -1;
+}
+
+int sc_key_load(const char *path, uint8_t key[SC_KEY_BYTES])
+{
+    if (!path || !key)
+        return SC_EINVAL;
+    int fd = open(path, O_RDONLY | O_NOFOLLOW | O_CLOEXEC);
+    if (fd < 0)
+        return SC_EIO;
+    struct stat st;
+    char text[2 * SC_KEY_BYTES + 2];    /* the digits, a newline, and one more to see excess */
+    size_t n = 0;
+    int rc = fstat(fd, &st) != 0 || !S_ISREG(st.st_mode) ? SC_EIO
+           : st.st_mode & (S_IRWXG | S_IRWXO) ? SC_EPERM : SC_OK;
+    while (rc == SC_OK && n < sizeof text) {
+        ssize_t r = read(fd, text + n, sizeof text - n);
+        if (r > 0)
+            n += (size_t)r;
+        else if (r == 0)
+            break;
+        else if (errno != EINTR)
+            rc = SC_EIO;
+    }
+    close(fd);
+    uint8_t k[SC_KEY_BYTES];
+    if (rc == SC_OK && !(n == 2 * SC_KEY_BYTES ||
+                         (n == 2 * SC_KEY_BYTES + 1 && text[2 * SC_KEY_BYTES] == '\n')))
+        rc = SC_EFORMAT;
+    for (int i = 0; rc == SC_OK && i < SC_KEY_BYTES; i++) {
+        int hi = hexval(text[2 * i]), lo = hexval(text[2 * i + 1]);
+        if (hi < 0 || lo < 0)
+            rc = SC_EFORMAT;
+        else
+            k[i] = (uint8_t)(hi << 4 | lo);
+    }
+    if (rc == SC_OK)
+        memcpy(key, k, sizeof k);
+    sodium_memzero(k, sizeof k);
+    sodium_memzero(text, sizeof text);
+    return rc;
+}

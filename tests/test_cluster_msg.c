@@ -1,0 +1,420 @@
+/* test_cluster_msg.c - sealed cluster messages (lib/cluster_msg.c): what is
+ * sealed opens to the same node, seq, kind and payload; a changed bit, a
+ * wrong key, a truncation, a lying length field or a replay is refused with
+ * the documented code and counted; payloads and key files round-trip and
+ * bad ones are refused. (Internal API: lib/cluster_msg.h.) */
+#include <setjmp.h>
+#include <stdarg.h>
+#include <stddef.h>
+#include <stdint.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <sys/stat.h>
+#include <unistd.h>
+#include <cmocka.h>
+
+#include "cluster_msg.h"
+#include "sc_internal.h"
+
+static const uint8_t key[SC_KEY_BYTES] = "0123456789abcdef0123456789abcde";
+
+static sc_msg_announce sample_announce(void)
+{
+    sc_msg_announce a = { .node = 42, .cores = 16, .speed = 1234.5, .idle_fraction = 0.75,
+                          .owner_busy = 1, .version = SC_MSG_VERSION, .time_us = 1700000000000000 };
+    strcpy(a.host, "ws-17.lab");
+    return a;
+}
+
+/* An announce sealed by node 42 as message seq. */
+static uint8_t *sealed_announce(int64_t seq, size_t *n)
+{
+    sc_msg_announce a = sample_announce();
+    uint8_t *pl, *env;
+    size_t pn;
+    assert_int_equal(sc_msg_announce_encode(&a, &pl, &pn), SC_OK);
+    assert_int_equal(sc_msg_seal(key, 42, seq, SC_MSG_ANNOUNCE, pl, pn, &env, n), SC_OK);
+    free(pl);
+    return env;
+}
+
+static int open_once(const uint8_t *buf, size_t n, const uint8_t *k)
+{
+    sc_msg_guard g = { 0 };
+    sc_msg m;
+    int rc = sc_msg_open(k, &g, buf, n, &m);
+    sc_msg_free(&m);
+    return rc;
+}
+
+static void test_announce_round_trips_through_a_sealed_envelope(void **state)
+{
+    (void)state;
+    size_t n;
+    uint8_t *env = sealed_announce(7, &n);
+    sc_msg_guard g = { 0 };
+    sc_msg m;
+    assert_int_equal(sc_msg_open(key, &g, env, n, &m), SC_OK);
+    assert_int_equal(m.node, 42);
+    assert_int_equal(m.seq, 7);
+    assert_int_equal(m.kind, SC_MSG_ANNOUNCE);
+    assert_int_equal(n, SC_MSG_OVERHEAD + m.len);
+    sc_msg_announce a = sample_announce(), b;
+    assert_int_equal(sc_msg_announce_decode(m.payload, m.len, &b), SC_OK);
+    assert_int_equal(b.node, a.node);
+    assert_string_equal(b.host, a.host);
+    assert_int_equal(b.cores, a.cores);
+    assert_true(b.speed == a.speed && b.idle_fraction == a.idle_fraction);
+    assert_int_equal(b.owner_busy, 1);
+    assert_int_equal(b.version, SC_MSG_VERSION);
+    assert_int_equal(b.time_us, a.time_us);
+    assert_int_equal(g.accepted, 1);
+    assert_int_equal(g.dropped_format + g.dropped_auth + g.dropped_replay, 0);
+    sc_msg_free(&m);
+    sc_msg_free(&m);                    /* twice is harmless */
+    free(env);
+}
+
+static void test_unit_and_result_round_trip_and_are_told_apart(void **state)
+{
+    (void)state;
+    uint8_t wire[1000];
+    for (size_t i = 0; i < sizeof wire; i++)
+        wire[i] = (uint8_t)(i * 37 + 11);
+    sc_msg_work w = { .frame = 123456789012, .unit = 17, .wire = wire, .len = sizeof wire };
+    for (int kind = SC_MSG_UNIT; kind <= SC_MSG_RESULT; kind++) {
+        uint8_t *pl, *env;
+        size_t pn, n;
+        assert_int_equal(sc_msg_work_encode(kind, &w, &pl, &pn), SC_OK);
+        assert_int_equal(sc_msg_seal(key, 3, 1, kind, pl, pn, &env, &n), SC_OK);
+        sc_msg_guard g = { 0 };
+        sc_msg m;
+        assert_int_equal(sc_msg_open(key, &g, env, n, &m), SC_OK);
+        assert_int_equal(m.kind, kind);
+        sc_msg_work r;
+        assert_int_equal(sc_msg_work_decode(kind, m.payload, m.len, &r), SC_OK);
+        assert_int_equal(r.frame, w.frame);
+        assert_int_equal(r.unit, 17);
+        assert_int_equal(r.len, sizeof wire);
+        assert_memory_equal(r.wire, wire, sizeof wire);
+        sc_msg_work_free(&r);
+        /* the LCM fingerprint: a unit_t is not a result_t, nor an announce_t */
+        int other = kind == SC_MSG_UNIT ? SC_MSG_RESULT : SC_MSG_UNIT;
+        assert_int_equal(sc_msg_work_decode(other, m.payload, m.len, &r), SC_EFORMAT);
+        assert_null(r.wire);
+        sc_msg_announce a;
+        assert_int_equal(sc_msg_announce_decode(m.payload, m.len, &a), SC_EFORMAT);
+        sc_msg_free(&m);
+        free(env);
+        free(pl);
+    }
+}
+
+static void test_every_flipped_bit_is_refused(void **state)
+{
+    (void)state;
+    size_t n;
+    uint8_t *env = sealed_announce(1, &n);
+    assert_int_equal(open_once(env, n, key), SC_OK);
+    for (size_t bit = 0; bit < 8 * n; bit++) {
+        env[bit / 8] ^= (uint8_t)(1u << bit % 8);
+        int rc = open_once(env, n, key);
+        assert_true(rc == SC_EFORMAT || rc == SC_EAUTH);
+        env[bit / 8] ^= (uint8_t)(1u << bit % 8);
+    }
+    free(env);
+}
+
+static void test_a_wrong_key_is_an_auth_failure(void **state)
+{
+    (void)state;
+    size_t n;
+    uint8_t *env = sealed_announce(1, &n);
+    uint8_t other[SC_KEY_BYTES];
+    memcpy(other, key, sizeof other);
+    other[31] ^= 1;
+    sc_msg_guard g = { 0 };
+    sc_msg m;
+    assert_int_equal(sc_msg_open(other, &g, env, n, &m), SC_EAUTH);
+    assert_null(m.payload);
+    assert_int_equal(g.dropped_auth, 1);
+    assert_int_equal(g.accepted, 0);
+    free(env);
+}
+
+/* Seal an announce as seq and open it with g. */
+static int open_seq(sc_msg_guard *g, int64_t node, int64_t seq)
+{
+    sc_msg_announce a = sample_announce();
+    uint8_t *pl, *env;
+    size_t pn, n;
+    assert_int_equal(sc_msg_announce_encode(&a, &pl, &pn), SC_OK);
+    assert_int_equal(sc_msg_seal(key, node, seq, SC_MSG_ANNOUNCE, pl, pn, &env, &n), SC_OK);
+    sc_msg m;
+    int rc = sc_msg_open(key, g, env, n, &m);
+    sc_msg_free(&m);
+    free(env);
+    free(pl);
+    return rc;
+}
+
+static void test_replays_are_refused_within_and_behind_the_window(void **state)
+{
+    (void)state;
+    sc_msg_guard g = { 0 };
+    assert_int_equal(open_seq(&g, 5, 100), SC_OK);
+    assert_int_equal(open_seq(&g, 5, 100), SC_EAUTH);     /* the same message again */
+    assert_int_equal(open_seq(&g, 5, 90), SC_OK);         /* late, inside the window: once */
+    assert_int_equal(open_seq(&g, 5, 90), SC_EAUTH);
+    assert_int_equal(open_seq(&g, 5, 100 - (SC_MSG_WINDOW - 1)), SC_OK);
+    assert_int_equal(open_seq(&g, 5, 100 - SC_MSG_WINDOW), SC_EAUTH);   /* too old */
+    assert_int_equal(open_seq(&g, 6, 100), SC_OK);        /* another sender has its own */
+    assert_int_equal(open_seq(&g, 5, 101), SC_OK);
+    assert_int_equal(open_seq(&g, 5, 90), SC_EAUTH);      /* still remembered after a shift */
+    assert_int_equal(open_seq(&g, 5, 1000), SC_OK);       /* a jump clears the window */
+    assert_int_equal(open_seq(&g, 5, 999), SC_OK);
+    assert_int_equal(open_seq(&g, 5, 101), SC_EAUTH);
+    assert_int_equal(g.accepted, 7);
+    assert_int_equal(g.dropped_replay, 5);
+    assert_int_equal(g.dropped_auth + g.dropped_format, 0);
+}
+
+static void test_the_stalest_sender_is_forgotten_when_the_table_is_full(void **state)
+{
+    (void)state;
+    sc_msg_guard g = { 0 };
+    for (int node = 0; node < SC_MSG_SENDERS; node++)
+        assert_int_equal(open_seq(&g, node, 10), SC_OK);
+    assert_int_equal(open_seq(&g, 0, 11), SC_OK);         /* node 0 is now the freshest */
+    assert_int_equal(open_seq(&g, 1000, 1), SC_OK);       /* evicts node 1 */
+    assert_int_equal(open_seq(&g, 0, 10), SC_EAUTH);
+    assert_int_equal(open_seq(&g, 2, 10), SC_EAUTH);
+    /* the documented limit: a forgotten sender starts afresh */
+    assert_int_equal(open_seq(&g, 1, 10), SC_OK);
+}
+
+static void test_every_truncation_and_extension_is_a_format_error(void **state)
+{
+    (void)state;
+    size_t n;
+    uint8_t *env = sealed_announce(1, &n);
+    sc_msg_guard g = { 0 };
+    sc_msg m;
+    for (size_t k = 0; k < n; k++) {
+        uint8_t *cut = malloc(k ? k : 1);       /* exact size, for ASan */
+        memcpy(cut, env, k);
+        assert_int_equal(sc_msg_open(key, &g, cut, k, &m), SC_EFORMAT);
+        assert_null(m.payload);
+        free(cut);
+    }
+    uint8_t *longer = calloc(n + 1, 1);
+    memcpy(longer, env, n);
+    assert_int_equal(sc_msg_open(key, &g, longer, n + 1, &m), SC_EFORMAT);
+    assert_int_equal(sc_msg_open(key, &g, NULL, 100, &m), SC_EFORMAT);
+    assert_int_equal(g.dropped_format, (long)n + 2);
+    assert_int_equal(g.accepted + g.dropped_auth + g.dropped_replay, 0);
+    free(longer);
+    free(env);
+}
+
+static void put_be32(uint8_t *p, uint32_t v)
+{
+    for (int i = 0; i < 4; i++)
+        p[i] = (uint8_t)(v >> (24 - 8 * i));
+}
+
+static void test_lying_length_fields_are_format_errors(void **state)
+{
+    (void)state;
+    size_t n;
+    uint8_t *env = sealed_announce(1, &n);
+    static const uint32_t lies[] = { 0x7fffffffu, 0xffffffffu, 0x80000000u, 0, 1, 8 };
+    sc_msg_guard g = { 0 };
+    sc_msg m;
+    for (size_t i = 0; i < sizeof lies / sizeof lies[0]; i++) {
+        uint8_t *bad = malloc(n);
+        memcpy(bad, env, n);
+        put_be32(bad + 28, lies[i]);            /* envelope_t.len */
+        assert_int_equal(sc_msg_open(key, &g, bad, n, &m), SC_EFORMAT);
+        free(bad);
+    }
+    assert_int_equal(g.dropped_format, 6);
+    /* more than SC_MSG_MAX_BYTES, whatever it says */
+    size_t big = SC_MSG_MAX_BYTES + 1;
+    uint8_t *huge = calloc(big, 1);
+    put_be32(huge + 28, (uint32_t)(big - SC_MSG_OVERHEAD));
+    assert_int_equal(sc_msg_open(key, &g, huge, big, &m), SC_EFORMAT);
+    free(huge);
+    /* payload lengths: the announce's host string, the unit's wire bytes */
+    sc_msg_announce a = sample_announce(), b;
+    uint8_t *pl;
+    size_t pn;
+    assert_int_equal(sc_msg_announce_encode(&a, &pl, &pn), SC_OK);
+    for (size_t i = 0; i < sizeof lies / sizeof lies[0]; i++) {
+        put_be32(pl + 16, lies[i]);
+        assert_int_equal(sc_msg_announce_decode(pl, pn, &b), SC_EFORMAT);
+    }
+    put_be32(pl + 16, (uint32_t)strlen(a.host) + 1);
+    assert_int_equal(sc_msg_announce_decode(pl, pn, &b), SC_OK);
+    pl[20 + strlen(a.host)] = 'x';              /* no NUL */
+    assert_int_equal(sc_msg_announce_decode(pl, pn, &b), SC_EFORMAT);
+    pl[20 + strlen(a.host)] = 0;
+    pl[22] = 0;                                 /* a NUL inside */
+    assert_int_equal(sc_msg_announce_decode(pl, pn, &b), SC_EFORMAT);
+    free(pl);
+    uint8_t wire[16] = { 1 };
+    sc_msg_work w = { .frame = 1, .unit = 2, .wire = wire, .len = sizeof wire }, r;
+    assert_int_equal(sc_msg_work_encode(SC_MSG_UNIT, &w, &pl, &pn), SC_OK);
+    for (size_t i = 0; i < sizeof lies / sizeof lies[0]; i++) {
+        put_be32(pl + 20, lies[i]);
+        assert_int_equal(sc_msg_work_decode(SC_MSG_UNIT, pl, pn, &r), SC_EFORMAT);
+        assert_null(r.wire);
+    }
+    put_be32(pl + 20, sizeof wire);
+    assert_int_equal(sc_msg_work_decode(SC_MSG_UNIT, pl, pn, &r), SC_OK);
+    sc_msg_work_free(&r);
+    for (size_t k = 0; k < pn; k++)
+        assert_int_equal(sc_msg_work_decode(SC_MSG_UNIT, pl, k, &r), SC_EFORMAT);
+    free(pl);
+    free(env);
+}
+
+/* Write d big-endian at p (an LCM double). */
+static void put_bed(uint8_t *p, double d)
+{
+    uint64_t u;
+    memcpy(&u, &d, sizeof u);
+    for (int i = 0; i < 8; i++)
+        p[i] = (uint8_t)(u >> (56 - 8 * i));
+}
+
+static void test_announce_values_are_validated_both_ways(void **state)
+{
+    (void)state;
+    uint8_t *pl;
+    size_t pn;
+    sc_msg_announce a = sample_announce(), b;
+    a.idle_fraction = 1.5;
+    assert_int_equal(sc_msg_announce_encode(&a, &pl, &pn), SC_EINVAL);
+    a = sample_announce();
+    a.speed = NAN;
+    assert_int_equal(sc_msg_announce_encode(&a, &pl, &pn), SC_EINVAL);
+    a = sample_announce();
+    a.cores = 0;
+    assert_int_equal(sc_msg_announce_encode(&a, &pl, &pn), SC_EINVAL);
+    a.cores = 4097;
+    assert_int_equal(sc_msg_announce_encode(&a, &pl, &pn), SC_EINVAL);
+    a = sample_announce();
+    memset(a.host, 'h', sizeof a.host);          /* no room for the NUL */
+    assert_int_equal(sc_msg_announce_encode(&a, &pl, &pn), SC_EINVAL);
+    /* a well-formed encoding with values out of range */
+    a = sample_announce();
+    assert_int_equal(sc_msg_announce_encode(&a, &pl, &pn), SC_OK);
+    size_t idle = 20 + strlen(a.host) + 1 + 2 + 8;
+    static const double bad[] = { 2.0, -0.5, NAN, INFINITY };
+    for (size_t i = 0; i < 4; i++) {
+        put_bed(pl + idle, bad[i]);
+        assert_int_equal(sc_msg_announce_decode(pl, pn, &b), SC_EFORMAT);
+    }
+    put_bed(pl + idle, 0.25);
+    assert_int_equal(sc_msg_announce_decode(pl, pn, &b), SC_OK);
+    assert_true(b.idle_fraction == 0.25);
+    pl[idle + 8] = 2;                           /* owner_busy neither 0 nor 1 */
+    assert_int_equal(sc_msg_announce_decode(pl, pn, &b), SC_EFORMAT);
+    free(pl);
+}
+
+static void test_seal_refuses_bad_arguments(void **state)
+{
+    (void)state;
+    uint8_t pl[16] = { 0 }, *env;
+    size_t n;
+    assert_int_equal(sc_msg_seal(key, 1, 1, 0, pl, sizeof pl, &env, &n), SC_EINVAL);
+    assert_int_equal(sc_msg_seal(key, 1, 1, 99, pl, sizeof pl, &env, &n), SC_EINVAL);
+    assert_int_equal(sc_msg_seal(key, 1, -1, SC_MSG_UNIT, pl, sizeof pl, &env, &n), SC_EINVAL);
+    assert_int_equal(sc_msg_seal(key, 1, 1, SC_MSG_UNIT, pl, 4, &env, &n), SC_EINVAL);
+    assert_int_equal(sc_msg_seal(key, 1, 1, SC_MSG_UNIT, pl, SC_MSG_MAX_PAYLOAD + 1, &env, &n),
+                     SC_EINVAL);
+    assert_int_equal(sc_msg_seal(NULL, 1, 1, SC_MSG_UNIT, pl, sizeof pl, &env, &n), SC_EINVAL);
+}
+
+static void write_file(const char *path, const char *text, mode_t mode)
+{
+    FILE *f = fopen(path, "w");
+    assert_non_null(f);
+    fputs(text, f);
+    fclose(f);
+    assert_int_equal(chmod(path, mode), 0);
+}
+
+static void test_key_files_round_trip_and_bad_ones_are_refused(void **state)
+{
+    (void)state;
+    char dir[] = "/tmp/sc_key_XXXXXX", path[64], other[64];
+    assert_non_null(mkdtemp(dir));
+    snprintf(path, sizeof path, "%s/key", dir);
+    snprintf(other, sizeof other, "%s/other", dir);
+    uint8_t k1[SC_KEY_BYTES], k2[SC_KEY_BYTES];
+    assert_int_equal(sc_key_load(path, k1), SC_EIO);            /* missing */
+    assert_int_equal(sc_key_generate(path), SC_OK);
+    struct stat st;
+    assert_int_equal(stat(path, &st), 0);
+    assert_int_equal(st.st_mode & 0777, 0600);
+    assert_int_equal(st.st_size, 2 * SC_KEY_BYTES + 1);
+    assert_int_equal(sc_key_load(path, k1), SC_OK);
+    assert_int_equal(sc_key_generate(path), SC_EIO);            /* never overwritten */
+    assert_int_equal(sc_key_load(path, k2), SC_OK);
+    assert_memory_equal(k1, k2, sizeof k1);
+    assert_int_equal(sc_key_generate(other), SC_OK);            /* random: another key */
+    assert_int_equal(sc_key_load(other, k2), SC_OK);
+    assert_memory_not_equal(k1, k2, sizeof k1);
+    assert_int_equal(chmod(path, 0644), 0);
+    assert_int_equal(sc_key_load(path, k2), SC_EPERM);
+    assert_int_equal(chmod(path, 0620), 0);
+    assert_int_equal(sc_key_load(path, k2), SC_EPERM);
+    assert_int_equal(chmod(path, 0400), 0);
+    assert_int_equal(sc_key_load(path, k2), SC_OK);             /* read-only is fine */
+    assert_memory_equal(k1, k2, sizeof k1);
+    static const char *garbage[] = {
+        "",
+        "00112233445566778899aabbccddeeff00112233445566778899aabbccddeef\n",      /* 63 */
+        "00112233445566778899aabbccddeeff00112233445566778899aabbccddeeffa\n",    /* 65 */
+        "00112233445566778899aabbccddeeff00112233445566778899aabbccddeefg\n",
+        "00112233445566778899aabbccddeeff00112233445566778899aabbccddeeff\n\n",
+        "00112233445566778899aabbccddeeff00112233445566778899aabbccddeeff ",
+    };
+    for (size_t i = 0; i < sizeof garbage / sizeof garbage[0]; i++) {
+        unlink(other);
+        write_file(other, garbage[i], 0600);
+        assert_int_equal(sc_key_load(other, k2), SC_EFORMAT);
+    }
+    unlink(other);
+    write_file(other, "00112233445566778899AABBCCDDEEFF00112233445566778899aabbccddeeff", 0600);
+    assert_int_equal(sc_key_load(other, k2), SC_OK);            /* no newline, upper case */
+    assert_int_equal(k2[10], 0xaa);
+    assert_int_equal(sc_key_load(dir, k2), SC_EIO);             /* not a file */
+    assert_int_equal(sc_key_load(NULL, k2), SC_EINVAL);
+    assert_int_equal(sc_key_generate(NULL), SC_EINVAL);
+    unlink(other);
+    unlink(path);
+    assert_int_equal(rmdir(dir), 0);
+}
+
+int main(void)
+{
+    const struct CMUnitTest tests[] = {
+        cmocka_unit_test(test_announce_round_trips_through_a_sealed_envelope),
+        cmocka_unit_test(test_unit_and_result_round_trip_and_are_told_apart),
+        cmocka_unit_test(test_every_flipped_bit_is_refused),
+        cmocka_unit_test(test_a_wrong_key_is_an_auth_failure),
+        cmocka_unit_test(test_replays_are_refused_within_and_behind_the_window),
+        cmocka_unit_test(test_the_stalest_sender_is_forgotten_when_the_table_is_full),
+        cmocka_unit_test(test_every_truncation_and_extension_is_a_format_error),
+        cmocka_unit_test(test_lying_length_fields_are_format_errors),
+        cmocka_unit_test(test_announce_values_are_validated_both_ways),
+        cmocka_unit_test(test_seal_refuses_bad_arguments),
+        cmocka_unit_test(test_key_files_round_trip_and_bad_ones_are_refused),
+    };
+    return cmocka_run_group_tests(tests, NULL, NULL);
+}
