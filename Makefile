@@ -143,10 +143,11 @@ fuzz:
 
 check: deps
 	$(Q)$(MAKE) --no-print-directory all $(TEST_BIN) $(FUZZ_REPLAY)
-	$(Q)$(MAKE) --no-print-directory SAN=1 lib $(TEST_BIN:$(BUILD)/%=build-san/%) $(FUZZ_REPLAY:$(BUILD)/%=build-san/%)
+	$(Q)$(MAKE) --no-print-directory SAN=1 lib $(TEST_BIN:$(BUILD)/%=build-san/%) $(FUZZ_REPLAY:$(BUILD)/%=build-san/%) \
+	    $(TOOL_BIN:$(BUILD)/%=build-san/%)
 	$(Q)sh tests/run.sh $(BUILD) build-san
 
-check-run: $(TEST_BIN) $(FUZZ_REPLAY)
+check-run: $(TEST_BIN) $(FUZZ_REPLAY) $(TOOL_BIN)
 	$(Q)sh tests/run.sh $(BUILD)
 
 demo: deps

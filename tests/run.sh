@@ -44,6 +44,9 @@ for build in "$@"; do
         count "$r" $?
         echo "  $(basename "$r"): $(tail -n 1 "$log")"
     done
+    sh tests/tools.sh "$build" >"$log" 2>&1
+    count "tools ($build)" $?
+    echo "  $(tail -n 1 "$log")"
 done
 
 echo "== static analysis (cppcheck)"
