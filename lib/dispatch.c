@@ -79,9 +79,8 @@ static int pair_units(sc_world *w, sc_job *job, int nnodes)
  * floor) share a unit up to that many contacts, each still solved on its
  * own, so that a thousand tiny islands are not a thousand units to cost,
  * sort, time and learn from. Grouping does not depend on the nodes. */
-static int island_units(sc_world *w, sc_job *job, int nnodes)
+static int island_units(sc_world *w, sc_job *job)
 {
-    (void)nnodes;    /* grouping does not depend on the nodes */
     const sc_islands *is = job->islands;
     int rc = grow_units(w, is->count);
     if (rc != SC_OK)
@@ -131,7 +130,7 @@ int sc_job_run(sc_world *w, sc_job *job, int stage)
     int nnodes = w->inline_np ? 1 : top->nnodes;
     int rc = SC_OK;
     if (job->kind == SC_UNIT_ISLAND)
-        rc = island_units(w, job, nnodes);
+        rc = island_units(w, job);
     else if (job->kind != SC_UNIT_GROUP)    /* group units come made */
         rc = pair_units(w, job, nnodes);
     if (rc != SC_OK)

@@ -55,11 +55,8 @@ static int may_meet(const sc_world *w, int a, int b, double dt)
     return gap < close;
 }
 
-static int grow_scratch(sc_world *w, int n)
+void sc_group_scratch_free(sc_world *w)
 {
-    if (n <= w->gcap)
-        return SC_OK;
-    int cap = n > 2 * w->gcap ? n : 2 * w->gcap;
     free(w->gcentre);
     free(w->gradius);
     free(w->gactive);
@@ -69,6 +66,15 @@ static int grow_scratch(sc_world *w, int n)
     free(w->gid);
     free(w->statics);
     free(w->gcstart);
+    w->gcap = 0;
+}
+
+static int grow_scratch(sc_world *w, int n)
+{
+    if (n <= w->gcap)
+        return SC_OK;
+    int cap = n > 2 * w->gcap ? n : 2 * w->gcap;
+    sc_group_scratch_free(w);
     w->gcentre = sc_alloc_array((size_t)cap * 3, sizeof *w->gcentre);
     w->gradius = sc_alloc_array((size_t)cap, sizeof *w->gradius);
     w->gactive = sc_alloc_array((size_t)cap, sizeof *w->gactive);

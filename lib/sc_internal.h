@@ -464,6 +464,8 @@ int sc_groups_step(sc_world *w, double dt);
 /* Run GROUP unit u (group.c; called by sc_unit_run). */
 int sc_group_unit_run(sc_np_ctx *np, const sc_job *job, const sc_unit *u);
 void sc_world_scratch_free(void *sub);
+/* Free the per-body group arrays (gcentre .. gcstart) of w. */
+void sc_group_scratch_free(struct sc_world *w);
 
 /* ---- the world (world.c) and its frame (detect.c, integrate.c, step.c,
  * state.c) ---- */

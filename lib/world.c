@@ -116,16 +116,8 @@ void sc_world_scratch_free(void *world)
     if (!w)
         return;
     sc_bp_destroy(w->gbp);
-    free(w->gcentre);
-    free(w->gradius);
-    free(w->gactive);
-    free(w->gparent);
-    free(w->gstart);
-    free(w->gmembers);
-    free(w->gid);
-    free(w->gcstart);
+    sc_group_scratch_free(w);
     free(w->gcontacts);
-    free(w->statics);
     free(w->gpairs);
     free(w->gout);
     free(w->sub_ids);
