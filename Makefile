@@ -11,6 +11,7 @@ DESTDIR ?=
 LIBDIR  ?= $(PREFIX)/lib
 INCDIR  ?= $(PREFIX)/include
 BINDIR  ?= $(PREFIX)/bin
+SBINDIR ?= $(PREFIX)/sbin
 MANDIR  ?= $(PREFIX)/share/man
 PCDIR   ?= $(LIBDIR)/pkgconfig
 
@@ -58,6 +59,8 @@ EX_SRC    := $(sort $(wildcard examples/*.c))
 EX_BIN    := $(EX_SRC:%.c=$(BUILD)/%)
 TOOL_SRC  := $(sort $(wildcard tools/*.c))
 TOOL_BIN  := $(TOOL_SRC:tools/%.c=$(BUILD)/tools/%)
+DAEMON_SRC := $(sort $(wildcard daemon/*.c))
+DAEMON_BIN := $(if $(DAEMON_SRC),$(BUILD)/daemon/simclusterd)
 BENCH_SRC := $(sort $(wildcard bench/*.c))
 BENCH_BIN := $(BENCH_SRC:%.c=$(BUILD)/%)
 FUZZ_SRC  := $(sort $(wildcard tests/fuzz/fuzz_*.c))
@@ -67,7 +70,7 @@ STATIC := $(BUILD)/libsimcluster.a
 SHARED := $(BUILD)/libsimcluster.so.$(VERSION)
 
 .PHONY: all lib deps check check-run demo bench install uninstall clean lint-man test-install fuzz
-all: lib $(EX_BIN) $(TOOL_BIN) $(BENCH_BIN)
+all: lib $(EX_BIN) $(TOOL_BIN) $(DAEMON_BIN) $(BENCH_BIN)
 lib: $(STATIC) $(SHARED)
 
 deps:
@@ -125,6 +128,12 @@ $(BUILD)/tools/%: tools/%.c $(STATIC)
 	@$(if $(Q),echo "  TOOL    $@")
 	$(Q)$(CC) $(CPPFLAGS) $(CFLAGS) $< -o $@ $(LDFLAGS) $(STATIC) $(LIBS)
 
+# simclusterd(8): every daemon/*.c into one program.
+$(BUILD)/daemon/simclusterd: $(DAEMON_SRC) $(wildcard include/*.h lib/*.h) $(STATIC)
+	@mkdir -p $(dir $@)
+	@$(if $(Q),echo "  DAEMON  $@")
+	$(Q)$(CC) $(CPPFLAGS) $(CFLAGS) $(DAEMON_SRC) -o $@ $(LDFLAGS) $(STATIC) $(LIBS)
+
 $(BUILD)/bench/%: bench/%.c $(wildcard bench/*.h) $(STATIC)
 	@mkdir -p $(dir $@)
 	@$(if $(Q),echo "  BENCH   $@")
@@ -144,10 +153,10 @@ fuzz:
 check: deps
 	$(Q)$(MAKE) --no-print-directory all $(TEST_BIN) $(FUZZ_REPLAY)
 	$(Q)$(MAKE) --no-print-directory SAN=1 lib $(TEST_BIN:$(BUILD)/%=build-san/%) $(FUZZ_REPLAY:$(BUILD)/%=build-san/%) \
-	    $(TOOL_BIN:$(BUILD)/%=build-san/%)
+	    $(TOOL_BIN:$(BUILD)/%=build-san/%) $(DAEMON_BIN:$(BUILD)/%=build-san/%)
 	$(Q)sh tests/run.sh $(BUILD) build-san
 
-check-run: $(TEST_BIN) $(FUZZ_REPLAY) $(TOOL_BIN)
+check-run: $(TEST_BIN) $(FUZZ_REPLAY) $(TOOL_BIN) $(DAEMON_BIN)
 	$(Q)sh tests/run.sh $(BUILD)
 
 demo: deps
@@ -166,7 +175,7 @@ $(BUILD)/simcluster.pc: simcluster.pc.in Makefile
 	    -e 's|@INCDIR@|$(patsubst $(PREFIX)%,$${prefix}%,$(INCDIR))|' \
 	    -e 's|@VERSION@|$(VERSION)|' $< > $(BUILD)/simcluster.pc
 
-install: lib $(TOOL_BIN) $(BUILD)/simcluster.pc
+install: lib $(TOOL_BIN) $(DAEMON_BIN) $(BUILD)/simcluster.pc
 	install -d $(DESTDIR)$(LIBDIR) $(DESTDIR)$(INCDIR) $(DESTDIR)$(PCDIR) $(DESTDIR)$(BINDIR)
 	install -m 644 $(STATIC) $(DESTDIR)$(LIBDIR)/
 	install -m 755 $(SHARED) $(DESTDIR)$(LIBDIR)/
@@ -175,12 +184,13 @@ install: lib $(TOOL_BIN) $(BUILD)/simcluster.pc
 	install -m 644 include/simcluster.h $(DESTDIR)$(INCDIR)/
 	install -m 644 $(BUILD)/simcluster.pc $(DESTDIR)$(PCDIR)/
 	$(if $(TOOL_BIN),install -m 755 $(TOOL_BIN) $(DESTDIR)$(BINDIR)/)
+	$(if $(DAEMON_BIN),install -d $(DESTDIR)$(SBINDIR) && install -m 755 $(DAEMON_BIN) $(DESTDIR)$(SBINDIR)/)
 	for m in man/*.[1-8]; do s=$${m##*.}; install -d $(DESTDIR)$(MANDIR)/man$$s; \
 	    install -m 644 $$m $(DESTDIR)$(MANDIR)/man$$s/; done
 
 uninstall:
 	rm -f $(DESTDIR)$(LIBDIR)/libsimcluster.* $(DESTDIR)$(INCDIR)/simcluster.h \
-	      $(DESTDIR)$(PCDIR)/simcluster.pc
+	      $(DESTDIR)$(PCDIR)/simcluster.pc $(DESTDIR)$(SBINDIR)/simclusterd
 	for m in man/*.[1-8]; do rm -f $(DESTDIR)$(MANDIR)/man$${m##*.}/$${m##*/}; done
 
 clean:

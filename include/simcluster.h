@@ -151,12 +151,22 @@ typedef struct sc_world sc_world;
 enum { SC_BROADPHASE_AUTO, SC_BROADPHASE_SPHERES, SC_BROADPHASE_SAP };
 
 #define SC_MAX_WORKERS 64
+/* Daemons a world uses at most, and the default cluster URL: LCM UDP
+ * multicast (udpm; why not mpudpm: README, simclusterd(8)); ttl=0 keeps it
+ * on this host, ttl=1 reaches the local network. */
+#define SC_MAX_DAEMONS 64
+#define SC_CLUSTER_URL "udpm://239.255.76.67:7667?ttl=0&recv_buf_size=4194304"
 typedef struct sc_world_config {
     double gravity[3];        /* default {0, 0, -9.81} */
     int workers;              /* local threads (the caller's included), at most
                                  SC_MAX_WORKERS; 0 = number of online CPUs */
-    const char *cluster;      /* LCM URL of the daemons, NULL = local only */
-    const char *key_file;     /* shared cluster key */
+    const char *cluster;      /* LCM URL of the daemons (simclusterd(8)), e.g.
+                                 SC_CLUSTER_URL; NULL = local threads only */
+    const char *key_file;     /* shared cluster key (simcluster keygen); NULL
+                                 with a cluster = the all-zero insecure key */
+    double cluster_deadline_s; /* per job: results a daemon has not sent this
+                                 long after the local nodes finished are
+                                 recomputed locally; 0 = default 0.02 s */
     int broadphase;           /* SC_BROADPHASE_*; AUTO = spheres below 256 bodies */
     double contact_tol_m;     /* allowed penetration, default 1e-3 */
     int motion_groups;        /* 1: bodies that cannot meet within a frame step
@@ -228,6 +238,17 @@ typedef struct sc_stats {
                                  total work / total speed and the largest unit */
     double makespan_ratio;    /* makespan_s / makespan_bound_s (>= 1, 1 ideal);
                                  0 when there was no work */
+    /* the cluster (sc_world_config.cluster), last frame but daemons */
+    int daemons;              /* daemons heard from and not owner-busy, now */
+    int daemons_busy;         /* daemons that say their owner is busy, now */
+    long remote_units;        /* units whose result came from a daemon */
+    long recomputed_units;    /* units sent but recomputed locally (deadline) */
+    long late_results;        /* results that came after the deadline or twice
+                                 (ignored) */
+    long dropped_messages;    /* messages dropped: malformed, failed the MAC or
+                                 replayed (all frames) */
+    double comm_s;            /* wall seconds packing, sealing, sending and
+                                 receiving, last frame */
 } sc_stats;
 
 /* A new empty world; cfg NULL = defaults. NULL on error (sc_last_error()). */

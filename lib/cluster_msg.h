@@ -1,6 +1,6 @@
 /*
  * cluster_msg.h - the cluster's message layer (DESIGN.md section 6): sealed
- * envelopes (HMAC-SHA256 under a shared key, per-sender sequence numbers
+ * envelopes (HMAC-SHA-512/256 under a shared key, per-sender sequence numbers
  * checked against replay), the payloads they carry, and the key file.
  * The wire format is proto/simcluster.lcm, encoded by the C that lcm-gen
  * generates from it; nothing here depends on a transport.
@@ -11,11 +11,11 @@
 #include <stddef.h>
 #include <stdint.h>
 
-#define SC_MSG_VERSION 1
+#define SC_MSG_VERSION 2                    /* 2: HMAC-SHA-512/256, batches */
 #define SC_MSG_MAX_BYTES (8u << 20)        /* a whole envelope, at most */
 #define SC_MSG_OVERHEAD 64u                 /* envelope bytes besides the payload */
 #define SC_MSG_MAX_PAYLOAD (SC_MSG_MAX_BYTES - SC_MSG_OVERHEAD)
-#define SC_MSG_MAX_WIRE (SC_MSG_MAX_PAYLOAD - 24u)  /* unit_t / result_t bytes */
+#define SC_MSG_MAX_WIRE (SC_MSG_MAX_PAYLOAD - 28u)  /* unit_t / result_t bytes */
 #define SC_MSG_HOST_MAX 256                 /* host name bytes, with the NUL */
 #define SC_MSG_SENDERS 64                   /* senders a replay guard follows */
 #define SC_MSG_WINDOW 64                    /* seqs behind the highest still accepted */
@@ -82,6 +82,7 @@ typedef struct sc_msg_work {
     int unit;
     uint8_t *wire;              /* decoded: malloc'd (sc_msg_work_free) */
     size_t len;                 /* at most SC_MSG_MAX_WIRE */
+    int compute_us;             /* result_t: the daemon's thread time, >= 0 */
 } sc_msg_work;
 
 /* Encode a (validated) to *out, malloc'd, *len bytes: SC_OK, SC_EINVAL, SC_ENOMEM. */
@@ -92,6 +93,21 @@ int sc_msg_announce_decode(const void *buf, size_t len, sc_msg_announce *a);
 int sc_msg_work_encode(int kind, const sc_msg_work *w, uint8_t **out, size_t *len);
 int sc_msg_work_decode(int kind, const void *buf, size_t len, sc_msg_work *w);
 void sc_msg_work_free(sc_msg_work *w);
+/* A batch: the payload of a SC_MSG_UNIT or SC_MSG_RESULT envelope is one
+ * or more unit_t (result_t) encodings back to back. Decode the one at
+ * *off and move *off past it: SC_OK, SC_EFORMAT (then stop), SC_ENOMEM. */
+int sc_msg_work_next(int kind, const void *buf, size_t len, size_t *off, sc_msg_work *w);
+
+/* shape_request_t: the content hash asked for (16 bytes of payload). */
+int sc_msg_shape_request_encode(uint64_t hash, uint8_t **out, size_t *len);
+int sc_msg_shape_request_decode(const void *buf, size_t len, uint64_t *hash);
+/* shape_t: a shape's hashed content. Decoding rebuilds the shape (meshes
+ * are checked as sc_shape_mesh checks them) and checks that its content
+ * hash is the one the message carries: SC_OK with *out (one reference),
+ * SC_EFORMAT or SC_ENOMEM. */
+struct sc_shape;
+int sc_msg_shape_encode(const struct sc_shape *s, uint8_t **out, size_t *len);
+int sc_msg_shape_decode(const void *buf, size_t len, struct sc_shape **out);
 
 /* Write a new random key to path as 64 hex digits and a newline, mode 0600;
  * an existing file is never overwritten: SC_OK or SC_EIO. */

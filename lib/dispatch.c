@@ -5,6 +5,7 @@
 #include <limits.h>
 #include <stdlib.h>
 
+#include "cluster.h"
 #include "sc_internal.h"
 
 #define UNITS_PER_NODE 8      /* pair units per node and job (balance) */
@@ -132,7 +133,7 @@ int sc_job_run(sc_world *w, sc_job *job, int stage)
     if (job->kind == SC_UNIT_ISLAND)
         rc = island_units(w, job);
     else if (job->kind != SC_UNIT_GROUP)    /* group units come made */
-        rc = pair_units(w, job, nnodes);
+        rc = pair_units(w, job, w->inline_np ? 1 : top->nlocal + top->stats.daemons);
     if (rc != SC_OK)
         return rc;
     if (job->nunits == 0)
@@ -143,6 +144,8 @@ int sc_job_run(sc_world *w, sc_job *job, int stage)
     sc_node **nodes = top->nodes;
     rc = sc_sched_assign(s, nodes, job->units, job->nunits);
     if (rc != SC_OK)
+        return rc;
+    if (top->cluster && (rc = sc_cluster_begin(top->cluster, job)) != SC_OK)
         return rc;
     double t1 = sc_wall_now();
     /* every list is in place before any node can look for more */
@@ -161,6 +164,8 @@ int sc_job_run(sc_world *w, sc_job *job, int stage)
         if (k > 0)
             cpu_others += cpu;
     }
+    if (top->cluster)
+        sc_cluster_end(top->cluster);
     double t2 = sc_wall_now();
     double bound = 0;
     sc_sched_observe(s, job->units, job->nunits, &bound);

@@ -24,34 +24,63 @@ static int read_u64(const char **p, const char *end, uint64_t *v)
     return 1;
 }
 
+/* The counters of one "cpu" line (after its name): SC_OK or SC_EFORMAT. */
+static int parse_line(const char *p, const char *eol, sc_cpu_times *t)
+{
+    uint64_t f[8] = { 0 }, sum = 0;
+    int n = 0;
+    while (n < 8 && read_u64(&p, eol, &f[n]))
+        n++;
+    if (n < 4)
+        return SC_EFORMAT;
+    for (int i = 0; i < n; i++) {
+        if (sum > UINT64_MAX - f[i])
+            return SC_EFORMAT;
+        sum += f[i];
+    }
+    t->total = sum;
+    t->idle = f[3] + (n > 4 ? f[4] : 0);
+    return SC_OK;
+}
+
 int sc_cpu_parse_stat(const char *text, size_t len, sc_cpu_times *t)
+{
+    return sc_cpu_parse_stat_cpus(text, len, NULL, t);
+}
+
+int sc_cpu_parse_stat_cpus(const char *text, size_t len, const cpu_set_t *cpus, sc_cpu_times *t)
 {
     if (!text || !t)
         return SC_EINVAL;
     const char *end = text + len;
+    sc_cpu_times sum = { 0, 0 };
+    int found = 0;
     for (const char *line = text; line < end;) {
         const char *nl = memchr(line, '\n', (size_t)(end - line));
         const char *eol = nl ? nl : end;
-        if (eol - line > 4 && !memcmp(line, "cpu ", 4)) {
-            const char *p = line + 4;
-            uint64_t f[8] = { 0 }, sum = 0;
-            int n = 0;
-            while (n < 8 && read_u64(&p, eol, &f[n]))
-                n++;
-            if (n < 4)
+        if (!cpus && eol - line > 4 && !memcmp(line, "cpu ", 4))
+            return parse_line(line + 4, eol, t);
+        if (cpus && eol - line > 4 && !memcmp(line, "cpu", 3) && line[3] >= '0' &&
+            line[3] <= '9') {
+            const char *p = line + 3;
+            uint64_t id;
+            sc_cpu_times one;
+            if (!read_u64(&p, eol, &id) || parse_line(p, eol, &one) != SC_OK)
                 return SC_EFORMAT;
-            for (int i = 0; i < n; i++) {
-                if (sum > UINT64_MAX - f[i])
+            if (id < CPU_SETSIZE && CPU_ISSET((int)id, cpus)) {
+                if (sum.total > UINT64_MAX - one.total)
                     return SC_EFORMAT;
-                sum += f[i];
+                sum.total += one.total;
+                sum.idle += one.idle;
+                found++;
             }
-            t->total = sum;
-            t->idle = f[3] + (n > 4 ? f[4] : 0);
-            return SC_OK;
         }
         line = eol + 1;
     }
-    return SC_EFORMAT;
+    if (!found)
+        return SC_EFORMAT;
+    *t = sum;
+    return SC_OK;
 }
 
 int sc_cpu_parse_self(const char *text, size_t len, uint64_t *ticks)

@@ -5,6 +5,7 @@
 #ifndef SC_IDLE_H
 #define SC_IDLE_H
 
+#include <sched.h>
 #include <stddef.h>
 #include <stdint.h>
 
@@ -18,6 +19,10 @@ typedef struct sc_cpu_times {
 /* Parse /proc/stat text: SC_OK or SC_EFORMAT (no well-formed "cpu " line
  * with at least four counters). */
 int sc_cpu_parse_stat(const char *text, size_t len, sc_cpu_times *t);
+/* The same summed over the "cpuN" lines of the CPUs in cpus (a daemon's
+ * affinity mask: the CPUs it can take time from); NULL = the aggregate
+ * line. SC_EFORMAT when a cpuN line is malformed or none is in the set. */
+int sc_cpu_parse_stat_cpus(const char *text, size_t len, const cpu_set_t *cpus, sc_cpu_times *t);
 /* This process's CPU ticks (utime + stime) from /proc/self/stat text:
  * SC_OK or SC_EFORMAT. The command name may hold spaces and parentheses. */
 int sc_cpu_parse_self(const char *text, size_t len, uint64_t *ticks);

@@ -59,6 +59,10 @@ struct sc_shape {
 /* A builder's mesh moved so its centre of mass is the origin; takes
  * ownership of xyz and tri. NULL on error (sc_last_error()). */
 sc_shape *sc_shape_mesh_centered(double *xyz, int nverts, int *tri, int ntris);
+/* A shape from the content its hash covers (received by a daemon); the
+ * arrays are copied. NULL on error (sc_last_error()). */
+sc_shape *sc_shape_rebuild(int kind, double radius, const double half[3], const double plane[4],
+                           const double *xyz, int nverts, const int *tri, int ntris);
 
 /* ODE: process-wide initialisation (once) and the calling thread's ODE data
  * (idempotent, cheap); both needed before any ODE collision call. */
@@ -303,6 +307,7 @@ typedef struct sc_unit {
                                        contacts and contacts^3 */
     size_t bytes;                   /* wire size of the unit (transfer time) */
     int node;                       /* assigned node */
+    double predict_s;               /* the scheduler's estimate on that node */
     int rc;                         /* SC_OK or the unit's error */
     double time_s;                  /* measured wall time on its node */
     long messages;                  /* ODE messages raised while running it */
@@ -382,6 +387,10 @@ typedef struct sc_node_ops {
     double (*transfer_s)(const sc_node *n, size_t bytes);   /* to and back,
                                        affine in bytes */
     double (*latency_s)(const sc_node *n);   /* per job: wake-up and reply */
+    /* NULL = 1. What share of its measured speed the node offers now for
+     * units of kind (a daemon: its idle fraction); 0 = give it none (gone,
+     * owner-busy, or a kind it cannot run). Asked once per job. */
+    double (*capacity)(const sc_node *n, int kind);
     void (*destroy)(sc_node *n);
 } sc_node_ops;
 struct sc_node {
@@ -414,7 +423,7 @@ typedef struct sc_cost_model {
     int ok;                         /* c is a usable fit */
 } sc_cost_model;
 typedef struct sc_sched_node {
-    double speed[SC_UNIT_KINDS];    /* cost units per second (EWMA) */
+    double speed[SC_UNIT_KINDS];    /* cost units per second at full capacity (EWMA) */
     int measured[SC_UNIT_KINDS];
     int idle[SC_UNIT_KINDS];        /* jobs since it last got work */
     sc_cost_model model[SC_UNIT_KINDS];
@@ -423,6 +432,7 @@ typedef struct sc_sched_node {
     double done;                    /* cost done in the current job */
     double job_speed, job_latency;  /* for the current job's assignment */
     double job_tr0, job_tr1;        /* transfer: seconds fixed, per byte */
+    double job_cap;                 /* capacity offered in the current job */
 } sc_sched_node;
 typedef struct sc_sched {
     int nnodes;
@@ -433,6 +443,8 @@ typedef struct sc_sched {
     int use_models;                 /* 0: the paper's cost / speed only */
     uint64_t shuffle;               /* tests: != 0 seeds a random assignment */
     int learn_alone;                /* tests: learn with a single node too */
+    double home_capacity;           /* node 0's capacity (1; benchmarks: 0 sends
+                                       everything to the other nodes) */
 } sc_sched;
 int sc_sched_init(sc_sched *s, int nnodes);
 void sc_sched_free(sc_sched *s);
@@ -496,6 +508,8 @@ struct sc_world {
      * jobs' scratch (grown, kept) */
     sc_node **nodes;
     int nnodes;
+    struct sc_cluster *cluster;     /* daemons: nodes nlocal .. nnodes - 1 */
+    int nlocal;
     sc_local_pool *pool;
     /* a group's sub-world runs its jobs either on this context alone (a
      * group unit on some node) or on its parent's nodes (a big group) */

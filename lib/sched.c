@@ -49,6 +49,7 @@ int sc_sched_init(sc_sched *s, int nnodes)
     }
     s->nnodes = nnodes;
     s->use_models = 1;
+    s->home_capacity = 1;
     return SC_OK;
 }
 
@@ -120,10 +121,23 @@ int sc_sched_assign(sc_sched *s, sc_node *const *nodes, sc_unit *units, int n)
     }
     sort_key *key = s->keys;
     int kind = n > 0 ? units[0].kind : 0;
+    /* before a node has answered: the mean of those measured (speed_of) */
+    double sum = 0;
+    int nmeasured = 0;
+    for (int k = 0; k < s->nnodes; k++)
+        if (s->nodes[k].measured[kind]) {
+            sum += s->nodes[k].speed[kind];
+            nmeasured++;
+        }
+    double fallback = nmeasured ? sum / nmeasured : 1.0;
     for (int k = 0; k < s->nnodes; k++) {
         sc_sched_node *nd = &s->nodes[k];
         nd->ready = 0;
-        nd->job_speed = speed_of(s, k, kind);
+        nd->job_cap = k == 0                     ? s->home_capacity
+                      : !nodes[k]->ops->capacity ? 1.0
+                                                 : nodes[k]->ops->capacity(nodes[k], kind);
+        nd->job_speed = (nd->measured[kind] ? nd->speed[kind] : fallback) *
+                        (nd->job_cap > 0 ? nd->job_cap : 1.0);
         nd->job_latency = s->nnodes > 1 ? nodes[k]->ops->latency_s(nodes[k]) : 0;
         /* transfer time as fixed + per byte, asked once per job */
         nd->job_tr0 = s->nnodes > 1 ? nodes[k]->ops->transfer_s(nodes[k], 0) : 0;
@@ -163,6 +177,8 @@ int sc_sched_assign(sc_sched *s, sc_node *const *nodes, sc_unit *units, int n)
         double best_t = INFINITY;
         for (int k = 0; k < s->nnodes && s->nnodes > 1; k++) {
             const sc_sched_node *nd = &s->nodes[k];
+            if (!(nd->job_cap > 0))
+                continue;    /* gone, owner-busy, or not for this kind */
             /* the first unit a node gets in a job pays its latency */
             double t = nd->ready + nd->job_tr0 + nd->job_tr1 * (double)u->bytes +
                        predict(s, nd, nd->job_speed, u) + (s->start[k + 1] ? 0 : nd->job_latency);
@@ -171,13 +187,18 @@ int sc_sched_assign(sc_sched *s, sc_node *const *nodes, sc_unit *units, int n)
                 best = k;
             }
         }
+        if (best_t == INFINITY)    /* no node would take it: home */
+            best_t = s->nodes[0].ready + predict(s, &s->nodes[0], s->nodes[0].job_speed, u);
         if (s->shuffle) {
             /* tests: any assignment must give the same result */
             s->shuffle ^= s->shuffle << 13;
             s->shuffle ^= s->shuffle >> 7;
             s->shuffle ^= s->shuffle << 17;
             best = (int)(s->shuffle % (uint64_t)s->nnodes);
+            if (!(s->nodes[best].job_cap > 0))
+                best = 0;
         }
+        u->predict_s = s->nnodes > 1 ? predict(s, &s->nodes[best], s->nodes[best].job_speed, u) : 0;
         if (s->nnodes > 1)
             s->nodes[best].ready = best_t;
         u->node = best;
@@ -259,7 +280,8 @@ void sc_sched_observe(sc_sched *s, const sc_unit *units, int n, double *bound_s)
     for (int k = 0; k < s->nnodes; k++) {
         sc_sched_node *nd = &s->nodes[k];
         if (nd->busy > 0 && nd->done > 0) {
-            double v = nd->done / nd->busy;
+            /* per unit of the capacity it offered */
+            double v = nd->done / nd->busy / (nd->job_cap > 0 ? nd->job_cap : 1.0);
             nd->speed[kind] = nd->measured[kind] ? SPEED_KEEP * nd->speed[kind] +
                                                        (1 - SPEED_KEEP) * v
                                                  : v;
@@ -290,20 +312,38 @@ void sc_sched_observe(sc_sched *s, const sc_unit *units, int n, double *bound_s)
         if (nd->idle[kind] >= IDLE_FORGET)
             nd->model[kind].ok = 0;
     }
-    /* lower bound: a unit's work is its time scaled to the mean speed */
+    /* lower bound: a unit's work is its time scaled to the mean speed of
+     * the nodes that could take work in this job */
+    double fallback = nmeasured > 0 ? mean_speed / nmeasured : 1.0;
     double rsum = 0, rmax = 0, mean = 0;
-    for (int k = 0; k < s->nnodes; k++)
-        mean += speed_of(s, k, kind) / s->nnodes;
+    int navail = 0;
     for (int k = 0; k < s->nnodes; k++) {
-        double r = speed_of(s, k, kind) / mean;
+        const sc_sched_node *nd = &s->nodes[k];
+        if (nd->job_cap > 0) {
+            mean += (nd->measured[kind] ? nd->speed[kind] : fallback) * nd->job_cap;
+            navail++;
+        }
+    }
+    mean = navail > 0 && mean > 0 ? mean / navail : 1.0;
+    for (int k = 0; k < s->nnodes; k++) {
+        const sc_sched_node *nd = &s->nodes[k];
+        if (!(nd->job_cap > 0))
+            continue;
+        double r = (nd->measured[kind] ? nd->speed[kind] : fallback) * nd->job_cap / mean;
         rsum += r;
         rmax = fmax(rmax, r);
     }
     double total = 0, largest = 0;
     for (int i = 0; i < n; i++) {
-        double work = units[i].time_s * speed_of(s, units[i].node, kind) / mean;
+        const sc_sched_node *nd = &s->nodes[units[i].node];
+        double v = (nd->measured[kind] ? nd->speed[kind] : fallback) *
+                   (nd->job_cap > 0 ? nd->job_cap : 1.0);
+        double work = units[i].time_s * v / mean;
         total += work;
         largest = fmax(largest, work);
+    }
+    if (!(rsum > 0)) {
+        rsum = rmax = 1;
     }
     *bound_s = fmax(total / rsum, largest / rmax);
 }

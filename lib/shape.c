@@ -349,3 +349,53 @@ SC_API void sc_shape_release(sc_shape *s)
     if (s && atomic_fetch_sub(&s->refs, 1) == 1)
         shape_free(s);
 }
+
+/* Internal: a shape from the content its hash covers (a shape received by
+ * a daemon, cluster_msg.c); xyz and tri are copied. NULL on error. */
+sc_shape *sc_shape_rebuild(int kind, double radius, const double half[3], const double plane[4],
+                           const double *xyz, int nverts, const int *tri, int ntris)
+{
+    switch (kind) {
+    case SC_SHAPE_SPHERE:
+        return sc_shape_sphere(radius);
+    case SC_SHAPE_BOX:
+        return sc_shape_box(half[0], half[1], half[2]);
+    case SC_SHAPE_PLANE: {
+        /* as sent: normalising again could change the last bit */
+        double l = v3_len(plane);
+        if (!(fabs(l - 1) < 1e-12) || !isfinite(plane[3])) {
+            sc_set_error(SC_EINVAL);
+            return NULL;
+        }
+        sc_shape *s = shape_new(SC_SHAPE_PLANE);
+        if (!s)
+            return NULL;
+        memcpy(s->plane, plane, sizeof s->plane);
+        s->bound_r = INFINITY;
+        shape_hash(s);
+        return s;
+    }
+    case SC_SHAPE_CONVEX:
+    case SC_SHAPE_MESH: {
+        if (!xyz || !tri || nverts <= 0 || ntris <= 0 || nverts > SC_MESH_MAX_VERTS ||
+            ntris > SC_MESH_MAX_TRIS) {
+            sc_set_error(SC_EINVAL);
+            return NULL;
+        }
+        double *v = sc_alloc_array((size_t)nverts * 3, sizeof *v);
+        int *t = sc_alloc_array((size_t)ntris * 3, sizeof *t);
+        if (!v || !t) {
+            free(v);
+            free(t);
+            sc_set_error(SC_ENOMEM);
+            return NULL;
+        }
+        memcpy(v, xyz, (size_t)nverts * 3 * sizeof *v);
+        memcpy(t, tri, (size_t)ntris * 3 * sizeof *t);
+        return mesh_shape_take(kind, v, nverts, t, ntris);
+    }
+    default:
+        sc_set_error(SC_EINVAL);
+        return NULL;
+    }
+}

@@ -5,6 +5,7 @@
 #include <stdlib.h>
 #include <string.h>
 
+#include "cluster.h"
 #include "sc_internal.h"
 #include "vecmath.h"
 
@@ -202,6 +203,12 @@ SC_API int sc_world_step(sc_world *w, double dt)
     w->stats.contacts = 0;
     w->stats.islands = 0;
     w->stats.max_penetration = 0;
+    w->stats.remote_units = 0;
+    w->stats.recomputed_units = 0;
+    w->stats.late_results = 0;
+    w->stats.comm_s = 0;
+    if (w->cluster)
+        sc_cluster_frame(w->cluster);
     int rc = w->cfg.motion_groups ? sc_groups_step(w, dt) : sc_frame(w, dt);
     if (rc == SC_OK) {
         w->stats.frames++;

@@ -8,6 +8,7 @@
 #include <time.h>
 #include <unistd.h>
 
+#include "cluster.h"
 #include "sc_internal.h"
 #include "vecmath.h"
 
@@ -46,7 +47,8 @@ SC_API sc_world *sc_world_create(const sc_world_config *cfg)
         return NULL;
     }
     if (!sc_finite3(c.gravity) || c.workers < 0 || c.workers > SC_MAX_WORKERS || !(c.contact_tol_m > 0) ||
-        !isfinite(c.contact_tol_m) || c.broadphase < SC_BROADPHASE_AUTO ||
+        !isfinite(c.contact_tol_m) || !(c.cluster_deadline_s >= 0) ||
+        !isfinite(c.cluster_deadline_s) || (c.key_file && !c.cluster) || c.broadphase < SC_BROADPHASE_AUTO ||
         c.broadphase > SC_BROADPHASE_SAP || (c.motion_groups != 0 && c.motion_groups != 1)) {
         sc_set_error(SC_EINVAL);
         return NULL;
@@ -72,9 +74,11 @@ SC_API sc_world *sc_world_create(const sc_world_config *cfg)
         nodes = cpus < 1 ? 1 : cpus > SC_MAX_WORKERS ? SC_MAX_WORKERS : (int)cpus;
     }
     w->cfg.workers = nodes;
-    w->nodes = sc_calloc_array((size_t)nodes, sizeof *w->nodes);
+    w->nlocal = nodes;
+    int all = nodes + (c.cluster ? SC_MAX_DAEMONS : 0);
+    w->nodes = sc_calloc_array((size_t)all, sizeof *w->nodes);
     w->pool = sc_local_pool_create();
-    int rc = w->nodes && w->pool ? sc_sched_init(&w->sched, nodes) : SC_ENOMEM;
+    int rc = w->nodes && w->pool ? sc_sched_init(&w->sched, all) : SC_ENOMEM;
     for (int k = 0; k < nodes && rc == SC_OK; k++) {
         w->nodes[k] = sc_node_local_create(w->pool, k, k == 0);
         if (!w->nodes[k])
@@ -84,12 +88,17 @@ SC_API sc_world *sc_world_create(const sc_world_config *cfg)
         if (w->nodes[k] && sc_node_local_private_ode(w->nodes[k]))
             w->stats.private_ode++;
     }
+    if (rc == SC_OK && c.cluster)
+        rc = sc_cluster_create(w, c.cluster, c.key_file, c.cluster_deadline_s, nodes,
+                               &w->cluster);
+    for (int k = 0; rc == SC_OK && k < SC_MAX_DAEMONS && w->cluster; k++)
+        w->nodes[w->nnodes++] = sc_cluster_node(w->cluster, k);
     if (rc != SC_OK) {
         sc_world_destroy(w);
         sc_set_error(rc);
         return NULL;
     }
-    w->stats.nodes = w->nnodes;
+    w->stats.nodes = w->nlocal;
     return w;
 }
 
@@ -103,6 +112,7 @@ SC_API void sc_world_destroy(sc_world *w)
     for (int k = 0; k < w->nnodes; k++)
         w->nodes[k]->ops->destroy(w->nodes[k]);
     free(w->nodes);
+    sc_cluster_destroy(w->cluster);
     sc_local_pool_destroy(w->pool);
     sc_world_scratch_free(w->bigsub);
     sc_world_scratch_free(w);

@@ -82,7 +82,8 @@ static void test_unit_and_result_round_trip_and_are_told_apart(void **state)
     uint8_t wire[1000];
     for (size_t i = 0; i < sizeof wire; i++)
         wire[i] = (uint8_t)(i * 37 + 11);
-    sc_msg_work w = { .frame = 123456789012, .unit = 17, .wire = wire, .len = sizeof wire };
+    sc_msg_work w = { .frame = 123456789012, .unit = 17, .wire = wire, .len = sizeof wire,
+                      .compute_us = 4321 };
     for (int kind = SC_MSG_UNIT; kind <= SC_MSG_RESULT; kind++) {
         uint8_t *pl, *env;
         size_t pn, n;
@@ -98,6 +99,7 @@ static void test_unit_and_result_round_trip_and_are_told_apart(void **state)
         assert_int_equal(r.unit, 17);
         assert_int_equal(r.len, sizeof wire);
         assert_memory_equal(r.wire, wire, sizeof wire);
+        assert_int_equal(r.compute_us, kind == SC_MSG_RESULT ? 4321 : 0);
         sc_msg_work_free(&r);
         /* the LCM fingerprint: a unit_t is not a result_t, nor an announce_t */
         int other = kind == SC_MSG_UNIT ? SC_MSG_RESULT : SC_MSG_UNIT;
@@ -401,6 +403,50 @@ static void test_key_files_round_trip_and_bad_ones_are_refused(void **state)
     assert_int_equal(rmdir(dir), 0);
 }
 
+/* Shapes travel as their hashed content and come back with the same hash;
+ * a changed byte anywhere is refused (bad lengths, or the hash no longer
+ * matches the rebuilt shape). */
+static void test_shapes_round_trip_and_tampered_ones_are_refused(void **state)
+{
+    (void)state;
+    double pts[] = { 0, 0, 0, 1, 0, 0, 0, 1, 0, 0, 0, 1, 0.3, 0.3, 0.3 };
+    sc_shape *shapes[] = { sc_shape_sphere(0.05), sc_shape_box(0.1, 0.2, 0.3),
+                           sc_shape_plane(0, 0.6, 0.8, -1), sc_shape_convex(pts, 5),
+                           sc_shape_bolt(), sc_shape_nut() };
+    for (size_t k = 0; k < sizeof shapes / sizeof *shapes; k++) {
+        sc_shape *s = shapes[k], *back = NULL;
+        assert_non_null(s);
+        uint8_t *p;
+        size_t n;
+        assert_int_equal(sc_msg_shape_encode(s, &p, &n), SC_OK);
+        assert_int_equal(sc_msg_shape_decode(p, n, &back), SC_OK);
+        assert_true(back->hash == s->hash);
+        assert_int_equal(back->kind, s->kind);
+        assert_int_equal(back->ntris, s->ntris);
+        sc_shape_release(back);
+        /* flip one byte at a few places: header, arrays, tail */
+        size_t at[] = { 9, 17, n / 2, n - 30, n - 1 };
+        for (size_t j = 0; j < sizeof at / sizeof *at; j++) {
+            p[at[j]] ^= 0x40;
+            int rc = sc_msg_shape_decode(p, n, &back);
+            assert_int_equal(rc, SC_EFORMAT);
+            assert_null(back);
+            p[at[j]] ^= 0x40;
+        }
+        assert_int_equal(sc_msg_shape_decode(p, n - 1, &back), SC_EFORMAT);
+        free(p);
+        sc_shape_release(s);
+    }
+    uint8_t *p;
+    size_t n;
+    uint64_t h = 0;
+    assert_int_equal(sc_msg_shape_request_encode(0xfedcba9876543210ULL, &p, &n), SC_OK);
+    assert_int_equal(sc_msg_shape_request_decode(p, n, &h), SC_OK);
+    assert_true(h == 0xfedcba9876543210ULL);
+    assert_int_equal(sc_msg_shape_request_decode(p, n - 1, &h), SC_EFORMAT);
+    free(p);
+}
+
 int main(void)
 {
     const struct CMUnitTest tests[] = {
@@ -415,6 +461,7 @@ int main(void)
         cmocka_unit_test(test_announce_values_are_validated_both_ways),
         cmocka_unit_test(test_seal_refuses_bad_arguments),
         cmocka_unit_test(test_key_files_round_trip_and_bad_ones_are_refused),
+        cmocka_unit_test(test_shapes_round_trip_and_tampered_ones_are_refused),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
 }

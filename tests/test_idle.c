@@ -120,6 +120,36 @@ static void test_this_machines_proc_parses(void **state)
     assert_int_equal(sc_cpu_parse_self(buf, len, &ticks), SC_OK);
 }
 
+/* A daemon pinned to some CPUs counts only their lines. */
+static void test_cpu_set_sums_its_cpus(void **state)
+{
+    (void)state;
+    const char *t = "cpu  40 0 0 60 0 0 0 0 0 0\n"
+                    "cpu0 10 0 0 10 0 0 0 0 0 0\n"
+                    "cpu1 30 0 0 50 0 0 0 0 0 0\n"
+                    "cpu12 1 2 3 4 5\n"
+                    "intr 1 2 3\n";
+    cpu_set_t set;
+    CPU_ZERO(&set);
+    CPU_SET(1, &set);
+    sc_cpu_times c;
+    assert_int_equal(sc_cpu_parse_stat_cpus(t, strlen(t), &set, &c), SC_OK);
+    assert_int_equal(c.total, 80);
+    assert_int_equal(c.idle, 50);
+    CPU_SET(12, &set);
+    assert_int_equal(sc_cpu_parse_stat_cpus(t, strlen(t), &set, &c), SC_OK);
+    assert_int_equal(c.total, 95);
+    assert_int_equal(c.idle, 59);       /* idle + iowait */
+    assert_int_equal(sc_cpu_parse_stat_cpus(t, strlen(t), NULL, &c), SC_OK);
+    assert_int_equal(c.total, 100);     /* NULL: the aggregate line */
+    CPU_ZERO(&set);
+    CPU_SET(5, &set);                   /* no line for it */
+    assert_int_equal(sc_cpu_parse_stat_cpus(t, strlen(t), &set, &c), SC_EFORMAT);
+    const char *bad = "cpu0 10 0 0\n";  /* three counters */
+    CPU_SET(0, &set);
+    assert_int_equal(sc_cpu_parse_stat_cpus(bad, strlen(bad), &set, &c), SC_EFORMAT);
+}
+
 int main(void)
 {
     const struct CMUnitTest tests[] = {
@@ -129,6 +159,7 @@ int main(void)
         cmocka_unit_test(test_own_use_counts_as_idle),
         cmocka_unit_test(test_busy_flag_has_hysteresis),
         cmocka_unit_test(test_this_machines_proc_parses),
+        cmocka_unit_test(test_cpu_set_sums_its_cpus),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
 }

@@ -107,8 +107,9 @@ static double fake_lat(const sc_node *n)
     return n->id == 0 ? 0 : fake_latency;
 }
 static void fake_destroy(sc_node *n) { (void)n; }
-static const sc_node_ops fake_ops = { fake_submit, fake_wait, fake_transfer, fake_lat,
-                                      fake_destroy };
+static const sc_node_ops fake_ops = { .submit = fake_submit, .wait = fake_wait,
+                                      .transfer_s = fake_transfer, .latency_s = fake_lat,
+                                      .destroy = fake_destroy };
 
 static void make_units(sc_unit *u, const double *cost, int n)
 {

@@ -1,8 +1,9 @@
 /* fuzz_envelope.c - libFuzzer target for the cluster message decoders
  * (lib/cluster_msg.c). Any bytes go to sc_msg_open under a fixed key (the
  * seeds in tests/fuzz/corpus/envelope/ are sealed with it, so mutations get
- * past the MAC only there) and, as a payload, to the announce, unit and
- * result decoders; what opens or decodes must be consistent. The bytes are
+ * past the MAC only there) and, as a payload, to the announce, unit,
+ * result, shape request and shape decoders (a shape is rebuilt and its
+ * hash checked); what opens or decodes must be consistent. The bytes are
  * also sealed and opened again, which must give them back. Built like
  * fuzz_load.c; make check replays the corpus. */
 #include <stdint.h>
@@ -36,6 +37,26 @@ static void check_payload(const uint8_t *data, size_t size)
             abort();
         sc_msg_work_free(&w);
     }
+    for (int kind = SC_MSG_UNIT; kind <= SC_MSG_RESULT; kind++) {
+        size_t off = 0, last = 0;
+        sc_msg_work w;
+        while (sc_msg_work_next(kind, data, size, &off, &w) == SC_OK) {
+            if (off <= last || off > size || !w.wire || w.len < 1)
+                abort();    /* every record moves on, within the bytes */
+            last = off;
+            sc_msg_work_free(&w);
+        }
+    }
+    uint64_t hash;
+    rc = sc_msg_shape_request_decode(data, size, &hash);
+    if (rc != SC_OK && rc != SC_EFORMAT)
+        abort();
+    sc_shape *s;
+    rc = sc_msg_shape_decode(data, size, &s);
+    if (rc == SC_OK ? !s || s->kind < SC_SHAPE_SPHERE || s->kind > SC_SHAPE_MESH
+                    : (rc != SC_EFORMAT && rc != SC_ENOMEM) || s)
+        abort();
+    sc_shape_release(s);
 }
 
 int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size)

@@ -1,0 +1,434 @@
+/* bench_cluster.c - simclusterd daemons on this host (LCM, ttl=0), three
+ * measurements (issue "simclusterd", DESIGN.md section 7):
+ *   scaling   the bolts/nuts drop with one local worker and 0, 1, 2, ...
+ *             one-thread daemons: wall time, speedup over no daemons, the
+ *             share of units daemons computed, recomputed units, and the
+ *             communication time per frame (packing, sealing, sending,
+ *             receiving and merging on the master); the final state's hash
+ *             is compared with the local run's.
+ *   fg        a CPU-bound program pinned to one CPU, alone and next to a
+ *             one-thread daemon pinned to the same CPU that is kept full of
+ *             units (the master sends it everything), with the daemon at
+ *             nice 19 + SCHED_IDLE and at plain priority: the slowdown.
+ *   busy      a daemon (busy threshold 0.5) whose CPU an owner's program
+ *             takes over while the master runs: the time until it reports
+ *             owner-busy and the time until the master stops sending it
+ *             work.
+ * usage: bench_cluster [-r RUNS] [-s SECONDS] [-n BODIES] [-d 0,1,2,...]
+ *                      [-x DAEMON] [-u LCM-URL] [-p scaling,fg,busy]
+ * The daemon binary defaults to daemon/simclusterd next to this bench's
+ * build directory (build/bench/../daemon/simclusterd). */
+#include <errno.h>
+#include <fcntl.h>
+#include <inttypes.h>
+#include <sched.h>
+#include <signal.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include "bench_util.h"
+#include "cluster.h"
+#include "cluster_msg.h"
+#include "sc_internal.h"
+#include "simcluster.h"
+
+#define DT 0.01
+#define MAX_RUNS 15
+#define MAX_D 64
+
+static char url[160], key_path[64], daemon_bin[512];
+static int ncpu;
+
+static double median(double *x, int n)
+{
+    qsort(x, (size_t)n, sizeof *x, cmp_double);
+    return n % 2 ? x[n / 2] : 0.5 * (x[n / 2 - 1] + x[n / 2]);
+}
+
+static void pin(pid_t pid, int cpu)
+{
+    cpu_set_t set;
+    CPU_ZERO(&set);
+    CPU_SET(cpu % ncpu, &set);
+    sched_setaffinity(pid, sizeof set, &set);
+}
+
+static void unpin(void)
+{
+    cpu_set_t set;
+    CPU_ZERO(&set);
+    for (int i = 0; i < ncpu; i++)
+        CPU_SET(i, &set);
+    sched_setaffinity(0, sizeof set, &set);
+}
+
+/* A daemon: one compute thread, pinned to cpu (< 0: not pinned). */
+static pid_t start_daemon(int id, int cpu, double threshold, int idle_priority)
+{
+    pid_t pid = fork();
+    if (pid == 0) {
+        if (cpu >= 0)
+            pin(0, cpu);
+        char idbuf[32], thr[32];
+        snprintf(idbuf, sizeof idbuf, "%d", id);
+        snprintf(thr, sizeof thr, "%g", threshold);
+        int fd = open("/dev/null", 1);
+        if (fd >= 0) {
+            dup2(fd, 2);
+            dup2(fd, 1);
+        }
+        const char *argv[20] = { daemon_bin, "--url", url, "--key", key_path, "--threads", "1",
+                                 "--node-id", idbuf, "--busy-threshold", thr, "--heartbeat",
+                                 "0.1", NULL };
+        if (!idle_priority) {
+            argv[13] = "--no-idle-priority";
+            argv[14] = NULL;
+        }
+        execv(daemon_bin, (char **)argv);
+        _exit(127);
+    }
+    return pid;
+}
+
+static void stop_daemon(pid_t pid)
+{
+    if (pid <= 0)
+        return;
+    kill(pid, SIGTERM);
+    int st;
+    waitpid(pid, &st, 0);
+}
+
+static sc_world *make_world(int n, int cluster)
+{
+    sc_world_config c = sc_world_config_default();
+    c.workers = 1;
+    if (cluster) {
+        c.cluster = url;
+        c.key_file = key_path;
+    }
+    sc_world *w = sc_world_create(&c);
+    if (!w || sc_scene_bolts_nuts(w, n, 1) < 0) {
+        fprintf(stderr, "bench_cluster: %s\n", sc_strerror(sc_last_error()));
+        exit(1);
+    }
+    return w;
+}
+
+/* Heartbeats until the world knows k daemons (at most 5 s). */
+static int wait_daemons(sc_world *w, int k)
+{
+    for (int i = 0; i < 500; i++) {
+        sc_cluster_frame(w->cluster);
+        if (w->stats.daemons >= k)
+            return 0;
+        usleep(10000);
+    }
+    return -1;
+}
+
+typedef struct result {
+    double wall, remote, recomputed, comm_ms, late;
+    uint64_t hash;
+} result;
+
+static int run(int n, int k, double seconds, result *r)
+{
+    sc_world *w = make_world(n, k > 0);
+    if (k > 0 && wait_daemons(w, k) != 0) {
+        fprintf(stderr, "bench_cluster: only %d of %d daemons answered\n", w->stats.daemons, k);
+        sc_world_destroy(w);
+        return -1;
+    }
+    int frames = (int)(seconds / DT + 0.5);
+    long units = 0, remote = 0, recomputed = 0, late = 0;
+    double comm = 0;
+    double t0 = now_s();
+    for (int f = 0; f < frames; f++) {
+        int rc = sc_world_step(w, DT);
+        if (rc != SC_OK) {
+            fprintf(stderr, "bench_cluster: step: %s\n", sc_strerror(rc));
+            sc_world_destroy(w);
+            return -1;
+        }
+        sc_stats st;
+        sc_world_stats(w, &st);
+        units += st.units;
+        remote += st.remote_units;
+        recomputed += st.recomputed_units;
+        late += st.late_results;
+        comm += st.comm_s;
+    }
+    r->wall = now_s() - t0;
+    r->remote = units ? (double)remote / (double)units : 0;
+    r->recomputed = (double)recomputed / frames;
+    r->late = (double)late / frames;
+    r->comm_ms = 1e3 * comm / frames;
+    r->hash = sc_world_hash(w);
+    sc_world_destroy(w);
+    return 0;
+}
+
+static void scaling(int n, const int *ks, int nk, int runs, double seconds)
+{
+    printf("\nscaling: %d bolts/nuts, %.2f s simulated, 1 local worker + k one-thread "
+           "daemons, medians of %d runs\n",
+           n, seconds, runs);
+    printf("%8s %9s %9s %8s %9s %12s %10s %10s %6s\n", "daemons", "wall s", "RT factor",
+           "speedup", "remote %", "recomp/frame", "late/frame", "comm ms/fr", "bits");
+    double base = 0;
+    uint64_t h0 = 0;
+    for (int i = 0; i < nk; i++) {
+        int k = ks[i];
+        pid_t pid[MAX_D] = { 0 };
+        /* the master on CPU 0, daemon j on CPU j + 1 (wrapping) */
+        pin(0, 0);
+        for (int j = 0; j < k; j++)
+            pid[j] = start_daemon(100 + j, ncpu > 1 ? 1 + j % (ncpu - 1) : 0, 1.0, 1);
+        double wall[MAX_RUNS], rem[MAX_RUNS], rc[MAX_RUNS], comm[MAX_RUNS], late[MAX_RUNS];
+        int same = 1, ok = 1;
+        for (int r = 0; r < runs && ok; r++) {
+            result res;
+            if (run(n, k, seconds, &res) != 0) {
+                ok = 0;
+                break;
+            }
+            wall[r] = res.wall;
+            rem[r] = 100 * res.remote;
+            rc[r] = res.recomputed;
+            comm[r] = res.comm_ms;
+            late[r] = res.late;
+            if (k == 0 && r == 0)
+                h0 = res.hash;
+            same = same && res.hash == h0;
+        }
+        for (int j = 0; j < k; j++)
+            stop_daemon(pid[j]);
+        unpin();
+        if (!ok)
+            continue;
+        double m = median(wall, runs);
+        if (k == 0)
+            base = m;
+        printf("%8d %9.3f %9.3f %8.2f %9.1f %12.2f %10.2f %10.3f %6s\n", k, m, seconds / m,
+               base > 0 ? base / m : 0, median(rem, runs), median(rc, runs), median(late, runs),
+               median(comm, runs), same ? "same" : "DIFF");
+        fflush(stdout);
+    }
+}
+
+/* A CPU-bound program: a fixed amount of arithmetic; its wall time. */
+static double foreground(int cpu)
+{
+    int fds[2];
+    if (pipe(fds) != 0)
+        return -1;
+    pid_t pid = fork();
+    if (pid == 0) {
+        pin(0, cpu);
+        double t0 = now_s();
+        volatile double x = 1;
+        for (long i = 0; i < 300000000L; i++)
+            x = x * 1.0000001 + 1e-9;
+        double t = now_s() - t0;
+        ssize_t wr = write(fds[1], &t, sizeof t);
+        _exit(wr == sizeof t ? 0 : 1);
+    }
+    close(fds[1]);
+    double t = -1;
+    if (read(fds[0], &t, sizeof t) != sizeof t)
+        t = -1;
+    close(fds[0]);
+    int st;
+    waitpid(pid, &st, 0);
+    return t;
+}
+
+static volatile sig_atomic_t stop_master;
+static void on_alarm(int sig)
+{
+    (void)sig;
+    stop_master = 1;
+}
+
+/* The master, in a child: keeps the daemons full of units until killed. */
+static pid_t busy_master(int n, int cpu, int k, int force)
+{
+    pid_t pid = fork();
+    if (pid == 0) {
+        pin(0, cpu);
+        sc_world *w = make_world(n, 1);
+        if (wait_daemons(w, k) != 0)
+            _exit(2);
+        if (force) {
+            sc_cluster_force(w->cluster);
+            w->sched.home_capacity = 0;
+        }
+        for (int f = 1;; f++) {
+            if (sc_world_step(w, DT) != SC_OK)
+                break;
+            if (f % 300 == 0) {     /* near rest: drop them again */
+                sc_world_destroy(w);
+                w = make_world(n, 1);
+                wait_daemons(w, k);
+                if (force) {
+                    sc_cluster_force(w->cluster);
+                    w->sched.home_capacity = 0;
+                }
+            }
+        }
+        _exit(0);
+    }
+    return pid;
+}
+
+static void fg(int runs)
+{
+    if (ncpu < 2) {
+        printf("\nfg: needs 2 CPUs, skipped\n");
+        return;
+    }
+    printf("\nforeground slowdown: a CPU-bound program on CPU 1, next to a one-thread daemon "
+           "on CPU 1 kept full of units (master on CPU 0), medians of %d runs\n",
+           runs);
+    printf("%28s %10s %10s\n", "daemon", "fg wall s", "slowdown %");
+    double alone[MAX_RUNS];
+    for (int r = 0; r < runs; r++)
+        alone[r] = foreground(1);
+    double a = median(alone, runs);
+    printf("%28s %10.3f %10s\n", "none", a, "-");
+    for (int mode = 0; mode < 2; mode++) {
+        pid_t d = start_daemon(200 + mode, 1, 1.0, mode == 0);
+        pid_t m = busy_master(200, 0, 1, 1);
+        usleep(1500000);    /* the daemon's queue fills */
+        double t[MAX_RUNS];
+        for (int r = 0; r < runs; r++)
+            t[r] = foreground(1);
+        kill(m, SIGKILL);
+        waitpid(m, NULL, 0);
+        stop_daemon(d);
+        double v = median(t, runs);
+        printf("%28s %10.3f %10.1f\n", mode == 0 ? "nice 19 + SCHED_IDLE" : "plain (nice 0, normal)",
+               v, 100 * (v / a - 1));
+        fflush(stdout);
+    }
+}
+
+static void busy(int n, int runs)
+{
+    if (ncpu < 2) {
+        printf("\nbusy: needs 2 CPUs, skipped\n");
+        return;
+    }
+    printf("\nwork leaving a busy node: a daemon on CPU 1 (threshold 0.5, heartbeat 0.1 s), "
+           "the master on CPU 0; an owner's program starts on CPU 1 at t = 0\n");
+    printf("%4s %14s %16s\n", "run", "busy seen s", "last remote s");
+    double seen[MAX_RUNS], last[MAX_RUNS];
+    int ok = 0;
+    for (int r = 0; r < runs; r++) {
+        pin(0, 0);
+        pid_t d = start_daemon(300 + r, 1, 0.5, 1);
+        sc_world *w = make_world(n, 1);
+        if (wait_daemons(w, 1) != 0) {
+            stop_daemon(d);
+            sc_world_destroy(w);
+            unpin();
+            continue;
+        }
+        for (int f = 0; f < 20; f++)
+            sc_world_step(w, DT);
+        pid_t hog = fork();
+        if (hog == 0) {
+            pin(0, 1);
+            signal(SIGALRM, on_alarm);
+            alarm(10);
+            volatile double x = 0;
+            while (!stop_master)
+                x += 1;
+            _exit(0);
+        }
+        double t0 = now_s(), t_seen = -1, t_last = 0;
+        while (now_s() - t0 < 2.5) {
+            if (sc_world_step(w, DT) != SC_OK)
+                break;
+            sc_stats st;
+            sc_world_stats(w, &st);
+            if (st.daemons_busy > 0 && t_seen < 0)
+                t_seen = now_s() - t0;
+            if (st.remote_units > 0)
+                t_last = now_s() - t0;
+        }
+        kill(hog, SIGKILL);
+        waitpid(hog, NULL, 0);
+        stop_daemon(d);
+        sc_world_destroy(w);
+        unpin();
+        printf("%4d %14.3f %16.3f\n", r + 1, t_seen, t_last);
+        seen[ok] = t_seen;
+        last[ok] = t_last;
+        ok++;
+    }
+    if (ok)
+        printf("median %9.3f %16.3f\n", median(seen, ok), median(last, ok));
+}
+
+int main(int argc, char **argv)
+{
+    int runs = 3, n = 1000, ks[MAX_D] = { 0, 1 }, nk = 2;
+    double seconds = 1.0;
+    const char *parts = "scaling,fg,busy";
+    snprintf(daemon_bin, sizeof daemon_bin, "%s", argv[0]);
+    char *slash = strrchr(daemon_bin, '/');
+    snprintf(slash ? slash + 1 : daemon_bin,
+             sizeof daemon_bin - (size_t)(slash ? slash + 1 - daemon_bin : 0),
+             "../daemon/simclusterd");
+    for (int i = 1; i < argc; i++) {
+        if (!strcmp(argv[i], "-r") && i + 1 < argc) {
+            runs = atoi(argv[++i]);
+        } else if (!strcmp(argv[i], "-s") && i + 1 < argc) {
+            seconds = atof(argv[++i]);
+        } else if (!strcmp(argv[i], "-n") && i + 1 < argc) {
+            n = atoi(argv[++i]);
+        } else if (!strcmp(argv[i], "-x") && i + 1 < argc) {
+            snprintf(daemon_bin, sizeof daemon_bin, "%s", argv[++i]);
+        } else if (!strcmp(argv[i], "-u") && i + 1 < argc) {
+            snprintf(url, sizeof url, "%s", argv[++i]);
+        } else if (!strcmp(argv[i], "-p") && i + 1 < argc) {
+            parts = argv[++i];
+        } else if (!strcmp(argv[i], "-d") && i + 1 < argc) {
+            nk = 0;
+            for (char *t = strtok(argv[++i], ","); t && nk < MAX_D; t = strtok(NULL, ","))
+                ks[nk++] = atoi(t);
+        } else {
+            fprintf(stderr, "usage: bench_cluster [-r RUNS] [-s SECONDS] [-n BODIES] "
+                            "[-d 0,1,2,...] [-x DAEMON] [-u LCM-URL] [-p scaling,fg,busy]\n");
+            return 2;
+        }
+    }
+    if (runs < 1 || runs > MAX_RUNS || !(seconds > 0) || n < 1 || access(daemon_bin, X_OK)) {
+        fprintf(stderr, "bench_cluster: bad arguments or no daemon at %s\n", daemon_bin);
+        return 2;
+    }
+    ncpu = (int)sysconf(_SC_NPROCESSORS_ONLN);
+    srand((unsigned)getpid());
+    if (!url[0])
+        snprintf(url, sizeof url, "udpm://239.255.76.67:%d?ttl=0&recv_buf_size=4194304",
+                 20000 + rand() % 10000);
+    snprintf(key_path, sizeof key_path, "/tmp/bench_cluster_key_%d", (int)getpid());
+    if (sc_key_generate(key_path) != SC_OK) {
+        fprintf(stderr, "bench_cluster: cannot write %s\n", key_path);
+        return 1;
+    }
+    printf("bench_cluster: %d CPUs, LCM %s\n", ncpu, url);
+    if (strstr(parts, "scaling"))
+        scaling(n, ks, nk, runs, seconds);
+    if (strstr(parts, "fg"))
+        fg(runs);
+    if (strstr(parts, "busy"))
+        busy(200, runs);
+    unlink(key_path);
+    return 0;
+}

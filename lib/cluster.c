@@ -1,0 +1,538 @@
+/* cluster.c - daemons as nodes of a world's scheduler (DESIGN.md section 6).
+ *
+ * The world's node list ends with SC_MAX_DAEMONS remote nodes, one per
+ * daemon slot; a slot is bound to a daemon when its first heartbeat comes.
+ * A remote node's submit() packs its units (unit_wire.c), seals them and
+ * publishes them on the daemon's channel; wait() pumps LCM on the calling
+ * thread (results of every daemon are merged as they come: each unit
+ * writes only its own outputs) until this daemon's units are in or the
+ * deadline passes, and then recomputes what is missing here. A result is
+ * taken once, only for a unit of the current job that is still out, and
+ * merged by sc_wire_result_apply() exactly as a local run would write it:
+ * whoever computes what, the bits are the same.
+ *
+ * The scheduler sees a daemon's capacity (cluster.h's capacity op): its
+ * idle fraction, or 0 while it is owner-busy, silent for SILENT_S, or has
+ * missed a deadline since its last heartbeat. Its speed is learned from
+ * its results' thread times spread over its threads, its latency from the
+ * rest of each job's round trip.
+ */
+#include <inttypes.h>
+#include <math.h>
+#include <lcm/lcm.h>
+#include <poll.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <sys/random.h>
+#include <time.h>
+#include <unistd.h>
+
+#include "cluster.h"
+#include "cluster_msg.h"
+#include "sc_internal.h"
+
+#define CHANNEL_MAX 48
+#define SILENT_S 1.0            /* no heartbeat this long: no work */
+#define FORGET_S 10.0           /* no heartbeat this long: slot freed */
+#define DEFAULT_DEADLINE_S 0.02
+#define MIN_CAPACITY 0.05       /* a daemon that is not owner-busy gets some */
+#define BATCH_BYTES (256u << 10) /* units sent together, at most */
+#define BYTE_S 1e-8             /* transfer estimate per byte (100 MB/s) */
+#define OVERHEAD_KEEP 0.8
+#define MAX_WAIT_DEADLINES 10   /* a long prediction stretches the deadline
+                                   up to this many deadlines */       /* EWMA of a job's communication overhead */
+
+enum { OUT_NONE, OUT_SENT, OUT_DONE, OUT_LOCAL };
+
+typedef struct daemon_slot {
+    int used;
+    int64_t id;
+    char channel[CHANNEL_MAX], shape_channel[CHANNEL_MAX];
+    sc_msg_announce a;
+    double heard, missed_at;
+    double overhead;            /* s per job beyond its threads' compute time */
+    /* the current job */
+    int sent, done;
+    int64_t submit_us, last_us;  /* real-time clock (LCM's receive stamps) */
+    double t_submit;
+    double compute_s;
+} daemon_slot;
+
+typedef struct remote_node {
+    sc_node base;
+    sc_cluster *c;
+    int slot;
+} remote_node;
+
+struct sc_cluster {
+    lcm_t *lcm;
+    int fd;
+    uint8_t key[SC_KEY_BYTES];
+    int64_t id, seq;
+    sc_msg_guard guard;
+    sc_world *w;
+    int first_node;             /* world node index of slot 0 */
+    daemon_slot d[SC_MAX_DAEMONS];
+    remote_node node[SC_MAX_DAEMONS];
+    double deadline_s;
+    /* the current job */
+    const sc_job *job;
+    int64_t serial;
+    uint8_t *out;               /* per unit: OUT_* */
+    int out_cap;
+    double local_done;          /* when the first remote wait began */
+    sc_np_ctx *np;              /* recomputation on the calling thread */
+    int force;                  /* benchmarks: idle fraction and owner-busy ignored */
+    uint8_t *buf;
+    size_t buf_cap;
+    uint8_t *batch;             /* units for one daemon, encoded back to back */
+    size_t batch_len, batch_cap;
+    long late;
+    int64_t recv_us;            /* the message being handled: when LCM got it */
+};
+
+static int64_t realtime_us(void)
+{
+    struct timespec ts;
+    clock_gettime(CLOCK_REALTIME, &ts);
+    return (int64_t)ts.tv_sec * 1000000 + ts.tv_nsec / 1000;
+}
+
+static double now_s(void)
+{
+    return sc_wall_now();
+}
+
+/* ---- receiving ---- */
+
+static void on_announce(sc_cluster *c, const sc_msg *m)
+{
+    sc_msg_announce a;
+    if (sc_msg_announce_decode(m->payload, m->len, &a) != SC_OK || a.node != m->node ||
+        a.version != SC_MSG_VERSION) {
+        c->guard.dropped_format++;
+        return;
+    }
+    int free_slot = -1, k;
+    for (k = 0; k < SC_MAX_DAEMONS; k++) {
+        if (c->d[k].used && c->d[k].id == a.node)
+            break;
+        if (!c->d[k].used && free_slot < 0)
+            free_slot = k;
+    }
+    if (k == SC_MAX_DAEMONS) {
+        if (free_slot < 0)
+            return;             /* more daemons than slots: the first ones serve */
+        k = free_slot;
+        daemon_slot *d = &c->d[k];
+        memset(d, 0, sizeof *d);
+        d->used = 1;
+        d->id = a.node;
+        snprintf(d->channel, sizeof d->channel, "SC_UNIT_%016" PRIx64, (uint64_t)a.node);
+        snprintf(d->shape_channel, sizeof d->shape_channel, "SC_SHAPE_%016" PRIx64,
+                 (uint64_t)a.node);
+        /* a new daemon in this slot: nothing learned about the last one holds */
+        sc_sched_node *nd = &c->w->sched.nodes[c->first_node + k];
+        memset(nd, 0, sizeof *nd);
+    }
+    c->d[k].a = a;
+    c->d[k].heard = now_s();
+}
+
+static void take_result(sc_cluster *c, sc_msg_work *r)
+{
+    const sc_job *job = c->job;
+    if (!job || r->frame != c->serial || r->unit >= job->nunits || c->out[r->unit] != OUT_SENT) {
+        c->late++;              /* an old job, taken already, or recomputed */
+        c->w->stats.late_results++;
+        return;
+    }
+    sc_unit *u = &job->units[r->unit];
+    int k = u->node - c->first_node;
+    daemon_slot *d = k >= 0 && k < SC_MAX_DAEMONS ? &c->d[k] : NULL;
+    if (!d || sc_wire_result_apply(job, u, r->wire, r->len) != SC_OK) {
+        c->guard.dropped_format++;    /* it will be recomputed */
+        return;
+    }
+    c->out[r->unit] = OUT_DONE;
+    double sec = r->compute_us * 1e-6;
+    int threads = d->a.cores < d->sent ? d->a.cores : d->sent;
+    u->time_s = sec / (threads > 0 ? threads : 1);
+    d->done++;
+    d->compute_s += u->time_s;
+    if (c->recv_us > d->last_us)
+        d->last_us = c->recv_us;
+    c->w->stats.remote_units++;
+}
+
+static void on_result(sc_cluster *c, const sc_msg *m)
+{
+    size_t off = 0;
+    while (off < m->len) {
+        sc_msg_work r;
+        if (sc_msg_work_next(SC_MSG_RESULT, m->payload, m->len, &off, &r) != SC_OK) {
+            c->guard.dropped_format++;
+            return;
+        }
+        take_result(c, &r);
+        sc_msg_work_free(&r);
+    }
+}
+
+static void on_shape_request(sc_cluster *c, const sc_msg *m)
+{
+    uint64_t hash;
+    if (sc_msg_shape_request_decode(m->payload, m->len, &hash) != SC_OK) {
+        c->guard.dropped_format++;
+        return;
+    }
+    int k;
+    for (k = 0; k < SC_MAX_DAEMONS; k++)
+        if (c->d[k].used && c->d[k].id == m->node)
+            break;
+    const sc_shape *s = NULL;
+    for (int i = 0; i < c->w->nbodies && !s; i++)
+        if (c->w->bodies[i].shape->hash == hash)
+            s = c->w->bodies[i].shape;
+    if (k == SC_MAX_DAEMONS || !s)
+        return;                 /* not one of our daemons, or not our shape */
+    uint8_t *p, *env;
+    size_t len, elen;
+    if (sc_msg_shape_encode(s, &p, &len) != SC_OK)
+        return;
+    if (sc_msg_seal(c->key, c->id, c->seq++, SC_MSG_SHAPE, p, len, &env, &elen) == SC_OK) {
+        lcm_publish(c->lcm, c->d[k].shape_channel, env, (unsigned)elen);
+        free(env);
+    }
+    free(p);
+}
+
+static void on_message(const lcm_recv_buf_t *rb, const char *channel, void *ctx)
+{
+    sc_cluster *c = ctx;
+    sc_msg m;
+    c->recv_us = rb->recv_utime;
+    if (sc_msg_open(c->key, &c->guard, rb->data, rb->data_size, &m) != SC_OK)
+        return;
+    int announce = !strcmp(channel, "SC_ANNOUNCE");
+    if (announce && m.kind == SC_MSG_ANNOUNCE)
+        on_announce(c, &m);
+    else if (!announce && m.kind == SC_MSG_RESULT)
+        on_result(c, &m);
+    else if (!announce && m.kind == SC_MSG_SHAPE_REQUEST)
+        on_shape_request(c, &m);
+    else
+        c->guard.dropped_format++;
+    sc_msg_free(&m);
+}
+
+/* Handle what has come, waiting up to timeout_s for the first message. */
+static void pump(sc_cluster *c, double timeout_s)
+{
+    int ms = timeout_s > 0 ? (int)(timeout_s * 1000) + 1 : 0;
+    for (;;) {
+        struct pollfd pf = { c->fd, POLLIN, 0 };
+        if (poll(&pf, 1, ms) <= 0 || !(pf.revents & POLLIN))
+            break;
+        double t0 = now_s();
+        int rc = lcm_handle(c->lcm);
+        c->w->stats.comm_s += now_s() - t0;
+        if (rc != 0)
+            break;
+        ms = 0;
+    }
+}
+
+/* ---- the remote node ---- */
+
+static double capacity(const sc_node *n, int kind)
+{
+    const remote_node *r = (const remote_node *)n;
+    const daemon_slot *d = &r->c->d[r->slot];
+    if (kind == SC_UNIT_GROUP || !d->used || now_s() - d->heard > SILENT_S)
+        return 0;
+    if (r->c->force)
+        return 1;
+    if (d->a.owner_busy || d->missed_at > d->heard)
+        return 0;
+    return d->a.idle_fraction > MIN_CAPACITY ? d->a.idle_fraction : MIN_CAPACITY;
+}
+
+static int grow_buf(sc_cluster *c, size_t n)
+{
+    if (n <= c->buf_cap)
+        return SC_OK;
+    uint8_t *b = realloc(c->buf, n);
+    if (!b)
+        return SC_ENOMEM;
+    c->buf = b;
+    c->buf_cap = n;
+    return SC_OK;
+}
+
+/* The units batched for one daemon go out as one sealed message. */
+static int flush(sc_cluster *c, daemon_slot *d)
+{
+    if (!c->batch_len)
+        return SC_OK;
+    uint8_t *env;
+    size_t elen;
+    int rc = sc_msg_seal(c->key, c->id, c->seq++, SC_MSG_UNIT, c->batch, c->batch_len, &env,
+                         &elen);
+    c->batch_len = 0;
+    if (rc != SC_OK)
+        return rc;
+    rc = lcm_publish(c->lcm, d->channel, env, (unsigned)elen) == 0 ? SC_OK : SC_EIO;
+    free(env);
+    return rc;
+}
+
+static int add_unit(sc_cluster *c, daemon_slot *d, const sc_job *job, int idx)
+{
+    const sc_unit *u = &job->units[idx];
+    size_t n = sc_wire_unit_pack(job, u, NULL, 0);
+    int rc = n > 0 && n <= SC_MSG_MAX_WIRE ? grow_buf(c, n) : SC_ETOOBIG;
+    if (rc != SC_OK)
+        return rc;
+    sc_wire_unit_pack(job, u, c->buf, n);
+    sc_msg_work w = { c->serial, idx, c->buf, n, 0 };
+    uint8_t *p;
+    size_t len;
+    rc = sc_msg_work_encode(SC_MSG_UNIT, &w, &p, &len);
+    if (rc != SC_OK)
+        return rc;
+    if (c->batch_len + len > BATCH_BYTES)
+        flush(c, d);
+    if (c->batch_len + len > c->batch_cap) {
+        size_t cap = 2 * (c->batch_len + len);
+        uint8_t *b = realloc(c->batch, cap);
+        if (!b) {
+            free(p);
+            return SC_ENOMEM;
+        }
+        c->batch = b;
+        c->batch_cap = cap;
+    }
+    memcpy(c->batch + c->batch_len, p, len);
+    c->batch_len += len;
+    free(p);
+    return SC_OK;
+}
+
+static int remote_submit(sc_node *n, const sc_job *job, const int *units, int count)
+{
+    remote_node *r = (remote_node *)n;
+    sc_cluster *c = r->c;
+    daemon_slot *d = &c->d[r->slot];
+    double t0 = now_s();
+    d->submit_us = d->last_us = realtime_us();
+    d->t_submit = t0;
+    c->batch_len = 0;
+    for (int i = 0; i < count; i++) {
+        /* a unit that cannot be sent is computed here, in wait() */
+        c->out[units[i]] = OUT_SENT;
+        d->sent++;
+        add_unit(c, d, job, units[i]);
+    }
+    flush(c, d);
+    c->w->stats.comm_s += now_s() - t0;
+    return SC_OK;
+}
+
+static void recompute(sc_cluster *c, daemon_slot *d, int k)
+{
+    const sc_job *job = c->job;
+    int missed = 0;
+    for (int i = 0; i < job->nunits; i++) {
+        sc_unit *u = &job->units[i];
+        if (c->out[i] != OUT_SENT || u->node != c->first_node + k)
+            continue;
+        if (!c->np)
+            c->np = sc_np_create();
+        double t0 = now_s();
+        if (c->np) {
+            sc_unit_run(c->np, job, u);
+        } else {
+            u->rc = SC_ENOMEM;
+        }
+        u->time_s = now_s() - t0;
+        u->node = 0;            /* it taught us about this thread, not the daemon */
+        c->out[i] = OUT_LOCAL;
+        c->w->stats.recomputed_units++;
+        missed++;
+    }
+    if (missed)
+        d->missed_at = now_s();
+}
+
+static int remote_wait(sc_node *n, double *cpu_s)
+{
+    remote_node *r = (remote_node *)n;
+    sc_cluster *c = r->c;
+    daemon_slot *d = &c->d[r->slot];
+    double now = now_s();
+    if (c->local_done == 0)
+        c->local_done = now;
+    /* the scheduler's own estimate of this daemon's work, twice, or the
+     * configured deadline after the local nodes finished */
+    double predicted = d->overhead;
+    for (int i = 0; i < c->job->nunits; i++)
+        if (c->job->units[i].node == n->id)
+            predicted += c->job->units[i].predict_s;
+    double deadline = c->local_done + c->deadline_s;
+    double cap = MAX_WAIT_DEADLINES * c->deadline_s;
+    if (d->t_submit + fmin(2 * predicted, cap) > deadline)
+        deadline = d->t_submit + fmin(2 * predicted, cap);
+    while (d->done < d->sent && (now = now_s()) < deadline)
+        pump(c, deadline - now);
+    if (d->done < d->sent)
+        recompute(c, d, r->slot);
+    else if (d->sent > 0) {
+        /* from the send to the last result's arrival, less the work */
+        double o = 1e-6 * (double)(d->last_us - d->submit_us) - d->compute_s;
+        if (o < 0)
+            o = 0;
+        d->overhead = d->overhead > 0 ? OVERHEAD_KEEP * d->overhead + (1 - OVERHEAD_KEEP) * o : o;
+    }
+    *cpu_s = d->compute_s;
+    return SC_OK;
+}
+
+static double remote_transfer(const sc_node *n, size_t bytes)
+{
+    (void)n;
+    return BYTE_S * (double)bytes;
+}
+
+static double remote_latency(const sc_node *n)
+{
+    const remote_node *r = (const remote_node *)n;
+    return r->c->d[r->slot].overhead;
+}
+
+static void remote_destroy(sc_node *n)
+{
+    (void)n;                    /* the cluster owns its nodes */
+}
+
+static const sc_node_ops remote_ops = {
+    .submit = remote_submit,
+    .wait = remote_wait,
+    .transfer_s = remote_transfer,
+    .latency_s = remote_latency,
+    .capacity = capacity,
+    .destroy = remote_destroy,
+};
+
+/* ---- the cluster ---- */
+
+int sc_cluster_create(sc_world *w, const char *url, const char *key_file, double deadline_s,
+                      int first_node, sc_cluster **out)
+{
+    *out = NULL;
+    sc_cluster *c = calloc(1, sizeof *c);
+    if (!c)
+        return SC_ENOMEM;
+    int rc = key_file ? sc_key_load(key_file, c->key) : SC_OK;
+    if (rc != SC_OK) {
+        free(c);
+        return rc;
+    }
+    c->w = w;
+    c->first_node = first_node;
+    c->deadline_s = deadline_s > 0 ? deadline_s : DEFAULT_DEADLINE_S;
+    uint64_t id = 0;
+    if (getrandom(&id, sizeof id, 0) != sizeof id)
+        id = (uint64_t)getpid() * 0x9e3779b97f4a7c15ULL ^ (uint64_t)time(NULL);
+    c->id = (int64_t)(id >> 1) | 1;
+    c->lcm = lcm_create(url);
+    if (!c->lcm) {
+        free(c);
+        return SC_EIO;
+    }
+    c->fd = lcm_get_fileno(c->lcm);
+    char ch[CHANNEL_MAX];
+    int ok = lcm_subscribe(c->lcm, "SC_ANNOUNCE", on_message, c) != NULL;
+    snprintf(ch, sizeof ch, "SC_RESULT_%016" PRIx64, (uint64_t)c->id);
+    ok = ok && lcm_subscribe(c->lcm, ch, on_message, c) != NULL;
+    snprintf(ch, sizeof ch, "SC_SHAPEREQ_%016" PRIx64, (uint64_t)c->id);
+    ok = ok && lcm_subscribe(c->lcm, ch, on_message, c) != NULL;
+    if (!ok) {
+        sc_cluster_destroy(c);
+        return SC_EIO;
+    }
+    for (int k = 0; k < SC_MAX_DAEMONS; k++)
+        c->node[k] = (remote_node){ { &remote_ops, first_node + k }, c, k };
+    *out = c;
+    return SC_OK;
+}
+
+sc_node *sc_cluster_node(sc_cluster *c, int k)
+{
+    return &c->node[k].base;
+}
+
+void sc_cluster_destroy(sc_cluster *c)
+{
+    if (!c)
+        return;
+    if (c->lcm)
+        lcm_destroy(c->lcm);
+    sc_np_destroy(c->np);
+    free(c->out);
+    free(c->buf);
+    free(c->batch);
+    free(c);
+}
+
+void sc_cluster_frame(sc_cluster *c)
+{
+    pump(c, 0);
+    double now = now_s();
+    c->w->stats.daemons = c->w->stats.daemons_busy = 0;
+    for (int k = 0; k < SC_MAX_DAEMONS; k++) {
+        daemon_slot *d = &c->d[k];
+        if (d->used && now - d->heard > FORGET_S)
+            d->used = 0;
+        if (!d->used || now - d->heard > SILENT_S)
+            continue;
+        if (d->a.owner_busy)
+            c->w->stats.daemons_busy++;
+        else
+            c->w->stats.daemons++;
+    }
+    c->w->stats.nodes = c->first_node + c->w->stats.daemons;
+    c->w->stats.dropped_messages =
+        c->guard.dropped_format + c->guard.dropped_auth + c->guard.dropped_replay;
+}
+
+int sc_cluster_begin(sc_cluster *c, const sc_job *job)
+{
+    if (job->nunits > c->out_cap) {
+        uint8_t *o = realloc(c->out, (size_t)job->nunits);
+        if (!o)
+            return SC_ENOMEM;
+        c->out = o;
+        c->out_cap = job->nunits;
+    }
+    memset(c->out, OUT_NONE, (size_t)job->nunits);
+    c->job = job;
+    c->serial++;
+    c->local_done = 0;
+    for (int k = 0; k < SC_MAX_DAEMONS; k++) {
+        daemon_slot *d = &c->d[k];
+        d->sent = d->done = 0;
+        d->compute_s = 0;
+    }
+    return SC_OK;
+}
+
+void sc_cluster_force(sc_cluster *c)
+{
+    c->force = 1;
+}
+
+void sc_cluster_end(sc_cluster *c)
+{
+    c->job = NULL;
+}

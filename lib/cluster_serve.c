@@ -1,0 +1,753 @@
+/* cluster_serve.c - the daemon's engine (cluster_serve.h): the LCM loop on
+ * the thread that calls sc_serve_run() (envelopes opened and checked,
+ * units decoded, shapes cached, heartbeats sent) and compute threads that
+ * run units and send their results. Received bytes are never trusted:
+ * envelopes are checked before anything is decoded (cluster_msg.c), units
+ * by sc_wire_unit_decode (every size bounded), shapes rebuilt and checked
+ * against the hash they claim. */
+#include <errno.h>
+#include <inttypes.h>
+#include <lcm/lcm.h>
+#include <poll.h>
+#include <pthread.h>
+#include <sched.h>
+#include <stdarg.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <sys/random.h>
+#include <sys/resource.h>
+#include <sys/syscall.h>
+#include <syslog.h>
+#include <time.h>
+#include <unistd.h>
+
+#include "cluster_serve.h"
+#include "idle.h"
+#include "sc_internal.h"
+
+#define QUEUE_MAX 4096            /* decoded units waiting for a thread */
+#define PARKED_MAX 1024           /* units waiting for shapes */
+#define MISSING_MAX 16            /* shapes one unit may wait for */
+#define REQUEST_AGAIN_S 0.5       /* ask again for a shape not yet received */
+#define BUSY_HYSTERESIS 0.1
+#define CHANNEL_MAX 48
+#define BATCH_BYTES (256u << 10)  /* results sent together, at most */
+
+typedef struct task {
+    int64_t master, frame;
+    int unit;
+    sc_wire_unit wu;
+} task;
+
+typedef struct parked {           /* a unit whose shapes are on their way */
+    int64_t master, frame;
+    int unit;
+    uint8_t *wire;
+    size_t len;
+    double since;
+} parked;
+
+typedef struct cached {
+    uint64_t hash;
+    sc_shape *shape;
+    size_t bytes;
+} cached;
+
+typedef struct asked {
+    uint64_t hash;
+    double when;
+} asked;
+
+struct sc_serve {
+    sc_serve_config cfg;
+    lcm_t *lcm;
+    int64_t id;
+    char ch_unit[CHANNEL_MAX], ch_shape[CHANNEL_MAX];
+    _Atomic int64_t seq;
+    sc_msg_guard guard;           /* LCM thread only */
+    int stop_pipe[2];
+    /* shape cache (LCM thread writes; compute threads read shapes that
+     * decoded units hold references to) */
+    cached *cache;
+    int ncache, cache_cap;
+    size_t cache_bytes;
+    asked *asked;
+    int nasked, asked_cap;
+    parked *parked;
+    int nparked;
+    /* the compute queue */
+    pthread_mutex_t lock;
+    pthread_cond_t cond;
+    task **queue;
+    int qhead, qlen;
+    int quit;
+    pthread_t *threads;
+    int nthreads;
+    /* heartbeat */
+    cpu_set_t cpus;
+    sc_cpu_times last_cpu;
+    uint64_t last_self;
+    int have_cpu;
+    sc_busy busy;
+    double speed;                 /* units per second per thread (EWMA) */
+    double unit_s;                /* thread seconds in units since the last beat */
+    long units_since;
+    /* counters (lock) */
+    sc_serve_counters n;
+    pthread_mutex_t cfg_lock;     /* busy_threshold, heartbeat_s, log */
+};
+
+static void logf_(sc_serve *s, int prio, const char *fmt, ...)
+    __attribute__((format(printf, 3, 4)));
+static void logf_(sc_serve *s, int prio, const char *fmt, ...)
+{
+    pthread_mutex_lock(&s->cfg_lock);
+    void (*fn)(void *, int, const char *) = s->cfg.log;
+    void *ctx = s->cfg.log_ctx;
+    pthread_mutex_unlock(&s->cfg_lock);
+    if (!fn)
+        return;
+    char msg[512];
+    va_list ap;
+    va_start(ap, fmt);
+    vsnprintf(msg, sizeof msg, fmt, ap);
+    va_end(ap);
+    fn(ctx, prio, msg);
+}
+
+sc_serve_config sc_serve_config_default(void)
+{
+    sc_serve_config c;
+    memset(&c, 0, sizeof c);
+    c.url = SC_CLUSTER_URL;
+    long cpus = sysconf(_SC_NPROCESSORS_ONLN);
+    c.threads = cpus < 1 ? 1 : cpus > SC_SERVE_MAX_THREADS ? SC_SERVE_MAX_THREADS : (int)cpus;
+    c.busy_threshold = 0.5;
+    c.heartbeat_s = 0.2;
+    c.idle_priority = 1;
+    c.cache_bytes = (size_t)256 << 20;
+    return c;
+}
+
+static int config_ok(const sc_serve_config *c)
+{
+    return c->url && c->threads >= 1 && c->threads <= SC_SERVE_MAX_THREADS &&
+           c->busy_threshold > 0 && c->busy_threshold <= 1 && c->heartbeat_s >= 0.01 &&
+           c->heartbeat_s <= 10 && c->node_id >= 0 && c->cache_bytes > 0;
+}
+
+/* Seal and publish (any thread: lcm_publish is thread-safe). */
+static int send_msg(sc_serve *s, const char *channel, int kind, const uint8_t *payload,
+                    size_t len)
+{
+    uint8_t *env;
+    size_t elen;
+    int64_t seq = atomic_fetch_add(&s->seq, 1);
+    int rc = sc_msg_seal(s->cfg.key, s->id, seq, kind, payload, len, &env, &elen);
+    if (rc != SC_OK)
+        return rc;
+    rc = lcm_publish(s->lcm, channel, env, (unsigned)elen) == 0 ? SC_OK : SC_EIO;
+    free(env);
+    return rc;
+}
+
+/* ---- compute threads ---- */
+
+static void set_idle_priority(sc_serve *s)
+{
+    pid_t tid = (pid_t)syscall(SYS_gettid);
+    if (setpriority(PRIO_PROCESS, (id_t)tid, 19) != 0)
+        logf_(s, LOG_WARNING, "nice 19: %s", strerror(errno));
+    struct sched_param sp = { 0 };
+    if (sched_setscheduler(0, SCHED_IDLE, &sp) != 0)
+        logf_(s, LOG_WARNING, "SCHED_IDLE: %s", strerror(errno));
+}
+
+/* Results waiting to go to one master as one message (per thread). */
+typedef struct outbox {
+    int64_t master;
+    uint8_t *buf;
+    size_t len, cap;
+    int count;
+} outbox;
+
+static void flush(sc_serve *s, outbox *o)
+{
+    if (!o->count)
+        return;
+    char ch[CHANNEL_MAX];
+    snprintf(ch, sizeof ch, "SC_RESULT_%016" PRIx64, (uint64_t)o->master);
+    int rc = send_msg(s, ch, SC_MSG_RESULT, o->buf, o->len);
+    pthread_mutex_lock(&s->lock);
+    if (rc == SC_OK)
+        s->n.results += o->count;
+    else
+        s->n.unit_errors += o->count;
+    pthread_mutex_unlock(&s->lock);
+    if (rc != SC_OK)
+        logf_(s, LOG_WARNING, "results not sent: %s", sc_strerror(rc));
+    o->len = 0;
+    o->count = 0;
+}
+
+static int outbox_add(outbox *o, const uint8_t *p, size_t n)
+{
+    if (o->len + n > o->cap) {
+        size_t cap = 2 * (o->len + n);
+        uint8_t *b = realloc(o->buf, cap);
+        if (!b)
+            return SC_ENOMEM;
+        o->buf = b;
+        o->cap = cap;
+    }
+    memcpy(o->buf + o->len, p, n);
+    o->len += n;
+    o->count++;
+    return SC_OK;
+}
+
+static void run_task(sc_serve *s, sc_np_ctx *np, task *t, outbox *o)
+{
+    struct timespec c0, c1;
+    clock_gettime(CLOCK_THREAD_CPUTIME_ID, &c0);
+    sc_unit_run(np, &t->wu.job, &t->wu.unit);
+    clock_gettime(CLOCK_THREAD_CPUTIME_ID, &c1);
+    double sec = (double)(c1.tv_sec - c0.tv_sec) + 1e-9 * (double)(c1.tv_nsec - c0.tv_nsec);
+    size_t n = sc_wire_result_pack(&t->wu, NULL, 0);
+    uint8_t *buf = n ? malloc(n) : NULL;
+    int rc = buf && sc_wire_result_pack(&t->wu, buf, n) == n ? SC_OK : SC_ENOMEM;
+    uint8_t *payload = NULL;
+    size_t plen = 0;
+    if (rc == SC_OK) {
+        sc_msg_work w = { t->frame, t->unit, buf, n,
+                          sec > 2000 ? INT32_MAX : (int)(sec * 1e6) };
+        rc = sc_msg_work_encode(SC_MSG_RESULT, &w, &payload, &plen);
+    }
+    if (rc == SC_OK && (o->master != t->master || o->len + plen > BATCH_BYTES))
+        flush(s, o);
+    o->master = t->master;
+    if (rc == SC_OK)
+        rc = outbox_add(o, payload, plen);
+    free(payload);
+    free(buf);
+    pthread_mutex_lock(&s->lock);
+    if (rc != SC_OK)
+        s->n.unit_errors++;
+    s->unit_s += sec;
+    s->units_since++;
+    pthread_mutex_unlock(&s->lock);
+    if (rc != SC_OK)
+        logf_(s, LOG_WARNING, "result of unit %d: %s", t->unit, sc_strerror(rc));
+}
+
+static void *compute(void *arg)
+{
+    sc_serve *s = arg;
+    if (s->cfg.idle_priority)
+        set_idle_priority(s);
+    const sc_ode *ode = sc_ode_acquire();
+    sc_np_ctx *np = sc_np_create_on(ode);
+    outbox o = { 0, NULL, 0, 0, 0 };
+    for (;;) {
+        pthread_mutex_lock(&s->lock);
+        if (!s->qlen && o.count) {
+            /* nothing more to do now: what is done goes out together */
+            pthread_mutex_unlock(&s->lock);
+            flush(s, &o);
+            continue;
+        }
+        while (!s->qlen && !s->quit)
+            pthread_cond_wait(&s->cond, &s->lock);
+        if (s->quit) {
+            pthread_mutex_unlock(&s->lock);
+            break;
+        }
+        task *t = s->queue[s->qhead];
+        s->qhead = (s->qhead + 1) % QUEUE_MAX;
+        s->qlen--;
+        pthread_mutex_unlock(&s->lock);
+        if (np)
+            run_task(s, np, t, &o);
+        sc_wire_unit_free(&t->wu);
+        free(t);
+    }
+    free(o.buf);
+    sc_np_destroy(np);
+    sc_ode_release(ode);
+    return NULL;
+}
+
+/* ---- shapes ---- */
+
+static const sc_shape *cache_find(const sc_serve *s, uint64_t hash)
+{
+    for (int i = 0; i < s->ncache; i++)
+        if (s->cache[i].hash == hash)
+            return s->cache[i].shape;
+    return NULL;
+}
+
+/* Lookup for sc_wire_unit_decode: cached shapes, and for missing ones a
+ * stand-in with the right hash (so decoding goes on and finds them all;
+ * a unit that needed one is never run). */
+typedef struct lookup_ctx {
+    sc_serve *s;
+    uint64_t missing[MISSING_MAX];
+    sc_shape stand_in[MISSING_MAX];
+    int nmissing;
+} lookup_ctx;
+
+static const sc_shape *lookup(void *ctx, uint64_t hash)
+{
+    lookup_ctx *l = ctx;
+    const sc_shape *sh = cache_find(l->s, hash);
+    if (sh)
+        return sh;
+    for (int i = 0; i < l->nmissing; i++)
+        if (l->missing[i] == hash)
+            return &l->stand_in[i];
+    if (l->nmissing == MISSING_MAX)
+        return NULL;
+    int i = l->nmissing++;
+    l->missing[i] = hash;
+    memset(&l->stand_in[i], 0, sizeof l->stand_in[i]);
+    l->stand_in[i].hash = hash;
+    return &l->stand_in[i];
+}
+
+static void request_shape(sc_serve *s, int64_t master, uint64_t hash)
+{
+    double now = sc_wall_now();
+    int i;
+    for (i = 0; i < s->nasked; i++)
+        if (s->asked[i].hash == hash)
+            break;
+    if (i < s->nasked && now - s->asked[i].when < REQUEST_AGAIN_S)
+        return;
+    if (i == s->nasked) {
+        if (sc_grow((void **)&s->asked, &s->asked_cap, s->nasked + 1, sizeof *s->asked, 4096) !=
+            SC_OK)
+            return;
+        s->nasked++;
+    }
+    s->asked[i] = (asked){ hash, now };
+    uint8_t *p;
+    size_t len;
+    if (sc_msg_shape_request_encode(hash, &p, &len) != SC_OK)
+        return;
+    char ch[CHANNEL_MAX];
+    snprintf(ch, sizeof ch, "SC_SHAPEREQ_%016" PRIx64, (uint64_t)master);
+    if (send_msg(s, ch, SC_MSG_SHAPE_REQUEST, p, len) == SC_OK) {
+        pthread_mutex_lock(&s->lock);
+        s->n.shape_requests++;
+        pthread_mutex_unlock(&s->lock);
+    }
+    free(p);
+}
+
+/* Decode a unit and queue it, or park it until its shapes come. Takes wire. */
+static void take_unit(sc_serve *s, int64_t master, int64_t frame, int unit, uint8_t *wire,
+                      size_t len, double since)
+{
+    lookup_ctx *l = calloc(1, sizeof *l);
+    task *tp = calloc(1, sizeof *tp);
+    if (!tp) {
+        free(l);
+        l = NULL;
+    }
+    int rc = l ? SC_OK : SC_ENOMEM;
+    if (l) {
+        tp->master = master;
+        tp->frame = frame;
+        tp->unit = unit;
+        l->s = s;
+        rc = sc_wire_unit_decode(wire, len, lookup, l, &tp->wu);
+    }
+    if (l && l->nmissing > 0) {
+        if (rc == SC_OK)
+            sc_wire_unit_free(&tp->wu);
+        free(tp);
+        for (int i = 0; i < l->nmissing; i++)
+            request_shape(s, master, l->missing[i]);
+        free(l);
+        if (s->nparked == PARKED_MAX) {
+            free(wire);
+            return;
+        }
+        s->parked[s->nparked++] = (parked){ master, frame, unit, wire, len,
+                                           since > 0 ? since : sc_wall_now() };
+        return;
+    }
+    free(l);
+    free(wire);
+    pthread_mutex_lock(&s->lock);
+    if (rc == SC_OK && s->qlen == QUEUE_MAX)
+        rc = SC_ETOOBIG;
+    if (rc == SC_OK) {
+        s->queue[(s->qhead + s->qlen) % QUEUE_MAX] = tp;
+        s->qlen++;
+        pthread_cond_signal(&s->cond);
+    } else {
+        s->n.unit_errors++;
+    }
+    pthread_mutex_unlock(&s->lock);
+    if (rc != SC_OK) {
+        if (rc == SC_ETOOBIG)
+            sc_wire_unit_free(&tp->wu);
+        free(tp);
+        logf_(s, LOG_DEBUG, "unit %d of job %" PRId64 " dropped: %s", unit, frame,
+              sc_strerror(rc));
+    }
+}
+
+static void retry_parked(sc_serve *s)
+{
+    int n = s->nparked;
+    parked *old = malloc((size_t)n * sizeof *old);
+    if (!old)
+        return;
+    memcpy(old, s->parked, (size_t)n * sizeof *old);
+    s->nparked = 0;
+    double now = sc_wall_now();
+    for (int i = 0; i < n; i++) {
+        if (now - old[i].since > 10) {      /* the master has long moved on */
+            free(old[i].wire);
+            continue;
+        }
+        take_unit(s, old[i].master, old[i].frame, old[i].unit, old[i].wire, old[i].len,
+                  old[i].since);
+    }
+    free(old);
+}
+
+/* A message that opened but whose payload is not what its channel takes. */
+static void count_format(sc_serve *s)
+{
+    pthread_mutex_lock(&s->lock);
+    s->guard.dropped_format++;
+    s->n.dropped_format = s->guard.dropped_format;
+    pthread_mutex_unlock(&s->lock);
+}
+
+static size_t shape_bytes(const sc_shape *sh)
+{
+    return sizeof *sh + (size_t)sh->nverts * 24 + (size_t)sh->ntris * 12 * 3;
+}
+
+static void take_shape(sc_serve *s, const uint8_t *p, size_t len)
+{
+    sc_shape *sh;
+    int rc = sc_msg_shape_decode(p, len, &sh);
+    if (rc != SC_OK) {
+        count_format(s);
+        logf_(s, LOG_WARNING, "shape dropped: %s", sc_strerror(rc));
+        return;
+    }
+    if (cache_find(s, sh->hash)) {
+        sc_shape_release(sh);
+        return;
+    }
+    size_t b = shape_bytes(sh);
+    /* over the bound: forget every shape no queued unit holds (decoded
+     * units keep their shapes alive by reference) */
+    if (s->cache_bytes + b > s->cfg.cache_bytes) {
+        for (int i = 0; i < s->ncache; i++)
+            sc_shape_release(s->cache[i].shape);
+        s->ncache = 0;
+        s->cache_bytes = 0;
+        logf_(s, LOG_INFO, "shape cache full: emptied");
+    }
+    if (sc_grow((void **)&s->cache, &s->cache_cap, s->ncache + 1, sizeof *s->cache, 1 << 20) !=
+        SC_OK) {
+        sc_shape_release(sh);
+        return;
+    }
+    s->cache[s->ncache++] = (cached){ sh->hash, sh, b };
+    s->cache_bytes += b;
+    pthread_mutex_lock(&s->lock);
+    s->n.shapes = s->ncache;
+    pthread_mutex_unlock(&s->lock);
+    logf_(s, LOG_DEBUG, "shape %016" PRIx64 " cached (%d triangles)", sh->hash, sh->ntris);
+    retry_parked(s);
+}
+
+/* ---- the LCM thread ---- */
+
+static void on_message(const lcm_recv_buf_t *rb, const char *channel, void *ctx)
+{
+    sc_serve *s = ctx;
+    sc_msg m;
+    pthread_mutex_lock(&s->lock);
+    int rc = sc_msg_open(s->cfg.key, &s->guard, rb->data, rb->data_size, &m);
+    s->n.dropped_format = s->guard.dropped_format;
+    s->n.dropped_auth = s->guard.dropped_auth;
+    s->n.dropped_replay = s->guard.dropped_replay;
+    pthread_mutex_unlock(&s->lock);
+    if (rc != SC_OK) {
+        logf_(s, LOG_DEBUG, "message on %s dropped: %s", channel, sc_strerror(rc));
+        return;
+    }
+    int is_unit = !strcmp(channel, s->ch_unit);
+    if (is_unit && m.kind == SC_MSG_UNIT) {
+        size_t off = 0;
+        while (off < m.len) {
+            sc_msg_work w;
+            if (sc_msg_work_next(SC_MSG_UNIT, m.payload, m.len, &off, &w) != SC_OK) {
+                count_format(s);
+                break;
+            }
+            pthread_mutex_lock(&s->lock);
+            s->n.units++;
+            pthread_mutex_unlock(&s->lock);
+            take_unit(s, m.node, w.frame, w.unit, w.wire, w.len, 0);   /* takes w.wire */
+        }
+    } else if (!is_unit && m.kind == SC_MSG_SHAPE) {
+        take_shape(s, m.payload, m.len);
+    } else {
+        count_format(s);
+    }
+    sc_msg_free(&m);
+}
+
+static int read_file(const char *path, char *buf, size_t cap, size_t *len)
+{
+    FILE *f = fopen(path, "r");
+    if (!f)
+        return SC_EIO;
+    *len = fread(buf, 1, cap - 1, f);
+    buf[*len] = 0;
+    fclose(f);
+    return SC_OK;
+}
+
+/* The idle fraction of our CPUs since the last beat, own use excluded. */
+static double measure_idle(sc_serve *s)
+{
+    static const size_t cap = 1 << 16;
+    char *buf = malloc(cap);
+    if (!buf)
+        return -1;
+    size_t len;
+    sc_cpu_times t;
+    uint64_t self;
+    double idle = -1;
+    if (read_file("/proc/stat", buf, cap, &len) == SC_OK &&
+        sc_cpu_parse_stat_cpus(buf, len, &s->cpus, &t) == SC_OK &&
+        read_file("/proc/self/stat", buf, cap, &len) == SC_OK &&
+        sc_cpu_parse_self(buf, len, &self) == SC_OK) {
+        if (s->have_cpu && self >= s->last_self)
+            idle = sc_idle_fraction(&s->last_cpu, &t, self - s->last_self);
+        s->last_cpu = t;
+        s->last_self = self;
+        s->have_cpu = 1;
+    }
+    free(buf);
+    return idle;
+}
+
+static void heartbeat(sc_serve *s)
+{
+    pthread_mutex_lock(&s->cfg_lock);
+    double threshold = s->cfg.busy_threshold;
+    pthread_mutex_unlock(&s->cfg_lock);
+    double idle = measure_idle(s);
+    int was = s->busy.busy;
+    int busy = sc_busy_update(&s->busy, idle, threshold, BUSY_HYSTERESIS);
+    if (busy != was)
+        logf_(s, LOG_INFO, busy ? "owner busy (idle %.2f): no more work" : "owner idle again (idle %.2f)",
+              idle);
+    pthread_mutex_lock(&s->lock);
+    if (s->units_since > 0 && s->unit_s > 0) {
+        double v = (double)s->units_since / s->unit_s;
+        s->speed = s->speed > 0 ? 0.7 * s->speed + 0.3 * v : v;
+    }
+    s->units_since = 0;
+    s->unit_s = 0;
+    if (idle >= 0)
+        s->n.idle_fraction = idle;
+    s->n.owner_busy = busy;
+    sc_msg_announce a;
+    memset(&a, 0, sizeof a);
+    a.node = s->id;
+    gethostname(a.host, sizeof a.host - 1);
+    a.cores = s->nthreads;
+    a.speed = s->speed > 0 ? s->speed : 1;
+    a.idle_fraction = s->n.idle_fraction;
+    a.owner_busy = busy;
+    a.version = SC_MSG_VERSION;
+    struct timespec ts;
+    clock_gettime(CLOCK_REALTIME, &ts);
+    a.time_us = (int64_t)ts.tv_sec * 1000000 + ts.tv_nsec / 1000;
+    pthread_mutex_unlock(&s->lock);
+    uint8_t *p;
+    size_t len;
+    if (sc_msg_announce_encode(&a, &p, &len) == SC_OK) {
+        if (send_msg(s, "SC_ANNOUNCE", SC_MSG_ANNOUNCE, p, len) == SC_OK) {
+            pthread_mutex_lock(&s->lock);
+            s->n.heartbeats++;
+            pthread_mutex_unlock(&s->lock);
+        }
+        free(p);
+    }
+}
+
+int sc_serve_create(const sc_serve_config *c, sc_serve **out)
+{
+    if (!c || !out || !config_ok(c))
+        return SC_EINVAL;
+    *out = NULL;
+    sc_serve *s = calloc(1, sizeof *s);
+    if (!s)
+        return SC_ENOMEM;
+    s->cfg = *c;
+    s->stop_pipe[0] = s->stop_pipe[1] = -1;
+    pthread_mutex_init(&s->lock, NULL);
+    pthread_mutex_init(&s->cfg_lock, NULL);
+    pthread_cond_init(&s->cond, NULL);
+    s->id = c->node_id;
+    while (s->id <= 0) {
+        uint64_t r = 0;
+        if (getrandom(&r, sizeof r, 0) != sizeof r)
+            r = (uint64_t)getpid() * 0x9e3779b97f4a7c15ULL ^ (uint64_t)time(NULL);
+        s->id = (int64_t)(r >> 1);
+    }
+    s->n.node = s->id;
+    snprintf(s->ch_unit, sizeof s->ch_unit, "SC_UNIT_%016" PRIx64, (uint64_t)s->id);
+    snprintf(s->ch_shape, sizeof s->ch_shape, "SC_SHAPE_%016" PRIx64, (uint64_t)s->id);
+    if (sched_getaffinity(0, sizeof s->cpus, &s->cpus) != 0) {
+        CPU_ZERO(&s->cpus);
+        for (int i = 0; i < CPU_SETSIZE; i++)
+            CPU_SET(i, &s->cpus);
+    }
+    s->queue = calloc(QUEUE_MAX, sizeof *s->queue);
+    s->parked = calloc(PARKED_MAX, sizeof *s->parked);
+    s->threads = calloc((size_t)c->threads, sizeof *s->threads);
+    if (!s->queue || !s->parked || !s->threads || pipe(s->stop_pipe) != 0) {
+        sc_serve_destroy(s);
+        return SC_ENOMEM;
+    }
+    s->lcm = lcm_create(c->url);
+    if (!s->lcm) {
+        sc_serve_destroy(s);
+        return SC_EIO;
+    }
+    if (!lcm_subscribe(s->lcm, s->ch_unit, on_message, s) ||
+        !lcm_subscribe(s->lcm, s->ch_shape, on_message, s)) {
+        sc_serve_destroy(s);
+        return SC_EIO;
+    }
+    sc_ode_init();
+    measure_idle(s);
+    *out = s;
+    return SC_OK;
+}
+
+int sc_serve_run(sc_serve *s)
+{
+    if (!s)
+        return SC_EINVAL;
+    for (int i = 0; i < s->cfg.threads; i++) {
+        if (pthread_create(&s->threads[i], NULL, compute, s) != 0)
+            break;
+        s->nthreads++;
+    }
+    if (s->nthreads == 0)
+        return SC_ENOMEM;
+    logf_(s, LOG_INFO, "serving on %s as node %016" PRIx64 " with %d threads%s", s->cfg.url,
+          (uint64_t)s->id, s->nthreads, s->cfg.idle_priority ? " (nice 19, SCHED_IDLE)" : "");
+    int rc = SC_OK;
+    double next = sc_wall_now();
+    int fd = lcm_get_fileno(s->lcm);
+    for (;;) {
+        double now = sc_wall_now();
+        if (now >= next) {
+            heartbeat(s);
+            pthread_mutex_lock(&s->cfg_lock);
+            next = now + s->cfg.heartbeat_s;
+            pthread_mutex_unlock(&s->cfg_lock);
+            if (s->nparked)
+                retry_parked(s);    /* re-asks for shapes lost on the way */
+        }
+        struct pollfd pf[2] = { { fd, POLLIN, 0 }, { s->stop_pipe[0], POLLIN, 0 } };
+        int ms = (int)((next - now) * 1000) + 1;
+        int n = poll(pf, 2, ms);
+        if (n < 0 && errno != EINTR) {
+            rc = SC_EIO;
+            break;
+        }
+        if (n > 0 && pf[1].revents)
+            break;
+        if (n > 0 && (pf[0].revents & POLLIN) && lcm_handle(s->lcm) != 0) {
+            rc = SC_EIO;
+            break;
+        }
+    }
+    pthread_mutex_lock(&s->lock);
+    s->quit = 1;
+    pthread_cond_broadcast(&s->cond);
+    pthread_mutex_unlock(&s->lock);
+    for (int i = 0; i < s->nthreads; i++)
+        pthread_join(s->threads[i], NULL);
+    s->nthreads = 0;
+    return rc;
+}
+
+void sc_serve_stop(sc_serve *s)
+{
+    if (s) {
+        char c = 1;
+        ssize_t r = write(s->stop_pipe[1], &c, 1);
+        (void)r;
+    }
+}
+
+int sc_serve_reload(sc_serve *s, const sc_serve_config *c)
+{
+    if (!s || !c || !(c->busy_threshold > 0 && c->busy_threshold <= 1) ||
+        !(c->heartbeat_s >= 0.01 && c->heartbeat_s <= 10))
+        return SC_EINVAL;
+    pthread_mutex_lock(&s->cfg_lock);
+    s->cfg.busy_threshold = c->busy_threshold;
+    s->cfg.heartbeat_s = c->heartbeat_s;
+    s->cfg.log = c->log;
+    s->cfg.log_ctx = c->log_ctx;
+    pthread_mutex_unlock(&s->cfg_lock);
+    return SC_OK;
+}
+
+void sc_serve_counters_get(sc_serve *s, sc_serve_counters *out)
+{
+    pthread_mutex_lock(&s->lock);
+    *out = s->n;
+    pthread_mutex_unlock(&s->lock);
+}
+
+void sc_serve_destroy(sc_serve *s)
+{
+    if (!s)
+        return;
+    if (s->lcm)
+        lcm_destroy(s->lcm);
+    for (int i = 0; s->queue && i < s->qlen; i++) {
+        task *t = s->queue[(s->qhead + i) % QUEUE_MAX];
+        sc_wire_unit_free(&t->wu);
+        free(t);
+    }
+    for (int i = 0; i < s->nparked; i++)
+        free(s->parked[i].wire);
+    for (int i = 0; i < s->ncache; i++)
+        sc_shape_release(s->cache[i].shape);
+    free(s->cache);
+    free(s->asked);
+    free(s->parked);
+    free(s->queue);
+    free(s->threads);
+    if (s->stop_pipe[0] >= 0) {
+        close(s->stop_pipe[0]);
+        close(s->stop_pipe[1]);
+    }
+    pthread_mutex_destroy(&s->lock);
+    pthread_mutex_destroy(&s->cfg_lock);
+    pthread_cond_destroy(&s->cond);
+    free(s);
+}

@@ -1,0 +1,76 @@
+/*
+ * cluster_serve.h - the daemon's engine (DESIGN.md section 6): it joins the
+ * cluster's LCM group, announces itself, caches shapes by content hash
+ * (asking the master for missing ones), computes the work units masters
+ * send it on its compute threads, and replies with their results. The
+ * process around it (configuration, logging, signals, privileges) is
+ * daemon/simclusterd.c.
+ *
+ * Channels (every message a sealed envelope, lib/cluster_msg.h):
+ *   SC_ANNOUNCE          daemons' heartbeats (announce_t)
+ *   SC_UNIT_<node>       units for daemon <node> (unit_t; frame = the
+ *                        master's job serial)
+ *   SC_RESULT_<node>     results for master <node> (result_t)
+ *   SC_SHAPEREQ_<node>   shape requests to master <node> (shape_request_t)
+ *   SC_SHAPE_<node>      shapes for daemon <node> (shape_t)
+ * <node> is the id in 16 lower-case hex digits.
+ */
+#ifndef SC_CLUSTER_SERVE_H
+#define SC_CLUSTER_SERVE_H
+
+#include <stddef.h>
+#include <stdint.h>
+
+#include "cluster_msg.h"
+
+#define SC_SERVE_MAX_THREADS 256
+
+typedef struct sc_serve_config {
+    const char *url;            /* LCM URL (SC_CLUSTER_URL) */
+    uint8_t key[SC_KEY_BYTES];  /* the cluster key; all zero = insecure */
+    int threads;                /* compute threads, 1..SC_SERVE_MAX_THREADS */
+    double busy_threshold;      /* owner-busy when the others' CPU use passes
+                                  this fraction of the machine (0..1], with
+                                  hysteresis (lib/idle.h) */
+    double heartbeat_s;         /* announce period, 0.01..10 (default 0.2) */
+    int64_t node_id;            /* > 0; 0 = random */
+    int idle_priority;          /* 1: compute threads at nice 19 and SCHED_IDLE */
+    size_t cache_bytes;         /* shape cache bound (default 256 MiB) */
+    /* messages (syslog priorities: LOG_ERR, LOG_WARNING, LOG_INFO, LOG_DEBUG);
+     * called from any thread, one line each, no newline; NULL = none */
+    void (*log)(void *ctx, int prio, const char *msg);
+    void *log_ctx;
+} sc_serve_config;
+
+typedef struct sc_serve_counters {
+    int64_t node;               /* this daemon's id */
+    long units;                 /* units received and decoded */
+    long results;               /* results sent */
+    long unit_errors;           /* units that failed to decode or run */
+    long shapes;                /* shapes in the cache */
+    long shape_requests;        /* requests sent */
+    long dropped_format, dropped_auth, dropped_replay;  /* envelopes dropped */
+    long heartbeats;            /* announces sent */
+    double idle_fraction;       /* last measured */
+    int owner_busy;
+} sc_serve_counters;
+
+sc_serve_config sc_serve_config_default(void);
+typedef struct sc_serve sc_serve;
+/* Join the LCM group and prepare (no threads yet): SC_OK, SC_EINVAL (bad
+ * config), SC_EIO (LCM URL cannot be opened), SC_ENOMEM. */
+int sc_serve_create(const sc_serve_config *c, sc_serve **out);
+/* Start the compute threads and serve until sc_serve_stop(): SC_OK, or
+ * SC_EIO when LCM fails, SC_ENOMEM. */
+int sc_serve_run(sc_serve *s);
+/* Apply a new configuration's busy_threshold, heartbeat_s and log to a
+ * running daemon (SIGHUP); the other fields need a restart and are
+ * ignored. SC_OK or SC_EINVAL (nothing changed). Any thread. */
+int sc_serve_reload(sc_serve *s, const sc_serve_config *c);
+/* Ask sc_serve_run() to return (async-signal-safe). */
+void sc_serve_stop(sc_serve *s);
+/* A snapshot of the counters (any thread). */
+void sc_serve_counters_get(sc_serve *s, sc_serve_counters *out);
+void sc_serve_destroy(sc_serve *s);
+
+#endif

@@ -1,0 +1,260 @@
+/* test_cluster.c - daemons (the serve engine, on threads of this process)
+ * as nodes of a world over LCM on this host only (ttl=0): the same bits as
+ * a local run when daemons work, stop mid-run or never answer; results
+ * really come from them; hostile messages are dropped and counted. The
+ * multi-host version with real simclusterd processes in network
+ * namespaces is tests/cluster.sh. (Internal API: lib/sc_internal.h.) */
+#include <pthread.h>
+#include <setjmp.h>
+#include <stdarg.h>
+#include <stddef.h>
+#include <stdint.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <time.h>
+#include <unistd.h>
+#include <cmocka.h>
+
+#include <lcm/lcm.h>
+
+#include "cluster.h"
+#include "cluster_serve.h"
+#include "sc_internal.h"
+
+#define BODIES 30
+#define FRAMES 120
+
+static char url[128];
+static uint8_t key[SC_KEY_BYTES];
+static char key_path[64];
+
+typedef struct daemon_thread {
+    sc_serve *s;
+    pthread_t t;
+    int rc;
+} daemon_thread;
+
+static void *serve_main(void *arg)
+{
+    daemon_thread *d = arg;
+    d->rc = sc_serve_run(d->s);
+    return NULL;
+}
+
+static void start_daemon(daemon_thread *d, int64_t id, int threads)
+{
+    sc_serve_config c = sc_serve_config_default();
+    c.url = url;
+    memcpy(c.key, key, sizeof key);
+    c.threads = threads;
+    c.node_id = id;
+    c.busy_threshold = 1;           /* this test's own load is not an owner's */
+    c.heartbeat_s = 0.05;
+    c.idle_priority = 0;
+    assert_int_equal(sc_serve_create(&c, &d->s), SC_OK);
+    assert_int_equal(pthread_create(&d->t, NULL, serve_main, d), 0);
+}
+
+static void stop_daemon(daemon_thread *d, sc_serve_counters *n)
+{
+    sc_serve_stop(d->s);
+    pthread_join(d->t, NULL);
+    assert_int_equal(d->rc, SC_OK);
+    if (n)
+        sc_serve_counters_get(d->s, n);
+    sc_serve_destroy(d->s);
+    d->s = NULL;
+}
+
+static sc_world *make_world(int cluster, const char *keyfile)
+{
+    sc_world_config c = sc_world_config_default();
+    c.workers = 1;
+    if (cluster) {
+        c.cluster = url;
+        c.key_file = keyfile;
+        c.cluster_deadline_s = 0.05;
+    }
+    sc_world *w = sc_world_create(&c);
+    assert_non_null(w);
+    assert_int_equal(sc_scene_bolts_nuts(w, BODIES, 11), SC_OK);
+    return w;
+}
+
+/* Until the world has heard from n daemons (stepping a throwaway world on
+ * the same key: heartbeats are taken in at each frame). */
+static void wait_daemons(sc_world *w, int n)
+{
+    sc_stats st;
+    for (int i = 0; i < 200; i++) {
+        sc_cluster_frame(w->cluster);
+        sc_world_stats(w, &st);
+        if (st.daemons >= n)
+            return;
+        usleep(10000);
+    }
+    fail_msg("only %d of %d daemons heard from", st.daemons, n);
+}
+
+static uint64_t local_hash(void)
+{
+    sc_world *w = make_world(0, NULL);
+    for (int f = 0; f < FRAMES; f++)
+        assert_int_equal(sc_world_step(w, 0.01), SC_OK);
+    uint64_t h = sc_world_hash(w);
+    sc_world_destroy(w);
+    return h;
+}
+
+/* Steps the world; stop_at >= 0 stops daemon d there. Totals in *sum. */
+static uint64_t run(sc_world *w, daemon_thread *d, int stop_at, sc_stats *sum)
+{
+    memset(sum, 0, sizeof *sum);
+    for (int f = 0; f < FRAMES; f++) {
+        if (f == stop_at)
+            stop_daemon(d, NULL);
+        assert_int_equal(sc_world_step(w, 0.01), SC_OK);
+        sc_stats st;
+        sc_world_stats(w, &st);
+        sum->remote_units += st.remote_units;
+        sum->recomputed_units += st.recomputed_units;
+        sum->late_results += st.late_results;
+        sum->dropped_messages = st.dropped_messages;
+        sum->daemons = st.daemons;
+    }
+    return sc_world_hash(w);
+}
+
+static void test_daemons_give_the_same_bits(void **state)
+{
+    (void)state;
+    uint64_t h0 = local_hash();
+    daemon_thread d[2];
+    start_daemon(&d[0], 0x1001, 1);
+    start_daemon(&d[1], 0x1002, 2);
+    sc_world *w = make_world(1, key_path);
+    wait_daemons(w, 2);
+    sc_stats sum;
+    uint64_t h = run(w, NULL, -1, &sum);
+    sc_serve_counters n0, n1;
+    stop_daemon(&d[0], &n0);
+    stop_daemon(&d[1], &n1);
+    printf("  remote %ld recomputed %ld late %ld; daemon results %ld and %ld, shapes %ld\n",
+           sum.remote_units, sum.recomputed_units, sum.late_results, n0.results, n1.results,
+           n0.shapes);
+    assert_true(h == h0);
+    assert_true(sum.remote_units > 0);
+    assert_true(n0.results > 0 && n1.results > 0);
+    assert_true(n0.shapes + n1.shapes >= 2);    /* bolt, nut, floor: came on request */
+    assert_int_equal(sum.dropped_messages, 0);
+    sc_world_destroy(w);
+}
+
+static void test_a_daemon_that_stops_changes_nothing(void **state)
+{
+    (void)state;
+    uint64_t h0 = local_hash();
+    daemon_thread d[2];
+    start_daemon(&d[0], 0x2001, 1);
+    start_daemon(&d[1], 0x2002, 1);
+    sc_world *w = make_world(1, key_path);
+    wait_daemons(w, 2);
+    sc_stats sum;
+    uint64_t h = run(w, &d[0], FRAMES / 3, &sum);
+    stop_daemon(&d[1], NULL);
+    printf("  remote %ld recomputed %ld late %ld\n", sum.remote_units, sum.recomputed_units,
+           sum.late_results);
+    assert_true(h == h0);
+    assert_true(sum.remote_units > 0);
+    sc_world_destroy(w);
+}
+
+static void test_wrong_key_daemon_is_never_used(void **state)
+{
+    (void)state;
+    uint64_t h0 = local_hash();
+    daemon_thread d;
+    start_daemon(&d, 0x3001, 1);
+    /* the world runs with the insecure all-zero key: the daemon's
+     * heartbeats fail its check, so it never becomes a node */
+    sc_world *w = make_world(1, NULL);
+    usleep(200000);
+    sc_stats sum;
+    uint64_t h = run(w, NULL, -1, &sum);
+    stop_daemon(&d, NULL);
+    assert_true(h == h0);
+    assert_int_equal(sum.remote_units, 0);
+    assert_int_equal(sum.daemons, 0);
+    assert_true(sum.dropped_messages > 0);
+    sc_world_destroy(w);
+}
+
+static void test_hostile_messages_are_dropped(void **state)
+{
+    (void)state;
+    daemon_thread d;
+    start_daemon(&d, 0x4001, 1);
+    lcm_t *l = lcm_create(url);
+    assert_non_null(l);
+    const char *ch = "SC_UNIT_0000000000004001";
+    uint8_t junk[300];
+    for (size_t i = 0; i < sizeof junk; i++)
+        junk[i] = (uint8_t)(i * 37 + 11);
+    for (int i = 1; i < 40; i++)
+        lcm_publish(l, ch, junk, (unsigned)(i * 7));    /* garbage */
+    uint8_t other[SC_KEY_BYTES] = { 1 }, *env;
+    size_t elen;
+    assert_int_equal(sc_msg_seal(other, 77, 1, SC_MSG_UNIT, junk, 40, &env, &elen), SC_OK);
+    lcm_publish(l, ch, env, (unsigned)elen);            /* wrong key */
+    free(env);
+    uint8_t *p;
+    size_t plen;
+    sc_msg_work wk = { 1, 0, junk, 100, 0 };
+    assert_int_equal(sc_msg_work_encode(SC_MSG_UNIT, &wk, &p, &plen), SC_OK);
+    assert_int_equal(sc_msg_seal(key, 77, 5, SC_MSG_UNIT, p, plen, &env, &elen), SC_OK);
+    for (int i = 0; i < 3; i++)
+        lcm_publish(l, ch, env, (unsigned)elen);        /* once, then replays */
+    lcm_publish(l, ch, env, (unsigned)elen / 2);        /* truncated */
+    free(env);
+    free(p);
+    sc_serve_counters n;
+    for (int i = 0; i < 100; i++) {
+        usleep(10000);
+        sc_serve_counters_get(d.s, &n);
+        if (n.dropped_replay >= 2 && n.dropped_auth >= 1 && n.unit_errors >= 1 &&
+            n.dropped_format >= 40)
+            break;
+    }
+    lcm_destroy(l);
+    printf("  format %ld auth %ld replay %ld unit errors %ld\n", n.dropped_format,
+           n.dropped_auth, n.dropped_replay, n.unit_errors);
+    assert_true(n.dropped_format >= 40);
+    assert_true(n.dropped_auth >= 1);
+    assert_int_equal(n.dropped_replay, 2);
+    assert_int_equal(n.unit_errors, 1);     /* the one accepted: its wire is junk */
+    assert_int_equal(n.results, 0);
+    stop_daemon(&d, NULL);
+}
+
+int main(void)
+{
+    srand((unsigned)time(NULL) ^ (unsigned)getpid());
+    snprintf(url, sizeof url, "udpm://239.255.76.67:%d?ttl=0&recv_buf_size=4194304",
+             20000 + rand() % 10000);
+    snprintf(key_path, sizeof key_path, "/tmp/sc_test_key_%d", (int)getpid());
+    unlink(key_path);
+    if (sc_key_generate(key_path) != SC_OK || sc_key_load(key_path, key) != SC_OK) {
+        fprintf(stderr, "cannot make a key in /tmp\n");
+        return 1;
+    }
+    const struct CMUnitTest tests[] = {
+        cmocka_unit_test(test_daemons_give_the_same_bits),
+        cmocka_unit_test(test_a_daemon_that_stops_changes_nothing),
+        cmocka_unit_test(test_wrong_key_daemon_is_never_used),
+        cmocka_unit_test(test_hostile_messages_are_dropped),
+    };
+    int rc = cmocka_run_group_tests(tests, NULL, NULL);
+    unlink(key_path);
+    return rc;
+}
