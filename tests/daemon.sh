@@ -1,0 +1,139 @@
+#!/bin/sh
+# tests/daemon.sh BUILD - simclusterd as an operator meets it: exit statuses
+# and one-line errors at start-up, then a real daemon on a private multicast
+# port: it serves, logs its counters on SIGUSR1, re-reads its configuration
+# on SIGHUP (keeping the old one when the new one is bad), is not root when
+# started as root, and stops with status 0 on SIGTERM and SIGINT.
+bin="$1/daemon/simclusterd"
+tool="$1/tools/simcluster"
+dir=$(mktemp -d) || exit 1
+pid=""
+trap '[ -n "$pid" ] && kill -9 "$pid" 2>/dev/null; rm -rf "$dir"' EXIT
+trap 'exit 1' INT TERM HUP
+fail=0
+check() { # $1 = what, $2 = expected status, then the command
+    what=$1; want=$2; shift 2
+    "$@" >"$dir/out" 2>"$dir/err"
+    got=$?
+    if [ "$got" -ne "$want" ]; then
+        echo "FAIL: $what: exit $got, expected $want"; cat "$dir/err"; fail=1
+    fi
+}
+one_line() { # $1 = what, $2 = a pattern the line holds
+    if [ "$(wc -l <"$dir/err")" -ne 1 ] || ! grep -q -- "$2" "$dir/err"; then
+        echo "FAIL: $1: expected one line with '$2'"; cat "$dir/err"; fail=1
+    fi
+}
+# Wait up to 10 s for a line matching $1 in the daemon's log.
+wait_log() {
+    i=0
+    while ! grep -q -- "$1" "$dir/log"; do
+        i=$((i + 1))
+        if [ "$i" -gt 100 ] || ! kill -0 "$pid" 2>/dev/null; then
+            echo "FAIL: no log line '$1'"; cat "$dir/log"; fail=1; return 1
+        fi
+        sleep 0.1
+    done
+}
+# Wait up to 5 s for the daemon to exit; its status in $rc (255: still running).
+wait_exit() {
+    i=0
+    while kill -0 "$pid" 2>/dev/null && [ "$i" -lt 50 ]; do i=$((i + 1)); sleep 0.1; done
+    if kill -0 "$pid" 2>/dev/null; then
+        rc=255; kill -9 "$pid"; wait "$pid"
+    else
+        wait "$pid"; rc=$?
+    fi
+    pid=""
+}
+
+: >"$dir/empty.conf"
+check "--version" 0 "$bin" --version
+grep -qx "simclusterd 0.1.0" "$dir/out" || { echo "FAIL: --version says $(cat "$dir/out")"; fail=1; }
+check "--help" 0 "$bin" --help
+grep -q -- "--busy-threshold" "$dir/out" || { echo "FAIL: --help does not list the options"; fail=1; }
+check "unknown option" 2 "$bin" --frobnicate
+one_line "unknown option" "try --help"
+check "--threads 0" 2 "$bin" -c "$dir/empty.conf" --insecure --threads 0
+one_line "--threads 0" "threads"
+check "--heartbeat out of range" 2 "$bin" -c "$dir/empty.conf" --insecure --heartbeat 11
+check "no key, no --insecure" 1 "$bin" -c "$dir/empty.conf"
+one_line "no key" "simcluster keygen"
+check "keygen" 0 "$tool" keygen "$dir/k"
+cp "$dir/k" "$dir/k644" && chmod 644 "$dir/k644"
+check "key file mode 0644" 1 "$bin" -c "$dir/empty.conf" --key "$dir/k644"
+one_line "key file mode 0644" "k644.*0600"
+check "missing key file" 1 "$bin" -c "$dir/empty.conf" --key "$dir/nokey"
+one_line "missing key file" "nokey"
+check "missing explicit config" 1 "$bin" -c "$dir/no.conf" --insecure
+one_line "missing explicit config" "no.conf"
+printf '# a daemon\n\nthreads = 2\nbusy_treshold = 0.7\n' >"$dir/bad.conf"
+check "unknown key" 1 "$bin" -c "$dir/bad.conf" --insecure
+one_line "unknown key" "^simclusterd: $dir/bad.conf:4: "
+printf 'threads = 2\nheartbeat 0.1\n' >"$dir/bad.conf"
+check "missing =" 1 "$bin" -c "$dir/bad.conf" --insecure
+one_line "missing =" "^simclusterd: $dir/bad.conf:2: "
+printf 'heartbeat = 0.1\n\n\nbusy_threshold = 0\n' >"$dir/bad.conf"
+check "bad value" 1 "$bin" -c "$dir/bad.conf" --insecure
+one_line "bad value" "^simclusterd: $dir/bad.conf:4: busy_threshold"
+{ printf 'url = '; i=0; while [ $i -lt 110 ]; do printf 'aaaaaaaaaa'; i=$((i + 1)); done; echo; } >"$dir/bad.conf"
+check "long line" 1 "$bin" -c "$dir/bad.conf" --insecure
+one_line "long line" "^simclusterd: $dir/bad.conf:1: "
+
+# A real daemon on a port of its own (ttl=0: this host only). When we are
+# root it switches to nobody, who must still read its config on SIGHUP.
+port=$((20000 + $(od -An -N2 -tu2 /dev/urandom | tr -d ' ') % 10000))
+url="udpm://239.255.76.67:$port?ttl=0"
+chmod 755 "$dir"
+printf '# test daemon\nbusy_threshold = 0.5\nheartbeat = 0.05\nnode_id = 4660\n' >"$dir/d.conf"
+chmod 644 "$dir/d.conf"
+: >"$dir/log"
+"$bin" -c "$dir/d.conf" --key "$dir/k" --url "$url" --threads 1 2>"$dir/log" &
+pid=$!
+if wait_log "serving"; then
+    grep -q "serving on $url as node 0000000000001234 with 1 threads" "$dir/log" ||
+        { echo "FAIL: the serving line"; cat "$dir/log"; fail=1; }
+    if [ "$(id -u)" -eq 0 ]; then
+        ids=$(awk '/^(Uid|Gid):/ { print $2, $3, $4, $5 }' "/proc/$pid/status")
+        case " $(echo $ids) " in
+            *" 0 "*) echo "FAIL: started as root, still has id 0: $ids"; fail=1 ;;
+        esac
+    fi
+    kill -USR1 "$pid"
+    if wait_log "counters:"; then
+        for n in node units results unit_errors shapes shape_requests dropped_format \
+                 dropped_auth dropped_replay heartbeats idle owner_busy; do
+            grep "counters:" "$dir/log" | grep -q " $n=" || { echo "FAIL: counters lack $n"; fail=1; }
+        done
+    fi
+    sed -e 's/^busy_threshold = 0.5/busy_threshold = 0.75/' -e 's/^node_id = 4660/node_id = 4661/' \
+        "$dir/d.conf" >"$dir/d2.conf" && cat "$dir/d2.conf" >"$dir/d.conf"
+    kill -HUP "$pid"
+    wait_log "busy_threshold 0.5 -> 0.75"
+    wait_log "node_id 4660 -> 4661 needs a restart"
+    printf 'busy_threshold = 2\n' >>"$dir/d.conf"
+    kill -HUP "$pid"
+    wait_log "d.conf:5: .*keeping the old configuration"
+    kill -TERM "$pid"
+    wait_exit
+    [ "$rc" -eq 0 ] || { echo "FAIL: SIGTERM: exit $rc, expected 0 within 5 s"; cat "$dir/log"; fail=1; }
+    [ "$(grep -c "counters:" "$dir/log")" -eq 2 ] ||
+        { echo "FAIL: no counters line at exit"; cat "$dir/log"; fail=1; }
+    grep -v "^simclusterd\[[0-9]*\]: " "$dir/log" >"$dir/other"
+    [ -s "$dir/other" ] && { echo "FAIL: log lines not from simclusterd:"; cat "$dir/other"; fail=1; }
+fi
+[ -n "$pid" ] && { kill -9 "$pid" 2>/dev/null; wait "$pid"; pid=""; }
+
+# --insecure starts without a key, says so, and SIGINT stops it too.
+: >"$dir/log"
+"$bin" -c "$dir/empty.conf" --insecure --url "$url" --threads 1 --heartbeat 0.05 2>"$dir/log" &
+pid=$!
+if wait_log "serving"; then
+    grep -q "insecure" "$dir/log" || { echo "FAIL: --insecure is not logged"; fail=1; }
+    kill -INT "$pid"
+    wait_exit
+    [ "$rc" -eq 0 ] || { echo "FAIL: SIGINT: exit $rc, expected 0 within 5 s"; cat "$dir/log"; fail=1; }
+fi
+[ -n "$pid" ] && { kill -9 "$pid" 2>/dev/null; wait "$pid"; pid=""; }
+[ "$fail" -eq 0 ] && echo "daemon: all checks passed"
+exit "$fail"
