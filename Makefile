@@ -65,6 +65,8 @@ BENCH_SRC := $(sort $(wildcard bench/*.c))
 BENCH_BIN := $(BENCH_SRC:%.c=$(BUILD)/%)
 FUZZ_SRC  := $(sort $(wildcard tests/fuzz/fuzz_*.c))
 FUZZ_REPLAY := $(FUZZ_SRC:tests/fuzz/%.c=$(BUILD)/tests/fuzz/%_replay)
+# Programs tests/cluster.sh drives (not test_*: run.sh does not run them itself).
+CLUSTER_BIN := $(BUILD)/tests/cluster_run $(BUILD)/tests/cluster_inject
 
 STATIC := $(BUILD)/libsimcluster.a
 SHARED := $(BUILD)/libsimcluster.so.$(VERSION)
@@ -151,12 +153,12 @@ fuzz:
 	$(Q)sh tests/fuzz/run.sh $(FUZZ_TIME)
 
 check: deps
-	$(Q)$(MAKE) --no-print-directory all $(TEST_BIN) $(FUZZ_REPLAY)
+	$(Q)$(MAKE) --no-print-directory all $(TEST_BIN) $(FUZZ_REPLAY) $(CLUSTER_BIN)
 	$(Q)$(MAKE) --no-print-directory SAN=1 lib $(TEST_BIN:$(BUILD)/%=build-san/%) $(FUZZ_REPLAY:$(BUILD)/%=build-san/%) \
 	    $(TOOL_BIN:$(BUILD)/%=build-san/%) $(DAEMON_BIN:$(BUILD)/%=build-san/%)
 	$(Q)sh tests/run.sh $(BUILD) build-san
 
-check-run: $(TEST_BIN) $(FUZZ_REPLAY) $(TOOL_BIN) $(DAEMON_BIN)
+check-run: $(TEST_BIN) $(FUZZ_REPLAY) $(TOOL_BIN) $(DAEMON_BIN) $(CLUSTER_BIN)
 	$(Q)sh tests/run.sh $(BUILD)
 
 demo: deps

@@ -34,7 +34,7 @@ enum {
     SC_OK = 0,
     SC_EINVAL = -1,        /* an argument is NULL, NaN, infinite or out of range */
     SC_ENOMEM = -2,        /* out of memory */
-    SC_EIO = -3,           /* a file could not be opened or read */
+    SC_EIO = -3,           /* a file or LCM URL could not be opened or read */
     SC_EFORMAT = -4,       /* a file or message is malformed or truncated (OBJ/STL, key, cluster) */
     SC_ETOOBIG = -5,       /* a file or mesh exceeds the size limits */
     SC_ENOTCLOSED = -6,    /* a mesh is not a closed, consistently oriented surface */

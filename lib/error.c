@@ -23,7 +23,7 @@ SC_API const char *sc_strerror(int err)
     case SC_OK: return "success";
     case SC_EINVAL: return "invalid argument (NULL, NaN, infinite or out of range)";
     case SC_ENOMEM: return "out of memory";
-    case SC_EIO: return "file could not be opened or read";
+    case SC_EIO: return "file or cluster URL could not be opened or read";
     case SC_EFORMAT: return "file or message is malformed or truncated";
     case SC_ETOOBIG: return "file or mesh exceeds the size limits";
     case SC_ENOTCLOSED: return "mesh is not a closed, consistently outward-oriented surface";

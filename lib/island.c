@@ -42,7 +42,7 @@ void sc_islands_free(sc_islands *is)
 int sc_islands_build(int nbodies, const unsigned char *joins, const sc_contact *c,
                      int ncontacts, sc_islands *is)
 {
-    if (nbodies < 0 || ncontacts < 0 || !joins || !is || (ncontacts && !c))
+    if (nbodies < 0 || ncontacts < 0 || (!joins && (nbodies || ncontacts)) || !is || (ncontacts && !c))
         return SC_EINVAL;
     sc_islands_free(is);
     int *parent = sc_alloc_array((size_t)nbodies, sizeof *parent);

@@ -209,6 +209,10 @@ SC_API int sc_world_step(sc_world *w, double dt)
     w->stats.comm_s = 0;
     if (w->cluster)
         sc_cluster_frame(w->cluster);
+    if (w->nbodies == 0) {
+        w->stats.frames++;      /* nothing to move */
+        return SC_OK;
+    }
     int rc = w->cfg.motion_groups ? sc_groups_step(w, dt) : sc_frame(w, dt);
     if (rc == SC_OK) {
         w->stats.frames++;

@@ -309,6 +309,20 @@ static void test_both_broad_phases_give_identical_contacts(void **state)
         sc_shape_release(shapes[k]);
 }
 
+/* A world with no bodies steps (found by the cluster test's probe world). */
+static void test_an_empty_world_steps(void **state)
+{
+    (void)state;
+    sc_world *w = sc_world_create(NULL);
+    assert_non_null(w);
+    for (int i = 0; i < 3; i++)
+        assert_int_equal(sc_world_step(w, 0.01), SC_OK);
+    sc_stats st;
+    sc_world_stats(w, &st);
+    assert_int_equal(st.frames, 3);
+    sc_world_destroy(w);
+}
+
 int main(void)
 {
     const struct CMUnitTest tests[] = {
@@ -321,6 +335,7 @@ int main(void)
         cmocka_unit_test(test_applied_force_accelerates_for_one_frame),
         cmocka_unit_test(test_hash_is_equal_for_equal_worlds_and_changes_with_state),
         cmocka_unit_test(test_both_broad_phases_give_identical_contacts),
+        cmocka_unit_test(test_an_empty_world_steps),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
 }
