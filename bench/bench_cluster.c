@@ -4,8 +4,11 @@
  *             one-thread daemons: wall time, speedup over no daemons, the
  *             share of units daemons computed, recomputed units, and the
  *             communication time per frame (packing, sealing, sending,
- *             receiving and merging on the master); the final state's hash
- *             is compared with the local run's.
+ *             receiving and merging on the master), the time jobs took
+ *             from dispatch to their last result and, of it, the time spent
+ *             waiting for daemons after the local work was done; the final
+ *             state's hash is compared with the local run's ("-" without a
+ *             0-daemon run in the same invocation).
  *   fg        a CPU-bound program pinned to one CPU, alone and next to a
  *             one-thread daemon pinned to the same CPU that is kept full of
  *             units (the master sends it everything), with the daemon at
@@ -131,7 +134,7 @@ static int wait_daemons(sc_world *w, int k)
 }
 
 typedef struct result {
-    double wall, remote, recomputed, comm_ms, late;
+    double wall, remote, recomputed, comm_ms, late, wait_ms, local_ms;
     uint64_t hash;
 } result;
 
@@ -145,7 +148,7 @@ static int run(int n, int k, double seconds, result *r)
     }
     int frames = (int)(seconds / DT + 0.5);
     long units = 0, remote = 0, recomputed = 0, late = 0;
-    double comm = 0;
+    double comm = 0, wait = 0, local = 0;
     double t0 = now_s();
     for (int f = 0; f < frames; f++) {
         int rc = sc_world_step(w, DT);
@@ -161,12 +164,16 @@ static int run(int n, int k, double seconds, result *r)
         recomputed += st.recomputed_units;
         late += st.late_results;
         comm += st.comm_s;
+        wait += st.remote_wait_s;
+        local += st.makespan_s;
     }
     r->wall = now_s() - t0;
     r->remote = units ? (double)remote / (double)units : 0;
     r->recomputed = (double)recomputed / frames;
     r->late = (double)late / frames;
     r->comm_ms = 1e3 * comm / frames;
+    r->wait_ms = 1e3 * wait / frames;
+    r->local_ms = 1e3 * local / frames;
     r->hash = sc_world_hash(w);
     sc_world_destroy(w);
     return 0;
@@ -177,8 +184,9 @@ static void scaling(int n, const int *ks, int nk, int runs, double seconds)
     printf("\nscaling: %d bolts/nuts, %.2f s simulated, 1 local worker + k one-thread "
            "daemons, medians of %d runs\n",
            n, seconds, runs);
-    printf("%8s %9s %9s %8s %9s %12s %10s %10s %6s\n", "daemons", "wall s", "RT factor",
-           "speedup", "remote %", "recomp/frame", "late/frame", "comm ms/fr", "bits");
+    printf("%8s %9s %9s %8s %9s %12s %10s %10s %10s %10s %6s\n", "daemons", "wall s",
+           "RT factor", "speedup", "remote %", "recomp/frame", "late/frame", "jobs ms/fr",
+           "wait ms/fr", "comm ms/fr", "bits");
     double base = 0;
     uint64_t h0 = 0;
     for (int i = 0; i < nk; i++) {
@@ -188,7 +196,8 @@ static void scaling(int n, const int *ks, int nk, int runs, double seconds)
         pin(0, 0);
         for (int j = 0; j < k; j++)
             pid[j] = start_daemon(100 + j, ncpu > 1 ? 1 + j % (ncpu - 1) : 0, 1.0, 1);
-        double wall[MAX_RUNS], rem[MAX_RUNS], rc[MAX_RUNS], comm[MAX_RUNS], late[MAX_RUNS];
+        double wall[MAX_RUNS], rem[MAX_RUNS], rc[MAX_RUNS], comm[MAX_RUNS], late[MAX_RUNS],
+            wait[MAX_RUNS], jobs[MAX_RUNS];
         int same = 1, ok = 1;
         for (int r = 0; r < runs && ok; r++) {
             result res;
@@ -201,6 +210,8 @@ static void scaling(int n, const int *ks, int nk, int runs, double seconds)
             rc[r] = res.recomputed;
             comm[r] = res.comm_ms;
             late[r] = res.late;
+            wait[r] = res.wait_ms;
+            jobs[r] = res.local_ms;
             if (k == 0 && r == 0)
                 h0 = res.hash;
             same = same && res.hash == h0;
@@ -213,9 +224,14 @@ static void scaling(int n, const int *ks, int nk, int runs, double seconds)
         double m = median(wall, runs);
         if (k == 0)
             base = m;
-        printf("%8d %9.3f %9.3f %8.2f %9.1f %12.2f %10.2f %10.3f %6s\n", k, m, seconds / m,
-               base > 0 ? base / m : 0, median(rem, runs), median(rc, runs), median(late, runs),
-               median(comm, runs), same ? "same" : "DIFF");
+        char sp[16] = "-", bits[8] = "-";
+        if (base > 0) {
+            snprintf(sp, sizeof sp, "%.2f", base / m);
+            snprintf(bits, sizeof bits, "%s", same ? "same" : "DIFF");
+        }
+        printf("%8d %9.3f %9.3f %8s %9.1f %12.2f %10.2f %10.1f %10.1f %10.1f %6s\n", k, m,
+               seconds / m, sp, median(rem, runs), median(rc, runs), median(late, runs),
+               median(jobs, runs), median(wait, runs), median(comm, runs), bits);
         fflush(stdout);
     }
 }

@@ -249,6 +249,9 @@ typedef struct sc_stats {
                                  replayed (all frames) */
     double comm_s;            /* wall seconds packing, sealing, sending and
                                  receiving, last frame */
+    double remote_wait_s;     /* wall seconds waiting for daemons' results
+                                 after the local nodes were done, last frame
+                                 (recomputation included) */
 } sc_stats;
 
 /* A new empty world; cfg NULL = defaults. NULL on error (sc_last_error()). */

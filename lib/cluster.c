@@ -383,6 +383,7 @@ static int remote_wait(sc_node *n, double *cpu_s)
     double cap = MAX_WAIT_DEADLINES * c->deadline_s;
     if (d->t_submit + fmin(2 * predicted, cap) > deadline)
         deadline = d->t_submit + fmin(2 * predicted, cap);
+    double t_wait = now_s();
     while (d->done < d->sent && (now = now_s()) < deadline)
         pump(c, deadline - now);
     if (d->done < d->sent)
@@ -394,6 +395,7 @@ static int remote_wait(sc_node *n, double *cpu_s)
             o = 0;
         d->overhead = d->overhead > 0 ? OVERHEAD_KEEP * d->overhead + (1 - OVERHEAD_KEEP) * o : o;
     }
+    c->w->stats.remote_wait_s += now_s() - t_wait;
     *cpu_s = d->compute_s;
     return SC_OK;
 }

@@ -207,6 +207,7 @@ SC_API int sc_world_step(sc_world *w, double dt)
     w->stats.recomputed_units = 0;
     w->stats.late_results = 0;
     w->stats.comm_s = 0;
+    w->stats.remote_wait_s = 0;
     if (w->cluster)
         sc_cluster_frame(w->cluster);
     if (w->nbodies == 0) {
