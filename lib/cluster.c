@@ -98,11 +98,6 @@ static int64_t realtime_us(void)
     return (int64_t)ts.tv_sec * 1000000 + ts.tv_nsec / 1000;
 }
 
-static double now_s(void)
-{
-    return sc_wall_now();
-}
-
 /* ---- receiving ---- */
 
 static void on_announce(sc_cluster *c, const sc_msg *m)
@@ -136,7 +131,7 @@ static void on_announce(sc_cluster *c, const sc_msg *m)
         memset(nd, 0, sizeof *nd);
     }
     c->d[k].a = a;
-    c->d[k].heard = now_s();
+    c->d[k].heard = sc_wall_now();
 }
 
 static void take_result(sc_cluster *c, sc_msg_work *r)
@@ -234,9 +229,9 @@ static void pump(sc_cluster *c, double timeout_s)
         struct pollfd pf = { c->fd, POLLIN, 0 };
         if (poll(&pf, 1, ms) <= 0 || !(pf.revents & POLLIN))
             break;
-        double t0 = now_s();
+        double t0 = sc_wall_now();
         int rc = lcm_handle(c->lcm);
-        c->w->stats.comm_s += now_s() - t0;
+        c->w->stats.comm_s += sc_wall_now() - t0;
         if (rc != 0)
             break;
         ms = 0;
@@ -249,7 +244,7 @@ static double capacity(const sc_node *n, int kind)
 {
     const remote_node *r = (const remote_node *)n;
     const daemon_slot *d = &r->c->d[r->slot];
-    if (kind == SC_UNIT_GROUP || !d->used || now_s() - d->heard > SILENT_S)
+    if (kind == SC_UNIT_GROUP || !d->used || sc_wall_now() - d->heard > SILENT_S)
         return 0;
     if (r->c->force)
         return 1;
@@ -324,7 +319,7 @@ static int remote_submit(sc_node *n, const sc_job *job, const int *units, int co
     remote_node *r = (remote_node *)n;
     sc_cluster *c = r->c;
     daemon_slot *d = &c->d[r->slot];
-    double t0 = now_s();
+    double t0 = sc_wall_now();
     d->submit_us = d->last_us = realtime_us();
     d->t_submit = t0;
     c->batch_len = 0;
@@ -335,7 +330,7 @@ static int remote_submit(sc_node *n, const sc_job *job, const int *units, int co
         add_unit(c, d, job, units[i]);
     }
     flush(c, d);
-    c->w->stats.comm_s += now_s() - t0;
+    c->w->stats.comm_s += sc_wall_now() - t0;
     return SC_OK;
 }
 
@@ -349,20 +344,20 @@ static void recompute(sc_cluster *c, daemon_slot *d, int k)
             continue;
         if (!c->np)
             c->np = sc_np_create();
-        double t0 = now_s();
+        double t0 = sc_wall_now();
         if (c->np) {
             sc_unit_run(c->np, job, u);
         } else {
             u->rc = SC_ENOMEM;
         }
-        u->time_s = now_s() - t0;
+        u->time_s = sc_wall_now() - t0;
         u->node = 0;            /* it taught us about this thread, not the daemon */
         c->out[i] = OUT_LOCAL;
         c->w->stats.recomputed_units++;
         missed++;
     }
     if (missed)
-        d->missed_at = now_s();
+        d->missed_at = sc_wall_now();
 }
 
 static int remote_wait(sc_node *n, double *cpu_s)
@@ -370,7 +365,7 @@ static int remote_wait(sc_node *n, double *cpu_s)
     remote_node *r = (remote_node *)n;
     sc_cluster *c = r->c;
     daemon_slot *d = &c->d[r->slot];
-    double now = now_s();
+    double now = sc_wall_now();
     if (c->local_done == 0)
         c->local_done = now;
     /* the scheduler's own estimate of this daemon's work, twice, or the
@@ -383,8 +378,8 @@ static int remote_wait(sc_node *n, double *cpu_s)
     double cap = MAX_WAIT_DEADLINES * c->deadline_s;
     if (d->t_submit + fmin(2 * predicted, cap) > deadline)
         deadline = d->t_submit + fmin(2 * predicted, cap);
-    double t_wait = now_s();
-    while (d->done < d->sent && (now = now_s()) < deadline)
+    double t_wait = sc_wall_now();
+    while (d->done < d->sent && (now = sc_wall_now()) < deadline)
         pump(c, deadline - now);
     if (d->done < d->sent)
         recompute(c, d, r->slot);
@@ -395,7 +390,7 @@ static int remote_wait(sc_node *n, double *cpu_s)
             o = 0;
         d->overhead = d->overhead > 0 ? OVERHEAD_KEEP * d->overhead + (1 - OVERHEAD_KEEP) * o : o;
     }
-    c->w->stats.remote_wait_s += now_s() - t_wait;
+    c->w->stats.remote_wait_s += sc_wall_now() - t_wait;
     *cpu_s = d->compute_s;
     return SC_OK;
 }
@@ -490,7 +485,7 @@ void sc_cluster_destroy(sc_cluster *c)
 void sc_cluster_frame(sc_cluster *c)
 {
     pump(c, 0);
-    double now = now_s();
+    double now = sc_wall_now();
     c->w->stats.daemons = c->w->stats.daemons_busy = 0;
     for (int k = 0; k < SC_MAX_DAEMONS; k++) {
         daemon_slot *d = &c->d[k];

@@ -250,7 +250,9 @@ static sc_shape *mesh_shape_take(int kind, double *xyz, int nverts, int *tri, in
     return s;
 }
 
-SC_API sc_shape *sc_shape_mesh(const double *xyz, int nverts, const int *tri, int ntris)
+/* A mesh shape of kind from copies of the caller's arrays. */
+static sc_shape *mesh_shape_copy(int kind, const double *xyz, int nverts, const int *tri,
+                                 int ntris)
 {
     if (!xyz || !tri || nverts <= 0 || ntris <= 0) {
         sc_set_error(SC_EINVAL);
@@ -270,7 +272,12 @@ SC_API sc_shape *sc_shape_mesh(const double *xyz, int nverts, const int *tri, in
     }
     memcpy(v, xyz, (size_t)nverts * 3 * sizeof *v);
     memcpy(t, tri, (size_t)ntris * 3 * sizeof *t);
-    return mesh_shape_take(SC_SHAPE_MESH, v, nverts, t, ntris);
+    return mesh_shape_take(kind, v, nverts, t, ntris);
+}
+
+SC_API sc_shape *sc_shape_mesh(const double *xyz, int nverts, const int *tri, int ntris)
+{
+    return mesh_shape_copy(SC_SHAPE_MESH, xyz, nverts, tri, ntris);
 }
 
 SC_API sc_shape *sc_shape_convex(const double *xyz, int npoints)
@@ -376,24 +383,8 @@ sc_shape *sc_shape_rebuild(int kind, double radius, const double half[3], const 
         return s;
     }
     case SC_SHAPE_CONVEX:
-    case SC_SHAPE_MESH: {
-        if (!xyz || !tri || nverts <= 0 || ntris <= 0 || nverts > SC_MESH_MAX_VERTS ||
-            ntris > SC_MESH_MAX_TRIS) {
-            sc_set_error(SC_EINVAL);
-            return NULL;
-        }
-        double *v = sc_alloc_array((size_t)nverts * 3, sizeof *v);
-        int *t = sc_alloc_array((size_t)ntris * 3, sizeof *t);
-        if (!v || !t) {
-            free(v);
-            free(t);
-            sc_set_error(SC_ENOMEM);
-            return NULL;
-        }
-        memcpy(v, xyz, (size_t)nverts * 3 * sizeof *v);
-        memcpy(t, tri, (size_t)ntris * 3 * sizeof *t);
-        return mesh_shape_take(kind, v, nverts, t, ntris);
-    }
+    case SC_SHAPE_MESH:
+        return mesh_shape_copy(kind, xyz, nverts, tri, ntris);
     default:
         sc_set_error(SC_EINVAL);
         return NULL;
