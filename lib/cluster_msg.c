@@ -44,7 +44,7 @@
 #define SHAPE_NC_AT (FP_BYTES + 8)
 #define SHAPE_TAIL (1 + 8 + 3 * 8 + 4 * 8)  /* kind, radius, half, plane */
 #define ANN_HOSTLEN_AT (FP_BYTES + 8)     /* then the bytes, NUL included */
-#define ANN_FIXED (FP_BYTES + 8 + 4 + 2 + 8 + 8 + 1 + 2 + 8)
+#define ANN_FIXED (FP_BYTES + 8 + 4 + 2 + 8 + 8 + 1 + 2 + 8 + 8)
 #define MAX_CORES 4096
 
 _Static_assert(SC_MSG_OVERHEAD == ENV_HEAD + MAC_BYTES, "envelope overhead");
@@ -190,7 +190,7 @@ static int announce_ok(const sc_msg_announce *a)
     return n < SC_MSG_HOST_MAX && a->cores >= 1 && a->cores <= MAX_CORES &&
            isfinite(a->speed) && a->speed > 0 && isfinite(a->idle_fraction) &&
            a->idle_fraction >= 0 && a->idle_fraction <= 1 &&
-           (a->owner_busy == 0 || a->owner_busy == 1) && a->version >= 0 &&
+           (a->owner_busy == 0 || a->owner_busy == 1) && a->units >= 0 && a->version >= 0 &&
            a->version <= INT16_MAX;
 }
 
@@ -201,7 +201,7 @@ int sc_msg_announce_encode(const sc_msg_announce *a, uint8_t **out, size_t *len)
     sclcm_announce_t m = { .node = a->node, .host = (char *)a->host, .cores = (int16_t)a->cores,
                            .speed = a->speed, .idle_fraction = a->idle_fraction,
                            .owner_busy = (int8_t)a->owner_busy, .version = (int16_t)a->version,
-                           .time_us = a->time_us };
+                           .time_us = a->time_us, .units = a->units };
     int n = sclcm_announce_t_encoded_size(&m);
     *out = malloc((size_t)n);
     if (!*out)
@@ -238,6 +238,7 @@ int sc_msg_announce_decode(const void *buf, size_t len, sc_msg_announce *a)
         a->owner_busy = m.owner_busy;
         a->version = m.version;
         a->time_us = m.time_us;
+        a->units = m.units;
         rc = announce_ok(a) ? SC_OK : SC_EFORMAT;
     }
     sclcm_announce_t_decode_cleanup(&m);

@@ -11,7 +11,7 @@
 #include <stddef.h>
 #include <stdint.h>
 
-#define SC_MSG_VERSION 2                    /* 2: HMAC-SHA-512/256, batches */
+#define SC_MSG_VERSION 3        /* 2: HMAC-SHA-512/256, batches; 3: announce units */
 #define SC_MSG_MAX_BYTES (8u << 20)        /* a whole envelope, at most */
 #define SC_MSG_OVERHEAD 64u                 /* envelope bytes besides the payload */
 #define SC_MSG_MAX_PAYLOAD (SC_MSG_MAX_BYTES - SC_MSG_OVERHEAD)
@@ -73,6 +73,7 @@ typedef struct sc_msg_announce {
     int owner_busy;             /* 0 or 1 */
     int version;
     int64_t time_us;
+    int64_t units;              /* units computed since the daemon started, >= 0 */
 } sc_msg_announce;
 
 /* unit_t or result_t: frame, unit index and the wire bytes of

@@ -578,6 +578,7 @@ static void heartbeat(sc_serve *s)
     struct timespec ts;
     clock_gettime(CLOCK_REALTIME, &ts);
     a.time_us = (int64_t)ts.tv_sec * 1000000 + ts.tv_nsec / 1000;
+    a.units = s->n.results;
     pthread_mutex_unlock(&s->lock);
     uint8_t *p;
     size_t len;

@@ -22,7 +22,8 @@ static const uint8_t key[SC_KEY_BYTES] = "0123456789abcdef0123456789abcde";
 static sc_msg_announce sample_announce(void)
 {
     sc_msg_announce a = { .node = 42, .cores = 16, .speed = 1234.5, .idle_fraction = 0.75,
-                          .owner_busy = 1, .version = SC_MSG_VERSION, .time_us = 1700000000000000 };
+                          .owner_busy = 1, .version = SC_MSG_VERSION, .time_us = 1700000000000000,
+                          .units = 123456789 };
     strcpy(a.host, "ws-17.lab");
     return a;
 }
@@ -69,6 +70,7 @@ static void test_announce_round_trips_through_a_sealed_envelope(void **state)
     assert_int_equal(b.owner_busy, 1);
     assert_int_equal(b.version, SC_MSG_VERSION);
     assert_int_equal(b.time_us, a.time_us);
+    assert_int_equal(b.units, a.units);
     assert_int_equal(g.accepted, 1);
     assert_int_equal(g.dropped_format + g.dropped_auth + g.dropped_replay, 0);
     sc_msg_free(&m);
