@@ -30,5 +30,45 @@ check "no command" 2 "$tool"
 check "unknown command" 2 "$tool" frobnicate
 check "--help" 0 "$tool" --help
 grep -q keygen "$dir/out" || { echo "FAIL: --help does not list keygen"; fail=1; }
+for c in run profile lcp; do
+    grep -q "$c" "$dir/out" || { echo "FAIL: --help does not list $c"; fail=1; }
+done
+
+# run: a short drop, text and JSON; the same seed gives the same state
+check "run bolts" 0 "$tool" run bolts --bodies 12 --frames 60 --workers 2
+grep -q "^bolts: 13 bodies" "$dir/out" || { echo "FAIL: run: no report"; cat "$dir/out"; fail=1; }
+h1=$(sed -n 's/.*state hash //p' "$dir/out")
+check "run bolts, one worker" 0 "$tool" run bolts --bodies 12 --frames 60 --workers 1
+h2=$(sed -n 's/.*state hash //p' "$dir/out")
+[ -n "$h1" ] && [ "$h1" = "$h2" ] || { echo "FAIL: run: hash $h1 with 2 workers, $h2 with 1"; fail=1; }
+[ -s "$dir/err" ] && { echo "FAIL: run: output on stderr when it is not a terminal"; cat "$dir/err"; fail=1; }
+check "run --json" 0 "$tool" run bolts --bodies 5 --until-rest --json
+grep -q '"at_rest": true' "$dir/out" || { echo "FAIL: run --json: not at rest"; cat "$dir/out"; fail=1; }
+python3 -c 'import json,sys; json.load(open(sys.argv[1]))' "$dir/out" 2>/dev/null ||
+    { command -v python3 >/dev/null && { echo "FAIL: run --json is not JSON"; fail=1; }; }
+check "run without a scene" 2 "$tool" run
+check "run, unknown scene" 2 "$tool" run cubes
+check "run, bad --bodies" 2 "$tool" run bolts --bodies 0
+check "run, unknown option" 2 "$tool" run bolts --frobnicate
+[ "$(wc -l <"$dir/err")" -eq 1 ] || { echo "FAIL: run: error is not one line"; fail=1; }
+check "run, --key without --cluster" 2 "$tool" run bolts --key "$dir/k"
+check "run, unopenable cluster URL" 1 "$tool" run bolts --cluster "udpm://999.1.1.1:7667"
+
+# profile: the Table 1 rows
+check "profile" 0 "$tool" profile spheres --frames 50
+grep -q "Dantzig" "$dir/out" && grep -q "41.48" "$dir/out" || { echo "FAIL: profile rows"; fail=1; }
+
+# lcp: a known solution, and errors that name the line and column
+printf '# 2x2\n2\n2 1\n1 2\n-1 -1\n' >"$dir/lcp"
+check "lcp" 0 "$tool" lcp "$dir/lcp"
+grep -q "^0 0.3333333333333333" "$dir/out" || { echo "FAIL: lcp: wrong z"; cat "$dir/out"; fail=1; }
+printf '2\n2 1\n1 x\n-1 -1\n' >"$dir/lcp"
+check "lcp, bad number" 1 "$tool" lcp "$dir/lcp"
+grep -q ":3:3: not a finite number" "$dir/err" || { echo "FAIL: lcp: position"; cat "$dir/err"; fail=1; }
+printf '2\n2 1\n1 2\n-1\n' >"$dir/lcp"
+check "lcp, short file" 1 "$tool" lcp "$dir/lcp"
+grep -q "ends inside q" "$dir/err" || { echo "FAIL: lcp: short file"; cat "$dir/err"; fail=1; }
+check "lcp, missing file" 1 "$tool" lcp "$dir/none"
+
 [ "$fail" -eq 0 ] && echo "tools: all checks passed"
 exit "$fail"

@@ -1,18 +1,46 @@
-/* simcluster - the command-line tool (simcluster(1)). This release has
- * one command: keygen, the cluster key every daemon and master shares.
- * The others (run, profile, lcp) come with the tools issue. */
+/* simcluster - the command-line tool (simcluster(1)): run the paper's
+ * scenes (run), print their Table 1 breakdown (profile), solve an LCP given
+ * as text (lcp), and write a cluster key (keygen). Scene files, --record
+ * and --render come with the rest of the tools issue. */
 #include <errno.h>
+#include <getopt.h>
+#include <math.h>
 #include <stdio.h>
+#include <stdlib.h>
 #include <string.h>
+#include <time.h>
+#include <unistd.h>
 
 #include "cluster_msg.h"
 #include "simcluster.h"
 
+#define DT 0.01
+#define MAX_LCP 2000               /* lcp: variables at most */
+
 static int usage(FILE *f, int status)
 {
-    fprintf(f, "usage: simcluster keygen FILE   write a new cluster key (mode 0600)\n"
-               "       simcluster --help\n");
+    fprintf(f,
+            "usage: simcluster run SCENE [options]     simulate bolts or spheres\n"
+            "       simcluster profile SCENE [options] CPU time per stage (Table 1)\n"
+            "       simcluster lcp FILE                solve an LCP given as text\n"
+            "       simcluster keygen FILE             write a new cluster key (mode 0600)\n"
+            "       simcluster --help\n"
+            "run and profile options: --bodies N --seed S --frames F --until-rest\n"
+            "  --workers W --groups --cluster URL --key FILE --deadline S --json\n");
     return status;
+}
+
+static int bad(const char *cmd, const char *what)
+{
+    fprintf(stderr, "simcluster: %s: %s (try simcluster --help)\n", cmd, what);
+    return 2;
+}
+
+static double now_s(void)
+{
+    struct timespec ts;
+    clock_gettime(CLOCK_MONOTONIC, &ts);
+    return (double)ts.tv_sec + 1e-9 * (double)ts.tv_nsec;
 }
 
 static int keygen(int argc, char **argv)
@@ -31,6 +59,408 @@ static int keygen(int argc, char **argv)
     return 0;
 }
 
+/* ---- run and profile ---- */
+
+typedef struct options {
+    const char *scene;
+    long bodies, seed, frames, workers;
+    int until_rest, groups, json;
+    const char *cluster, *key;
+    double deadline;
+} options;
+
+static int parse_long(const char *s, long lo, long hi, long *out)
+{
+    char *end;
+    errno = 0;
+    long v = strtol(s, &end, 10);
+    if (errno || end == s || *end || v < lo || v > hi)
+        return 0;
+    *out = v;
+    return 1;
+}
+
+static int parse_options(const char *cmd, int argc, char **argv, options *o)
+{
+    static const struct option longs[] = {
+        { "bodies", required_argument, 0, 'n' },   { "seed", required_argument, 0, 's' },
+        { "frames", required_argument, 0, 'f' },   { "until-rest", no_argument, 0, 'r' },
+        { "workers", required_argument, 0, 'w' },  { "groups", no_argument, 0, 'g' },
+        { "cluster", required_argument, 0, 'c' },  { "key", required_argument, 0, 'k' },
+        { "deadline", required_argument, 0, 'd' }, { "json", no_argument, 0, 'j' },
+        { 0, 0, 0, 0 }
+    };
+    memset(o, 0, sizeof *o);
+    o->bodies = 50;
+    o->seed = 1;
+    o->frames = -1;
+    opterr = 0;
+    optind = 2;
+    int c;
+    char *end;
+    while ((c = getopt_long(argc, argv, "", longs, NULL)) != -1) {
+        switch (c) {
+        case 'n':
+            if (!parse_long(optarg, 1, 100000, &o->bodies))
+                return bad(cmd, "--bodies takes 1..100000");
+            break;
+        case 's':
+            if (!parse_long(optarg, 0, 0x7fffffffL, &o->seed))
+                return bad(cmd, "--seed takes 0..2147483647");
+            break;
+        case 'f':
+            if (!parse_long(optarg, 1, 100000000L, &o->frames))
+                return bad(cmd, "--frames takes 1..100000000");
+            break;
+        case 'r':
+            o->until_rest = 1;
+            break;
+        case 'w':
+            if (!parse_long(optarg, 0, SC_MAX_WORKERS, &o->workers))
+                return bad(cmd, "--workers takes 0..64 (0: one per CPU)");
+            break;
+        case 'g':
+            o->groups = 1;
+            break;
+        case 'c':
+            o->cluster = optarg;
+            break;
+        case 'k':
+            o->key = optarg;
+            break;
+        case 'd':
+            errno = 0;
+            o->deadline = strtod(optarg, &end);
+            if (errno || end == optarg || *end || !(o->deadline > 0 && o->deadline <= 10))
+                return bad(cmd, "--deadline takes seconds in (0, 10]");
+            break;
+        case 'j':
+            o->json = 1;
+            break;
+        default: {
+            char what[160];
+            snprintf(what, sizeof what, "unknown option or missing value: %s", argv[optind - 1]);
+            return bad(cmd, what);
+        }
+        }
+    }
+    if (optind != argc - 1)
+        return bad(cmd, "give one scene: bolts or spheres");
+    o->scene = argv[optind];
+    if (strcmp(o->scene, "bolts") && strcmp(o->scene, "spheres"))
+        return bad(cmd, "unknown scene (bolts or spheres; scene files are not yet supported)");
+    if (o->key && !o->cluster)
+        return bad(cmd, "--key needs --cluster");
+    return 0;
+}
+
+static sc_world *make_world(const options *o, const char *cmd)
+{
+    sc_world_config c = sc_world_config_default();
+    c.workers = (int)o->workers;
+    c.motion_groups = o->groups;
+    c.cluster = o->cluster;
+    c.key_file = o->key;
+    c.cluster_deadline_s = o->deadline;
+    sc_world *w = sc_world_create(&c);
+    if (!w) {
+        int err = sc_last_error();
+        if (o->cluster)
+            fprintf(stderr, "simcluster: %s: %s (cluster %s%s%s)\n", cmd, sc_strerror(err),
+                    o->cluster, o->key ? ", key " : "", o->key ? o->key : "");
+        else
+            fprintf(stderr, "simcluster: %s: %s\n", cmd, sc_strerror(err));
+        return NULL;
+    }
+    int rc = !strcmp(o->scene, "bolts") ? sc_scene_bolts_nuts(w, (int)o->bodies, (uint64_t)o->seed)
+                                        : sc_scene_spheres_box(w);
+    if (rc < 0) {
+        fprintf(stderr, "simcluster: %s: scene: %s\n", cmd, sc_strerror(rc));
+        sc_world_destroy(w);
+        return NULL;
+    }
+    return w;
+}
+
+static int awake(const sc_world *w)
+{
+    int n = 0;
+    for (int i = 0; i < sc_world_body_count(w); i++) {
+        int s = sc_body_state(w, i);
+        n += s != SC_ASLEEP && s != SC_STATIC;
+    }
+    return n;
+}
+
+typedef struct totals {
+    long frames, units, remote, recomputed, late;
+    double wall, peak_energy, max_pen, comm;
+    int at_rest;
+    double rest_s;
+} totals;
+
+static int simulate(const options *o, sc_world *w, totals *t, int progress)
+{
+    long frames = o->frames > 0 ? o->frames : o->until_rest ? 6000 : 500;
+    double e0 = sc_world_energy(w), t0 = now_s(), shown = 0;
+    memset(t, 0, sizeof *t);
+    t->peak_energy = 1;
+    int rc = SC_OK;
+    for (long f = 0; f < frames; f++) {
+        rc = sc_world_step(w, DT);
+        if (rc != SC_OK)
+            break;
+        sc_stats st;
+        sc_world_stats(w, &st);
+        t->frames++;
+        t->units += st.units;
+        t->remote += st.remote_units;
+        t->recomputed += st.recomputed_units;
+        t->late += st.late_results;
+        t->comm += st.comm_s;
+        t->max_pen = fmax(t->max_pen, st.max_penetration);
+        if (e0 > 0)
+            t->peak_energy = fmax(t->peak_energy, sc_world_energy(w) / e0);
+        double now = now_s();
+        if (progress && now - shown > 0.2) {
+            shown = now;
+            fprintf(stderr, "\r  frame %ld  t %.2f s  RT %.2fx  awake %d  nodes %d  ", t->frames,
+                    t->frames * DT, t->frames * DT / (now - t0), awake(w), st.nodes);
+        }
+        if (o->until_rest && sc_world_at_rest(w)) {
+            t->at_rest = 1;
+            t->rest_s = t->frames * DT;
+            break;
+        }
+    }
+    t->wall = now_s() - t0;
+    if (progress)
+        fprintf(stderr, "\r%70s\r", "");
+    if (!t->at_rest && sc_world_at_rest(w)) {
+        t->at_rest = 1;
+        t->rest_s = -1;
+    }
+    return rc;
+}
+
+static int run_cmd(int argc, char **argv)
+{
+    options o;
+    int u = parse_options("run", argc, argv, &o);
+    if (u)
+        return u;
+    sc_world *w = make_world(&o, "run");
+    if (!w)
+        return 1;
+    totals t;
+    int rc = simulate(&o, w, &t, isatty(2) && !o.json);
+    sc_stats st;
+    sc_world_stats(w, &st);
+    double sim = t.frames * DT;
+    unsigned long long hash = (unsigned long long)sc_world_hash(w);
+    if (o.json) {
+        printf("{\"scene\": \"%s\", \"bodies\": %d, \"seed\": %ld, \"workers\": %d, "
+               "\"frames\": %ld, \"simulated_s\": %.2f, \"wall_s\": %.4f, "
+               "\"realtime_factor\": %.4f, \"at_rest\": %s, \"rest_s\": %.2f, "
+               "\"peak_energy_ratio\": %.6f, \"max_penetration_m\": %.6g, \"units\": %ld, "
+               "\"daemons\": %d, \"remote_units\": %ld, \"recomputed_units\": %ld, "
+               "\"late_results\": %ld, \"dropped_messages\": %ld, \"comm_s\": %.4f, "
+               "\"hash\": \"%016llx\", \"error\": %s%s%s}\n",
+               o.scene, sc_world_body_count(w), o.seed, (int)(st.nodes - st.daemons), t.frames,
+               sim, t.wall, t.wall > 0 ? sim / t.wall : 0, t.at_rest ? "true" : "false",
+               t.rest_s, t.peak_energy, t.max_pen, t.units, st.daemons, t.remote, t.recomputed,
+               t.late, st.dropped_messages, t.comm, hash, rc ? "\"" : "null",
+               rc ? sc_strerror(rc) : "", rc ? "\"" : "");
+    } else {
+        printf("%s: %d bodies, seed %ld, %ld frames of %.2f s\n", o.scene, sc_world_body_count(w),
+               o.seed, t.frames, DT);
+        printf("  simulated %8.2f s in %.3f s wall (real-time factor %.2f)\n", sim, t.wall,
+               t.wall > 0 ? sim / t.wall : 0);
+        if (o.until_rest)
+            printf("  %s\n", t.at_rest ? "all at rest" : "not at rest at the frame limit");
+        printf("  peak energy / initial %.5f, max penetration %.3f mm\n", t.peak_energy,
+               1e3 * t.max_pen);
+        printf("  work units %ld", t.units);
+        if (o.cluster)
+            printf(", from daemons %ld, recomputed %ld, late %ld, dropped messages %ld",
+                   t.remote, t.recomputed, t.late, st.dropped_messages);
+        printf("\n  state hash %016llx\n", hash);
+    }
+    sc_world_destroy(w);
+    if (rc != SC_OK) {
+        fprintf(stderr, "simcluster: run: step %ld: %s\n", t.frames + 1, sc_strerror(rc));
+        return 1;
+    }
+    return 0;
+}
+
+static int profile_cmd(int argc, char **argv)
+{
+    options o;
+    int u = parse_options("profile", argc, argv, &o);
+    if (u)
+        return u;
+    if (o.frames < 0 && !strcmp(o.scene, "spheres"))
+        o.frames = 5000;    /* the paper's 50 s */
+    sc_world *w = make_world(&o, "profile");
+    if (!w)
+        return 1;
+    totals t;
+    int rc = simulate(&o, w, &t, isatty(2) && !o.json);
+    sc_stats st;
+    sc_world_stats(w, &st);
+    /* the paper's Table 1 rows (27 spheres); time of impact is ours */
+    static const struct { const char *name, *key; int stage; double paper; } rows[] = {
+        { "polygon-level detection", "narrowphase", SC_STAGE_NARROWPHASE, 41.48 },
+        { "Dantzig (LCP)", "lcp", SC_STAGE_LCP, 37.35 },
+        { "contact graph", "islands", SC_STAGE_ISLANDS, 16.27 },
+        { "integration", "integrate", SC_STAGE_INTEGRATE, 4.88 },
+        { "bounding spheres", "broadphase", SC_STAGE_BROADPHASE, 0.02 },
+        { "time of impact", "toi", SC_STAGE_TOI, -1 },
+    };
+    double total = 0;
+    for (int k = 0; k < SC_STAGE_COUNT; k++)
+        total += st.stage_total_s[k];
+    if (o.json) {
+        printf("{\"scene\": \"%s\", \"frames\": %ld, \"cpu_s\": {", o.scene, t.frames);
+        for (size_t i = 0; i < sizeof rows / sizeof *rows; i++)
+            printf("%s\"%s\": %.6f", i ? ", " : "", rows[i].key, st.stage_total_s[rows[i].stage]);
+        printf("}}\n");
+    } else {
+        printf("%s, %ld frames: CPU time by stage (paper: Table 1, 27 spheres)\n", o.scene,
+               t.frames);
+        printf("  %-26s %10s %8s %8s\n", "stage", "CPU s", "ours %", "paper %");
+        for (size_t i = 0; i < sizeof rows / sizeof *rows; i++) {
+            double s = st.stage_total_s[rows[i].stage];
+            printf("  %-26s %10.4f %8.2f ", rows[i].name, s, total > 0 ? 100 * s / total : 0);
+            if (rows[i].paper < 0)
+                printf("%8s\n", "-");
+            else
+                printf("%8.2f\n", rows[i].paper);
+        }
+    }
+    sc_world_destroy(w);
+    if (rc != SC_OK) {
+        fprintf(stderr, "simcluster: profile: step %ld: %s\n", t.frames + 1, sc_strerror(rc));
+        return 1;
+    }
+    return 0;
+}
+
+/* ---- lcp ---- */
+
+/* Read the next number of f into *v; line and column of where it starts
+ * for errors. 1 on success, 0 at the end, -1 on a bad token. */
+static int next_number(FILE *f, double *v, long *line, long *col, long *at_line, long *at_col)
+{
+    int c;
+    for (;;) {
+        c = getc(f);
+        if (c == '#') {
+            while ((c = getc(f)) != EOF && c != '\n')
+                ;
+        }
+        if (c == EOF)
+            return 0;
+        if (c == '\n') {
+            (*line)++;
+            *col = 0;
+            continue;
+        }
+        (*col)++;
+        if (c != ' ' && c != '\t' && c != '\r')
+            break;
+    }
+    char tok[64];
+    size_t n = 0;
+    *at_line = *line;
+    *at_col = *col;
+    while (c != EOF && c != ' ' && c != '\t' && c != '\r' && c != '\n' && c != '#') {
+        if (n + 1 >= sizeof tok)
+            return -1;
+        tok[n++] = (char)c;
+        c = getc(f);
+        (*col)++;
+    }
+    if (c != EOF) {
+        ungetc(c, f);
+        (*col)--;
+    }
+    tok[n] = 0;
+    char *end;
+    errno = 0;
+    *v = strtod(tok, &end);
+    return !errno && *end == 0 && isfinite(*v) ? 1 : -1;
+}
+
+static int lcp_cmd(int argc, char **argv)
+{
+    if (argc != 3)
+        return bad("lcp", "give one file (n, then M row by row, then q)");
+    const char *path = argv[2];
+    FILE *f = strcmp(path, "-") ? fopen(path, "r") : stdin;
+    if (!f) {
+        fprintf(stderr, "simcluster: lcp: %s: %s\n", path, strerror(errno));
+        return 1;
+    }
+    long line = 1, col = 0, l0 = 1, c0 = 0;
+    double v;
+    int r = next_number(f, &v, &line, &col, &l0, &c0);
+    int n = r == 1 && v == floor(v) && v >= 1 && v <= MAX_LCP ? (int)v : 0;
+    double *M = NULL, *q = NULL, *z = NULL, *w = NULL;
+    int status = 1;
+    if (!n) {
+        fprintf(stderr, "simcluster: lcp: %s:%ld:%ld: expected the size n (1..%d)\n", path, l0,
+                c0, MAX_LCP);
+        goto out;
+    }
+    M = malloc((size_t)n * (size_t)n * sizeof *M);
+    q = malloc((size_t)n * sizeof *q);
+    z = malloc((size_t)n * sizeof *z);
+    w = malloc((size_t)n * sizeof *w);
+    if (!M || !q || !z || !w) {
+        fprintf(stderr, "simcluster: lcp: out of memory\n");
+        goto out;
+    }
+    long want = (long)n * n + n;
+    for (long i = 0; i < want; i++) {
+        r = next_number(f, &v, &line, &col, &l0, &c0);
+        if (r != 1) {
+            fprintf(stderr, "simcluster: lcp: %s:%ld:%ld: %s\n", path, r ? l0 : line,
+                    r ? c0 : col,
+                    r ? "not a finite number"
+                      : i < (long)n * n ? "the file ends inside M" : "the file ends inside q");
+            goto out;
+        }
+        if (i < (long)n * n)
+            M[i] = v;
+        else
+            q[i - (long)n * n] = v;
+    }
+    r = next_number(f, &v, &line, &col, &l0, &c0);
+    if (r != 0) {
+        fprintf(stderr, "simcluster: lcp: %s:%ld:%ld: more numbers than n^2 + n\n", path, l0, c0);
+        goto out;
+    }
+    int rc = sc_lcp_solve(n, M, q, z, w);
+    if (rc != SC_OK) {
+        fprintf(stderr, "simcluster: lcp: %s\n", sc_strerror(rc));
+        goto out;
+    }
+    printf("# i z w\n");
+    for (int i = 0; i < n; i++)
+        printf("%d %.17g %.17g\n", i, z[i], w[i]);
+    status = 0;
+out:
+    free(M);
+    free(q);
+    free(z);
+    free(w);
+    if (f != stdin)
+        fclose(f);
+    return status;
+}
+
 int main(int argc, char **argv)
 {
     if (argc < 2)
@@ -39,6 +469,12 @@ int main(int argc, char **argv)
         return usage(stdout, 0);
     if (!strcmp(argv[1], "keygen"))
         return keygen(argc, argv);
+    if (!strcmp(argv[1], "run"))
+        return run_cmd(argc, argv);
+    if (!strcmp(argv[1], "profile"))
+        return profile_cmd(argc, argv);
+    if (!strcmp(argv[1], "lcp"))
+        return lcp_cmd(argc, argv);
     fprintf(stderr, "simcluster: unknown command '%s' (try simcluster --help)\n", argv[1]);
     return 2;
 }
