@@ -66,31 +66,11 @@ static int parse_double(const char *s, double lo, double hi, double *out)
     return 1;
 }
 
-/* FNV-1a over the bits of every body's position, quaternion, linear and
- * angular velocity, in id order: equal states give equal hashes. */
-static uint64_t state_hash(const sc_world *w)
-{
-    uint64_t h = 0xcbf29ce484222325ull;
-    int n = sc_world_body_count(w);
-    for (int id = 0; id < n; id++) {
-        double v[13];
-        sc_body_get_pose(w, id, v, v + 3);
-        sc_body_get_velocity(w, id, v + 7, v + 10);
-        const unsigned char *p = (const unsigned char *)v;
-        for (size_t i = 0; i < sizeof v; i++) {
-            h ^= p[i];
-            h *= 0x100000001b3ull;
-        }
-    }
-    return h;
-}
-
 /* Wait (at most WAIT_DAEMONS_S) until k daemons that are not owner-busy
  * are heard. A world takes in heartbeats only as it steps, so a second
  * world holding nothing but a static floor (it has no work to send) steps
  * on the same URL and key meanwhile; the scene's world finds the
- * heartbeats queued on its own socket at its first frame. (The floor:
- * a world with no bodies at all cannot step, SC_EINVAL.) */
+ * heartbeats queued on its own socket at its first frame. */
 static int wait_daemons(const sc_world_config *cfg, int k)
 {
     sc_world *probe = sc_world_create(cfg);
@@ -215,7 +195,7 @@ int main(int argc, char **argv)
     }
     double wall = now_s() - t0;
     sc_world_stats(w, &st);
-    printf("hash %016llx\n", (unsigned long long)state_hash(w));
+    printf("hash %016llx\n", (unsigned long long)sc_world_hash(w));
     printf("remote %ld recomputed %ld late %ld dropped %ld\n", remote, recomputed, late,
            st.dropped_messages);
     printf("wall %.3f frames %ld\n", wall, f);
