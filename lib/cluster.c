@@ -39,6 +39,7 @@
 #define BATCH_BYTES (256u << 10) /* units sent together, at most */
 #define BYTE_S 1e-8             /* transfer estimate per byte (100 MB/s) */
 #define OVERHEAD_KEEP 0.8
+#define OVERHEAD_IDLE_DECAY 0.95 /* per job without work */
 #define MAX_WAIT_DEADLINES 10   /* a long prediction stretches the deadline
                                    up to this many deadlines */       /* EWMA of a job's communication overhead */
 
@@ -518,6 +519,11 @@ int sc_cluster_begin(sc_cluster *c, const sc_job *job)
     c->local_done = 0;
     for (int k = 0; k < SC_MAX_DAEMONS; k++) {
         daemon_slot *d = &c->d[k];
+        /* a daemon judged slow to answer gets no work and so no chance to
+         * show otherwise (its first job waited for shapes, say): while it
+         * idles its latency decays and it is tried again */
+        if (d->sent == 0)
+            d->overhead *= OVERHEAD_IDLE_DECAY;
         d->sent = d->done = 0;
         d->compute_s = 0;
     }
