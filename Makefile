@@ -38,6 +38,10 @@ LDFLAGS += -pthread $(XFLAGS)
 LIBS    := $(shell pkg-config --libs $(DEP_PKGS) 2>/dev/null || \
              echo -lode -lgsl -lgslcblas -llcm -lsodium) -lm -ldl
 TESTLIBS := $(LIBS) -lcmocka
+# simcluster-view(1) renders with OSMesa and writes PNG; tests/png_check reads PNG.
+PNG_LIBS := $(shell pkg-config --cflags --libs libpng 2>/dev/null || echo -lpng)
+TOOL_LIBS_simcluster-view := $(shell pkg-config --cflags --libs osmesa 2>/dev/null || \
+             echo -lOSMesa) $(PNG_LIBS)
 
 ifeq ($(V),1)
 Q :=
@@ -67,6 +71,8 @@ FUZZ_SRC  := $(sort $(wildcard tests/fuzz/fuzz_*.c))
 FUZZ_REPLAY := $(FUZZ_SRC:tests/fuzz/%.c=$(BUILD)/tests/fuzz/%_replay)
 # Programs tests/cluster.sh drives (not test_*: run.sh does not run them itself).
 CLUSTER_BIN := $(BUILD)/tests/cluster_run $(BUILD)/tests/cluster_inject
+# The pixel checker tests/view.sh uses (both builds).
+VIEW_BIN  := $(BUILD)/tests/png_check
 
 STATIC := $(BUILD)/libsimcluster.a
 SHARED := $(BUILD)/libsimcluster.so.$(VERSION)
@@ -128,7 +134,12 @@ $(BUILD)/examples/%: examples/%.c $(STATIC)
 $(BUILD)/tools/%: tools/%.c $(STATIC)
 	@mkdir -p $(dir $@)
 	@$(if $(Q),echo "  TOOL    $@")
-	$(Q)$(CC) $(CPPFLAGS) $(CFLAGS) $< -o $@ $(LDFLAGS) $(STATIC) $(LIBS)
+	$(Q)$(CC) $(CPPFLAGS) $(CFLAGS) $< -o $@ $(LDFLAGS) $(STATIC) $(LIBS) $(TOOL_LIBS_$*)
+
+$(BUILD)/tests/png_check: tests/png_check.c Makefile
+	@mkdir -p $(dir $@)
+	@$(if $(Q),echo "  TEST    $@")
+	$(Q)$(CC) $(CFLAGS) $< -o $@ $(LDFLAGS) $(PNG_LIBS) -lm
 
 # simclusterd(8): every daemon/*.c into one program.
 $(BUILD)/daemon/simclusterd: $(DAEMON_SRC) $(wildcard include/*.h lib/*.h) $(STATIC)
@@ -153,12 +164,12 @@ fuzz:
 	$(Q)sh tests/fuzz/run.sh $(FUZZ_TIME)
 
 check: deps
-	$(Q)$(MAKE) --no-print-directory all $(TEST_BIN) $(FUZZ_REPLAY) $(CLUSTER_BIN)
+	$(Q)$(MAKE) --no-print-directory all $(TEST_BIN) $(FUZZ_REPLAY) $(CLUSTER_BIN) $(VIEW_BIN)
 	$(Q)$(MAKE) --no-print-directory SAN=1 lib $(TEST_BIN:$(BUILD)/%=build-san/%) $(FUZZ_REPLAY:$(BUILD)/%=build-san/%) \
-	    $(TOOL_BIN:$(BUILD)/%=build-san/%) $(DAEMON_BIN:$(BUILD)/%=build-san/%)
+	    $(TOOL_BIN:$(BUILD)/%=build-san/%) $(DAEMON_BIN:$(BUILD)/%=build-san/%) $(VIEW_BIN:$(BUILD)/%=build-san/%)
 	$(Q)sh tests/run.sh $(BUILD) build-san
 
-check-run: $(TEST_BIN) $(FUZZ_REPLAY) $(TOOL_BIN) $(DAEMON_BIN) $(CLUSTER_BIN)
+check-run: $(TEST_BIN) $(FUZZ_REPLAY) $(TOOL_BIN) $(DAEMON_BIN) $(CLUSTER_BIN) $(VIEW_BIN)
 	$(Q)sh tests/run.sh $(BUILD)
 
 demo: deps

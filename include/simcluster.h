@@ -269,6 +269,8 @@ SC_API int sc_world_step(sc_world *w, double dt);
 SC_API void sc_body_get_pose(const sc_world *w, int id, double pos[3], double quat[4]);
 /* Linear velocity of the shape origin and angular velocity, world frame. */
 SC_API void sc_body_get_velocity(const sc_world *w, int id, double v[3], double omega[3]);
+/* The shape of body id (borrowed: valid while w lives); NULL for a bad id. */
+SC_API const sc_shape *sc_body_shape(const sc_world *w, int id);
 /* SC_FREE, SC_COLLIDING, SC_CONTACT, SC_ASLEEP or SC_STATIC; negative for a bad id. */
 SC_API int sc_body_state(const sc_world *w, int id);
 /* Push body id with force f (N) at world point at (NULL = centre of mass)

@@ -280,6 +280,12 @@ SC_API void sc_body_get_velocity(const sc_world *w, int id, double v[3], double 
     if (omega) memcpy(omega, ang, sizeof ang);
 }
 
+SC_API const sc_shape *sc_body_shape(const sc_world *w, int id)
+{
+    const sc_body *b = body_get(w, id);
+    return b ? b->shape : NULL;
+}
+
 SC_API int sc_body_state(const sc_world *w, int id)
 {
     const sc_body *b = body_get(w, id);

@@ -47,6 +47,9 @@ for build in "$@"; do
     sh tests/tools.sh "$build" >"$log" 2>&1
     count "tools ($build)" $?
     echo "  $(tail -n 1 "$log")"
+    sh tests/view.sh "$build" >"$log" 2>&1
+    count "view ($build)" $?
+    echo "  $(tail -n 1 "$log")"
     sh tests/daemon.sh "$build" >"$log" 2>&1
     count "daemon ($build)" $?
     echo "  $(tail -n 1 "$log")"

@@ -323,6 +323,22 @@ static void test_an_empty_world_steps(void **state)
     sc_world_destroy(w);
 }
 
+static void test_body_shape_is_the_shape_it_was_added_with(void **state)
+{
+    (void)state;
+    sc_world *w = world_with_floor();
+    sc_shape *ball = sc_shape_sphere(0.5);
+    assert_non_null(ball);
+    assert_int_equal(add_body(w, ball, 1, 0, 0, 2), 1);
+    sc_shape_release(ball);            /* the world keeps its own reference */
+    assert_ptr_equal(sc_body_shape(w, 1), ball);
+    assert_int_equal(sc_shape_kind(sc_body_shape(w, 0)), SC_SHAPE_PLANE);
+    assert_null(sc_body_shape(w, 2));
+    assert_null(sc_body_shape(w, -1));
+    assert_null(sc_body_shape(NULL, 0));
+    sc_world_destroy(w);
+}
+
 int main(void)
 {
     const struct CMUnitTest tests[] = {
@@ -336,6 +352,7 @@ int main(void)
         cmocka_unit_test(test_hash_is_equal_for_equal_worlds_and_changes_with_state),
         cmocka_unit_test(test_both_broad_phases_give_identical_contacts),
         cmocka_unit_test(test_an_empty_world_steps),
+        cmocka_unit_test(test_body_shape_is_the_shape_it_was_added_with),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
 }

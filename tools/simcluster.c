@@ -1,7 +1,8 @@
 /* simcluster - the command-line tool (simcluster(1)): run the paper's
  * scenes (run), print their Table 1 breakdown (profile), solve an LCP given
- * as text (lcp), and write a cluster key (keygen). Scene files, --record
- * and --render come with the rest of the tools issue. */
+ * as text (lcp), and write a cluster key (keygen); run --record writes
+ * an LCM log that simcluster-view(1) renders. Scene files come with the
+ * rest of the tools issue. */
 #include <errno.h>
 #include <getopt.h>
 #include <math.h>
@@ -11,7 +12,10 @@
 #include <time.h>
 #include <unistd.h>
 
+#include <lcm/eventlog.h>
+
 #include "cluster_msg.h"
+#include "sclcm_state_t.h"
 #include "simcluster.h"
 
 #define DT 0.01
@@ -26,7 +30,8 @@ static int usage(FILE *f, int status)
             "       simcluster keygen FILE             write a new cluster key (mode 0600)\n"
             "       simcluster --help\n"
             "run and profile options: --bodies N --seed S --frames F --until-rest\n"
-            "  --workers W --groups --cluster URL --key FILE --deadline S --json\n");
+            "  --workers W --groups --cluster URL --key FILE --deadline S --json\n"
+            "run only: --record LOG (an LCM log of every frame, for simcluster-view)\n");
     return status;
 }
 
@@ -65,7 +70,7 @@ typedef struct options {
     const char *scene;
     long bodies, seed, frames, workers;
     int until_rest, groups, json;
-    const char *cluster, *key;
+    const char *cluster, *key, *record;
     double deadline;
 } options;
 
@@ -88,7 +93,7 @@ static int parse_options(const char *cmd, int argc, char **argv, options *o)
         { "workers", required_argument, 0, 'w' },  { "groups", no_argument, 0, 'g' },
         { "cluster", required_argument, 0, 'c' },  { "key", required_argument, 0, 'k' },
         { "deadline", required_argument, 0, 'd' }, { "json", no_argument, 0, 'j' },
-        { 0, 0, 0, 0 }
+        { "record", required_argument, 0, 'o' },   { 0, 0, 0, 0 }
     };
     memset(o, 0, sizeof *o);
     o->bodies = 50;
@@ -136,6 +141,13 @@ static int parse_options(const char *cmd, int argc, char **argv, options *o)
             break;
         case 'j':
             o->json = 1;
+            break;
+        case 'o':
+            if (strcmp(cmd, "run"))
+                return bad(cmd, "--record is an option of run");
+            if (optarg[0] == '\0')
+                return bad(cmd, "--record takes a file name");
+            o->record = optarg;
             break;
         default: {
             char what[160];
@@ -192,6 +204,154 @@ static int awake(const sc_world *w)
     return n;
 }
 
+/* ---- run --record: an LCM event log (simcluster-view(1) reads it) ---- */
+
+/* One SC_SHAPE event per distinct shape (shape_t, unsealed: a log is local),
+ * then one SC_STATE event (state_t) per frame, the initial state as frame 0.
+ * Event timestamps are simulated microseconds, so lcm-logplayer replays a
+ * run in simulated time. */
+typedef struct recorder {
+    lcm_eventlog_t *log;
+    const char *path;
+    int64_t events;
+    sclcm_state_t m;
+    uint8_t *buf;
+    size_t cap;
+} recorder;
+
+static int record_event(recorder *r, const char *channel, int64_t t_us, const void *data,
+                        size_t len)
+{
+    lcm_eventlog_event_t ev = { .eventnum = r->events++, .timestamp = t_us,
+                                .channellen = (int32_t)strlen(channel),
+                                .datalen = (int32_t)len,
+                                .channel = (char *)channel, .data = (void *)data };
+    if (lcm_eventlog_write_event(r->log, &ev) != 0) {
+        fprintf(stderr, "simcluster: run: %s: cannot write\n", r->path);
+        return 1;
+    }
+    return 0;
+}
+
+static void record_close(recorder *r)
+{
+    if (r->log)
+        lcm_eventlog_destroy(r->log);
+    free(r->m.shape);
+    free(r->m.pos);
+    free(r->m.quat);
+    free(r->m.state);
+    free(r->buf);
+    memset(r, 0, sizeof *r);
+}
+
+/* Create the log and write the shapes; 0, or 1 with the error printed. */
+static int record_open(recorder *r, const char *path, const sc_world *w)
+{
+    memset(r, 0, sizeof *r);
+    r->path = path;
+    r->log = lcm_eventlog_create(path, "w");
+    if (!r->log) {
+        fprintf(stderr, "simcluster: run: %s: %s\n", path, strerror(errno));
+        return 1;
+    }
+    int n = sc_world_body_count(w);
+    size_t un = n > 0 ? (size_t)n : 1;
+    sclcm_state_t *m = &r->m;
+    m->n = n;
+    m->shape = calloc(un, sizeof *m->shape);
+    m->pos = calloc(un, sizeof *m->pos + 3 * sizeof **m->pos);
+    m->quat = calloc(un, sizeof *m->quat + 4 * sizeof **m->quat);
+    m->state = calloc(un, sizeof *m->state);
+    if (!m->shape || !m->pos || !m->quat || !m->state) {
+        fprintf(stderr, "simcluster: run: out of memory\n");
+        return 1;
+    }
+    /* the rows of pos and quat live after their row pointers */
+    for (int i = 0; i < n; i++) {
+        m->pos[i] = (double *)(m->pos + un) + 3 * i;
+        m->quat[i] = (double *)(m->quat + un) + 4 * i;
+    }
+    /* distinct shapes, each written once; a scene has few, so a linear
+     * search over the ones seen is enough */
+    const sc_shape *seen[64];
+    int64_t hash[64];
+    int nseen = 0;
+    for (int i = 0; i < n; i++) {
+        const sc_shape *s = sc_body_shape(w, i);
+        int k = 0;
+        while (k < nseen && seen[k] != s)
+            k++;
+        if (k == nseen) {
+            uint8_t *bytes;
+            size_t len;
+            int rc = sc_msg_shape_encode(s, &bytes, &len);
+            if (rc != SC_OK) {
+                fprintf(stderr, "simcluster: run: %s: shape of body %d: %s\n", path, i,
+                        sc_strerror(rc));
+                return 1;
+            }
+            /* shape_t.hash: the first field, after the 8-byte fingerprint */
+            int64_t h = 0;
+            for (int b = 8; b < 16; b++)
+                h = (int64_t)((uint64_t)h << 8 | bytes[b]);
+            rc = record_event(r, "SC_SHAPE", 0, bytes, len);
+            free(bytes);
+            if (rc)
+                return 1;
+            if (nseen < 64) {
+                seen[nseen] = s;
+                hash[nseen++] = h;
+            }
+            m->shape[i] = h;
+        } else {
+            m->shape[i] = hash[k];
+        }
+    }
+    return 0;
+}
+
+/* Write the world's state as frame f; 0, or 1 with the error printed. */
+static int record_frame(recorder *r, const sc_world *w, long f)
+{
+    sclcm_state_t *m = &r->m;
+    m->frame = f;
+    m->time = f * DT;
+    for (int i = 0; i < m->n; i++) {
+        sc_body_get_pose(w, i, m->pos[i], m->quat[i]);
+        m->state[i] = (int8_t)sc_body_state(w, i);
+    }
+    int len = sclcm_state_t_encoded_size(m);
+    if (len <= 0) {
+        fprintf(stderr, "simcluster: run: %s: too many bodies to record\n", r->path);
+        return 1;
+    }
+    if ((size_t)len > r->cap) {
+        free(r->buf);
+        r->buf = malloc((size_t)len);
+        r->cap = r->buf ? (size_t)len : 0;
+        if (!r->buf) {
+            fprintf(stderr, "simcluster: run: out of memory\n");
+            return 1;
+        }
+    }
+    if (sclcm_state_t_encode(r->buf, 0, len, m) != len) {
+        fprintf(stderr, "simcluster: run: %s: cannot encode frame %ld\n", r->path, f);
+        return 1;
+    }
+    return record_event(r, "SC_STATE", (int64_t)llround(m->time * 1e6), r->buf, (size_t)len);
+}
+
+/* Flush and close: 0, or 1 when the data did not all reach the file. */
+static int record_finish(recorder *r)
+{
+    int bad_write = r->log && (fflush(r->log->f) != 0 || ferror(r->log->f));
+    if (bad_write)
+        fprintf(stderr, "simcluster: run: %s: %s\n", r->path, strerror(errno));
+    record_close(r);
+    return bad_write;
+}
+
 typedef struct totals {
     long frames, units, remote, recomputed, late;
     double wall, peak_energy, max_pen, comm;
@@ -199,16 +359,23 @@ typedef struct totals {
     double rest_s;
 } totals;
 
-static int simulate(const options *o, sc_world *w, totals *t, int progress)
+/* Step w for the options' frames; with rec, every frame goes to the log
+ * (a write error stops the run: *rec_failed). */
+static int simulate(const options *o, sc_world *w, totals *t, int progress, recorder *rec,
+                    int *rec_failed)
 {
     long frames = o->frames > 0 ? o->frames : o->until_rest ? 6000 : 500;
     double e0 = sc_world_energy(w), t0 = now_s(), shown = 0;
     memset(t, 0, sizeof *t);
     t->peak_energy = 1;
     int rc = SC_OK;
+    if (rec && (*rec_failed = record_frame(rec, w, 0)))
+        frames = 0;
     for (long f = 0; f < frames; f++) {
         rc = sc_world_step(w, DT);
         if (rc != SC_OK)
+            break;
+        if (rec && (*rec_failed = record_frame(rec, w, f + 1)))
             break;
         sc_stats st;
         sc_world_stats(w, &st);
@@ -252,8 +419,17 @@ static int run_cmd(int argc, char **argv)
     sc_world *w = make_world(&o, "run");
     if (!w)
         return 1;
+    recorder rec;
+    int rec_failed = 0;
+    if (o.record && record_open(&rec, o.record, w)) {
+        record_close(&rec);
+        sc_world_destroy(w);
+        return 1;
+    }
     totals t;
-    int rc = simulate(&o, w, &t, isatty(2) && !o.json);
+    int rc = simulate(&o, w, &t, isatty(2) && !o.json, o.record ? &rec : NULL, &rec_failed);
+    if (o.record)
+        rec_failed |= record_finish(&rec);
     sc_stats st;
     sc_world_stats(w, &st);
     double sim = t.frames * DT;
@@ -291,7 +467,7 @@ static int run_cmd(int argc, char **argv)
         fprintf(stderr, "simcluster: run: step %ld: %s\n", t.frames + 1, sc_strerror(rc));
         return 1;
     }
-    return 0;
+    return rec_failed;
 }
 
 static int profile_cmd(int argc, char **argv)
@@ -306,7 +482,7 @@ static int profile_cmd(int argc, char **argv)
     if (!w)
         return 1;
     totals t;
-    int rc = simulate(&o, w, &t, isatty(2) && !o.json);
+    int rc = simulate(&o, w, &t, isatty(2) && !o.json, NULL, NULL);
     sc_stats st;
     sc_world_stats(w, &st);
     /* the paper's Table 1 rows (27 spheres); time of impact is ours */

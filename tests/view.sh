@@ -1,0 +1,109 @@
+#!/bin/sh
+# tests/view.sh BUILD - simcluster run --record and simcluster-view(1) as a
+# user meets them: a recorded drop renders to PNG files whose pixels show
+# the scene (tests/png_check), a camera looking down at a body sees it, and
+# bad usage, a missing log and a truncated log fail with one line.
+# OSMesa renders offscreen: no display is needed.
+run="$1/tools/simcluster"
+view="$1/tools/simcluster-view"
+png="$1/tests/png_check"
+sky=153,191,235            # simcluster-view's clear colour (0.60, 0.75, 0.92)
+dir=$(mktemp -d) || exit 1
+trap 'rm -rf "$dir"' EXIT
+fail=0
+# Mesa keeps each OSMesa framebuffer in a global list it never frees: under
+# ASan, leaks whose stack is in libOSMesa are not ours (all others still count)
+printf 'leak:libOSMesa.so\n' >"$dir/lsan.supp"
+LSAN_OPTIONS="suppressions=$dir/lsan.supp:print_suppressions=0${LSAN_OPTIONS:+:$LSAN_OPTIONS}"
+export LSAN_OPTIONS
+check() { # $1 = what, $2 = expected status, then the command
+    what=$1; want=$2; shift 2
+    "$@" >"$dir/out" 2>"$dir/err"
+    got=$?
+    if [ "$got" -ne "$want" ]; then
+        echo "FAIL: $what: exit $got, expected $want"; cat "$dir/err"; fail=1
+    fi
+}
+one_line() { # $1 = what: the last command's error is one line naming $2
+    [ "$(wc -l <"$dir/err")" -eq 1 ] || { echo "FAIL: $1: error is not one line"; cat "$dir/err"; fail=1; }
+    grep -q -- "$2" "$dir/err" || { echo "FAIL: $1: error does not say $2"; cat "$dir/err"; fail=1; }
+}
+
+# record: 3 bolts and nuts, 30 frames: 3 shapes (floor, bolt, nut), then 31 states
+check "run --record" 0 "$run" run bolts --bodies 3 --frames 30 --workers 1 --record "$dir/log"
+grep -q "^bolts: 4 bodies" "$dir/out" || { echo "FAIL: run --record: no report"; fail=1; }
+[ -s "$dir/log" ] || { echo "FAIL: run --record: no log"; fail=1; }
+check "run --record --json" 0 "$run" run bolts --bodies 3 --frames 5 --record "$dir/log5" --json
+grep -q '"frames": 5' "$dir/out" || { echo "FAIL: --record --json: no report"; fail=1; }
+check "dump" 0 "$view" --dump "$dir/log"
+[ "$(grep -c "^frame " "$dir/out")" -eq $((31 * 4)) ] ||
+    { echo "FAIL: dump: $(grep -c "^frame " "$dir/out") lines, expected 124"; fail=1; }
+grep -q "^frame 30 body 3 " "$dir/out" || { echo "FAIL: dump: no frame 30"; fail=1; }
+check "run --record into a missing directory" 1 "$run" run bolts --frames 1 --record "$dir/no/log"
+check "profile --record" 2 "$run" profile bolts --record "$dir/p"
+
+# render every 10th frame at 96x72: frames 0, 10, 20, 30
+mkdir "$dir/png"
+check "render" 0 "$view" --out "$dir/png" --size 96x72 --every 10 "$dir/log"
+[ "$(ls "$dir/png" | wc -l)" -eq 4 ] && [ -f "$dir/png/frame_00030.png" ] ||
+    { echo "FAIL: render: files $(ls "$dir/png" | tr '\n' ' ')"; fail=1; }
+for f in "$dir"/png/*.png; do
+    check "png_check $f" 0 "$png" "$f" 96 72 $sky
+    set -- $(cat "$dir/out")    # colours N nonsky F centre R G B CLASS
+    [ "${2:-0}" -ge 8 ] || { echo "FAIL: $f: only ${2:-0} colours"; fail=1; }
+    [ "$(echo "${4:-0} > 0.5" | bc 2>/dev/null || echo 1)" = 1 ] ||
+        { echo "FAIL: $f: mostly sky ($4 not sky)"; fail=1; }
+done
+check "render --frames" 0 "$view" --out "$dir/png" --size 32x32 --frames 5:6 "$dir/log"
+[ -f "$dir/png/frame_00005.png" ] && [ -f "$dir/png/frame_00006.png" ] ||
+    { echo "FAIL: --frames 5:6: no frames 5 and 6"; fail=1; }
+
+# a camera 0.3 m above the one body, looking straight down: its centre
+# pixel is the body (state-coloured), not the floor or the sky
+check "run one body" 0 "$run" run bolts --bodies 1 --frames 1 --workers 1 --record "$dir/one"
+check "dump one" 0 "$view" --dump --frames 1:1 "$dir/one"
+set -- $(grep "^frame 1 body 1 " "$dir/out")   # frame 1 body 1 state S pos X Y Z
+x=$8 y=$9 z=${10}
+if [ -z "$z" ]; then
+    echo "FAIL: dump one: no body 1"; fail=1
+else
+    eye=$(echo "$z + 0.3" | bc)
+    check "render from above" 0 "$view" --out "$dir" --size 64x64 --fov 30 --frames 1:1 \
+        --eye "$x,$y,$eye" --look "$x,$y,$z" "$dir/one"
+    check "png_check above" 0 "$png" "$dir/frame_00001.png" 64 64 $sky
+    grep -q " body$" "$dir/out" || { echo "FAIL: centre pixel is not the body: $(cat "$dir/out")"; fail=1; }
+    # and 0.5 m to the side of it, the floor
+    check "render beside" 0 "$view" --out "$dir" --size 64x64 --fov 30 --frames 1:1 \
+        --eye "$x,$(echo "$y + 0.5" | bc),$eye" --look "$x,$(echo "$y + 0.5" | bc),$z" "$dir/one"
+    check "png_check beside" 0 "$png" "$dir/frame_00001.png" 64 64 $sky
+    grep -q " grey$" "$dir/out" || { echo "FAIL: centre pixel is not the floor: $(cat "$dir/out")"; fail=1; }
+fi
+
+# usage errors: exit 2, one line
+for args in "" "--size 8x8 $dir/log" "--size 640 $dir/log" "--eye 1,2 $dir/log" \
+    "--fov 0 $dir/log" "--every 0 $dir/log" "--frames 9:3 $dir/log" "--frobnicate $dir/log" \
+    "$dir/log $dir/log"; do
+    check "usage: $args" 2 "$view" $args
+    one_line "usage: $args" "try --help"
+done
+check "--help" 0 "$view" --help
+grep -q -- "--eye" "$dir/out" || { echo "FAIL: --help does not list --eye"; fail=1; }
+check "--version" 0 "$view" --version
+
+# bad input: exit 1, one line naming the file (and the event)
+check "missing log" 1 "$view" --out "$dir" "$dir/none"
+one_line "missing log" "$dir/none"
+size=$(wc -c <"$dir/log")
+head -c $((size - 100)) "$dir/log" >"$dir/cut"
+check "truncated log" 1 "$view" --out "$dir/png" "$dir/cut"
+one_line "truncated log" "$dir/cut: event 34"
+head -c 1000 /dev/zero >"$dir/zero"
+check "not a log" 1 "$view" --out "$dir/png" "$dir/zero"
+one_line "not a log" "event 1: not an LCM event"
+check "a log without frames" 1 "$view" --out "$dir/png" --frames 100:200 "$dir/log"
+check "--out not a directory" 1 "$view" --out "$dir/none" "$dir/log"
+check "--mp4 without ffmpeg" 1 env PATH=/nonexistent "$view" --mp4 "$dir/v.mp4" "$dir/log"
+one_line "--mp4 without ffmpeg" "ffmpeg"
+
+[ "$fail" -eq 0 ] && echo "view: all checks passed"
+exit "$fail"
