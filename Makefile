@@ -3,7 +3,7 @@
 #   make check      every test, then again under ASan+UBSan, man lint, install test
 #   make demo       the main job (embedded default)
 #   make bench      benchmarks (bench/)
-#   make install PREFIX=/usr/local DESTDIR=
+#   make install PREFIX=/usr/local DESTDIR=   (SYSTEMDDIR: the systemd unit)
 #   make V=1        show commands;  make SAN=1  sanitizer build (in build-san/)
 
 PREFIX  ?= /usr/local
@@ -13,6 +13,7 @@ INCDIR  ?= $(PREFIX)/include
 BINDIR  ?= $(PREFIX)/bin
 SBINDIR ?= $(PREFIX)/sbin
 MANDIR  ?= $(PREFIX)/share/man
+SYSTEMDDIR ?= $(PREFIX)/lib/systemd/system
 PCDIR   ?= $(LIBDIR)/pkgconfig
 
 VERSION := 0.1.0
@@ -198,12 +199,16 @@ install: lib $(TOOL_BIN) $(DAEMON_BIN) $(BUILD)/simcluster.pc
 	install -m 644 $(BUILD)/simcluster.pc $(DESTDIR)$(PCDIR)/
 	$(if $(TOOL_BIN),install -m 755 $(TOOL_BIN) $(DESTDIR)$(BINDIR)/)
 	$(if $(DAEMON_BIN),install -d $(DESTDIR)$(SBINDIR) && install -m 755 $(DAEMON_BIN) $(DESTDIR)$(SBINDIR)/)
+	$(if $(DAEMON_BIN),install -d $(DESTDIR)$(SYSTEMDDIR) && \
+	    sed 's|@SBINDIR@|$(SBINDIR)|g' daemon/simclusterd.service >$(DESTDIR)$(SYSTEMDDIR)/simclusterd.service && \
+	    chmod 644 $(DESTDIR)$(SYSTEMDDIR)/simclusterd.service)
 	for m in man/*.[1-8]; do s=$${m##*.}; install -d $(DESTDIR)$(MANDIR)/man$$s; \
 	    install -m 644 $$m $(DESTDIR)$(MANDIR)/man$$s/; done
 
 uninstall:
 	rm -f $(DESTDIR)$(LIBDIR)/libsimcluster.* $(DESTDIR)$(INCDIR)/simcluster.h \
-	      $(DESTDIR)$(PCDIR)/simcluster.pc $(DESTDIR)$(SBINDIR)/simclusterd
+	      $(DESTDIR)$(PCDIR)/simcluster.pc $(DESTDIR)$(SBINDIR)/simclusterd \
+	      $(TOOL_BIN:$(BUILD)/tools/%=$(DESTDIR)$(BINDIR)/%) $(DESTDIR)$(SYSTEMDDIR)/simclusterd.service
 	for m in man/*.[1-8]; do rm -f $(DESTDIR)$(MANDIR)/man$${m##*.}/$${m##*/}; done
 
 clean:

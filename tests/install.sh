@@ -15,4 +15,13 @@ LD_LIBRARY_PATH="$d/usr/local/lib" "$d/hello"
 bad=$(nm -D --defined-only "$d/usr/local/lib/libsimcluster.so" | awk '$2 ~ /[TDBR]/ {print $3}' | grep -v '^sc_' || true)
 if [ -n "$bad" ]; then echo "exported non-sc_ symbols: $bad"; exit 1; fi
 readelf -d "$d/usr/local/lib/libsimcluster.so" | grep -q 'SONAME.*libsimcluster.so.0'
+# the tools with their pages, and the daemon's systemd unit naming where it went
+for f in bin/simcluster bin/simcluster-top sbin/simclusterd share/man/man1/simcluster-top.1 \
+         share/man/man8/simclusterd.8 lib/systemd/system/simclusterd.service; do
+    test -f "$d/usr/local/$f" || { echo "not installed: $f"; exit 1; }
+done
+grep -qx 'ExecStart=/usr/local/sbin/simclusterd .*' "$d/usr/local/lib/systemd/system/simclusterd.service"
+MAKEFLAGS= make --no-print-directory uninstall PREFIX=/usr/local DESTDIR="$d" >/dev/null
+left=$(find "$d/usr/local" -type f)
+if [ -n "$left" ]; then echo "left after uninstall: $left"; exit 1; fi
 echo "install test: ok"

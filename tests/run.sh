@@ -53,6 +53,9 @@ for build in "$@"; do
     sh tests/daemon.sh "$build" >"$log" 2>&1
     count "daemon ($build)" $?
     echo "  $(tail -n 1 "$log")"
+    sh tests/top.sh "$build" >"$log" 2>&1
+    count "top ($build)" $?
+    echo "  $(tail -n 1 "$log")"
     # daemons and a master in network namespaces: the plain build only
     # (under ASan the timings it checks do not hold)
     if [ "$build" = "$1" ]; then
@@ -69,6 +72,19 @@ count cppcheck $?
 echo "== man pages (mandoc -T lint)"
 mandoc -T lint -W warning man/*.[1-8] >"$log" 2>&1
 count mandoc $?
+echo "== systemd unit (systemd-analyze verify)"
+if command -v systemd-analyze >/dev/null 2>&1; then
+    unit=$(mktemp -d)
+    case $1 in /*) sbin=$1/daemon ;; *) sbin=$PWD/$1/daemon ;; esac
+    sed "s|@SBINDIR@|$sbin|g" daemon/simclusterd.service >"$unit/simclusterd.service"
+    systemd-analyze verify --man=no "$unit/simclusterd.service" >"$log" 2>&1
+    rc=$?
+    count "systemd unit" $rc
+    rm -rf "$unit"
+    [ "$rc" -eq 0 ] && echo "  simclusterd.service: verified"
+else
+    echo "  skipped: no systemd-analyze"
+fi
 echo "== install, then build examples/hello.c against the installed pkg-config"
 sh tests/install.sh >"$log" 2>&1
 count install $?
