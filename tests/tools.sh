@@ -5,14 +5,7 @@ tool="$1/tools/simcluster"
 dir=$(mktemp -d) || exit 1
 trap 'rm -rf "$dir"' EXIT
 fail=0
-check() { # $1 = what, $2 = expected status, then the command
-    what=$1; want=$2; shift 2
-    "$@" >"$dir/out" 2>"$dir/err"
-    got=$?
-    if [ "$got" -ne "$want" ]; then
-        echo "FAIL: $what: exit $got, expected $want"; cat "$dir/err"; fail=1
-    fi
-}
+. "$(dirname "$0")/cli_lib.sh"
 check "keygen" 0 "$tool" keygen "$dir/k"
 [ "$(stat -c %a "$dir/k")" = 600 ] || { echo "FAIL: key mode $(stat -c %a "$dir/k")"; fail=1; }
 grep -Eqx '[0-9a-f]{64}' "$dir/k" || { echo "FAIL: key is not 64 hex digits"; fail=1; }
