@@ -47,6 +47,15 @@ check "run, unknown option" 2 "$tool" run bolts --frobnicate
 check "run, --key without --cluster" 2 "$tool" run bolts --key "$dir/k"
 check "run, unopenable cluster URL" 1 "$tool" run bolts --cluster "udpm://999.1.1.1:7667"
 
+# run --render: every frame drawn by simcluster-view, the report alone on stdout
+mkdir "$dir/png"
+check "run --render" 0 "$tool" run bolts --bodies 3 --frames 4 --workers 1 --render "$dir/png" --json
+[ "$(ls "$dir/png" | grep -c '^frame_0000[0-4].png$')" -eq 5 ] ||
+    { echo "FAIL: run --render: frames"; ls "$dir/png"; fail=1; }
+[ "$(wc -l <"$dir/out")" -eq 1 ] || { echo "FAIL: run --render --json: stdout"; cat "$dir/out"; fail=1; }
+check "run --render into a missing directory" 1 "$tool" run bolts --bodies 3 --frames 2 --render "$dir/no/such"
+check "profile --render" 2 "$tool" profile spheres --render "$dir/png"
+
 # profile: the Table 1 rows
 check "profile" 0 "$tool" profile spheres --frames 50
 grep -q "Dantzig" "$dir/out" && grep -q "41.48" "$dir/out" || { echo "FAIL: profile rows"; fail=1; }

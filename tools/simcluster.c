@@ -1,15 +1,18 @@
 /* simcluster - the command-line tool (simcluster(1)): run the paper's
  * scenes (run), print their Table 1 breakdown (profile), solve an LCP given
  * as text (lcp), and write a cluster key (keygen); run --record writes
- * an LCM log that simcluster-view(1) renders. Scene files come with the
- * rest of the tools issue. */
+ * an LCM log that simcluster-view(1) renders (run --render runs it).
+ * Scene files come with the rest of the tools issue. */
 #include <errno.h>
 #include <getopt.h>
+#include <limits.h>
 #include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
 #include <time.h>
+#include <sys/stat.h>
+#include <sys/wait.h>
 #include <unistd.h>
 
 #include <lcm/eventlog.h>
@@ -31,7 +34,8 @@ static int usage(FILE *f, int status)
             "       simcluster --help\n"
             "run and profile options: --bodies N --seed S --frames F --until-rest\n"
             "  --workers W --groups --cluster URL --key FILE --deadline S --json\n"
-            "run only: --record LOG (an LCM log of every frame, for simcluster-view)\n");
+            "run only: --record LOG (an LCM log of every frame, for simcluster-view)\n"
+            "  --render DIR (every frame as DIR/frame_NNNNN.png, by simcluster-view)\n");
     return status;
 }
 
@@ -70,7 +74,7 @@ typedef struct options {
     const char *scene;
     long bodies, seed, frames, workers;
     int until_rest, groups, json;
-    const char *cluster, *key, *record;
+    const char *cluster, *key, *record, *render;
     double deadline;
 } options;
 
@@ -93,7 +97,8 @@ static int parse_options(const char *cmd, int argc, char **argv, options *o)
         { "workers", required_argument, 0, 'w' },  { "groups", no_argument, 0, 'g' },
         { "cluster", required_argument, 0, 'c' },  { "key", required_argument, 0, 'k' },
         { "deadline", required_argument, 0, 'd' }, { "json", no_argument, 0, 'j' },
-        { "record", required_argument, 0, 'o' },   { 0, 0, 0, 0 }
+        { "record", required_argument, 0, 'o' },   { "render", required_argument, 0, 'p' },
+        { 0, 0, 0, 0 }
     };
     memset(o, 0, sizeof *o);
     o->bodies = 50;
@@ -148,6 +153,13 @@ static int parse_options(const char *cmd, int argc, char **argv, options *o)
             if (optarg[0] == '\0')
                 return bad(cmd, "--record takes a file name");
             o->record = optarg;
+            break;
+        case 'p':
+            if (strcmp(cmd, "run"))
+                return bad(cmd, "--render is an option of run");
+            if (optarg[0] == '\0')
+                return bad(cmd, "--render takes a directory");
+            o->render = optarg;
             break;
         default: {
             char what[160];
@@ -410,6 +422,38 @@ static int simulate(const options *o, sc_world *w, totals *t, int progress, reco
     return rc;
 }
 
+/* run --render: simcluster-view (next to this program, else on PATH)
+ * draws the log into dir; its output goes to standard error so that a
+ * --json report stays alone on standard output. 0, or 1 with the error
+ * printed. */
+static int render(const char *self, const char *log, const char *dir)
+{
+    char view[PATH_MAX];
+    const char *slash = strrchr(self, '/');
+    int n = slash ? snprintf(view, sizeof view, "%.*s/simcluster-view", (int)(slash - self), self)
+                  : -1;
+    if (n < 0 || (size_t)n >= sizeof view || access(view, X_OK) != 0)
+        snprintf(view, sizeof view, "simcluster-view");
+    if (mkdir(dir, 0777) != 0 && errno != EEXIST) {
+        fprintf(stderr, "simcluster: run: --render: %s: %s\n", dir, strerror(errno));
+        return 1;
+    }
+    fflush(stdout);
+    pid_t pid = fork();
+    if (pid == 0) {
+        dup2(2, 1);
+        execvp(view, (char *[]){ view, "--out", (char *)dir, (char *)log, NULL });
+        fprintf(stderr, "simcluster: run: --render: cannot run %s: %s\n", view, strerror(errno));
+        _exit(127);
+    }
+    int st = 0;
+    if (pid < 0 || waitpid(pid, &st, 0) < 0) {
+        fprintf(stderr, "simcluster: run: --render: %s\n", strerror(errno));
+        return 1;
+    }
+    return WIFEXITED(st) && WEXITSTATUS(st) == 0 ? 0 : 1;    /* the viewer said why */
+}
+
 static int run_cmd(int argc, char **argv)
 {
     options o;
@@ -421,6 +465,17 @@ static int run_cmd(int argc, char **argv)
         return 1;
     recorder rec;
     int rec_failed = 0;
+    char tmp_log[] = "/tmp/simcluster-render-XXXXXX";
+    if (o.render && !o.record) {
+        int fd = mkstemp(tmp_log);
+        if (fd < 0) {
+            fprintf(stderr, "simcluster: run: --render: %s: %s\n", tmp_log, strerror(errno));
+            sc_world_destroy(w);
+            return 1;
+        }
+        close(fd);
+        o.record = tmp_log;
+    }
     if (o.record && record_open(&rec, o.record, w)) {
         record_close(&rec);
         sc_world_destroy(w);
@@ -463,6 +518,10 @@ static int run_cmd(int argc, char **argv)
         printf("\n  state hash %016llx\n", hash);
     }
     sc_world_destroy(w);
+    if (rc == SC_OK && !rec_failed && o.render)
+        rec_failed = render(argv[0], o.record, o.render);
+    if (o.record == tmp_log)
+        unlink(tmp_log);
     if (rc != SC_OK) {
         fprintf(stderr, "simcluster: run: step %ld: %s\n", t.frames + 1, sc_strerror(rc));
         return 1;
