@@ -11,10 +11,8 @@ sky=153,191,235            # simcluster-view's clear colour (0.60, 0.75, 0.92)
 dir=$(mktemp -d) || exit 1
 trap 'rm -rf "$dir"' EXIT
 fail=0
-# Mesa keeps each OSMesa framebuffer in a global list it never frees: under
-# ASan, leaks whose stack is in libOSMesa are not ours (all others still count)
-printf 'leak:libOSMesa.so\n' >"$dir/lsan.supp"
-LSAN_OPTIONS="suppressions=$dir/lsan.supp:print_suppressions=0${LSAN_OPTIONS:+:$LSAN_OPTIONS}"
+# ASan: Mesa's own never-freed framebuffer list is not our leak
+LSAN_OPTIONS="suppressions=$PWD/tests/lsan_osmesa.supp:print_suppressions=0${LSAN_OPTIONS:+:$LSAN_OPTIONS}"
 export LSAN_OPTIONS
 check() { # $1 = what, $2 = expected status, then the command
     what=$1; want=$2; shift 2
