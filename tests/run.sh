@@ -44,18 +44,11 @@ for build in "$@"; do
         count "$r" $?
         echo "  $(basename "$r"): $(tail -n 1 "$log")"
     done
-    sh tests/tools.sh "$build" >"$log" 2>&1
-    count "tools ($build)" $?
-    echo "  $(tail -n 1 "$log")"
-    sh tests/view.sh "$build" >"$log" 2>&1
-    count "view ($build)" $?
-    echo "  $(tail -n 1 "$log")"
-    sh tests/daemon.sh "$build" >"$log" 2>&1
-    count "daemon ($build)" $?
-    echo "  $(tail -n 1 "$log")"
-    sh tests/top.sh "$build" >"$log" 2>&1
-    count "top ($build)" $?
-    echo "  $(tail -n 1 "$log")"
+    for t in tools view daemon top; do
+        sh tests/$t.sh "$build" >"$log" 2>&1
+        count "$t ($build)" $?
+        echo "  $(tail -n 1 "$log")"
+    done
     # daemons and a master in network namespaces: the plain build only
     # (under ASan the timings it checks do not hold)
     if [ "$build" = "$1" ]; then

@@ -14,18 +14,7 @@ fail=0
 # ASan: Mesa's own never-freed framebuffer list is not our leak
 LSAN_OPTIONS="suppressions=$PWD/tests/lsan_osmesa.supp:print_suppressions=0${LSAN_OPTIONS:+:$LSAN_OPTIONS}"
 export LSAN_OPTIONS
-check() { # $1 = what, $2 = expected status, then the command
-    what=$1; want=$2; shift 2
-    "$@" >"$dir/out" 2>"$dir/err"
-    got=$?
-    if [ "$got" -ne "$want" ]; then
-        echo "FAIL: $what: exit $got, expected $want"; cat "$dir/err"; fail=1
-    fi
-}
-one_line() { # $1 = what: the last command's error is one line naming $2
-    [ "$(wc -l <"$dir/err")" -eq 1 ] || { echo "FAIL: $1: error is not one line"; cat "$dir/err"; fail=1; }
-    grep -q -- "$2" "$dir/err" || { echo "FAIL: $1: error does not say $2"; cat "$dir/err"; fail=1; }
-}
+. "$(dirname "$0")/cli_lib.sh"
 
 # record: 3 bolts and nuts, 30 frames: 3 shapes (floor, bolt, nut), then 31 states
 check "run --record" 0 "$run" run bolts --bodies 3 --frames 30 --workers 1 --record "$dir/log"
