@@ -294,6 +294,26 @@ SC_API int sc_scene_spheres_box(sc_world *w);
 /* Add a floor and n (1..100000) bolts/nuts at random free poses from seed to w; SC_OK or a code. */
 SC_API int sc_scene_bolts_nuts(sc_world *w, int n, uint64_t seed);
 
+/* ---- scene files (format: simcluster.conf(5), SCENE FILES) ---- */
+typedef struct sc_scene sc_scene;
+/* Read a scene file; mesh files it names are relative to its folder. NULL
+ * on error, with the code in sc_last_error() and, when err is not NULL, a
+ * one-line "FILE:LINE:COLUMN: what" in err (errlen bytes, truncated). */
+SC_API sc_scene *sc_scene_load(const char *path, char *err, size_t errlen);
+/* The same from len bytes of text (no NUL needed); name is used in
+ * messages, dir resolves relative mesh paths (NULL: the current folder). */
+SC_API sc_scene *sc_scene_parse(const char *text, size_t len, const char *name,
+                                const char *dir, char *err, size_t errlen);
+/* Copy the scene's world settings (gravity, tolerance) that it gives into cfg. */
+SC_API void sc_scene_config(const sc_scene *s, sc_world_config *cfg);
+/* Add the scene's bodies to w, in file order (grids x fastest, then y, z);
+ * SC_OK or a code (then w holds the bodies added so far). A scene builds
+ * any number of worlds. */
+SC_API int sc_scene_build(const sc_scene *s, sc_world *w);
+/* Bodies the scene adds (grids expanded); 0 for NULL. */
+SC_API int sc_scene_body_count(const sc_scene *s);
+SC_API void sc_scene_free(sc_scene *s);
+
 /* ---- LCP ------------------------------------------------------------------ */
 /* Standard LCP: find z with w = M z + q, z >= 0, w >= 0, z.w = 0 (M row-major
  * n x n). SC_OK with z and w written, or a negative code (never a wrong answer). */

@@ -52,6 +52,14 @@ dict_load() {
 EOF
 }
 
+dict_scene() {
+    for k in gravity tolerance material shape body density restitution friction sphere box \
+             plane uvsphere bolt nut mesh hull scale static mass pos quat rot vel omega grid; do
+        printf '"%s"\n' "$k"
+    done
+    printf '"\\x0a"\n"#"\n"\\x22"\n"1e308"\n"-0"\n'
+}
+
 # The library, instrumented for coverage, as an archive: each target links
 # only the objects it needs.
 objs=""
