@@ -40,12 +40,40 @@ grep -q '"at_rest": true' "$dir/out" || { echo "FAIL: run --json: not at rest"; 
 python3 -c 'import json,sys; json.load(open(sys.argv[1]))' "$dir/out" 2>/dev/null ||
     { command -v python3 >/dev/null && { echo "FAIL: run --json is not JSON"; fail=1; }; }
 check "run without a scene" 2 "$tool" run
-check "run, unknown scene" 2 "$tool" run cubes
+check "run, a scene file that is not there" 1 "$tool" run cubes
+one_line "run, missing scene file" "cubes: No such file or directory"
 check "run, bad --bodies" 2 "$tool" run bolts --bodies 0
 check "run, unknown option" 2 "$tool" run bolts --frobnicate
 [ "$(wc -l <"$dir/err")" -eq 1 ] || { echo "FAIL: run: error is not one line"; fail=1; }
 check "run, --key without --cluster" 2 "$tool" run bolts --key "$dir/k"
 check "run, unopenable cluster URL" 1 "$tool" run bolts --cluster "udpm://999.1.1.1:7667"
+
+# scene files: the examples run; errors name file, line and column
+scenes="$(dirname "$0")/../examples/scenes"
+for s in "$scenes"/*.scene; do
+    check "run $(basename "$s")" 0 "$tool" run "$s" --frames 30 --workers 2
+    grep -q "bodies, 30 frames" "$dir/out" || { echo "FAIL: run $s: no report"; cat "$dir/out"; fail=1; }
+done
+printf 'shape ball sphere 0.1\nbody ball pos 1 2\n' >"$dir/bad.scene"
+check "run, bad scene file" 1 "$tool" run "$dir/bad.scene"
+one_line "run, bad scene file" "bad.scene:2:18: missing position (m)"
+check "run, scene file with --bodies" 2 "$tool" run "$scenes/bolts.scene" --bodies 3
+printf 'shape floor plane 0 0 1 0\nshape b box 0.1 0.1 0.1\nbody floor\nbody b density 500 pos 0 0 0.2\n' \
+    >"$dir/a \"quoted\" name.scene"
+check "run --json, a scene file with quotes in its name" 0 "$tool" run "$dir/a \"quoted\" name.scene" \
+    --frames 20 --json --workers 1
+grep -q '"bodies": 2, "seed": null' "$dir/out" || { echo "FAIL: scene --json"; cat "$dir/out"; fail=1; }
+python3 -c 'import json,sys; json.load(open(sys.argv[1]))' "$dir/out" 2>/dev/null ||
+    { command -v python3 >/dev/null && { echo "FAIL: scene --json is not JSON"; cat "$dir/out"; fail=1; }; }
+check "profile a scene file" 0 "$tool" profile "$scenes/crates.scene" --frames 20
+grep -q "Dantzig" "$dir/out" || { echo "FAIL: profile of a scene file"; fail=1; }
+
+# --realtime: 20 frames take at least 0.2 s; --publish on a bad URL fails
+check "run --realtime" 0 "$tool" run bolts --bodies 3 --frames 20 --realtime --json
+awk -F'"wall_s": ' '{ split($2, a, ","); exit !(a[1] >= 0.195) }' "$dir/out" ||
+    { echo "FAIL: --realtime ran faster than simulated time"; cat "$dir/out"; fail=1; }
+check "run --publish, bad URL" 1 "$tool" run bolts --bodies 3 --frames 2 --publish "udpm://999.1.1.1:7668"
+check "profile --publish" 2 "$tool" profile spheres --publish "udpm://239.255.76.67:7668?ttl=0"
 
 # run --render: every frame drawn by simcluster-view, the report alone on stdout
 # (ASan: Mesa's own never-freed framebuffer list is not our leak)

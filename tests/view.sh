@@ -92,5 +92,59 @@ check "--out not a directory" 1 "$view" --out "$dir/none" "$dir/log"
 check "--mp4 without ffmpeg" 1 env PATH=/nonexistent "$view" --mp4 "$dir/v.mp4" "$dir/log"
 one_line "--mp4 without ffmpeg" "ffmpeg"
 
+# live: the viewer subscribed while a run publishes (ttl=0: this host only)
+url="udpm://239.255.76.67:7669?ttl=0"
+live() { # $1 = folder, then viewer options; the viewer runs in the background
+    d=$1; shift
+    mkdir -p "$d"
+    "$view" --live "$url" --out "$d" --size 64x48 "$@" >"$dir/lout" 2>"$dir/lerr" &
+    vpid=$!
+    sleep 1                        # subscribed before anything is sent
+}
+live_done() { # $1 = what, $2 = expected status
+    wait "$vpid"
+    got=$?
+    [ "$got" -eq "$2" ] || { echo "FAIL: $1: viewer exit $got, expected $2"; cat "$dir/lerr"; fail=1; }
+}
+live "$dir/live" --frames 5:40 --timeout 20
+check "run --publish" 0 "$run" run bolts --bodies 3 --frames 60 --workers 1 --realtime --publish "$url"
+live_done "live view" 0
+n=$(ls "$dir/live" | grep -c '^frame_000[0-4][0-9].png$')
+[ "$n" -ge 5 ] || { echo "FAIL: live view: $n frames"; ls "$dir/live"; cat "$dir/lerr"; fail=1; }
+ls "$dir/live" | grep -qv '^frame_000\(0[5-9]\|[1-3][0-9]\|40\).png$' &&
+    { echo "FAIL: live view: frames outside 5:40"; ls "$dir/live"; fail=1; }
+last=$(ls "$dir/live" | tail -1)
+check "png_check live" 0 "$png" "$dir/live/$last" 64 48 $sky
+set -- $(cat "$dir/out")
+[ "${2:-0}" -ge 8 ] || { echo "FAIL: live $last: only ${2:-0} colours"; fail=1; }
+# lcm-logplayer replays a recorded log to the same channels
+if command -v lcm-logplayer >/dev/null; then
+    live "$dir/replay" --timeout 3
+    lcm-logplayer -s 4 -l "$url" "$dir/log" >/dev/null 2>&1 ||
+        { echo "FAIL: lcm-logplayer"; fail=1; }
+    live_done "live view of lcm-logplayer" 0
+    [ "$(ls "$dir/replay" | wc -l)" -ge 3 ] || { echo "FAIL: replay: $(ls "$dir/replay" | wc -l) frames"; fail=1; }
+    # hostile messages on the channels: dropped and counted, no frame, exit 1
+    python3 - "$dir/bad.log" <<'PY'
+import struct, sys
+ev = []
+for i, (ch, data) in enumerate([(b"SC_STATE", b"\x00" * 7), (b"SC_STATE", b"\xff" * 200),
+                                (b"SC_SHAPE", b"\x01" * 50),
+                                (b"SC_STATE", b"\x00" * 24 + struct.pack(">i", 2**30))]):
+    ev.append(struct.pack(">IqqII", 0xEDA1DA01, i, i * 1000, len(ch), len(data)) + ch + data)
+open(sys.argv[1], "wb").write(b"".join(ev))
+PY
+    live "$dir/bad" --timeout 2
+    lcm-logplayer -l "$url" "$dir/bad.log" >/dev/null 2>&1
+    live_done "live view of hostile messages" 1
+    # (a state overtaken by a newer one before it is drawn is skipped unread)
+    grep -q "0 frames drawn of 3 received, [1-4] malformed messages dropped" "$dir/lerr" ||
+        { echo "FAIL: hostile live messages not counted"; cat "$dir/lerr"; fail=1; }
+fi
+check "--live with a log" 2 "$view" --live "$url" "$dir/log"
+check "--timeout without --live" 2 "$view" --timeout 1 "$dir/log"
+check "--live, bad URL" 1 "$view" --live "udpm://999.1.1.1:7669" --out "$dir"
+grep -q "cannot open LCM URL" "$dir/err" || { echo "FAIL: --live, bad URL: no error"; fail=1; }
+
 [ "$fail" -eq 0 ] && echo "view: all checks passed"
 exit "$fail"

@@ -1,17 +1,22 @@
-/* simcluster-view - the paper's drawing node, offline (simcluster-view(1)):
- * reads the LCM log of simcluster run --record and renders its frames with
- * OSMesa (no display needed) into numbered PNG files, or pipes them to
- * ffmpeg. Fixed-function OpenGL: one directional light and ambient, flat
- * shaded triangles, bodies coloured by state, the floor a checkered quad. */
+/* simcluster-view - the paper's drawing node (simcluster-view(1)): reads
+ * the LCM log of simcluster run --record, or subscribes live to the state
+ * channel of simcluster run --publish, and renders the frames with OSMesa
+ * (no display needed) into numbered PNG files, or pipes them to ffmpeg.
+ * Fixed-function OpenGL: one directional light and ambient, flat shaded
+ * triangles, bodies coloured by state, the floor a checkered quad. */
 #include <errno.h>
 #include <getopt.h>
 #include <limits.h>
 #include <math.h>
+#include <signal.h>
 #include <stdint.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
 #include <sys/stat.h>
+#include <time.h>
+
+#include <lcm/lcm.h>
 
 #include <GL/osmesa.h>
 #include <GL/gl.h>
@@ -37,10 +42,10 @@ static const GLfloat state_rgb[5][3] = {
 };
 
 typedef struct view_opts {
-    const char *out, *mp4, *log;
+    const char *out, *mp4, *log, *live;   /* log: a file, or the URL with --live */
     int w, h, every, have_eye, have_look, dump;
     long first, last;
-    double eye[3], look[3], fov;
+    double eye[3], look[3], fov, timeout;
 } view_opts;
 
 typedef struct viewer {
@@ -49,6 +54,7 @@ typedef struct viewer {
     long event;                    /* events read so far (1-based in errors) */
     struct { int64_t hash; GLuint list; } shapes[MAX_SHAPES];   /* lists: shape frame */
     int nshapes, frames_out, camera_set;
+    int quiet;                     /* live: malformed messages are counted, not printed */
     uint8_t *rgba;
 } viewer;
 
@@ -61,6 +67,9 @@ static int bad(const char *what)
 static int usage(FILE *f, int status)
 {
     fprintf(f, "usage: %s [options] LOG     render a simcluster run --record log\n"
+               "       %s [options] --live URL   render frames as simcluster run --publish\n"
+               "                   sends them (until --frames' end, --timeout or a signal)\n"
+               "  --timeout S      with --live: stop after S seconds without a frame\n"
                "  --out DIR        PNG files DIR/frame_NNNNN.png (default .)\n"
                "  --size WxH       image size, 16..4096 each (default 640x480)\n"
                "  --eye X,Y,Z --look X,Y,Z   camera and the point it looks at (default:\n"
@@ -69,7 +78,7 @@ static int usage(FILE *f, int status)
                "  --every N --frames A:B   every Nth frame; frames A to B (A: or :B too)\n"
                "  --mp4 FILE       pipe the frames to ffmpeg instead of PNG files\n"
                "  --dump           print the bodies' states and positions, no images\n"
-               "  -h, --help       this text;  --version  the version\n", prog);
+               "  -h, --help       this text;  --version  the version\n", prog, prog);
     return status;
 }
 
@@ -105,7 +114,8 @@ static int parse_args(int argc, char **argv, view_opts *o)
         { "fov", required_argument, 0, 'f' },   { "every", required_argument, 0, 'n' },
         { "frames", required_argument, 0, 'r' }, { "mp4", required_argument, 0, 'm' },
         { "help", no_argument, 0, 'h' },        { "version", no_argument, 0, 'V' },
-        { "dump", no_argument, 0, 'd' },        { 0, 0, 0, 0 }
+        { "dump", no_argument, 0, 'd' },        { "live", required_argument, 0, 'L' },
+        { "timeout", required_argument, 0, 't' }, { 0, 0, 0, 0 }
     };
     *o = (view_opts){ .out = ".", .w = 640, .h = 480, .fov = 45, .every = 1, .last = LONG_MAX };
     opterr = 0;
@@ -156,6 +166,17 @@ static int parse_args(int argc, char **argv, view_opts *o)
         case 'd':
             o->dump = 1;
             break;
+        case 'L':
+            if (optarg[0] == '\0')
+                return bad("--live takes an LCM URL");
+            o->live = optarg;
+            break;
+        case 't':
+            errno = 0;
+            o->timeout = strtod(optarg, &end);
+            if (errno || end == optarg || *end || !(o->timeout > 0 && o->timeout <= 1e6))
+                return bad("--timeout takes seconds in (0, 1e6]");
+            break;
         case 'h':
             exit(usage(stdout, 0));
         case 'V':
@@ -166,8 +187,16 @@ static int parse_args(int argc, char **argv, view_opts *o)
             return bad(what);
         }
     }
+    if (o->live) {
+        if (optind != argc)
+            return bad("give a log file or --live URL, not both");
+        o->log = o->live;
+        return 0;
+    }
+    if (o->timeout > 0)
+        return bad("--timeout is for --live");
     if (optind != argc - 1)
-        return bad("give one log file");
+        return bad("give one log file (or --live URL)");
     o->log = argv[optind];
     return 0;
 }
@@ -176,7 +205,8 @@ static int parse_args(int argc, char **argv, view_opts *o)
 
 static int fail(viewer *v, const char *what)
 {
-    fprintf(stderr, "%s: %s: event %ld: %s\n", prog, v->o.log, v->event, what);
+    if (!v->quiet)
+        fprintf(stderr, "%s: %s: event %ld: %s\n", prog, v->o.log, v->event, what);
     return -1;
 }
 
@@ -501,14 +531,159 @@ static int open_mp4(viewer *v)
     return v->pipe ? 0 : -1;
 }
 
-static int run(viewer *v)
+/* The PNG folder must exist; --mp4 starts ffmpeg. 0, or -1 (printed). */
+static int open_output(viewer *v)
 {
     struct stat st;
     if (!v->o.mp4 && !v->o.dump && (stat(v->o.out, &st) != 0 || !S_ISDIR(st.st_mode))) {
         fprintf(stderr, "%s: %s: not a directory\n", prog, v->o.out);
         return -1;
     }
-    if (v->o.mp4 && !v->o.dump && open_mp4(v))
+    return v->o.mp4 && !v->o.dump ? open_mp4(v) : 0;
+}
+
+/* ---- live: the channels of simcluster run --publish ---- */
+
+typedef struct live {
+    viewer *v;
+    uint8_t *state;                /* the newest SC_STATE not drawn yet */
+    size_t len, cap;
+    int fresh;
+    long states, bad;              /* received; malformed, dropped */
+} live;
+
+static volatile sig_atomic_t stop_live;
+static void on_stop(int sig)
+{
+    (void)sig;
+    stop_live = 1;
+}
+
+static double now_s(void)
+{
+    struct timespec ts;
+    clock_gettime(CLOCK_MONOTONIC, &ts);
+    return (double)ts.tv_sec + 1e-9 * (double)ts.tv_nsec;
+}
+
+/* Shapes are checked and compiled as they come (each once); of the states
+ * only the newest is kept: a viewer slower than the run skips frames. */
+static void on_live(const lcm_recv_buf_t *rb, const char *chan, void *user)
+{
+    live *L = user;
+    size_t n = rb->data_size;
+    L->v->event++;
+    if (!strcmp(chan, "SC_SHAPE")) {
+        L->bad += add_shape(L->v, rb->data, n) != 0;
+        return;
+    }
+    if (n > SC_MSG_MAX_PAYLOAD) {
+        L->bad++;
+        return;
+    }
+    if (n > L->cap) {
+        uint8_t *p = realloc(L->state, n);
+        if (!p) {
+            L->bad++;
+            return;
+        }
+        L->state = p;
+        L->cap = n;
+    }
+    memcpy(L->state, rb->data, n);
+    L->len = n;
+    L->fresh = 1;
+    L->states++;
+}
+
+static int shapes_known(const viewer *v, const sclcm_state_t *m)
+{
+    for (int i = 0; i < m->n; i++) {
+        int k = 0;
+        while (k < v->nshapes && v->shapes[k].hash != m->shape[i])
+            k++;
+        if (k == v->nshapes)
+            return 0;
+    }
+    return 1;
+}
+
+static int run_live(viewer *v)
+{
+    if (open_output(v))
+        return -1;
+    lcm_t *l = lcm_create(v->o.live);
+    if (!l) {
+        fprintf(stderr, "%s: --live: cannot open LCM URL %s\n", prog, v->o.live);
+        return -1;
+    }
+    live L = { .v = v };
+    lcm_subscription_t *sh = lcm_subscribe(l, "SC_SHAPE", on_live, &L);
+    lcm_subscription_t *st = lcm_subscribe(l, "SC_STATE", on_live, &L);
+    if (!sh || !st) {
+        fprintf(stderr, "%s: --live: cannot subscribe on %s\n", prog, v->o.live);
+        lcm_destroy(l);
+        return -1;
+    }
+    lcm_subscription_set_queue_capacity(sh, 256);
+    lcm_subscription_set_queue_capacity(st, 4);   /* newest frames, little lag */
+    struct sigaction sa = { .sa_handler = on_stop };
+    sigemptyset(&sa.sa_mask);
+    sigaction(SIGINT, &sa, NULL);
+    sigaction(SIGTERM, &sa, NULL);
+    v->quiet = 1;
+    long last = -1, waiting = 0;
+    double heard = now_s();
+    int rc = 0, done = 0;
+    while (!stop_live && !done && rc == 0) {
+        if (lcm_handle_timeout(l, 100) < 0) {
+            fprintf(stderr, "%s: --live: %s: receive failed\n", prog, v->o.live);
+            rc = -1;
+            break;
+        }
+        while (lcm_handle_timeout(l, 0) > 0)
+            ;                      /* take all that is queued: draw the newest */
+        if (!L.fresh) {
+            if (v->o.timeout > 0 && now_s() - heard > v->o.timeout)
+                break;
+            continue;
+        }
+        L.fresh = 0;
+        heard = now_s();
+        sclcm_state_t m;
+        if (decode_state(v, L.state, L.len, &m)) {
+            L.bad++;
+            continue;
+        }
+        if (m.frame < last)
+            last = -1;             /* a new run: start again */
+        if (!shapes_known(v, &m))
+            waiting++;             /* they come within a second */
+        else if (m.frame >= v->o.first && m.frame <= v->o.last &&
+                 (last < 0 || m.frame - last >= v->o.every)) {
+            rc = render(v, &m);
+            last = m.frame;
+        }
+        done = m.frame >= v->o.last;
+        sclcm_state_t_decode_cleanup(&m);
+    }
+    lcm_destroy(l);
+    free(L.state);
+    fprintf(stderr, "%s: %s: %d frames drawn of %ld received", prog, v->o.live,
+            v->frames_out, L.states);
+    if (waiting)
+        fprintf(stderr, ", %ld before their shapes came", waiting);
+    if (L.bad)
+        fprintf(stderr, ", %ld malformed messages dropped", L.bad);
+    fprintf(stderr, "\n");
+    return rc == 0 && v->frames_out ? 0 : -1;
+}
+
+static int run(viewer *v)
+{
+    if (v->o.live)
+        return run_live(v);
+    if (open_output(v))
         return -1;
     v->log = fopen(v->o.log, "rb");
     if (!v->log) {

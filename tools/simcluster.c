@@ -1,8 +1,9 @@
 /* simcluster - the command-line tool (simcluster(1)): run the paper's
  * scenes (run), print their Table 1 breakdown (profile), solve an LCP given
  * as text (lcp), and write a cluster key (keygen); run --record writes
- * an LCM log that simcluster-view(1) renders (run --render runs it).
- * Scene files come with the rest of the tools issue. */
+ * an LCM log that simcluster-view(1) renders (run --render runs it), and
+ * run --publish sends the same messages live. A scene is bolts, spheres or
+ * a scene file (simcluster.conf(5), lib/scene_file.c). */
 #include <errno.h>
 #include <getopt.h>
 #include <limits.h>
@@ -16,6 +17,7 @@
 #include <unistd.h>
 
 #include <lcm/eventlog.h>
+#include <lcm/lcm.h>
 
 #include "cluster_msg.h"
 #include "sclcm_state_t.h"
@@ -23,11 +25,12 @@
 
 #define DT 0.01
 #define MAX_LCP 2000               /* lcp: variables at most */
+#define MAX_SHAPE_MSGS 256         /* run --publish: shapes sent again each second */
 
 static int usage(FILE *f, int status)
 {
     fprintf(f,
-            "usage: simcluster run SCENE [options]     simulate bolts or spheres\n"
+            "usage: simcluster run SCENE [options]     simulate bolts, spheres or a scene file\n"
             "       simcluster profile SCENE [options] CPU time per stage (Table 1)\n"
             "       simcluster lcp FILE                solve an LCP given as text\n"
             "       simcluster keygen FILE             write a new cluster key (mode 0600)\n"
@@ -35,7 +38,10 @@ static int usage(FILE *f, int status)
             "run and profile options: --bodies N --seed S --frames F --until-rest\n"
             "  --workers W --groups --cluster URL --key FILE --deadline S --json\n"
             "run only: --record LOG (an LCM log of every frame, for simcluster-view)\n"
-            "  --render DIR (every frame as DIR/frame_NNNNN.png, by simcluster-view)\n");
+            "  --render DIR (every frame as DIR/frame_NNNNN.png, by simcluster-view)\n"
+            "  --publish URL (frames live on LCM, for simcluster-view --live)\n"
+            "  --realtime (no faster than simulated time)\n"
+            "scene files: simcluster.conf(5)\n");
     return status;
 }
 
@@ -72,9 +78,10 @@ static int keygen(int argc, char **argv)
 
 typedef struct options {
     const char *scene;
+    sc_scene *file;         /* a scene file, else NULL: the built-in scene */
     long bodies, seed, frames, workers;
-    int until_rest, groups, json;
-    const char *cluster, *key, *record, *render;
+    int until_rest, groups, json, realtime, bodies_set, seed_set;
+    const char *cluster, *key, *record, *render, *publish;
     double deadline;
 } options;
 
@@ -98,6 +105,7 @@ static int parse_options(const char *cmd, int argc, char **argv, options *o)
         { "cluster", required_argument, 0, 'c' },  { "key", required_argument, 0, 'k' },
         { "deadline", required_argument, 0, 'd' }, { "json", no_argument, 0, 'j' },
         { "record", required_argument, 0, 'o' },   { "render", required_argument, 0, 'p' },
+        { "publish", required_argument, 0, 'P' },  { "realtime", no_argument, 0, 'R' },
         { 0, 0, 0, 0 }
     };
     memset(o, 0, sizeof *o);
@@ -113,10 +121,12 @@ static int parse_options(const char *cmd, int argc, char **argv, options *o)
         case 'n':
             if (!parse_long(optarg, 1, 100000, &o->bodies))
                 return bad(cmd, "--bodies takes 1..100000");
+            o->bodies_set = 1;
             break;
         case 's':
             if (!parse_long(optarg, 0, 0x7fffffffL, &o->seed))
                 return bad(cmd, "--seed takes 0..2147483647");
+            o->seed_set = 1;
             break;
         case 'f':
             if (!parse_long(optarg, 1, 100000000L, &o->frames))
@@ -161,6 +171,18 @@ static int parse_options(const char *cmd, int argc, char **argv, options *o)
                 return bad(cmd, "--render takes a directory");
             o->render = optarg;
             break;
+        case 'P':
+            if (strcmp(cmd, "run"))
+                return bad(cmd, "--publish is an option of run");
+            if (optarg[0] == '\0')
+                return bad(cmd, "--publish takes an LCM URL");
+            o->publish = optarg;
+            break;
+        case 'R':
+            if (strcmp(cmd, "run"))
+                return bad(cmd, "--realtime is an option of run");
+            o->realtime = 1;
+            break;
         default: {
             char what[160];
             snprintf(what, sizeof what, "unknown option or missing value: %s", argv[optind - 1]);
@@ -169,13 +191,40 @@ static int parse_options(const char *cmd, int argc, char **argv, options *o)
         }
     }
     if (optind != argc - 1)
-        return bad(cmd, "give one scene: bolts or spheres");
+        return bad(cmd, "give one scene: bolts, spheres or a scene file");
     o->scene = argv[optind];
-    if (strcmp(o->scene, "bolts") && strcmp(o->scene, "spheres"))
-        return bad(cmd, "unknown scene (bolts or spheres; scene files are not yet supported)");
     if (o->key && !o->cluster)
         return bad(cmd, "--key needs --cluster");
+    int builtin = !strcmp(o->scene, "bolts") || !strcmp(o->scene, "spheres");
+    if (!builtin && (o->bodies_set || o->seed_set))
+        return bad(cmd, "--bodies and --seed are for the built-in bolts scene; a scene file "
+                        "places its own bodies");
+    if (builtin)
+        return 0;
+    /* a scene file: read and checked now, so a bad one stops before any work */
+    char err[512];
+    o->file = sc_scene_load(o->scene, err, sizeof err);
+    if (!o->file) {
+        fprintf(stderr, "simcluster: %s: %s\n", cmd, err);
+        return 1;
+    }
     return 0;
+}
+
+/* s as a JSON string (a scene file's name can hold anything). */
+static void json_string(const char *s)
+{
+    putchar('"');
+    for (; *s; s++) {
+        unsigned char c = (unsigned char)*s;
+        if (c == '"' || c == '\\')
+            printf("\\%c", c);
+        else if (c < 0x20)
+            printf("\\u%04x", c);
+        else
+            putchar(c);
+    }
+    putchar('"');
 }
 
 static sc_world *make_world(const options *o, const char *cmd)
@@ -186,6 +235,8 @@ static sc_world *make_world(const options *o, const char *cmd)
     c.cluster = o->cluster;
     c.key_file = o->key;
     c.cluster_deadline_s = o->deadline;
+    if (o->file)
+        sc_scene_config(o->file, &c);
     sc_world *w = sc_world_create(&c);
     if (!w) {
         int err = sc_last_error();
@@ -196,8 +247,9 @@ static sc_world *make_world(const options *o, const char *cmd)
             fprintf(stderr, "simcluster: %s: %s\n", cmd, sc_strerror(err));
         return NULL;
     }
-    int rc = !strcmp(o->scene, "bolts") ? sc_scene_bolts_nuts(w, (int)o->bodies, (uint64_t)o->seed)
-                                        : sc_scene_spheres_box(w);
+    int rc = o->file                     ? sc_scene_build(o->file, w)
+             : !strcmp(o->scene, "bolts") ? sc_scene_bolts_nuts(w, (int)o->bodies, (uint64_t)o->seed)
+                                          : sc_scene_spheres_box(w);
     if (rc < 0) {
         fprintf(stderr, "simcluster: %s: scene: %s\n", cmd, sc_strerror(rc));
         sc_world_destroy(w);
@@ -223,8 +275,14 @@ static int awake(const sc_world *w)
  * Event timestamps are simulated microseconds, so lcm-logplayer replays a
  * run in simulated time. */
 typedef struct recorder {
-    lcm_eventlog_t *log;
+    lcm_eventlog_t *log;    /* --record, else NULL */
     const char *path;
+    lcm_t *lcm;             /* --publish, else NULL */
+    uint8_t *shape_msg[MAX_SHAPE_MSGS];   /* for publishing again each second */
+    size_t shape_len[MAX_SHAPE_MSGS];
+    int nshape_msgs;
+    double shapes_sent;     /* when they were last published */
+    long publish_failed;
     int64_t events;
     sclcm_state_t m;
     uint8_t *buf;
@@ -234,6 +292,10 @@ typedef struct recorder {
 static int record_event(recorder *r, const char *channel, int64_t t_us, const void *data,
                         size_t len)
 {
+    if (r->lcm && lcm_publish(r->lcm, channel, data, (unsigned)len) != 0)
+        r->publish_failed++;        /* a live view loses a frame; not an error */
+    if (!r->log)
+        return 0;
     lcm_eventlog_event_t ev = { .eventnum = r->events++, .timestamp = t_us,
                                 .channellen = (int32_t)strlen(channel),
                                 .datalen = (int32_t)len,
@@ -249,6 +311,10 @@ static void record_close(recorder *r)
 {
     if (r->log)
         lcm_eventlog_destroy(r->log);
+    if (r->lcm)
+        lcm_destroy(r->lcm);
+    for (int i = 0; i < r->nshape_msgs; i++)
+        free(r->shape_msg[i]);
     free(r->m.shape);
     free(r->m.pos);
     free(r->m.quat);
@@ -257,16 +323,21 @@ static void record_close(recorder *r)
     memset(r, 0, sizeof *r);
 }
 
-/* Create the log and write the shapes; 0, or 1 with the error printed. */
-static int record_open(recorder *r, const char *path, const sc_world *w)
+/* Create the log (path) and/or the LCM publisher (url), and write the
+ * shapes; 0, or 1 with the error printed. */
+static int record_open(recorder *r, const char *path, const char *url, const sc_world *w)
 {
     memset(r, 0, sizeof *r);
     r->path = path;
-    r->log = lcm_eventlog_create(path, "w");
-    if (!r->log) {
+    if (path && !(r->log = lcm_eventlog_create(path, "w"))) {
         fprintf(stderr, "simcluster: run: %s: %s\n", path, strerror(errno));
         return 1;
     }
+    if (url && !(r->lcm = lcm_create(url))) {
+        fprintf(stderr, "simcluster: run: --publish: cannot open LCM URL %s\n", url);
+        return 1;
+    }
+    r->shapes_sent = now_s();
     int n = sc_world_body_count(w);
     size_t un = n > 0 ? (size_t)n : 1;
     sclcm_state_t *m = &r->m;
@@ -308,7 +379,12 @@ static int record_open(recorder *r, const char *path, const sc_world *w)
             for (int b = 8; b < 16; b++)
                 h = (int64_t)((uint64_t)h << 8 | bytes[b]);
             rc = record_event(r, "SC_SHAPE", 0, bytes, len);
-            free(bytes);
+            if (r->lcm && r->nshape_msgs < MAX_SHAPE_MSGS) {
+                r->shape_msg[r->nshape_msgs] = bytes;
+                r->shape_len[r->nshape_msgs++] = len;
+            } else {
+                free(bytes);
+            }
             if (rc)
                 return 1;
             if (nseen < 64) {
@@ -327,6 +403,13 @@ static int record_open(recorder *r, const char *path, const sc_world *w)
 static int record_frame(recorder *r, const sc_world *w, long f)
 {
     sclcm_state_t *m = &r->m;
+    /* a viewer that starts late learns the shapes within a second */
+    if (r->lcm && now_s() - r->shapes_sent >= 1.0) {
+        r->shapes_sent = now_s();
+        for (int i = 0; i < r->nshape_msgs; i++)
+            if (lcm_publish(r->lcm, "SC_SHAPE", r->shape_msg[i], (unsigned)r->shape_len[i]) != 0)
+                r->publish_failed++;
+    }
     m->frame = f;
     m->time = f * DT;
     for (int i = 0; i < m->n; i++) {
@@ -360,6 +443,9 @@ static int record_finish(recorder *r)
     int bad_write = r->log && (fflush(r->log->f) != 0 || ferror(r->log->f));
     if (bad_write)
         fprintf(stderr, "simcluster: run: %s: %s\n", r->path, strerror(errno));
+    if (r->publish_failed)
+        fprintf(stderr, "simcluster: run: --publish: %ld messages could not be sent\n",
+                r->publish_failed);
     record_close(r);
     return bad_write;
 }
@@ -405,6 +491,13 @@ static int simulate(const options *o, sc_world *w, totals *t, int progress, reco
             shown = now;
             fprintf(stderr, "\r  frame %ld  t %.2f s  RT %.2fx  awake %d  nodes %d  ", t->frames,
                     t->frames * DT, t->frames * DT / (now - t0), awake(w), st.nodes);
+        }
+        if (o->realtime) {             /* no faster than simulated time */
+            double ahead = t0 + t->frames * DT - now_s();
+            if (ahead > 0)
+                nanosleep(&(struct timespec){ .tv_sec = (time_t)ahead,
+                                              .tv_nsec = (long)(1e9 * (ahead - floor(ahead))) },
+                          NULL);
         }
         if (o->until_rest && sc_world_at_rest(w)) {
             t->at_rest = 1;
@@ -461,6 +554,8 @@ static int run_cmd(int argc, char **argv)
     if (u)
         return u;
     sc_world *w = make_world(&o, "run");
+    sc_scene_free(o.file);          /* built; not needed any more */
+    o.file = NULL;
     if (!w)
         return 1;
     recorder rec;
@@ -476,35 +571,42 @@ static int run_cmd(int argc, char **argv)
         close(fd);
         o.record = tmp_log;
     }
-    if (o.record && record_open(&rec, o.record, w)) {
+    if ((o.record || o.publish) && record_open(&rec, o.record, o.publish, w)) {
         record_close(&rec);
         sc_world_destroy(w);
         return 1;
     }
     totals t;
-    int rc = simulate(&o, w, &t, isatty(2) && !o.json, o.record ? &rec : NULL, &rec_failed);
-    if (o.record)
+    int rc = simulate(&o, w, &t, isatty(2) && !o.json, o.record || o.publish ? &rec : NULL,
+                      &rec_failed);
+    if (o.record || o.publish)
         rec_failed |= record_finish(&rec);
     sc_stats st;
     sc_world_stats(w, &st);
     double sim = t.frames * DT;
     unsigned long long hash = (unsigned long long)sc_world_hash(w);
+    char seed[24] = "null";         /* scene files have no seed */
+    if (!strcmp(o.scene, "bolts"))
+        snprintf(seed, sizeof seed, "%ld", o.seed);
     if (o.json) {
-        printf("{\"scene\": \"%s\", \"bodies\": %d, \"seed\": %ld, \"workers\": %d, "
+        printf("{\"scene\": ");
+        json_string(o.scene);
+        printf(", \"bodies\": %d, \"seed\": %s, \"workers\": %d, "
                "\"frames\": %ld, \"simulated_s\": %.2f, \"wall_s\": %.4f, "
                "\"realtime_factor\": %.4f, \"at_rest\": %s, \"rest_s\": %.2f, "
                "\"peak_energy_ratio\": %.6f, \"max_penetration_m\": %.6g, \"units\": %ld, "
                "\"daemons\": %d, \"remote_units\": %ld, \"recomputed_units\": %ld, "
                "\"late_results\": %ld, \"dropped_messages\": %ld, \"comm_s\": %.4f, "
                "\"hash\": \"%016llx\", \"error\": %s%s%s}\n",
-               o.scene, sc_world_body_count(w), o.seed, (int)(st.nodes - st.daemons), t.frames,
+               sc_world_body_count(w), seed, (int)(st.nodes - st.daemons), t.frames,
                sim, t.wall, t.wall > 0 ? sim / t.wall : 0, t.at_rest ? "true" : "false",
                t.rest_s, t.peak_energy, t.max_pen, t.units, st.daemons, t.remote, t.recomputed,
                t.late, st.dropped_messages, t.comm, hash, rc ? "\"" : "null",
                rc ? sc_strerror(rc) : "", rc ? "\"" : "");
     } else {
-        printf("%s: %d bodies, seed %ld, %ld frames of %.2f s\n", o.scene, sc_world_body_count(w),
-               o.seed, t.frames, DT);
+        printf("%s: %d bodies%s%s, %ld frames of %.2f s\n", o.scene, sc_world_body_count(w),
+               strcmp(seed, "null") ? ", seed " : "", strcmp(seed, "null") ? seed : "", t.frames,
+               DT);
         printf("  simulated %8.2f s in %.3f s wall (real-time factor %.2f)\n", sim, t.wall,
                t.wall > 0 ? sim / t.wall : 0);
         if (o.until_rest)
@@ -538,6 +640,8 @@ static int profile_cmd(int argc, char **argv)
     if (o.frames < 0 && !strcmp(o.scene, "spheres"))
         o.frames = 5000;    /* the paper's 50 s */
     sc_world *w = make_world(&o, "profile");
+    sc_scene_free(o.file);
+    o.file = NULL;
     if (!w)
         return 1;
     totals t;
@@ -557,7 +661,9 @@ static int profile_cmd(int argc, char **argv)
     for (int k = 0; k < SC_STAGE_COUNT; k++)
         total += st.stage_total_s[k];
     if (o.json) {
-        printf("{\"scene\": \"%s\", \"frames\": %ld, \"cpu_s\": {", o.scene, t.frames);
+        printf("{\"scene\": ");
+        json_string(o.scene);
+        printf(", \"frames\": %ld, \"cpu_s\": {", t.frames);
         for (size_t i = 0; i < sizeof rows / sizeof *rows; i++)
             printf("%s\"%s\": %.6f", i ? ", " : "", rows[i].key, st.stage_total_s[rows[i].stage]);
         printf("}}\n");
