@@ -2,7 +2,8 @@
 #   make            library (static + shared), examples, tools
 #   make check      every test, then again under ASan+UBSan, man lint, install test
 #   make demo       the main job (embedded default)
-#   make bench      benchmarks (bench/)
+#   make bench      benchmarks (bench/results.sh -> bench/RESULTS.md; BENCH_FLAGS=-q: smoke run)
+#   make bench-raw  every benchmark with its defaults, tables to stdout
 #   make install PREFIX=/usr/local DESTDIR=   (SYSTEMDDIR: the systemd unit)
 #   make V=1        show commands;  make SAN=1  sanitizer build (in build-san/)
 
@@ -78,7 +79,7 @@ VIEW_BIN  := $(BUILD)/tests/png_check
 STATIC := $(BUILD)/libsimcluster.a
 SHARED := $(BUILD)/libsimcluster.so.$(VERSION)
 
-.PHONY: all lib deps check check-run demo bench install uninstall clean lint-man test-install fuzz
+.PHONY: all lib deps check check-run demo bench bench-raw install uninstall clean lint-man test-install fuzz
 all: lib $(EX_BIN) $(TOOL_BIN) $(DAEMON_BIN) $(BENCH_BIN)
 lib: $(STATIC) $(SHARED)
 
@@ -177,7 +178,13 @@ demo: deps
 	$(Q)$(MAKE) --no-print-directory $(BUILD)/examples/bolts_nuts
 	$(Q)./$(BUILD)/examples/bolts_nuts 50
 
+# bench/results.sh runs issue 7's parts and writes bench/RESULTS.md;
+# bench-raw runs every benchmark with its defaults and prints the tables.
+BENCH_FLAGS ?=
 bench: all
+	$(Q)BUILD=$(BUILD) sh bench/results.sh $(BENCH_FLAGS)
+
+bench-raw: all
 	$(Q)for b in $(BENCH_BIN); do echo "== $$b"; ./$$b || exit 1; done
 
 lint-man:

@@ -2,9 +2,13 @@
  * with ODE (DESIGN section 7): the same scene simulated by
  *   quick  ODE dWorldQuickStep, 20 iterations
  *   step   ODE dWorldStep (its Dantzig-type LCP)
- *   sc     simcluster, sc_world_step on a default world
- * at 100 Hz for up to 10 s of simulated time, stopping early when every
- * body is at rest.
+ *   sc1    simcluster, sc_world_step on a default world with workers = 1
+ *   scN    the same with workers = every online CPU (the embedded default)
+ * at 100 Hz for up to 10 s of simulated time (-T), stopping early when
+ * every body is at rest, or when a run's wall time passes the budget (-b,
+ * default 30 s). The budget bounds the default run: a 1000-body drop
+ * takes minutes of wall per run, so it is cut short and says "not at rest
+ * within the cap".
  *
  * Same scene for all three: the poses and velocities are read back from a
  * world filled by sc_scene_bolts_nuts(N, seed) (sc_body_get_pose/velocity);
@@ -34,14 +38,25 @@
  * inside a peer is reported (as its signal) instead of ending the
  * benchmark. Nothing is special-cased: each engine is measured as it is.
  *
- * Each cell is the median of R runs (default 3, -r) by real-time factor;
- * the run with the median is reported whole. The physics of a run does not
- * depend on timing, so only the times differ between runs.
+ * Each cell is the median of R runs (-r) by real-time factor; the run with
+ * the median is reported whole. The physics of a run does not depend on
+ * timing, so only the times differ between runs. Without -r a cell gets 3
+ * runs, or 1 when its first run is cut by the wall budget (repeating it
+ * would triple the cost of the largest cells; the "runs" column says how
+ * many were made); with -r R every cell gets exactly R.
+ *
+ * Ratios, ours (sc1, scN) over each peer (quick, step) and scN over sc1,
+ * follow each body count. Runs cut by the wall budget reach different
+ * simulated times, and free fall is cheaper than landing, so the ratio of
+ * real-time factors is taken over the span both runs simulated (the wall
+ * time of each at that frame; each run keeps its cumulative wall time at
+ * up to NMARK evenly spaced frames). Where a peer exploded, crashed or
+ * failed, the line says so instead of giving ratios.
  *
  * usage: bench_drop [-r runs] [-T sim_seconds] [-b wall_budget_s]
  *                   [-s seed] [-e engines] [N ...]
- *   engines: any of q (quick), s (step), c (simcluster); default qsc
- *   N: body counts (1..100000), default 10 50 200 1000 */
+ *   engines: any of q (quick), s (step), 1 (sc1), n (scN), c (= 1n);
+ *   default qsc.  N: body counts (1..100000), default 10 50 200 1000 */
 #include <errno.h>
 #include <math.h>
 #include <signal.h>
@@ -70,10 +85,12 @@
 #define REST_HOLD_S 0.5          /* at rest this long before we believe it */
 #define EXPLODE_FACTOR 100.0
 #define MAX_RUNS 15
+#define NMARK 500                /* wall-time marks kept per run */
 
-enum { ENG_QUICK, ENG_STEP, ENG_SC, ENG_COUNT };
-static const char *eng_name[ENG_COUNT] = { "ODE QuickStep", "ODE dWorldStep", "simcluster" };
-static const char eng_key[ENG_COUNT] = { 'q', 's', 'c' };
+enum { ENG_QUICK, ENG_STEP, ENG_SC1, ENG_SCN, ENG_COUNT };
+static const char *eng_name[ENG_COUNT] = { "quick", "step", "sc1", "scN" };
+static const char eng_key[ENG_COUNT] = { 'q', 's', '1', 'n' };
+static int eng_threads[ENG_COUNT] = { 1, 1, 1, 1 };   /* scN's set in main */
 
 enum { END_TIME, END_REST, END_EXPLODED, END_BUDGET, END_ERROR, END_CRASH };
 
@@ -85,6 +102,8 @@ typedef struct result {
     double max_pen;
     double rest_s;               /* -1: not at rest */
     double vmax, wmax;           /* fastest body at the last frame, m/s and rad/s */
+    int nmark;                   /* marks kept: frames stride, 2 stride, ... */
+    double mark_wall[NMARK];     /* cumulative wall time at frame (k + 1) * stride */
 } result;
 
 /* What both ODE and simcluster start from. */
@@ -103,7 +122,8 @@ typedef struct scene {
 } scene;
 
 static double sim_limit_s = 10.0;
-static double budget_s = 120.0;
+static double budget_s = 30.0;
+static long mark_stride = 1;     /* frames between marks, set in main */
 
 /* ---- the scene, read back from simcluster ---- */
 
@@ -198,6 +218,13 @@ static int watch_frame(watch *wt, double t, double e, double pen, int all_rest, 
         }
     }
     return t >= sim_limit_s - 1e-9 ? END_TIME : -1;
+}
+
+/* Keeps the cumulative wall time at every mark_stride-th frame. */
+static void mark_frame(result *r, long frame, double wall)
+{
+    if (frame % mark_stride == 0 && r->nmark < NMARK)
+        r->mark_wall[r->nmark++] = wall;
 }
 
 /* ---- ODE ---- */
@@ -375,6 +402,7 @@ static void run_ode(const scene *sc, int quick, result *r)
             set_last_transform(s.geom[i]);
         wall += now_s() - t0;
         frame++;
+        mark_frame(r, frame, wall);
         double e = ode_energy(&s, sc, &rest, r);
         end = watch_frame(&wt, frame * DT, e, s.max_depth, rest, r);
         if (end < 0 && !ok) {
@@ -394,9 +422,10 @@ static void run_ode(const scene *sc, int quick, result *r)
 
 /* ---- simcluster ---- */
 
-static void run_sc(const scene *sc, result *r)
+static void run_sc(const scene *sc, int workers, result *r)
 {
     sc_world_config cfg = sc_world_config_default();
+    cfg.workers = workers;
     sc_world *w = sc_world_create(&cfg);
     int rc = w ? sc_scene_bolts_nuts(w, sc->n, sc->seed) : sc_last_error();
     if (rc != SC_OK) {
@@ -416,6 +445,7 @@ static void run_sc(const scene *sc, result *r)
         rc = sc_world_step(w, DT);
         wall += now_s() - t0;
         frame++;
+        mark_frame(r, frame, wall);
         if (rc != SC_OK) {
             end = END_ERROR;
             r->code = rc;
@@ -463,8 +493,8 @@ static void run_child(const scene *sc, int eng, result *r)
         close(fd[0]);
         /* a single step far beyond the budget is killed */
         alarm((unsigned)(budget_s + 300));
-        if (eng == ENG_SC)
-            run_sc(sc, r);
+        if (eng == ENG_SC1 || eng == ENG_SCN)
+            run_sc(sc, eng_threads[eng], r);
         else
             run_ode(sc, eng == ENG_QUICK, r);
         ssize_t k = write(fd[1], r, sizeof *r);
@@ -509,10 +539,12 @@ static int cmp_rtf(const void *a, const void *b)
 static void describe_end(const result *r, char *buf, size_t len)
 {
     switch (r->end) {
-    case END_TIME: snprintf(buf, len, "ran %.1f s", r->sim_s); break;
+    case END_TIME: snprintf(buf, len, "ran %.1f s: not at rest within the cap", r->sim_s); break;
     case END_REST: snprintf(buf, len, "at rest"); break;
     case END_EXPLODED: snprintf(buf, len, "exploded at t = %.2f s", r->sim_s); break;
-    case END_BUDGET: snprintf(buf, len, "wall budget hit at t = %.2f s", r->sim_s); break;
+    case END_BUDGET:
+        snprintf(buf, len, "wall budget hit at t = %.2f s: not at rest within the cap", r->sim_s);
+        break;
     case END_ERROR: snprintf(buf, len, "step error %d (%s) at t = %.2f s", r->code,
                              r->code < 0 ? sc_strerror(r->code) : "ODE", r->sim_s); break;
     default:
@@ -525,34 +557,88 @@ static void describe_end(const result *r, char *buf, size_t len)
 
 static void print_row(int n, int eng, int runs, const result *r)
 {
-    char end[96], rest[32];
+    char end[128], rest[32];
     describe_end(r, end, sizeof end);
     if (r->end == END_CRASH) {
-        printf("%6d  %-15s %4d  %9s %8s %9s %9s %10s %11s %10s  %s\n", n, eng_name[eng],
-               runs, "-", "-", "-", "-", "-", "-", "-", end);
+        printf("%6d  %-6s %3d %4d  %9s %8s %9s %9s %10s %9s %10s  %s\n", n, eng_name[eng],
+               eng_threads[eng], runs, "-", "-", "-", "-", "-", "-", "-", end);
         return;
     }
     if (r->rest_s >= 0)
         snprintf(rest, sizeof rest, "%.2f", r->rest_s);
     else
-        snprintf(rest, sizeof rest, "not at rest");
-    printf("%6d  %-15s %4d  %9.3f %8.2f %9.3f %9.4f %10.4g %11s %10.3g  %s\n", n,
-           eng_name[eng], runs, r->wall_s, r->sim_s, rtf(r), r->epeak / r->e0, r->max_pen,
-           rest, r->vmax, end);
+        snprintf(rest, sizeof rest, "none");
+    printf("%6d  %-6s %3d %4d  %9.3f %8.2f %9.3f %9.4f %10.4g %9s %10.3g  %s\n", n,
+           eng_name[eng], eng_threads[eng], runs, r->wall_s, r->sim_s, rtf(r), r->epeak / r->e0,
+           r->max_pen, rest, r->vmax, end);
 }
 
-static void print_ratio(const char *what, double ours, double peer)
+/* Real-time factors of a and b over the frames both simulated (a multiple
+ * of mark_stride): 0 and *span_s = 0 when they share no mark. */
+static int common_rtf(const result *a, const result *b, double *span_s, double *ra, double *rb)
 {
-    if (isfinite(ours) && isfinite(peer) && peer != 0)
-        printf("  %-34s %11.6g\n", what, ours / peer);
+    int k = a->nmark < b->nmark ? a->nmark : b->nmark;
+    *span_s = 0;
+    if (k < 1 || !(a->mark_wall[k - 1] > 0) || !(b->mark_wall[k - 1] > 0))
+        return 0;
+    *span_s = (double)k * (double)mark_stride * DT;
+    *ra = *span_s / a->mark_wall[k - 1];
+    *rb = *span_s / b->mark_wall[k - 1];
+    return 1;
+}
+
+/* Why a run gives no ratios (exploded, crashed, failed), or NULL. */
+static const char *broken(const result *r)
+{
+    switch (r->end) {
+    case END_EXPLODED: return "exploded";
+    case END_ERROR: return "failed";
+    case END_CRASH: return "died";
+    default: return NULL;
+    }
+}
+
+static void ratio_cell(double ours, double peer)
+{
+    if (isfinite(ours) && isfinite(peer) && peer > 0)
+        printf(" %10.4g", ours / peer);
     else
-        printf("  %-34s %11s\n", what, "n/a");
+        printf(" %10s", "n/a");
+}
+
+/* One line of ratios, ours over peer; o and p are engine indices. */
+static void print_ratios(int o, int p, const result *ours, const result *peer)
+{
+    char pair[16], end[128];
+    snprintf(pair, sizeof pair, "%s / %s", eng_name[o], eng_name[p]);
+    const result *bad = broken(peer) ? peer : broken(ours) ? ours : NULL;
+    if (bad) {
+        int who = bad == peer ? p : o;
+        describe_end(bad, end, sizeof end);
+        printf("    %-12s %s %s", pair, eng_name[who], end);
+        if (bad->end == END_EXPLODED)
+            printf(" (energy %.3gx the initial)", bad->epeak / bad->e0);
+        printf(": no ratios\n");
+        return;
+    }
+    double span, ra = NAN, rb = NAN;
+    common_rtf(ours, peer, &span, &ra, &rb);
+    printf("    %-12s %8.2f", pair, span);
+    ratio_cell(ra, rb);
+    ratio_cell(ours->epeak / ours->e0, peer->epeak / peer->e0);
+    ratio_cell(ours->max_pen, peer->max_pen);
+    ratio_cell(ours->rest_s >= 0 ? ours->rest_s : NAN, peer->rest_s >= 0 ? peer->rest_s : NAN);
+    if (ours->rest_s < 0 || peer->rest_s < 0)
+        printf("  (rest: %s%s%s not at rest within the cap)", ours->rest_s < 0 ? eng_name[o] : "",
+               ours->rest_s < 0 && peer->rest_s < 0 ? ", " : "",
+               peer->rest_s < 0 ? eng_name[p] : "");
+    printf("\n");
 }
 
 static void usage(void)
 {
     fprintf(stderr, "usage: bench_drop [-r runs] [-T sim_seconds] [-b wall_budget_s] "
-                    "[-s seed] [-e qsc] [N ...]\n");
+                    "[-s seed] [-e qs1nc] [N ...]\n");
     exit(2);
 }
 
@@ -572,7 +658,8 @@ int main(int argc, char **argv)
         default: usage();
         }
     }
-    if (runs_opt < 0 || runs_opt > MAX_RUNS || !(sim_limit_s > 0) || !(budget_s > 0))
+    if (runs_opt < 0 || runs_opt > MAX_RUNS || !(sim_limit_s > 0) || !(budget_s > 0) ||
+        sim_limit_s > 1e6 || budget_s > 1e6 || strspn(engines, "qs1nc") != strlen(engines))
         usage();
     int ns[64], nn = 0;
     for (int i = optind; i < argc && nn < 64; i++) {
@@ -588,6 +675,16 @@ int main(int argc, char **argv)
         ns[3] = 1000;
         nn = 4;
     }
+    int use[ENG_COUNT];
+    for (int e = 0; e < ENG_COUNT; e++)
+        use[e] = strchr(engines, eng_key[e]) != NULL ||
+                 ((e == ENG_SC1 || e == ENG_SCN) && strchr(engines, 'c') != NULL);
+    long cpus = sysconf(_SC_NPROCESSORS_ONLN);
+    eng_threads[ENG_SCN] = cpus < 1 ? 1 : cpus > SC_MAX_WORKERS ? SC_MAX_WORKERS : (int)cpus;
+    long frames_max = (long)ceil(sim_limit_s / DT - 1e-9);
+    mark_stride = (frames_max + NMARK - 1) / NMARK;
+    if (mark_stride < 1)
+        mark_stride = 1;
     dInitODE2(0);
     dAllocateODEDataForThread(dAllocateMaskAll);
     sc_shape *bolt = sc_shape_bolt(), *nut = sc_shape_nut();
@@ -599,13 +696,16 @@ int main(int argc, char **argv)
            "up to %.1f s simulated, wall budget %.0f s a run, seed %llu\n",
            sc_shape_triangles(bolt), sc_shape_triangles(nut), BOUNCE, MU, DT, sim_limit_s,
            budget_s, (unsigned long long)seed);
-    printf("ODE (%s): trimesh in dHashSpace, <= %d contacts a pair, Bounce|Approx1, "
-           "bounce_vel %.1f m/s, default ERP/CFM; QuickStep %d iterations\n",
-           dGetConfiguration(), MAX_PAIR_CONTACTS, BOUNCE_VEL, QUICK_ITERS);
+    printf("quick: ODE dWorldQuickStep (%d iterations); step: ODE dWorldStep; ODE (%s): trimesh "
+           "in dHashSpace, <= %d contacts a pair, Bounce|Approx1, bounce_vel %.1f m/s, "
+           "default ERP/CFM\n",
+           QUICK_ITERS, dGetConfiguration(), MAX_PAIR_CONTACTS, BOUNCE_VEL);
+    printf("sc1: simcluster, default world, workers = 1; scN: workers = %d (every online CPU)\n",
+           eng_threads[ENG_SCN]);
     printf("rest: all bodies < %.0f cm/s and < %.1f rad/s for %.1f s; "
            "explosion: NaN or energy > %.0fx initial\n\n",
            REST_V * 100, REST_W, REST_HOLD_S, EXPLODE_FACTOR);
-    printf("%6s  %-15s %4s  %9s %8s %9s %9s %10s %11s %10s  %s\n", "N", "engine", "runs",
+    printf("%6s  %-6s %3s %4s  %9s %8s %9s %9s %10s %9s %10s  %s\n", "N", "engine", "thr", "runs",
            "wall s", "sim s", "RT factor", "Epeak/E0", "max pen m", "rest at s", "vmax end",
            "end");
     for (int t = 0; t < nn; t++) {
@@ -617,31 +717,42 @@ int main(int argc, char **argv)
             scene_free(&sc);
             return 1;
         }
-        result med[ENG_COUNT];
+        static result med[ENG_COUNT], rs[MAX_RUNS];
         int have[ENG_COUNT] = { 0 };
         for (int e = 0; e < ENG_COUNT; e++) {
-            if (!strchr(engines, eng_key[e]))
+            if (!use[e])
                 continue;
-            result rs[MAX_RUNS];
             memset(rs, 0, sizeof rs);
-            for (int k = 0; k < runs; k++)
-                run_child(&sc, e, &rs[k]);
-            qsort(rs, (size_t)runs, sizeof rs[0], cmp_rtf);
-            med[e] = rs[runs / 2];
+            int made = 0;
+            while (made < runs) {
+                run_child(&sc, e, &rs[made++]);
+                if (!runs_opt && rs[0].end == END_BUDGET)
+                    break;          /* a cut cell is not repeated (see the top) */
+            }
+            qsort(rs, (size_t)made, sizeof rs[0], cmp_rtf);
+            med[e] = rs[made / 2];
             have[e] = 1;
-            print_row(n, e, runs, &med[e]);
+            print_row(n, e, made, &med[e]);
             fflush(stdout);
         }
-        if (have[ENG_QUICK] && have[ENG_SC]) {
-            const result *q = &med[ENG_QUICK], *c = &med[ENG_SC];
-            int ok = q->end != END_CRASH && c->end != END_CRASH;
-            printf("        simcluster / QuickStep:\n");
-            print_ratio("RT factor", ok ? rtf(c) : NAN, ok ? rtf(q) : NAN);
-            print_ratio("Epeak/E0", ok ? c->epeak / c->e0 : NAN, ok ? q->epeak / q->e0 : NAN);
-            print_ratio("max penetration", ok ? c->max_pen : NAN, ok ? q->max_pen : NAN);
-            print_ratio("time to rest", c->rest_s >= 0 ? c->rest_s : NAN,
-                        q->rest_s >= 0 ? q->rest_s : NAN);
+        /* ours over each peer, and scN over sc1 */
+        static const int pairs[][2] = { { ENG_SC1, ENG_QUICK }, { ENG_SCN, ENG_QUICK },
+                                        { ENG_SC1, ENG_STEP },  { ENG_SCN, ENG_STEP },
+                                        { ENG_SCN, ENG_SC1 } };
+        int header = 0;
+        for (size_t i = 0; i < sizeof pairs / sizeof pairs[0]; i++) {
+            int o = pairs[i][0], p = pairs[i][1];
+            if (!have[o] || !have[p])
+                continue;
+            if (!header) {
+                printf("  ratios at N = %d (RT factor over the simulated span both runs reached):\n"
+                       "    %-12s %8s %10s %10s %10s %10s\n",
+                       n, "pair", "span s", "RT factor", "Epeak/E0", "max pen", "rest time");
+                header = 1;
+            }
+            print_ratios(o, p, &med[o], &med[p]);
         }
+        fflush(stdout);
         scene_free(&sc);
     }
     sc_shape_release(bolt);
