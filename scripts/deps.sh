@@ -2,8 +2,17 @@
 # Checks the Debian packages simcluster builds and tests with. As root it
 # installs the missing ones (apt-get update first); otherwise it prints the
 # exact install line and fails.
+#   scripts/deps.sh         what make, make check and make demo need
+#   scripts/deps.sh bench   what the benchmark scripts need besides
+#                           (bench/figs34.sh: gnuplot, ip and tc)
 PKGS="build-essential pkg-config libode-dev libccd-dev liblcm-dev liblcm-bin libglib2.0-dev \
 libgsl-dev libsodium-dev libcmocka-dev libosmesa6-dev libpng-dev mandoc cppcheck"
+BENCH_PKGS="gnuplot-nox iproute2"
+case ${1:-} in
+"") ;;
+bench) PKGS=$BENCH_PKGS ;;
+*) echo "usage: scripts/deps.sh [bench]" >&2; exit 2 ;;
+esac
 missing=""
 for p in $PKGS; do
     st=$(dpkg-query -W -f='${Status}' "$p" 2>/dev/null)

@@ -39,6 +39,10 @@ check "run --json" 0 "$tool" run bolts --bodies 5 --until-rest --json
 grep -q '"at_rest": true' "$dir/out" || { echo "FAIL: run --json: not at rest"; cat "$dir/out"; fail=1; }
 python3 -c 'import json,sys; json.load(open(sys.argv[1]))' "$dir/out" 2>/dev/null ||
     { command -v python3 >/dev/null && { echo "FAIL: run --json is not JSON"; fail=1; }; }
+grep -q '"frames_over_budget": [0-9]*, "max_frame_s": 0\.[0-9]*' "$dir/out" ||
+    { echo "FAIL: run --json: no frames_over_budget, max_frame_s"; cat "$dir/out"; fail=1; }
+check "run --wait-daemons without --cluster" 2 "$tool" run bolts --wait-daemons 1
+one_line "run --wait-daemons without --cluster" "needs --cluster"
 check "run without a scene" 2 "$tool" run
 check "run, a scene file that is not there" 1 "$tool" run cubes
 one_line "run, missing scene file" "cubes: No such file or directory"
