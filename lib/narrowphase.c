@@ -226,6 +226,42 @@ static int pose_ok(const sc_pose *p)
     return isfinite(n) && fabs(n - 1) < 1e-6;
 }
 
+/* A non-convex mesh against a plane: each vertex inside the half space is a
+ * contact, as in ODE's trimesh-plane collider, which reaches the vertices
+ * through the triangles (each one fetched, converted and transformed about
+ * six times), takes the trimesh lock and stops at the contact buffer's
+ * size; here each vertex is looked at once, none is left out, and a full
+ * buffer is reduced (deepest and widest kept) before it takes more. The
+ * normal points from a to b (the mesh is pushed out along the plane's). */
+#define MESH_PLANE_BUF 256
+static int mesh_plane(const sc_shape *m, const sc_pose *pm, const sc_shape *pl,
+                      const sc_pose *pp, int plane_is_a, sc_contact *c, double merge)
+{
+    double n[3], R[9];
+    q_rotate(n, pp->quat, pl->plane);
+    double d = pl->plane[3] + v3_dot(n, pp->pos);
+    if (d - v3_dot(n, pm->pos) + m->bound_r < 0)
+        return 0;                  /* the mesh's bounding sphere is clear */
+    q_to_m3(R, pm->quat);
+    int k = 0;
+    for (int i = 0; i < m->nverts; i++) {
+        double v[3];
+        m3_mulv(v, R, &m->xyz[3 * i]);
+        v3_add(v, v, pm->pos);
+        double depth = d - v3_dot(n, v);
+        if (!(depth > 0))
+            continue;
+        if (k == MESH_PLANE_BUF)
+            k = sc_manifold_reduce(c, k, merge);
+        sc_contact *ci = &c[k++];
+        ci->body_a = ci->body_b = -1;
+        v3_copy(ci->pos, v);
+        v3_scale(ci->normal, n, plane_is_a ? 1.0 : -1.0);
+        ci->depth = depth;
+    }
+    return k;
+}
+
 int sc_np_collide(sc_np_ctx *ctx, const sc_shape *a, const sc_pose *pa, const sc_shape *b,
                   const sc_pose *pb, sc_contact *out, int max)
 {
@@ -242,6 +278,21 @@ int sc_np_collide(sc_np_ctx *ctx, const sc_shape *a, const sc_pose *pa, const sc
         sc_ode_thread_init();
     int ra, rb;
     choose_reps(a, b, &ra, &rb);
+    double size = fmin(a->bound_r, b->bound_r);
+    if (!isfinite(size))
+        size = 1;
+    if ((ra == REP_TRIMESH && b->kind == SC_SHAPE_PLANE) ||
+        (rb == REP_TRIMESH && a->kind == SC_SHAPE_PLANE)) {
+        sc_contact c[MESH_PLANE_BUF];
+        int pa_ = a->kind == SC_SHAPE_PLANE;
+        int n = pa_ ? mesh_plane(b, pb, a, pa, 1, c, 1e-3 * size)
+                    : mesh_plane(a, pa, b, pb, 0, c, 1e-3 * size);
+        n = n > 0 ? sc_manifold_reduce(c, n, 1e-3 * size) : 0;
+        n = n > max ? max : n;
+        if (n > 0)
+            memcpy(out, c, (size_t)n * sizeof *out);
+        return n;
+    }
     dGeomID ga = get_geom(ctx, a, 0, ra), gb = get_geom(ctx, b, 1, rb);
     if (!ga || !gb)
         return SC_ENOMEM;
@@ -263,9 +314,6 @@ int sc_np_collide(sc_np_ctx *ctx, const sc_shape *a, const sc_pose *pa, const sc
         v3_scale(c[i].normal, raw[i].normal, -1.0);
         c[i].depth = raw[i].depth;
     }
-    double size = fmin(a->bound_r, b->bound_r);
-    if (!isfinite(size))
-        size = 1;
     n = sc_manifold_reduce(c, n, 1e-3 * size);
     if (n > max)
         n = max;

@@ -5,6 +5,7 @@
 #include <stdarg.h>
 #include <stddef.h>
 #include <stdint.h>
+#include <stdlib.h>
 #include <string.h>
 #include <cmocka.h>
 #include <pthread.h>
@@ -380,6 +381,105 @@ static void *mt_run(void *arg)
     return NULL;
 }
 
+/* Mesh against plane (lib/narrowphase.c: mesh_plane, our own vertex test
+ * instead of ODE's trimesh-plane collider): the deepest vertex is always a
+ * contact, with its exact depth, the normal is the plane's (flipped with
+ * the order), a mesh clear of the plane gets none, and a mesh with more
+ * vertices inside than the buffer holds still gets a spread manifold. */
+static void test_mesh_on_plane_every_vertex_counts(void **state)
+{
+    (void)state;
+    /* a UV sphere of 2016 vertices with its north pole pushed in to half the
+     * radius: non-convex, so a trimesh */
+    sc_shape *u = sc_shape_uv_sphere(0.1, 64, 32);
+    const double *xyz0;
+    const int *tri0;
+    int nv, nt;
+    assert_int_equal(sc_shape_mesh_data(u, &xyz0, &nv, &tri0, &nt), SC_OK);
+    double *xyz = malloc((size_t)nv * 3 * sizeof *xyz);
+    assert_non_null(xyz);
+    memcpy(xyz, xyz0, (size_t)nv * 3 * sizeof *xyz);
+    int top = 0;
+    for (int i = 1; i < nv; i++)
+        if (xyz[3 * i + 2] > xyz[3 * top + 2])
+            top = i;
+    xyz[3 * top + 2] = 0.05;
+    sc_shape *dent = sc_shape_mesh(xyz, nv, tri0, nt);
+    free(xyz);
+    assert_non_null(dent);
+    sc_shape *floor = sc_shape_plane(0, 0, 1, 0);
+    sc_contact c[SC_MAX_PAIR_CONTACTS];
+    /* centre on the plane: about 1000 vertices inside */
+    sc_pose pm = at(0.3, -0.2, 0.0), pp = at(0, 0, 0);
+    int n = sc_collide(dent, &pm, floor, &pp, c, SC_MAX_PAIR_CONTACTS);
+    assert_int_equal(n, SC_MAX_PAIR_CONTACTS);
+    double spread = 0;
+    for (int i = 0; i < n; i++) {
+        assert_true(c[i].pos[2] < 0 && fabs(c[i].depth + c[i].pos[2]) < TOL);
+        assert_true(fabs(c[i].normal[2] + 1) < TOL);        /* from the mesh to the floor */
+        for (int j = 0; j < i; j++)
+            spread = fmax(spread, hypot(c[i].pos[0] - c[j].pos[0], c[i].pos[1] - c[j].pos[1]));
+    }
+    assert_true(fabs(max_depth(c, n) - 0.1) < TOL);        /* the south pole */
+    assert_true(spread > 0.15);                             /* across the 0.2 m disc */
+    n = sc_collide(floor, &pp, dent, &pm, c, SC_MAX_PAIR_CONTACTS);
+    assert_int_equal(n, SC_MAX_PAIR_CONTACTS);
+    for (int i = 0; i < n; i++)
+        assert_true(fabs(c[i].normal[2] - 1) < TOL);
+    /* just clear, and far */
+    pm = at(0, 0, 0.1 + 1e-9);
+    assert_int_equal(sc_collide(dent, &pm, floor, &pp, c, SC_MAX_PAIR_CONTACTS), 0);
+    pm = at(0, 0, 5);
+    assert_int_equal(sc_collide(dent, &pm, floor, &pp, c, SC_MAX_PAIR_CONTACTS), 0);
+    /* a tilted nut against a tilted, shifted plane: the deepest contact is
+     * the deepest vertex, by brute force */
+    sc_shape *nut = sc_shape_nut(), *tilted = sc_shape_plane(0.1, 0.2, 1, 0.01);
+    sc_pose pn = { { 0.01, 0.02, 0.005 }, { 0.9, 0.3, -0.2, 0.1 } };
+    sc_pose pt = { { 0, 0, 0.002 }, { 0.99, 0.05, 0.1, 0 } };
+    double qn = sqrt(0.81 + 0.09 + 0.04 + 0.01), qt = sqrt(0.9801 + 0.0025 + 0.01);
+    for (int k = 0; k < 4; k++) {
+        pn.quat[k] /= qn;
+        pt.quat[k] /= qt;
+    }
+    n = sc_collide(nut, &pn, tilted, &pt, c, SC_MAX_PAIR_CONTACTS);
+    assert_true(n >= 3);
+    const double *nx;
+    assert_int_equal(sc_shape_mesh_data(nut, &nx, &nv, &tri0, &nt), SC_OK);
+    double w = pt.quat[0], x = pt.quat[1], y = pt.quat[2], z = pt.quat[3];
+    double pl[3] = { 0.1, 0.2, 1 }, len = sqrt(1.05), nrm[3];
+    for (int a = 0; a < 3; a++)
+        pl[a] /= len;
+    /* the plane's normal in the world: rotate by the plane's pose */
+    const double Rt[9] = { 1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y),
+                           2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x),
+                           2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y) };
+    for (int a = 0; a < 3; a++)
+        nrm[a] = Rt[3 * a] * pl[0] + Rt[3 * a + 1] * pl[1] + Rt[3 * a + 2] * pl[2];
+    double d = 0.01 / len + nrm[0] * pt.pos[0] + nrm[1] * pt.pos[1] + nrm[2] * pt.pos[2];
+    w = pn.quat[0], x = pn.quat[1], y = pn.quat[2], z = pn.quat[3];
+    const double Rn[9] = { 1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y),
+                           2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x),
+                           2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y) };
+    double deepest = 0;
+    for (int i = 0; i < nv; i++) {
+        double v[3];
+        for (int a = 0; a < 3; a++)
+            v[a] = Rn[3 * a] * nx[3 * i] + Rn[3 * a + 1] * nx[3 * i + 1] + Rn[3 * a + 2] * nx[3 * i + 2] +
+                   pn.pos[a];
+        deepest = fmax(deepest, d - (nrm[0] * v[0] + nrm[1] * v[1] + nrm[2] * v[2]));
+    }
+    assert_true(deepest > 0.001);
+    assert_true(fabs(max_depth(c, n) - deepest) < 1e-12);
+    for (int i = 0; i < n; i++)
+        for (int a = 0; a < 3; a++)
+            assert_true(fabs(c[i].normal[a] + nrm[a]) < TOL);
+    sc_shape_release(nut);
+    sc_shape_release(tilted);
+    sc_shape_release(dent);
+    sc_shape_release(u);
+    sc_shape_release(floor);
+}
+
 static void test_threads_collide_shared_shapes_concurrently(void **state)
 {
     (void)state;
@@ -431,6 +531,7 @@ int main(void)
         cmocka_unit_test(test_meshes_against_box_and_sphere),
         cmocka_unit_test(test_convex_hull_box_on_plane),
         cmocka_unit_test(test_contacts_are_bit_identical_on_repeat),
+        cmocka_unit_test(test_mesh_on_plane_every_vertex_counts),
         cmocka_unit_test(test_threads_collide_shared_shapes_concurrently),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
