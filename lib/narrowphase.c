@@ -242,15 +242,21 @@ static int mesh_plane(const sc_shape *m, const sc_pose *pm, const sc_shape *pl,
     double d = pl->plane[3] + v3_dot(n, pp->pos);
     if (d - v3_dot(n, pm->pos) + m->bound_r < 0)
         return 0;                  /* the mesh's bounding sphere is clear */
+    /* the plane in the mesh's frame: one dot product a vertex; only the
+     * vertices inside are carried to the world */
+    double nl[3];
     q_to_m3(R, pm->quat);
+    m3_tmulv(nl, R, n);
+    double dl = d - v3_dot(n, pm->pos);
     int k = 0;
     for (int i = 0; i < m->nverts; i++) {
-        double v[3];
-        m3_mulv(v, R, &m->xyz[3 * i]);
-        v3_add(v, v, pm->pos);
-        double depth = d - v3_dot(n, v);
+        const double *vl = &m->xyz[3 * i];
+        double depth = dl - v3_dot(nl, vl);
         if (!(depth > 0))
             continue;
+        double v[3];
+        m3_mulv(v, R, vl);
+        v3_add(v, v, pm->pos);
         if (k == MESH_PLANE_BUF)
             k = sc_manifold_reduce(c, k, merge);
         sc_contact *ci = &c[k++];
