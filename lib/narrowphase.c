@@ -320,6 +320,20 @@ int sc_np_collide(sc_np_ctx *ctx, const sc_shape *a, const sc_pose *pa, const sc
         v3_scale(c[i].normal, raw[i].normal, -1.0);
         c[i].depth = raw[i].depth;
     }
+    /* ODE's convex-convex and convex-box colliders give one point (DESIGN.md
+     * section 8): a face resting on a face gets its whole footprint by
+     * clipping (polyhedron.c). Box-box is native and gives several. */
+    if (ra == REP_CONVEX || rb == REP_CONVEX) {
+        double deepest = 0;
+        for (int i = 0; i < n; i++)
+            deepest = fmax(deepest, c[i].depth);
+        sc_contact clip[RAW_CONTACTS];
+        int k = sc_poly_clip(a, pa, b, pb, deepest, clip, RAW_CONTACTS);
+        if (k > 0) {
+            n = k;
+            memcpy(c, clip, (size_t)n * sizeof *c);
+        }
+    }
     n = sc_manifold_reduce(c, n, 1e-3 * size);
     if (n > max)
         n = max;

@@ -54,6 +54,14 @@ struct sc_shape {
     unsigned *ode_index;      /* dTriIndex copy of tri */
     double *ode_planes;       /* dConvex: 4 per triangle */
     unsigned *ode_polys;      /* dConvex: 3, i, j, k per triangle */
+    /* boxes and convex meshes: polygon faces (coplanar triangles merged)
+     * for the face-clipping manifold (polyhedron.c); nfaces 0 if none */
+    int nfaces;
+    int nface_xyz;
+    double *face_xyz;         /* corners, 3 per point, shape frame */
+    double *face_plane;       /* 4 per face: outward unit normal, offset */
+    int *face_start;          /* face f: face_vert[face_start[f] .. face_start[f + 1]) */
+    int *face_vert;           /* corner indices, counter-clockwise seen from out */
 };
 
 /* A builder's mesh moved so its centre of mass is the origin; takes
@@ -151,6 +159,20 @@ int sc_np_collide(sc_np_ctx *ctx, const sc_shape *a, const sc_pose *pa,
 /* Reduce n raw contacts in place to at most SC_MAX_PAIR_CONTACTS well-spread
  * ones (points closer than merge_dist merged); returns the new count. */
 int sc_manifold_reduce(sc_contact *c, int n, double merge_dist);
+
+/* Polygon faces of a box or convex mesh s (others: none), built once with
+ * the shape: SC_OK (also when s is too big to merge faces: then none) or
+ * SC_ENOMEM. sc_poly_free() frees them. */
+int sc_poly_build(sc_shape *s);
+void sc_poly_free(sc_shape *s);
+/* The contacts of an overlapping convex pair (the collider's deepest
+ * point depth deep) by clipping: the face of least penetration of either
+ * shape is the reference, the other shape's face most opposed to it is
+ * clipped by its sides; up to max points, each with its own depth, normals
+ * from a to b. Returns 0 (keep the collider's contacts) when a shape has
+ * no faces, is too big, or an edge-edge axis is clearly shallower. */
+int sc_poly_clip(const sc_shape *a, const sc_pose *pa, const sc_shape *b, const sc_pose *pb,
+                 double depth, sc_contact *out, int max);
 
 /* sc_toi() with the caller's (per-thread) narrow-phase context. */
 int sc_toi_ctx(sc_np_ctx *ctx, const sc_shape *a, const sc_pose *a0, const sc_pose *a1,

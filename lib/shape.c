@@ -33,6 +33,7 @@ static void shape_free(sc_shape *s)
     free(s->ode_index);
     free(s->ode_planes);
     free(s->ode_polys);
+    sc_poly_free(s);
     free(s);
 }
 
@@ -95,6 +96,11 @@ SC_API sc_shape *sc_shape_box(double hx, double hy, double hz)
     s->mp.inertia[0] = v / 3 * (hy * hy + hz * hz);
     s->mp.inertia[4] = v / 3 * (hx * hx + hz * hz);
     s->mp.inertia[8] = v / 3 * (hx * hx + hy * hy);
+    if (sc_poly_build(s) != SC_OK) {
+        shape_free(s);
+        sc_set_error(SC_ENOMEM);
+        return NULL;
+    }
     shape_hash(s);
     return s;
 }
@@ -241,6 +247,8 @@ static sc_shape *mesh_shape_take(int kind, double *xyz, int nverts, int *tri, in
         s->bound_r = fmax(s->bound_r, v3_len(&xyz[3 * i]));
     s->convex = kind == SC_SHAPE_CONVEX || mesh_is_convex(s);
     rc = build_ode_data(s);
+    if (rc == SC_OK)
+        rc = sc_poly_build(s);
     if (rc != SC_OK) {
         shape_free(s);
         sc_set_error(rc);

@@ -340,6 +340,67 @@ static void test_convex_hull_box_on_plane(void **state)
     sc_shape_release(plane);
 }
 
+/* Corner-at-origin 0.2 m cubes (a convex mesh, its hull, a box) face on
+ * face, 1 mm deep: ODE's convex-convex and convex-box colliders give one
+ * point; the pair must touch on the four corners of the overlap. */
+static void test_convex_cubes_face_on_face_touch_on_the_overlap_corners(void **state)
+{
+    (void)state;
+    static const int tri[36] = { 0, 2, 1, 0, 3, 2, 4, 5, 6, 4, 6, 7, 0, 1, 5, 0, 5, 4,
+                                 3, 7, 6, 3, 6, 2, 0, 4, 7, 0, 7, 3, 1, 2, 6, 1, 6, 5 };
+    double xyz[24];
+    for (int i = 0; i < 8; i++) {
+        xyz[3 * i] = (i == 1 || i == 2 || i == 5 || i == 6) ? 0.2 : 0;
+        xyz[3 * i + 1] = (i == 2 || i == 3 || i == 6 || i == 7) ? 0.2 : 0;
+        xyz[3 * i + 2] = i >= 4 ? 0.2 : 0;
+    }
+    sc_shape *cube[3] = { sc_shape_mesh(xyz, 8, tri, 12), sc_shape_convex(xyz, 8),
+                          sc_shape_box(0.1, 0.1, 0.1) };
+    double off[3][3] = { { 0, 0, 0 }, { 0, 0, 0 }, { 0.1, 0.1, 0.1 } };  /* box: centred */
+    sc_contact c[4];
+    for (int i = 0; i < 3; i++)
+        for (int j = 0; j < 3; j++) {
+            if (i == 2 && j == 2)
+                continue;               /* box-box is ODE's own, tested above */
+            /* upper cube shifted 50 mm in x: the overlap is x 0.05..0.2 */
+            sc_pose a = at(off[i][0], off[i][1], off[i][2]);
+            sc_pose b = at(0.05 + off[j][0], off[j][1], 0.2 - 0.001 + off[j][2]);
+            int k = sc_collide(cube[i], &a, cube[j], &b, c, 4);
+            assert_int_equal(k, 4);
+            assert_normals(c, k, 0, 0, 1, 1e-9);
+            int corners = 0;
+            for (int m = 0; m < k; m++) {
+                assert_true(fabs(c[m].depth - 0.001) < 1e-9);
+                int cx = fabs(c[m].pos[0] - 0.05) < 1e-9 || fabs(c[m].pos[0] - 0.2) < 1e-9;
+                int cy = fabs(c[m].pos[1]) < 1e-9 || fabs(c[m].pos[1] - 0.2) < 1e-9;
+                corners += cx && cy;
+            }
+            assert_int_equal(corners, 4);
+            /* upper cube tilted 3 degrees about y (about its corner), one
+             * bottom edge 1 mm deep: two points, on that edge */
+            double t = 3 * M_PI / 180;
+            sc_pose tilt = { { 0, 0, 0.2 + 0.2 * sin(t) - 0.001 },
+                             { cos(t / 2), 0, sin(t / 2), 0 } };
+            double r[3];    /* the box's centre sits at R (0.1, 0.1, 0.1) */
+            r[0] = 0.1 * cos(t) + 0.1 * sin(t);
+            r[1] = 0.1;
+            r[2] = -0.1 * sin(t) + 0.1 * cos(t);
+            if (j == 2)
+                for (int q = 0; q < 3; q++)
+                    tilt.pos[q] += r[q];
+            k = sc_collide(cube[i], &a, cube[j], &tilt, c, 4);
+            assert_int_equal(k, 2);
+            for (int m = 0; m < k; m++) {
+                assert_true(c[m].normal[2] > 0.99);
+                assert_true(fabs(c[m].depth - 0.001) < 1e-6);
+                assert_true(fabs(c[m].pos[0] - 0.2 * cos(t)) < 1e-3);
+            }
+            assert_true(fabs(fabs(c[0].pos[1] - c[1].pos[1]) - 0.2) < 1e-6);
+        }
+    for (int i = 0; i < 3; i++)
+        sc_shape_release(cube[i]);
+}
+
 static void test_contacts_are_bit_identical_on_repeat(void **state)
 {
     (void)state;
@@ -530,6 +591,7 @@ int main(void)
         cmocka_unit_test(test_nuts_stacked_flat_touch_on_their_faces),
         cmocka_unit_test(test_meshes_against_box_and_sphere),
         cmocka_unit_test(test_convex_hull_box_on_plane),
+        cmocka_unit_test(test_convex_cubes_face_on_face_touch_on_the_overlap_corners),
         cmocka_unit_test(test_contacts_are_bit_identical_on_repeat),
         cmocka_unit_test(test_mesh_on_plane_every_vertex_counts),
         cmocka_unit_test(test_threads_collide_shared_shapes_concurrently),
