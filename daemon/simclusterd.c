@@ -39,13 +39,14 @@
 typedef struct settings {
     char url[LINE_BYTES + 1], key_file[LINE_BYTES + 1], user[LINE_BYTES + 1];
     int insecure, threads, idle_priority, syslog, verbose;  /* threads 0: the CPUs we may use */
+    int dedicated;                 /* no owner: always idle, never busy */
     double busy_threshold, heartbeat;
     long long node_id;             /* 0: random */
 } settings;
 
 enum kind { STR, BOOL, INT, I64, DBL };
 enum { ROW_URL, ROW_KEY, ROW_INSECURE, ROW_THREADS, ROW_BUSY, ROW_HEARTBEAT, ROW_NODE, ROW_USER,
-       ROW_IDLE, ROW_SYSLOG, ROW_VERBOSE, NROWS };
+       ROW_IDLE, ROW_SYSLOG, ROW_VERBOSE, ROW_DEDICATED, NROWS };
 
 /* The options, one row each: config key, long option, type, field, bounds
  * (lo excluded when lo_open), the value a BOOL flag sets, and whether SIGHUP
@@ -75,6 +76,7 @@ static const struct row {
                    .flag_value = "no" },
     [ROW_SYSLOG] = { ROW("syslog", "syslog", BOOL, syslog), .flag_value = "yes" },
     [ROW_VERBOSE] = { ROW("verbose", "verbose", BOOL, verbose), .flag_value = "yes", .live = 1 },
+    [ROW_DEDICATED] = { ROW("dedicated", "dedicated", BOOL, dedicated), .flag_value = "yes" },
 #undef ROW
 };
 
@@ -437,6 +439,7 @@ static int usage(FILE *f, int status)
             "      --node-id N        this daemon's id, a positive integer (default random)\n"
             "      --user NAME        account to switch to when started as root (nobody)\n"
             "      --no-idle-priority compute threads at normal priority (not nice 19, idle)\n"
+            "      --dedicated        a compute node with no owner: report all CPUs idle, never busy\n"
             "      --syslog           log to syslog (daemon facility), not standard error\n"
             "  -v, --verbose          log debug messages too\n"
             "  -h, --help             this text\n"
@@ -549,6 +552,7 @@ int main(int argc, char **argv)
     d.cfg.heartbeat_s = s->heartbeat;
     d.cfg.node_id = s->node_id;
     d.cfg.idle_priority = s->idle_priority;
+    d.cfg.dedicated = s->dedicated;
     d.cfg.log = log_line;
     if (s->insecure) {
         memset(d.cfg.key, 0, sizeof d.cfg.key);

@@ -551,6 +551,8 @@ static void heartbeat(sc_serve *s)
     double threshold = s->cfg.busy_threshold;
     pthread_mutex_unlock(&s->cfg_lock);
     double idle = measure_idle(s);
+    if (s->cfg.dedicated)
+        idle = 1;                  /* nobody to step aside for */
     int was = s->busy.busy;
     int busy = sc_busy_update(&s->busy, idle, threshold, BUSY_HYSTERESIS);
     if (busy != was)

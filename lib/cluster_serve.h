@@ -35,6 +35,9 @@ typedef struct sc_serve_config {
     double heartbeat_s;         /* announce period, 0.01..10 (default 0.2) */
     int64_t node_id;            /* > 0; 0 = random */
     int idle_priority;          /* 1: compute threads at nice 19 and SCHED_IDLE */
+    int dedicated;              /* 1: a compute node with no owner: the idle
+                                   fraction is reported as 1 and the node is
+                                   never owner-busy, whatever else runs */
     size_t cache_bytes;         /* shape cache bound (default 256 MiB) */
     /* messages (syslog priorities: LOG_ERR, LOG_WARNING, LOG_INFO, LOG_DEBUG);
      * called from any thread, one line each, no newline; NULL = none */

@@ -101,6 +101,27 @@ if wait_log "serving"; then
 fi
 [ -n "$pid" ] && { kill -9 "$pid" 2>/dev/null; wait "$pid"; pid=""; }
 
+# --dedicated (here from the config file): two CPU hogs on a 2-core host
+# and still all idle, never owner-busy
+printf 'dedicated = yes\nbusy_threshold = 0.5\nheartbeat = 0.05\n' >"$dir/ded.conf"
+chmod 644 "$dir/ded.conf"
+: >"$dir/log"
+"$bin" -c "$dir/ded.conf" --insecure --url "$url" --threads 1 2>"$dir/log" &
+pid=$!
+if wait_log "serving"; then
+    # (started from a subshell: not our jobs, so no "Killed" when they go)
+    hogs=$( (sh -c 'while :; do :; done' >/dev/null 2>&1 & echo $!
+             sh -c 'while :; do :; done' >/dev/null 2>&1 & echo $!) )
+    sleep 0.6
+    kill -USR1 "$pid"
+    wait_log "counters:" && { grep "counters:" "$dir/log" | grep -q "idle=1.000 owner_busy=0" ||
+        { echo "FAIL: --dedicated: $(grep counters: "$dir/log")"; fail=1; }; }
+    kill -9 $hogs
+    kill -TERM "$pid"
+    wait_exit
+fi
+[ -n "$pid" ] && { kill -9 "$pid" 2>/dev/null; wait "$pid"; pid=""; }
+
 # --insecure starts without a key, says so, and SIGINT stops it too.
 : >"$dir/log"
 "$bin" -c "$dir/empty.conf" --insecure --url "$url" --threads 1 --heartbeat 0.05 2>"$dir/log" &
