@@ -255,7 +255,7 @@ start_daemon() { # $1 = 1..3; waits for its "serving" line
     log=$dir/d$1.log
     : >"$log"
     sh -c "$JOIN" "$CG/d$1/$PROCS" ip netns exec "$ns" "$DAEMON" --url "$URL" --key "$KEY" \
-        --threads 2 --busy-threshold 1 --heartbeat 0.1 --node-id $((3400 + $1)) >>"$log" 2>&1 &
+        --threads 2 --dedicated --heartbeat 0.1 --node-id $((3400 + $1)) >>"$log" 2>&1 &
     eval "dpid$1=$!"
     pids="$pids $!"
     tries=0
@@ -454,7 +454,7 @@ MD=$OUT/figs34.md
     echo "  master $q_m µs ($(cpus "$q_m") CPU), d1 $q_d1 ($(cpus "$q_d1")), d2 $q_d2"
     echo "  ($(cpus "$q_d2")), d3 $q_d3 ($(cpus "$q_d3")); sum $qsum CPU. The master is the 1.26"
     echo "  node and computes too (\`--workers 2\`, dual CPU); each daemon is \`simclusterd"
-    echo "  --threads 2 --busy-threshold 1\`."
+    echo "  --threads 2 --dedicated\` (no owner: the other emulated PCs on the same CPUs must not count as one)."
     echo "- Network: a veth per node to a bridge (multicast floods every port, as on a"
     echo "  switch without IGMP snooping), shaped with tc: $LAT. LCM multicast with ttl=1"
     echo "  inside the namespaces."

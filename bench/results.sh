@@ -307,6 +307,19 @@ if [ -f bench/figs34.sh ]; then
         w ""
         w "figs34.sh wrote no figs34.md."
     fi
+    if [ $quick -eq 0 ]; then
+        # today's CPUs keep the paper's largest N in real time everywhere:
+        # the same emulation at larger N shows where real time ends
+        w ""
+        w "### Beyond the paper's N (one run each)"
+        mkdir -p "$outdir/figs34x"
+        run e_figsx sh bench/figs34.sh -n '50 100 150 200 300' -r 1 -o "$outdir/figs34x"
+        if [ -f "$outdir/figs34x/figs34.md" ]; then
+            w ""
+            sed -e 's#\](\([^)/:][^):]*\))#](figs34x/\1)#g' -e 's/^## /#### /' \
+                "$outdir/figs34x/figs34.md" >>"$tmp/body"
+        fi
+    fi
 else
     w ""
     w "Not run: bench/figs34.sh does not exist yet."
