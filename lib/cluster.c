@@ -539,3 +539,30 @@ void sc_cluster_end(sc_cluster *c)
 {
     c->job = NULL;
 }
+
+SC_API int sc_cluster_wait(const sc_world_config *cfg, int k, double timeout_s)
+{
+    if (!cfg || !cfg->cluster || k < 0 || k > SC_MAX_DAEMONS || !(timeout_s >= 0) ||
+        !isfinite(timeout_s))
+        return sc_set_error(SC_EINVAL);
+    sc_world_config c = *cfg;
+    c.workers = 1;                 /* it has no work: no threads needed */
+    sc_world *probe = sc_world_create(&c);
+    if (!probe)
+        return sc_last_error();
+    sc_body_desc floor = sc_body_desc_default();
+    floor.shape = sc_shape_plane(0, 0, 1, 0);
+    floor.mass = 0;
+    int rc = floor.shape ? sc_body_add(probe, &floor) : sc_last_error();
+    sc_shape_release(floor.shape);
+    double t0 = sc_wall_now();
+    sc_stats st = { .daemons = 0 };
+    while (rc >= 0 && (rc = sc_world_step(probe, 0.01)) == SC_OK) {
+        sc_world_stats(probe, &st);
+        if (st.daemons >= k || sc_wall_now() - t0 >= timeout_s)
+            break;
+        nanosleep(&(struct timespec){ .tv_nsec = 50000000 }, NULL);
+    }
+    sc_world_destroy(probe);
+    return rc < 0 ? sc_set_error(rc) : st.daemons;
+}

@@ -10,11 +10,8 @@
 
 static double tri_area2(const double a[3], const double b[3], const double c[3])
 {
-    double e1[3], e2[3], n[3];
-    v3_sub(e1, b, a);
-    v3_sub(e2, c, a);
-    v3_cross(n, e1, e2);
-    return v3_len(n);
+    double n[3];
+    return tri_normal(n, a, b, c);
 }
 
 int sc_manifold_reduce(sc_contact *c, int n, double merge_dist)

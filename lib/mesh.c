@@ -131,11 +131,8 @@ int sc_mesh_check(const double *xyz, int nverts, const int *tri, int ntris, sc_m
                 return SC_EINVAL;
         if (f[0] == f[1] || f[1] == f[2] || f[0] == f[2])
             return SC_EDEGENERATE;
-        double e1[3], e2[3], n[3];
-        v3_sub(e1, &xyz[3 * f[1]], &xyz[3 * f[0]]);
-        v3_sub(e2, &xyz[3 * f[2]], &xyz[3 * f[0]]);
-        v3_cross(n, e1, e2);
-        if (!(v3_len(n) / scale / scale > 1e-12))
+        double n[3], area2 = tri_normal(n, &xyz[3 * f[0]], &xyz[3 * f[1]], &xyz[3 * f[2]]);
+        if (!(area2 / scale / scale > 1e-12))
             return SC_EDEGENERATE;
     }
     int rc = check_closed(tri, ntris);

@@ -161,11 +161,8 @@ static int build_mesh(sc_shape *s)
     double work = 0, dtol = FACE_DIST_TOL * s->bound_r;
     for (int t = 0; t < nt; t++) {
         const int *f = &s->tri[3 * t];
-        double e1[3], e2[3], n[3];
-        v3_sub(e1, &s->xyz[3 * f[1]], &s->xyz[3 * f[0]]);
-        v3_sub(e2, &s->xyz[3 * f[2]], &s->xyz[3 * f[0]]);
-        v3_cross(n, e1, e2);
-        v3_normalize(n);
+        double n[3];
+        tri_normal(n, &s->xyz[3 * f[0]], &s->xyz[3 * f[1]], &s->xyz[3 * f[2]]);
         double d = v3_dot(n, &s->xyz[3 * f[0]]);
         /* latest faces first: neighbouring triangles tend to be listed
          * together */

@@ -136,11 +136,8 @@ static int mesh_is_convex(const sc_shape *s)
     for (int t = 0; t < s->ntris; t++) {
         const double *a = &s->xyz[3 * s->tri[3 * t]], *b = &s->xyz[3 * s->tri[3 * t + 1]],
                      *c = &s->xyz[3 * s->tri[3 * t + 2]];
-        double e1[3], e2[3], n[3];
-        v3_sub(e1, b, a);
-        v3_sub(e2, c, a);
-        v3_cross(n, e1, e2);
-        v3_normalize(n);
+        double n[3];
+        tri_normal(n, a, b, c);
         double d = v3_dot(n, a);
         for (int i = 0; i < s->nverts; i++)
             if (v3_dot(n, &s->xyz[3 * i]) - d > tol)
@@ -173,11 +170,8 @@ static int build_ode_data(sc_shape *s)
         return SC_ENOMEM;
     for (int t = 0; t < s->ntris; t++) {
         const int *f = &s->tri[3 * t];
-        double e1[3], e2[3], n[3];
-        v3_sub(e1, &s->xyz[3 * f[1]], &s->xyz[3 * f[0]]);
-        v3_sub(e2, &s->xyz[3 * f[2]], &s->xyz[3 * f[0]]);
-        v3_cross(n, e1, e2);
-        v3_normalize(n);
+        double n[3];
+        tri_normal(n, &s->xyz[3 * f[0]], &s->xyz[3 * f[1]], &s->xyz[3 * f[2]]);
         double *pl = &s->ode_planes[4 * t];
         v3_copy(pl, n);
         pl[3] = v3_dot(n, &s->xyz[3 * f[0]]);

@@ -35,6 +35,18 @@ static inline double v3_normalize(double a[3])
     return l;
 }
 
+/* n = the unit normal of triangle a b c (counter-clockwise: right hand);
+ * returns twice its area (0 leaves n the zero vector) */
+static inline double tri_normal(double n[3], const double a[3], const double b[3],
+                                const double c[3])
+{
+    double e1[3], e2[3];
+    v3_sub(e1, b, a);
+    v3_sub(e2, c, a);
+    v3_cross(n, e1, e2);
+    return v3_normalize(n);
+}
+
 /* r = m v */
 static inline void m3_mulv(double r[3], const double m[9], const double v[3])
 {

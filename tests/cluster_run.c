@@ -28,7 +28,6 @@
 
 #define DT 0.01
 #define WAIT_DAEMONS_S 10.0
-#define WAIT_STEP_S 0.05
 
 static double now_s(void)
 {
@@ -67,38 +66,16 @@ static int parse_double(const char *s, double lo, double hi, double *out)
 }
 
 /* Wait (at most WAIT_DAEMONS_S) until k daemons that are not owner-busy
- * are heard. A world takes in heartbeats only as it steps, so a second
- * world holding nothing but a static floor (it has no work to send) steps
- * on the same URL and key meanwhile; the scene's world finds the
- * heartbeats queued on its own socket at its first frame. */
+ * are heard (sc_cluster_wait). */
 static int wait_daemons(const sc_world_config *cfg, int k)
 {
-    sc_world *probe = sc_world_create(cfg);
-    if (!probe) {
-        fprintf(stderr, "cluster_run: probe world: %s\n", sc_strerror(sc_last_error()));
-        return 0;
-    }
-    sc_body_desc floor = sc_body_desc_default();
-    floor.shape = sc_shape_plane(0, 0, 1, 0);
-    floor.mass = 0;
-    int rc = floor.shape ? sc_body_add(probe, &floor) : sc_last_error();
-    sc_shape_release(floor.shape);
-    double t0 = now_s();
-    sc_stats st;
-    memset(&st, 0, sizeof st);
-    while (rc >= 0 && (rc = sc_world_step(probe, DT)) == SC_OK) {
-        sc_world_stats(probe, &st);
-        if (st.daemons >= k || now_s() - t0 > WAIT_DAEMONS_S)
-            break;
-        sleep_s(WAIT_STEP_S);
-    }
-    sc_world_destroy(probe);
-    if (rc != SC_OK)
-        fprintf(stderr, "cluster_run: probe world: %s\n", sc_strerror(rc));
-    else if (st.daemons < k)
-        fprintf(stderr, "cluster_run: %d daemon%s after %.0f s, %d wanted\n", st.daemons,
-                st.daemons == 1 ? "" : "s", WAIT_DAEMONS_S, k);
-    return rc == SC_OK && st.daemons >= k;
+    int n = sc_cluster_wait(cfg, k, WAIT_DAEMONS_S);
+    if (n < 0)
+        fprintf(stderr, "cluster_run: probe world: %s\n", sc_strerror(n));
+    else if (n < k)
+        fprintf(stderr, "cluster_run: %d daemon%s after %.0f s, %d wanted\n", n,
+                n == 1 ? "" : "s", WAIT_DAEMONS_S, k);
+    return n >= k;
 }
 
 static int usage(FILE *f, int status)

@@ -211,6 +211,37 @@ static void test_wrong_key_daemon_is_never_used(void **state)
     sc_world_destroy(w);
 }
 
+/* sc_cluster_wait: returns once two daemons answer; with a third wanted it
+ * waits out its timeout and says two; a config without a cluster, or a
+ * bad count or timeout, is SC_EINVAL. */
+static void test_cluster_wait_counts_daemons(void **state)
+{
+    (void)state;
+    daemon_thread d[2];
+    start_daemon(&d[0], 0x5001, 1);
+    start_daemon(&d[1], 0x5002, 1);
+    sc_world_config c = sc_world_config_default();
+    c.cluster = url;
+    c.key_file = key_path;
+    struct timespec t0, t1;
+    clock_gettime(CLOCK_MONOTONIC, &t0);
+    assert_true(sc_cluster_wait(&c, 2, 5) >= 2);
+    assert_int_equal(sc_cluster_wait(&c, 3, 0.3), 2);
+    clock_gettime(CLOCK_MONOTONIC, &t1);
+    double s = (double)(t1.tv_sec - t0.tv_sec) + 1e-9 * (double)(t1.tv_nsec - t0.tv_nsec);
+    assert_true(s >= 0.3 && s < 4);
+    assert_true(sc_cluster_wait(&c, 0, 0) >= 0);      /* at once: one frame */
+    assert_int_equal(sc_cluster_wait(&c, -1, 1), SC_EINVAL);
+    assert_int_equal(sc_cluster_wait(&c, SC_MAX_DAEMONS + 1, 1), SC_EINVAL);
+    assert_int_equal(sc_cluster_wait(&c, 1, -1), SC_EINVAL);
+    assert_int_equal(sc_cluster_wait(NULL, 1, 1), SC_EINVAL);
+    c.cluster = NULL;
+    c.key_file = NULL;
+    assert_int_equal(sc_cluster_wait(&c, 1, 1), SC_EINVAL);
+    stop_daemon(&d[0], NULL);
+    stop_daemon(&d[1], NULL);
+}
+
 static void test_hostile_messages_are_dropped(void **state)
 {
     (void)state;
@@ -283,6 +314,7 @@ int main(void)
         cmocka_unit_test(test_daemons_with_motion_groups),
         cmocka_unit_test(test_a_daemon_that_stops_changes_nothing),
         cmocka_unit_test(test_wrong_key_daemon_is_never_used),
+        cmocka_unit_test(test_cluster_wait_counts_daemons),
         cmocka_unit_test(test_hostile_messages_are_dropped),
     };
     int rc = cmocka_run_group_tests(tests, NULL, NULL);

@@ -27,7 +27,6 @@
 #define MAX_LCP 2000               /* lcp: variables at most */
 #define MAX_SHAPE_MSGS 256         /* run --publish: shapes sent again each second */
 #define WAIT_DAEMONS_S 10.0        /* --wait-daemons: at most this long */
-#define WAIT_STEP_S 0.05
 
 static int usage(FILE *f, int status)
 {
@@ -237,49 +236,18 @@ static void json_string(const char *s)
     putchar('"');
 }
 
-static void sleep_s(double s)
-{
-    struct timespec ts = { (time_t)s, (long)((s - (double)(time_t)s) * 1e9) };
-    while (nanosleep(&ts, &ts) != 0 && errno == EINTR) {
-    }
-}
-
 /* --wait-daemons: wait (at most WAIT_DAEMONS_S) until k daemons that are
  * not owner-busy are heard, so that the first frames of a short run have
- * them too. A world takes in heartbeats only as it steps, so a second
- * world holding nothing but a static floor (no work to send) steps on the
- * same URL and key meanwhile, as tests/cluster_run.c does; the scene's
- * world finds the heartbeats queued on its own socket at its first frame.
- * 1 when they came, else 0 with the reason printed. */
+ * them too. 1 when they came, else 0 with the reason printed. */
 static int wait_daemons(const sc_world_config *cfg, int k, const char *cmd)
 {
-    sc_world *probe = sc_world_create(cfg);
-    if (!probe) {
-        fprintf(stderr, "simcluster: %s: --wait-daemons: %s\n", cmd,
-                sc_strerror(sc_last_error()));
-        return 0;
-    }
-    sc_body_desc floor = sc_body_desc_default();
-    floor.shape = sc_shape_plane(0, 0, 1, 0);
-    floor.mass = 0;
-    int rc = floor.shape ? sc_body_add(probe, &floor) : sc_last_error();
-    sc_shape_release(floor.shape);
-    double t0 = now_s();
-    sc_stats st;
-    memset(&st, 0, sizeof st);
-    while (rc >= 0 && (rc = sc_world_step(probe, DT)) == SC_OK) {
-        sc_world_stats(probe, &st);
-        if (st.daemons >= k || now_s() - t0 > WAIT_DAEMONS_S)
-            break;
-        sleep_s(WAIT_STEP_S);
-    }
-    sc_world_destroy(probe);
-    if (rc < 0)
-        fprintf(stderr, "simcluster: %s: --wait-daemons: %s\n", cmd, sc_strerror(rc));
-    else if (st.daemons < k)
-        fprintf(stderr, "simcluster: %s: %d daemon%s after %.0f s, %d wanted\n", cmd,
-                st.daemons, st.daemons == 1 ? "" : "s", WAIT_DAEMONS_S, k);
-    return rc >= 0 && st.daemons >= k;
+    int n = sc_cluster_wait(cfg, k, WAIT_DAEMONS_S);
+    if (n < 0)
+        fprintf(stderr, "simcluster: %s: --wait-daemons: %s\n", cmd, sc_strerror(n));
+    else if (n < k)
+        fprintf(stderr, "simcluster: %s: %d daemon%s after %.0f s, %d wanted\n", cmd, n,
+                n == 1 ? "" : "s", WAIT_DAEMONS_S, k);
+    return n >= k;
 }
 
 static sc_world *make_world(const options *o, const char *cmd)
