@@ -239,15 +239,14 @@ static int mesh_plane(const sc_shape *m, const sc_pose *pm, const sc_shape *pl,
 {
     double n[3], R[9];
     q_rotate(n, pp->quat, pl->plane);
-    double d = pl->plane[3] + v3_dot(n, pp->pos);
-    if (d - v3_dot(n, pm->pos) + m->bound_r < 0)
-        return 0;                  /* the mesh's bounding sphere is clear */
     /* the plane in the mesh's frame: one dot product a vertex; only the
      * vertices inside are carried to the world */
+    double dl = pl->plane[3] + v3_dot(n, pp->pos) - v3_dot(n, pm->pos);
+    if (dl + m->bound_r < 0)
+        return 0;                  /* the mesh's bounding sphere is clear */
     double nl[3];
     q_to_m3(R, pm->quat);
     m3_tmulv(nl, R, n);
-    double dl = d - v3_dot(n, pm->pos);
     int k = 0;
     for (int i = 0; i < m->nverts; i++) {
         const double *vl = &m->xyz[3 * i];
@@ -268,6 +267,18 @@ static int mesh_plane(const sc_shape *m, const sc_pose *pm, const sc_shape *pl,
     return k;
 }
 
+/* The n contacts in c reduced to a well-spread few, at most max of them
+ * copied to out; returns how many. */
+static int emit(sc_contact *c, int n, double merge, sc_contact *out, int max)
+{
+    n = sc_manifold_reduce(c, n, merge);
+    if (n > max)
+        n = max;
+    if (n > 0)
+        memcpy(out, c, (size_t)n * sizeof *out);
+    return n;
+}
+
 int sc_np_collide(sc_np_ctx *ctx, const sc_shape *a, const sc_pose *pa, const sc_shape *b,
                   const sc_pose *pb, sc_contact *out, int max)
 {
@@ -277,28 +288,22 @@ int sc_np_collide(sc_np_ctx *ctx, const sc_shape *a, const sc_pose *pa, const sc
         return SC_EINVAL;
     if (a->kind == SC_SHAPE_PLANE && b->kind == SC_SHAPE_PLANE)
         return 0;
+    int ra, rb;
+    choose_reps(a, b, &ra, &rb);
+    double size = fmin(a->bound_r, b->bound_r);
+    double merge = 1e-3 * (isfinite(size) ? size : 1);
+    if ((ra == REP_TRIMESH && b->kind == SC_SHAPE_PLANE) ||
+        (rb == REP_TRIMESH && a->kind == SC_SHAPE_PLANE)) {   /* no ODE needed */
+        sc_contact c[MESH_PLANE_BUF];
+        int n = a->kind == SC_SHAPE_PLANE ? mesh_plane(b, pb, a, pa, 1, c, merge)
+                                          : mesh_plane(a, pa, b, pb, 0, c, merge);
+        return emit(c, n, merge, out, max);
+    }
     const sc_ode *o = ctx->ode;
     if (sc_ode_is_private(o))
         o->dAllocateODEDataForThread(dAllocateMaskAll);
     else
         sc_ode_thread_init();
-    int ra, rb;
-    choose_reps(a, b, &ra, &rb);
-    double size = fmin(a->bound_r, b->bound_r);
-    if (!isfinite(size))
-        size = 1;
-    if ((ra == REP_TRIMESH && b->kind == SC_SHAPE_PLANE) ||
-        (rb == REP_TRIMESH && a->kind == SC_SHAPE_PLANE)) {
-        sc_contact c[MESH_PLANE_BUF];
-        int pa_ = a->kind == SC_SHAPE_PLANE;
-        int n = pa_ ? mesh_plane(b, pb, a, pa, 1, c, 1e-3 * size)
-                    : mesh_plane(a, pa, b, pb, 0, c, 1e-3 * size);
-        n = n > 0 ? sc_manifold_reduce(c, n, 1e-3 * size) : 0;
-        n = n > max ? max : n;
-        if (n > 0)
-            memcpy(out, c, (size_t)n * sizeof *out);
-        return n;
-    }
     dGeomID ga = get_geom(ctx, a, 0, ra), gb = get_geom(ctx, b, 1, rb);
     if (!ga || !gb)
         return SC_ENOMEM;
@@ -329,17 +334,10 @@ int sc_np_collide(sc_np_ctx *ctx, const sc_shape *a, const sc_pose *pa, const sc
             deepest = fmax(deepest, c[i].depth);
         sc_contact clip[RAW_CONTACTS];
         int k = sc_poly_clip(a, pa, b, pb, deepest, clip, RAW_CONTACTS);
-        if (k > 0) {
-            n = k;
-            memcpy(c, clip, (size_t)n * sizeof *c);
-        }
+        if (k > 0)
+            return emit(clip, k, merge, out, max);
     }
-    n = sc_manifold_reduce(c, n, 1e-3 * size);
-    if (n > max)
-        n = max;
-    if (n > 0)
-        memcpy(out, c, (size_t)n * sizeof *out);
-    return n;
+    return emit(c, n, merge, out, max);
 }
 
 SC_API int sc_collide(const sc_shape *a, const sc_pose *pa, const sc_shape *b,

@@ -174,6 +174,11 @@ void sc_poly_free(sc_shape *s);
 int sc_poly_clip(const sc_shape *a, const sc_pose *pa, const sc_shape *b, const sc_pose *pb,
                  double depth, sc_contact *out, int max);
 
+/* The whole file at path in a malloc'd buffer (*out, *len bytes; pipes are
+ * read to their end too): SC_OK, SC_ETOOBIG past max bytes, SC_ENOMEM, or
+ * SC_EIO with errno saying why (EISDIR for a folder). */
+int sc_read_file(const char *path, size_t max, unsigned char **out, size_t *len);
+
 /* sc_toi() with the caller's (per-thread) narrow-phase context. */
 int sc_toi_ctx(sc_np_ctx *ctx, const sc_shape *a, const sc_pose *a0, const sc_pose *a1,
                const sc_shape *b, const sc_pose *b0, const sc_pose *b1, double tol_m,

@@ -25,15 +25,12 @@
  * builds exactly what a program could build by hand.
  */
 #include <errno.h>
-#include <fcntl.h>
 #include <locale.h>
 #include <math.h>
 #include <stdarg.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
-#include <sys/stat.h>
-#include <unistd.h>
 
 #include "sc_internal.h"
 
@@ -658,42 +655,20 @@ SC_API sc_scene *sc_scene_load(const char *path, char *err, size_t errlen)
         sc_set_error(SC_EINVAL);
         return NULL;
     }
-    int fd = open(path, O_RDONLY | O_CLOEXEC);
-    struct stat st;
-    int e = fd < 0 ? errno : fstat(fd, &st) != 0 ? errno : !S_ISREG(st.st_mode) ? EINVAL : 0;
-    if (e) {
-        if (fd >= 0)
-            close(fd);
-        if (err && errlen)
-            snprintf(err, errlen, "%s: %s", path,
-                     e == EINVAL ? "not a regular file" : strerror(e));
-        sc_set_error(SC_EIO);
-        return NULL;
-    }
-    if ((size_t)st.st_size > SCENE_MAX_BYTES) {
-        close(fd);
-        if (err && errlen)
+    unsigned char *buf;
+    size_t len;
+    errno = 0;
+    int rc = sc_read_file(path, SCENE_MAX_BYTES, &buf, &len);
+    if (rc != SC_OK) {
+        int e = errno;
+        if (err && errlen && rc == SC_ETOOBIG)
             snprintf(err, errlen, "%s: larger than %zu bytes", path, SCENE_MAX_BYTES);
-        sc_set_error(SC_ETOOBIG);
-        return NULL;
-    }
-    size_t len = (size_t)st.st_size, got = 0;
-    char *buf = malloc(len ? len : 1);
-    while (buf && got < len) {
-        ssize_t k = read(fd, buf + got, len - got);
-        if (k < 0 && errno == EINTR)
-            continue;
-        if (k <= 0)
-            break;
-        got += (size_t)k;
-    }
-    e = got == len ? 0 : errno ? errno : EIO;
-    close(fd);
-    if (!buf || got != len) {
-        if (err && errlen)
-            snprintf(err, errlen, "%s: %s", path, !buf ? "out of memory" : strerror(e));
-        free(buf);
-        sc_set_error(!buf ? SC_ENOMEM : SC_EIO);
+        else if (err && errlen)
+            snprintf(err, errlen, "%s: %s", path,
+                     rc == SC_ENOMEM            ? "out of memory"
+                     : e == EISDIR || e == 0    ? "not a regular file"
+                                                : strerror(e));
+        sc_set_error(rc);
         return NULL;
     }
     /* mesh files are named relative to the scene file's folder */
@@ -703,7 +678,7 @@ SC_API sc_scene *sc_scene_load(const char *path, char *err, size_t errlen)
         snprintf(dir, sizeof dir, "%.*s", slash == path ? 1 : (int)(slash - path), path);
     else
         dir[0] = 0;
-    sc_scene *sc = sc_scene_parse(buf, len, path, dir, err, errlen);
+    sc_scene *sc = sc_scene_parse((const char *)buf, len, path, dir, err, errlen);
     free(buf);
     return sc;
 }

@@ -642,19 +642,19 @@ int sc_mesh_parse(const void *buf, size_t len, double **xyz, int *nverts, int **
     return SC_OK;
 }
 
-/* The whole file in a malloc'd buffer; not-regular files (pipes) are read
- * to their end too, but never more than LOAD_MAX_BYTES. */
-static int read_file(const char *path, unsigned char **out, size_t *len)
+int sc_read_file(const char *path, size_t max, unsigned char **out, size_t *len)
 {
     int fd = open(path, O_RDONLY | O_CLOEXEC);
     if (fd < 0)
         return SC_EIO;
     struct stat st;
     if (fstat(fd, &st) != 0 || S_ISDIR(st.st_mode)) {
+        int e = S_ISDIR(st.st_mode) ? EISDIR : errno;
         close(fd);
+        errno = e;
         return SC_EIO;
     }
-    if (S_ISREG(st.st_mode) && (uintmax_t)st.st_size > LOAD_MAX_BYTES) {
+    if (S_ISREG(st.st_mode) && (uintmax_t)st.st_size > max) {
         close(fd);
         return SC_ETOOBIG;
     }
@@ -664,11 +664,11 @@ static int read_file(const char *path, unsigned char **out, size_t *len)
     int rc = buf ? SC_OK : SC_ENOMEM;
     while (rc == SC_OK) {
         if (n == cap) {
-            if (cap > LOAD_MAX_BYTES) {
+            if (cap > max) {
                 rc = SC_ETOOBIG;
                 break;
             }
-            size_t nc = cap > LOAD_MAX_BYTES / 2 ? LOAD_MAX_BYTES + 1 : 2 * cap;
+            size_t nc = cap > max / 2 ? max + 1 : 2 * cap;
             unsigned char *nb = realloc(buf, nc);
             if (!nb) {
                 rc = SC_ENOMEM;
@@ -687,8 +687,10 @@ static int read_file(const char *path, unsigned char **out, size_t *len)
         else
             n += (size_t)r;
     }
+    int e = errno;
     close(fd);
-    if (rc == SC_OK && n > LOAD_MAX_BYTES)
+    errno = e;
+    if (rc == SC_OK && n > max)
         rc = SC_ETOOBIG;
     if (rc != SC_OK) {
         free(buf);
@@ -707,7 +709,7 @@ SC_API sc_shape *sc_shape_load(const char *path)
     }
     unsigned char *buf;
     size_t len;
-    int rc = read_file(path, &buf, &len);
+    int rc = sc_read_file(path, LOAD_MAX_BYTES, &buf, &len);
     if (rc != SC_OK) {
         sc_set_error(rc);
         return NULL;

@@ -117,9 +117,14 @@ static int parse_options(const char *cmd, int argc, char **argv, options *o)
     o->frames = -1;
     opterr = 0;
     optind = 2;
-    int c;
-    char *end;
-    while ((c = getopt_long(argc, argv, "", longs, NULL)) != -1) {
+    int c, li;
+    char *end, what[160];
+    while ((c = getopt_long(argc, argv, "", longs, &li)) != -1) {
+        /* --record, --render, --publish, --realtime: run only */
+        if (c != '?' && strchr("opPR", c) && strcmp(cmd, "run")) {
+            snprintf(what, sizeof what, "--%s is an option of run", longs[li].name);
+            return bad(cmd, what);
+        }
         switch (c) {
         case 'n':
             if (!parse_long(optarg, 1, 100000, &o->bodies))
@@ -165,33 +170,24 @@ static int parse_options(const char *cmd, int argc, char **argv, options *o)
                 return bad(cmd, "--wait-daemons takes 0..64");
             break;
         case 'o':
-            if (strcmp(cmd, "run"))
-                return bad(cmd, "--record is an option of run");
             if (optarg[0] == '\0')
                 return bad(cmd, "--record takes a file name");
             o->record = optarg;
             break;
         case 'p':
-            if (strcmp(cmd, "run"))
-                return bad(cmd, "--render is an option of run");
             if (optarg[0] == '\0')
                 return bad(cmd, "--render takes a directory");
             o->render = optarg;
             break;
         case 'P':
-            if (strcmp(cmd, "run"))
-                return bad(cmd, "--publish is an option of run");
             if (optarg[0] == '\0')
                 return bad(cmd, "--publish takes an LCM URL");
             o->publish = optarg;
             break;
         case 'R':
-            if (strcmp(cmd, "run"))
-                return bad(cmd, "--realtime is an option of run");
             o->realtime = 1;
             break;
         default: {
-            char what[160];
             snprintf(what, sizeof what, "unknown option or missing value: %s", argv[optind - 1]);
             return bad(cmd, what);
         }
