@@ -357,8 +357,21 @@ static GLuint compile_shape(const sclcm_shape_t *m)
 /* An SC_SHAPE event: checked as a daemon checks a shape (sc_msg_shape_decode
  * rebuilds it and compares its content hash), then compiled to a display
  * list. A shape already known is skipped. */
+/* The shape with content hash h among those read, or -1. */
+static int shape_index(const viewer *v, int64_t h)
+{
+    for (int k = 0; k < v->nshapes; k++)
+        if (v->shapes[k].hash == h)
+            return k;
+    return -1;
+}
+
 static int add_shape(viewer *v, const uint8_t *data, size_t len)
 {
+    /* shape_t.hash follows the 8-byte fingerprint: a shape already checked
+     * (a live run sends them again every second) is not rebuilt */
+    if (len >= 16 && shape_index(v, (int64_t)be(data + 8, 8)) >= 0)
+        return 0;
     sc_shape *s;
     if (sc_msg_shape_decode(data, len, &s) != SC_OK)
         return fail(v, "malformed shape");
@@ -366,9 +379,7 @@ static int add_shape(viewer *v, const uint8_t *data, size_t len)
     sclcm_shape_t m;
     if (sclcm_shape_t_decode(data, 0, (int)len, &m) != (int)len)
         return fail(v, "malformed shape");
-    int known = 0, full = v->nshapes == MAX_SHAPES;
-    for (int i = 0; i < v->nshapes; i++)
-        known |= v->shapes[i].hash == m.hash;
+    int known = shape_index(v, m.hash) >= 0, full = v->nshapes == MAX_SHAPES;
     if (!known && !full) {    /* with --dump, no GL: the shape is only checked */
         v->shapes[v->nshapes].hash = m.hash;
         v->shapes[v->nshapes++].list = v->o.dump ? 0 : compile_shape(&m);
@@ -484,10 +495,8 @@ static int render(viewer *v, const sclcm_state_t *m)
     const GLfloat light[4] = { 0.35f, 0.25f, 1.0f, 0 };   /* from above, world-fixed */
     glLightfv(GL_LIGHT0, GL_POSITION, light);
     for (int i = 0; i < m->n; i++) {
-        int k = 0;
-        while (k < v->nshapes && v->shapes[k].hash != m->shape[i])
-            k++;
-        if (k == v->nshapes)
+        int k = shape_index(v, m->shape[i]);
+        if (k < 0)
             return fail(v, "a body's shape is not in the log");
         glColor3fv(state_rgb[m->state[i]]);
         const double *q = m->quat[i], *p = m->pos[i];
@@ -598,13 +607,9 @@ static void on_live(const lcm_recv_buf_t *rb, const char *chan, void *user)
 
 static int shapes_known(const viewer *v, const sclcm_state_t *m)
 {
-    for (int i = 0; i < m->n; i++) {
-        int k = 0;
-        while (k < v->nshapes && v->shapes[k].hash != m->shape[i])
-            k++;
-        if (k == v->nshapes)
+    for (int i = 0; i < m->n; i++)
+        if (shape_index(v, m->shape[i]) < 0)
             return 0;
-    }
     return 1;
 }
 
