@@ -33,7 +33,8 @@ endif
 
 DEP_PKGS := ode gsl lcm libsodium
 GEN     := $(BUILD)/gen
-CPPFLAGS += -Iinclude -Ilib -I$(GEN) -D_GNU_SOURCE
+LAYERS  := core exec net api
+CPPFLAGS += -Iinclude -Ilib $(LAYERS:%=-Ilib/%) -I$(GEN) -D_GNU_SOURCE
 CFLAGS  += -std=c11 $(OPT) -g -Wall -Wextra -Werror -fPIC -fvisibility=hidden \
            -pthread $(XFLAGS)
 LDFLAGS += -pthread $(XFLAGS)
@@ -51,7 +52,8 @@ else
 Q := @
 endif
 
-LIB_SRC   := $(sort $(wildcard lib/*.c))
+LIB_SRC   := $(sort $(foreach l,$(LAYERS),$(wildcard lib/$(l)/*.c)))
+LIB_HDR   := $(wildcard include/*.h lib/*.h lib/*/*.h)
 # Message types: C generated from proto/*.lcm by lcm-gen into $(GEN)/ (one
 # sclcm_<struct>.c/.h per struct), linked into the library, never committed.
 PROTO     := $(sort $(wildcard proto/*.lcm))
@@ -86,7 +88,7 @@ lib: $(STATIC) $(SHARED)
 deps:
 	$(Q)sh scripts/deps.sh
 
-$(BUILD)/%.o: %.c $(wildcard include/*.h lib/*.h) Makefile
+$(BUILD)/%.o: %.c $(LIB_HDR) Makefile
 	@mkdir -p $(dir $@)
 	@$(if $(Q),echo "  CC      $<")
 	$(Q)$(CC) $(CPPFLAGS) $(CFLAGS) -c $< -o $@
@@ -103,7 +105,7 @@ $(GEN_SRC): $(GEN)/stamp ;
 
 # Generated headers exist before any library object is compiled.
 $(filter $(BUILD)/lib/%,$(LIB_OBJ)): | $(GEN)/stamp
-$(BUILD)/lib/cluster_msg.o: $(GEN)/stamp
+$(BUILD)/lib/net/cluster_msg.o: $(GEN)/stamp
 
 # lcm-gen's cleanup functions for types without arrays or strings do not
 # use their argument: -Wno-unused-parameter, for these files only.
@@ -144,7 +146,7 @@ $(BUILD)/tests/png_check: tests/png_check.c Makefile
 	$(Q)$(CC) $(CFLAGS) $< -o $@ $(LDFLAGS) $(PNG_LIBS) -lm
 
 # simclusterd(8): every daemon/*.c into one program.
-$(BUILD)/daemon/simclusterd: $(DAEMON_SRC) $(wildcard include/*.h lib/*.h) $(STATIC)
+$(BUILD)/daemon/simclusterd: $(DAEMON_SRC) $(LIB_HDR) $(STATIC)
 	@mkdir -p $(dir $@)
 	@$(if $(Q),echo "  DAEMON  $@")
 	$(Q)$(CC) $(CPPFLAGS) $(CFLAGS) $(DAEMON_SRC) -o $@ $(LDFLAGS) $(STATIC) $(LIBS)

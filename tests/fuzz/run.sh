@@ -18,7 +18,7 @@ secs=${1:-60}
 out=${FUZZ_BUILD:-build/fuzz}
 cc=${CLANG:-clang}
 findings=tests/fuzz/findings
-flags="-std=c11 -D_GNU_SOURCE -Iinclude -Ilib -I$out/gen -O1 -g -fno-omit-frame-pointer -pthread
+flags="-std=c11 -D_GNU_SOURCE -Iinclude -Ilib -Ilib/core -Ilib/exec -Ilib/net -Ilib/api -I$out/gen -O1 -g -fno-omit-frame-pointer -pthread
        -fsanitize=address,undefined -fno-sanitize-recover=all"
 libs=$(pkg-config --libs ode gsl lcm libsodium 2>/dev/null ||
        echo -lode -lgsl -lgslcblas -llcm -lsodium)
@@ -63,7 +63,7 @@ dict_scene() {
 # The library, instrumented for coverage, as an archive: each target links
 # only the objects it needs.
 objs=""
-for src in lib/*.c "$out"/gen/sclcm_*.c; do
+for src in lib/*/*.c "$out"/gen/sclcm_*.c; do
     o="$out/obj/$(basename "$src" .c).o"
     $cc $flags -fsanitize=fuzzer-no-link -c "$src" -o "$o"
     objs="$objs $o"
