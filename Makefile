@@ -33,8 +33,35 @@ endif
 
 DEP_PKGS := ode gsl lcm libsodium
 GEN     := $(BUILD)/gen
+# The library's layers, each seeing only its own and lower layers' headers
+# (docs/DESIGN.md section 2): core <- exec <- net <- api.
 LAYERS  := core exec net api
-CPPFLAGS += -Iinclude -Ilib $(LAYERS:%=-Ilib/%) -I$(GEN) -D_GNU_SOURCE
+INC_core := -Ilib/core
+INC_exec := $(INC_core) -Ilib/exec
+INC_net  := $(INC_exec) -Ilib/net -I$(GEN)
+INC_api  := $(INC_net) -Ilib/api
+CPPFLAGS += -Iinclude -D_GNU_SOURCE
+# Programs and tests see the public headers only, unless they name a layer
+# (internal tests: LAYER_<name> := core, exec, net or api).
+LAYER_test_arena := core
+LAYER_test_broadphase := core
+LAYER_test_hull := core
+LAYER_test_island := core
+LAYER_test_lcp := core
+LAYER_test_shape_load := core
+LAYER_test_units := api
+LAYER_test_cluster_msg := net
+LAYER_test_unit_wire := api
+LAYER_test_idle := net
+LAYER_test_cluster := api
+LAYER_bench_broadphase := core
+LAYER_bench_lcp := core
+LAYER_bench_cluster := api
+LAYER_fuzz_envelope := net
+LAYER_cluster_inject := net
+LAYER_fuzz_load := core
+# tools and the daemon: until their calls are public
+PROG_INC := $(INC_api)
 CFLAGS  += -std=c11 $(OPT) -g -Wall -Wextra -Werror -fPIC -fvisibility=hidden \
            -pthread $(XFLAGS)
 LDFLAGS += -pthread $(XFLAGS)
@@ -88,10 +115,11 @@ lib: $(STATIC) $(SHARED)
 deps:
 	$(Q)sh scripts/deps.sh
 
+$(foreach l,$(LAYERS),$(eval $(BUILD)/lib/$(l)/%.o: LAYER_INC := $(INC_$(l))))
 $(BUILD)/%.o: %.c $(LIB_HDR) Makefile
 	@mkdir -p $(dir $@)
 	@$(if $(Q),echo "  CC      $<")
-	$(Q)$(CC) $(CPPFLAGS) $(CFLAGS) -c $< -o $@
+	$(Q)$(CC) $(CPPFLAGS) $(LAYER_INC) $(CFLAGS) -c $< -o $@
 
 # --c-no-pubsub: messages go out as sealed bytes through lcm_publish
 # (lib/cluster_msg.c), and the generated subscribe stubs print to stderr.
@@ -111,7 +139,7 @@ $(BUILD)/lib/net/cluster_msg.o: $(GEN)/stamp
 # use their argument: -Wno-unused-parameter, for these files only.
 $(GEN)/%.o: $(GEN)/%.c $(GEN)/stamp
 	@$(if $(Q),echo "  CC      $<")
-	$(Q)$(CC) $(CPPFLAGS) $(CFLAGS) -Wno-unused-parameter -c $< -o $@
+	$(Q)$(CC) $(CPPFLAGS) $(INC_net) $(CFLAGS) -Wno-unused-parameter -c $< -o $@
 
 $(STATIC): $(LIB_OBJ)
 	@$(if $(Q),echo "  AR      $@")
@@ -128,7 +156,7 @@ $(SHARED): $(LIB_OBJ)
 $(BUILD)/tests/%: tests/%.c $(STATIC)
 	@mkdir -p $(dir $@)
 	@$(if $(Q),echo "  TEST    $@")
-	$(Q)$(CC) $(CPPFLAGS) $(CFLAGS) $< -o $@ $(LDFLAGS) $(STATIC) $(TESTLIBS)
+	$(Q)$(CC) $(CPPFLAGS) $(INC_$(LAYER_$(notdir $*))) $(CFLAGS) $< -o $@ $(LDFLAGS) $(STATIC) $(TESTLIBS)
 
 $(BUILD)/examples/%: examples/%.c $(STATIC)
 	@mkdir -p $(dir $@)
@@ -138,7 +166,7 @@ $(BUILD)/examples/%: examples/%.c $(STATIC)
 $(BUILD)/tools/%: tools/%.c $(STATIC)
 	@mkdir -p $(dir $@)
 	@$(if $(Q),echo "  TOOL    $@")
-	$(Q)$(CC) $(CPPFLAGS) $(CFLAGS) $< -o $@ $(LDFLAGS) $(STATIC) $(LIBS) $(TOOL_LIBS_$*)
+	$(Q)$(CC) $(CPPFLAGS) $(PROG_INC) $(CFLAGS) $< -o $@ $(LDFLAGS) $(STATIC) $(LIBS) $(TOOL_LIBS_$*)
 
 $(BUILD)/tests/png_check: tests/png_check.c Makefile
 	@mkdir -p $(dir $@)
@@ -149,19 +177,19 @@ $(BUILD)/tests/png_check: tests/png_check.c Makefile
 $(BUILD)/daemon/simclusterd: $(DAEMON_SRC) $(LIB_HDR) $(STATIC)
 	@mkdir -p $(dir $@)
 	@$(if $(Q),echo "  DAEMON  $@")
-	$(Q)$(CC) $(CPPFLAGS) $(CFLAGS) $(DAEMON_SRC) -o $@ $(LDFLAGS) $(STATIC) $(LIBS)
+	$(Q)$(CC) $(CPPFLAGS) $(PROG_INC) $(CFLAGS) $(DAEMON_SRC) -o $@ $(LDFLAGS) $(STATIC) $(LIBS)
 
 $(BUILD)/bench/%: bench/%.c $(wildcard bench/*.h) $(STATIC)
 	@mkdir -p $(dir $@)
 	@$(if $(Q),echo "  BENCH   $@")
-	$(Q)$(CC) $(CPPFLAGS) $(CFLAGS) $< -o $@ $(LDFLAGS) $(STATIC) $(LIBS) -ldl
+	$(Q)$(CC) $(CPPFLAGS) $(INC_$(LAYER_$*)) $(CFLAGS) $< -o $@ $(LDFLAGS) $(STATIC) $(LIBS) -ldl
 
 # Fuzz targets: a replay driver (every file of the corpus, run by make check)
 # and, with clang, a libFuzzer binary (make fuzz).
 $(BUILD)/tests/fuzz/%_replay: tests/fuzz/%.c tests/fuzz/replay_main.c $(STATIC)
 	@mkdir -p $(dir $@)
 	@$(if $(Q),echo "  FUZZ    $@")
-	$(Q)$(CC) $(CPPFLAGS) $(CFLAGS) $< tests/fuzz/replay_main.c -o $@ $(LDFLAGS) $(STATIC) $(LIBS)
+	$(Q)$(CC) $(CPPFLAGS) $(INC_$(LAYER_$*)) $(CFLAGS) $< tests/fuzz/replay_main.c -o $@ $(LDFLAGS) $(STATIC) $(LIBS)
 
 FUZZ_TIME ?= 60
 fuzz:

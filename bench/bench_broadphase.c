@@ -18,7 +18,7 @@
 #include <stdlib.h>
 #include <time.h>
 
-#include "sc_internal.h"
+#include "core.h"
 
 #include "bench_util.h"
 

@@ -35,7 +35,7 @@
 #include "bench_util.h"
 #include "cluster.h"
 #include "cluster_msg.h"
-#include "sc_internal.h"
+#include "world.h"
 #include "simcluster.h"
 
 #define DT 0.01
@@ -281,7 +281,7 @@ static pid_t busy_master(int n, int cpu, int k, int force)
             _exit(2);
         if (force) {
             sc_cluster_force(w->cluster);
-            w->sched.home_capacity = 0;
+            w->ex.sched.home_capacity = 0;
         }
         for (int f = 1;; f++) {
             if (sc_world_step(w, DT) != SC_OK)
@@ -292,7 +292,7 @@ static pid_t busy_master(int n, int cpu, int k, int force)
                 wait_daemons(w, k);
                 if (force) {
                     sc_cluster_force(w->cluster);
-                    w->sched.home_capacity = 0;
+                    w->ex.sched.home_capacity = 0;
                 }
             }
         }

@@ -19,7 +19,8 @@
 #include <string.h>
 #include <time.h>
 
-#include "sc_internal.h"
+#include "core.h"
+#include "lcp.h"
 
 #include "bench_util.h"
 

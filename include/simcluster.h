@@ -252,6 +252,11 @@ typedef struct sc_stats {
     double remote_wait_s;     /* wall seconds waiting for daemons' results
                                  after the local nodes were done, last frame
                                  (recomputation included) */
+    /* per-frame scratch (a stack arena that grows to its high-water mark) */
+    size_t arena_bytes;       /* high-water mark of the frame's arena, bytes
+                                 (since the world was created) */
+    size_t unit_arena_bytes;  /* the same of the local threads' arenas (island
+                                 solves), largest seen */
 } sc_stats;
 
 /* A new empty world; cfg NULL = defaults. NULL on error (sc_last_error()). */

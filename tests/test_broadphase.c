@@ -12,7 +12,7 @@
 #include <string.h>
 #include <cmocka.h>
 
-#include "sc_internal.h"
+#include "core.h"
 
 static const int methods[] = { SC_BROADPHASE_SPHERES, SC_BROADPHASE_SAP, SC_BROADPHASE_AUTO };
 #define NMETHODS 3

@@ -20,7 +20,7 @@
 
 #include "cluster.h"
 #include "cluster_serve.h"
-#include "sc_internal.h"
+#include "world.h"
 
 #define BODIES 30
 #define FRAMES 120

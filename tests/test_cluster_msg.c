@@ -15,7 +15,7 @@
 #include <cmocka.h>
 
 #include "cluster_msg.h"
-#include "sc_internal.h"
+#include "unit_wire.h"
 
 static const uint8_t key[SC_KEY_BYTES] = "0123456789abcdef0123456789abcde";
 

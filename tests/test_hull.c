@@ -19,7 +19,7 @@
 #include <time.h>
 #include <cmocka.h>
 
-#include "sc_internal.h"
+#include "core.h"
 
 /* Fault injection hook in lib/hull.c (allocations left before failure). */
 extern _Thread_local long sc_hull_alloc_budget;

@@ -10,7 +10,7 @@
 #include <cmocka.h>
 
 #include "idle.h"
-#include "sc_internal.h"
+#include "core.h"
 
 static int parse(const char *s, sc_cpu_times *t)
 {

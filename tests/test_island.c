@@ -7,7 +7,7 @@
 #include <string.h>
 #include <cmocka.h>
 
-#include "sc_internal.h"
+#include "core.h"
 
 static sc_contact ct(int a, int b)
 {
@@ -26,7 +26,7 @@ static void test_floor_does_not_merge_piles(void **state)
     unsigned char joins[8] = { 0, 1, 1, 1, 1, 1, 1, 0 };
     sc_contact c[] = { ct(0, 1), ct(0, 4), ct(1, 2), ct(2, 3), ct(0, 6), ct(4, 5), ct(5, 7) };
     sc_islands is = { 0 };
-    assert_int_equal(sc_islands_build(8, joins, c, 7, &is), SC_OK);
+    assert_int_equal(sc_islands_build(NULL, 8, joins, c, 7, &is), SC_OK);
     assert_int_equal(is.count, 3);
     int b0[] = { 1, 2, 3 }, b1[] = { 4, 5 }, b2[] = { 6 };
     int *bs[] = { b0, b1, b2 }, nb[] = { 3, 2, 1 };
@@ -52,7 +52,7 @@ static void test_chain_in_reverse_order_is_one_island(void **state)
     for (int i = 0; i < N - 1; i++)
         c[i] = ct(N - 2 - i, N - 1 - i);
     sc_islands is = { 0 };
-    assert_int_equal(sc_islands_build(N, joins, c, N - 1, &is), SC_OK);
+    assert_int_equal(sc_islands_build(NULL, N, joins, c, N - 1, &is), SC_OK);
     assert_int_equal(is.count, 1);
     for (int i = 0; i < N; i++)
         assert_int_equal(is.bodies[i], i);
@@ -67,8 +67,8 @@ static void test_bad_contacts_are_rejected(void **state)
     unsigned char joins[2] = { 1, 1 };
     sc_contact c[] = { ct(0, 2) };
     sc_islands is = { 0 };
-    assert_int_equal(sc_islands_build(2, joins, c, 1, &is), SC_EINVAL);
-    assert_int_equal(sc_islands_build(2, joins, NULL, 0, &is), SC_OK);
+    assert_int_equal(sc_islands_build(NULL, 2, joins, c, 1, &is), SC_EINVAL);
+    assert_int_equal(sc_islands_build(NULL, 2, joins, NULL, 0, &is), SC_OK);
     assert_int_equal(is.count, 2);
     sc_islands_free(&is);
 }

@@ -16,7 +16,8 @@
 #include <string.h>
 #include <cmocka.h>
 
-#include "sc_internal.h"
+#include "core.h"
+#include "lcp.h"
 
 /* A double-precision answer is right when every violation is below
  * TEST_TOL (n+1) eps S_i, S_i = |q_i| + sum_j |M_ij z_j| being the size of

@@ -17,7 +17,7 @@
 #include <cmocka.h>
 
 #include "simcluster.h"
-#include "sc_internal.h"    /* sc_mesh_parse */
+#include "core.h"    /* sc_mesh_parse */
 
 /* The unit cube [0,1]^3, outward counter-clockwise triangles. */
 static const double cube_xyz[] = { 0, 0, 0, 1, 0, 0, 1, 1, 0, 0, 1, 0,

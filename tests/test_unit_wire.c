@@ -13,7 +13,8 @@
 #include <string.h>
 #include <cmocka.h>
 
-#include "sc_internal.h"
+#include "unit_wire.h"
+#include "world.h"
 
 /* the kinds that travel (group units do not) */
 #define WIRE_KINDS (SC_UNIT_ISLAND + 1)
@@ -55,8 +56,8 @@ typedef struct cache {
 static const sc_shape *lookup(void *ctx, uint64_t hash)
 {
     const cache *c = ctx;
-    for (int i = 0; i < c->w->nbodies; i++) {
-        const sc_shape *s = c->w->bodies[i].shape;
+    for (int i = 0; i < c->w->st.nbodies; i++) {
+        const sc_shape *s = c->w->st.bodies[i].shape;
         if (s->hash == hash && hash != c->skip)
             return s;
     }
@@ -140,31 +141,31 @@ static int touching(const sc_contact *c, int n, int a, int b)
 static pairs make_pairs(const sc_world *w, const sc_body *from, const sc_contact *c0, int n0)
 {
     pairs ps = { 0 };
-    ps.p = calloc((size_t)w->ncontacts + (size_t)w->nbodies, sizeof *ps.p);
+    ps.p = calloc((size_t)w->st.ncontacts + (size_t)w->st.nbodies, sizeof *ps.p);
     assert_non_null(ps.p);
-    for (int k = 0; k < w->ncontacts + w->nbodies - 1; k++) {
+    for (int k = 0; k < w->st.ncontacts + w->st.nbodies - 1; k++) {
         int a, b;
-        if (k < w->ncontacts) {
-            const sc_contact *c = &w->contacts[k];
+        if (k < w->st.ncontacts) {
+            const sc_contact *c = &w->st.contacts[k];
             if (k > 0 && c[-1].body_a == c->body_a && c[-1].body_b == c->body_b)
                 continue;
             a = c->body_a;
             b = c->body_b;
             ps.hits++;
         } else {
-            a = k - w->ncontacts;
+            a = k - w->st.ncontacts;
             b = a + 1;
         }
         sc_unit_pair *p = &ps.p[ps.n++];
-        p->sa = w->bodies[a].shape;
-        p->sb = w->bodies[b].shape;
+        p->sa = w->st.bodies[a].shape;
+        p->sb = w->st.bodies[b].shape;
         p->body_a = a;
         p->body_b = b;
         p->deepen = touching(c0, n0, a, b);
         sc_body_pose(&from[a], &p->a0);
         sc_body_pose(&from[b], &p->b0);
-        sc_body_pose(&w->bodies[a], &p->a1);
-        sc_body_pose(&w->bodies[b], &p->b1);
+        sc_body_pose(&w->st.bodies[a], &p->a1);
+        sc_body_pose(&w->st.bodies[b], &p->b1);
     }
     return ps;
 }
@@ -184,17 +185,17 @@ static int scene_setup(void **state)
     s->w = make_world();
     for (int f = 0; f < FRAMES; f++) {
         if (f == FRAMES - TOI_BACK) {
-            size_t nb = (size_t)s->w->nbodies, nc = (size_t)s->w->ncontacts;
+            size_t nb = (size_t)s->w->st.nbodies, nc = (size_t)s->w->st.ncontacts;
             s->from = malloc(nb * sizeof *s->from);
             s->c0 = malloc((nc ? nc : 1) * sizeof *s->c0);
             assert_true(s->from && s->c0);
-            memcpy(s->from, s->w->bodies, nb * sizeof *s->from);
-            memcpy(s->c0, s->w->contacts, nc * sizeof *s->c0);
+            memcpy(s->from, s->w->st.bodies, nb * sizeof *s->from);
+            memcpy(s->c0, s->w->st.contacts, nc * sizeof *s->c0);
             s->n0 = (int)nc;
         }
         assert_int_equal(sc_world_step(s->w, DT), SC_OK);
     }
-    s->pc = make_pairs(s->w, s->w->bodies, s->c0, s->n0);
+    s->pc = make_pairs(s->w, s->w->st.bodies, s->c0, s->n0);
     s->pt = make_pairs(s->w, s->from, s->c0, s->n0);
     assert_true(s->pc.hits > 0);
     *state = s;
@@ -319,7 +320,7 @@ typedef struct islands_job {
 
 static void islands_job_init(islands_job *ij, const sc_world *w)
 {
-    size_t n = (size_t)w->nbodies;
+    size_t n = (size_t)w->st.nbodies;
     memset(ij, 0, sizeof *ij);
     ij->joins = malloc(n);
     ij->b0 = malloc(n * sizeof *ij->b0);
@@ -327,10 +328,10 @@ static void islands_job_init(islands_job *ij, const sc_world *w)
     ij->br = malloc(n * sizeof *ij->br);
     assert_true(ij->joins && ij->b0 && ij->bl && ij->br);
     for (size_t i = 0; i < n; i++)
-        ij->joins[i] = (unsigned char)sc_body_movable(&w->bodies[i]);
-    assert_int_equal(sc_islands_build(w->nbodies, ij->joins, w->contacts, w->ncontacts, &ij->is),
+        ij->joins[i] = (unsigned char)sc_body_movable(&w->st.bodies[i]);
+    assert_int_equal(sc_islands_build(NULL, w->st.nbodies, ij->joins, w->st.contacts, w->st.ncontacts, &ij->is),
                      SC_OK);
-    memcpy(ij->b0, w->bodies, n * sizeof *ij->b0);
+    memcpy(ij->b0, w->st.bodies, n * sizeof *ij->b0);
     /* non-members' collided cleared, so that a solve marking them shows */
     for (size_t i = 0; i < n; i++)
         if (!ij->joins[i])
@@ -340,7 +341,7 @@ static void islands_job_init(islands_job *ij, const sc_world *w)
     sc_job job;
     memset(&job, 0, sizeof job);
     job.kind = SC_UNIT_ISLAND;
-    job.c = w->contacts;
+    job.c = w->st.contacts;
     job.islands = &ij->is;
     job.h = DT;
     job.params = &params;
@@ -391,10 +392,10 @@ static void test_island_units_through_wire_are_bit_identical(void **state)
             collisions += run_both(local, remote, &cc, &ij.jl, &ij.jr, &u).info.collisions;
             islands += g;
         }
-        for (int k = 0; k < w->ncontacts; k++)
-            deep += w->contacts[k].depth > params.slop;
-        assert_memory_equal(ij.br, ij.bl, (size_t)w->nbodies * sizeof *ij.bl);
-        for (int j = 0; j < w->nbodies; j++)
+        for (int k = 0; k < w->st.ncontacts; k++)
+            deep += w->st.contacts[k].depth > params.slop;
+        assert_memory_equal(ij.br, ij.bl, (size_t)w->st.nbodies * sizeof *ij.bl);
+        for (int j = 0; j < w->st.nbodies; j++)
             if (!ij.joins[j])
                 assert_memory_equal(&ij.bl[j], &ij.b0[j], sizeof ij.b0[j]);
         islands_job_free(&ij);
@@ -667,7 +668,7 @@ static void test_result_for_another_unit_is_a_format_error(void **state)
         buf = pack_unit(&ij.jr, &ua, &len);
         res = remote_run(np, buf, len, &cc, &rlen);
         assert_int_equal(sc_wire_result_apply(&ij.jr, &ub, res, rlen), SC_EFORMAT);
-        assert_memory_equal(ij.br, ij.bl, (size_t)s->w->nbodies * sizeof *ij.bl);
+        assert_memory_equal(ij.br, ij.bl, (size_t)s->w->st.nbodies * sizeof *ij.bl);
         assert_int_equal(sc_wire_result_apply(&ij.jr, &ua, res, rlen), SC_OK);
     }
     islands_job_free(&ij);

@@ -1,7 +1,9 @@
 /* test_units.c - work units, local worker nodes and the scheduler:
  * results bit-identical for any number of workers and any assignment, the
  * paper's longest-first rule, learned node speeds and cost models, the
- * makespan statistics. (Internal API: lib/sc_internal.h.) */
+ * makespan statistics; a frame as a value (sc_frame_step on a copy of a
+ * world's state gives the world's bits), and the frame arena. (Internal
+ * API: lib/api/world.h and the layers below.) */
 #include <setjmp.h>
 #include <stdarg.h>
 #include <stddef.h>
@@ -11,7 +13,7 @@
 #include <string.h>
 #include <cmocka.h>
 
-#include "sc_internal.h"
+#include "world.h"
 
 #define FRAMES 500
 #define BODIES 50
@@ -25,8 +27,8 @@ static uint64_t run_bolts(int workers, uint64_t shuffle, int frames, sc_stats *s
     c.motion_groups = motion_groups;
     sc_world *w = sc_world_create(&c);
     assert_non_null(w);
-    assert_int_equal(w->nnodes, workers);
-    w->sched.shuffle = shuffle;
+    assert_int_equal(w->ex.nnodes, workers);
+    w->ex.sched.shuffle = shuffle;
     assert_int_equal(sc_scene_bolts_nuts(w, BODIES, 7), SC_OK);
     long units = 0;
     for (int f = 0; f < frames; f++) {
@@ -287,6 +289,107 @@ static void test_worlds_come_and_go(void **state)
     }
 }
 
+
+/* A frame is a value: the state of a world copied out and stepped by
+ * sc_frame_step() on the serial executor, with a scratch of its own, ends
+ * in the same bits as the world stepped on its worker threads. */
+static void frame_value_case(int groups)
+{
+    sc_world_config c = sc_world_config_default();
+    c.workers = 2;
+    c.motion_groups = groups;
+    sc_world *w = sc_world_create(&c);
+    assert_non_null(w);
+    assert_int_equal(sc_scene_bolts_nuts(w, BODIES, 3), SC_OK);
+    for (int f = 0; f < 60; f++)    /* falling, then the first contacts */
+        assert_int_equal(sc_world_step(w, 0.01), SC_OK);
+    sc_frame_state st = w->st;
+    st.bodies = malloc((size_t)st.nbodies * sizeof *st.bodies);
+    st.contacts = malloc((size_t)(st.ncontacts > 0 ? st.ncontacts : 1) * sizeof *st.contacts);
+    assert_non_null(st.bodies);
+    assert_non_null(st.contacts);
+    memcpy(st.bodies, w->st.bodies, (size_t)st.nbodies * sizeof *st.bodies);
+    if (st.ncontacts)
+        memcpy(st.contacts, w->st.contacts, (size_t)st.ncontacts * sizeof *st.contacts);
+    st.contact_cap = st.ncontacts > 0 ? st.ncontacts : 1;
+    sc_frame_scratch scr;
+    assert_int_equal(sc_frame_scratch_init(&scr), SC_OK);
+    sc_np_ctx *np = sc_np_create();
+    assert_non_null(np);
+    sc_exec_serial ex;
+    sc_exec_serial_init(&ex, np);
+    sc_stats fs;
+    memset(&fs, 0, sizeof fs);
+    for (int f = 0; f < 40; f++) {
+        assert_int_equal(sc_arena_reset(&scr.arena), SC_OK);
+        int rc = groups ? sc_groups_step(&w->fcfg, &st, 0.01, &scr, &ex.base, &fs)
+                        : sc_frame_step(&w->fcfg, &st, 0.01, &scr, &ex.base, &fs);
+        assert_int_equal(rc, SC_OK);
+        assert_int_equal(sc_world_step(w, 0.01), SC_OK);
+        assert_int_equal(st.nbodies, w->st.nbodies);
+        assert_int_equal(st.ncontacts, w->st.ncontacts);
+        for (int i = 0; i < st.nbodies; i++) {
+            assert_memory_equal(st.bodies[i].x, w->st.bodies[i].x, sizeof st.bodies[i].x);
+            assert_memory_equal(st.bodies[i].v, w->st.bodies[i].v, sizeof st.bodies[i].v);
+            assert_memory_equal(st.bodies[i].q, w->st.bodies[i].q, sizeof st.bodies[i].q);
+            assert_int_equal(st.bodies[i].state, w->st.bodies[i].state);
+        }
+    }
+    assert_true(fs.contacts > 0);    /* it did touch */
+    /* the arena held the frame's arrays, nothing is left in it */
+    assert_true(fs.arena_bytes > 0);
+    assert_int_equal(scr.arena.depth, 0);
+    assert_int_equal(scr.arena.used, 0);
+    sc_np_destroy(np);
+    sc_frame_scratch_free(&scr);
+    free(st.bodies);
+    free(st.contacts);
+    sc_world_destroy(w);
+}
+
+static void test_frame_is_a_value(void **state)
+{
+    (void)state;
+    frame_value_case(0);
+}
+
+static void test_group_frame_is_a_value(void **state)
+{
+    (void)state;
+    frame_value_case(1);
+}
+
+/* Per-frame scratch stops allocating: after the first frames the world's
+ * arena has reached its high-water mark and the island solves' arenas
+ * theirs; both are reported. */
+static void test_arena_high_water_is_reported_and_settles(void **state)
+{
+    (void)state;
+    sc_world_config c = sc_world_config_default();
+    c.workers = 2;
+    sc_world *w = sc_world_create(&c);
+    assert_non_null(w);
+    assert_int_equal(sc_scene_bolts_nuts(w, BODIES, 5), SC_OK);
+    sc_stats st;
+    for (int f = 0; f < 150; f++)
+        assert_int_equal(sc_world_step(w, 0.01), SC_OK);
+    sc_world_stats(w, &st);
+    assert_true(st.arena_bytes > 0);
+    assert_true(st.unit_arena_bytes > 0);    /* islands were solved */
+    /* bodies' arrays alone: saved state, poses, centres, radii, flags */
+    assert_true(st.arena_bytes >= (size_t)BODIES * (sizeof(sc_body) + sizeof(sc_pose) + 4 * sizeof(double)));
+    long overflows = w->scr.arena.overflows;
+    size_t cap = w->scr.arena.cap;
+    for (int f = 0; f < 20; f++)
+        assert_int_equal(sc_world_step(w, 0.01), SC_OK);
+    /* the same scene a few frames on: the arena has room (no fallback to
+     * malloc) unless the frame grew, and then it grew to the new mark */
+    if (w->scr.arena.overflows != overflows)
+        assert_true(w->scr.arena.cap > cap);
+    assert_true(w->scr.arena.cap >= w->scr.arena.high || w->scr.arena.overflows > overflows);
+    sc_world_destroy(w);
+}
+
 int main(void)
 {
     const struct CMUnitTest tests[] = {
@@ -299,6 +402,9 @@ int main(void)
         cmocka_unit_test(test_latency_keeps_small_jobs_home),
         cmocka_unit_test(test_bad_worker_counts),
         cmocka_unit_test(test_worlds_come_and_go),
+        cmocka_unit_test(test_frame_is_a_value),
+        cmocka_unit_test(test_group_frame_is_a_value),
+        cmocka_unit_test(test_arena_high_water_is_reported_and_settles),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
 }

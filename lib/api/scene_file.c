@@ -32,7 +32,7 @@
 #include <stdlib.h>
 #include <string.h>
 
-#include "sc_internal.h"
+#include "world.h"
 
 #define SCENE_MAX_BYTES ((size_t)16 << 20)  /* largest scene file read */
 #define SCENE_MAX_SHAPES 256

@@ -1,7 +1,7 @@
-/* world.c - the world owns bodies, shape references and per-frame state;
- * this file holds its public API (create, add, query, energy, hash,
- * stats). The frame itself runs in step.c over detect.c, integrate.c,
- * contact.c and state.c. */
+/* world.c - the world owns bodies, shape references, the frame's state and
+ * scratch, its executor and cluster (docs/DESIGN.md section 4); this file
+ * holds its public API (create, add, step, query, energy, hash, stats). The
+ * frame itself is lib/core/frame.c's sc_frame_step(). */
 #include <limits.h>
 #include <stdlib.h>
 #include <string.h>
@@ -9,7 +9,7 @@
 #include <unistd.h>
 
 #include "cluster.h"
-#include "sc_internal.h"
+#include "world.h"
 #include "vecmath.h"
 
 #define CONFIG_COOKIE 0x5c0f1a
@@ -61,12 +61,9 @@ SC_API sc_world *sc_world_create(const sc_world_config *cfg)
     w->cfg = c;
     w->cfg.cluster = NULL;   /* not kept: the caller's strings may go away */
     w->cfg.key_file = NULL;
-    w->bp = sc_bp_create();
-    if (!w->bp) {
-        sc_world_destroy(w);
-        sc_set_error(SC_ENOMEM);
-        return NULL;
-    }
+    memcpy(w->fcfg.gravity, c.gravity, sizeof w->fcfg.gravity);
+    w->fcfg.contact_tol_m = c.contact_tol_m;
+    w->fcfg.broadphase = c.broadphase;
     /* nodes: this thread (node 0) and workers - 1 worker threads */
     int nodes = c.workers;
     if (nodes == 0) {
@@ -74,31 +71,19 @@ SC_API sc_world *sc_world_create(const sc_world_config *cfg)
         nodes = cpus < 1 ? 1 : cpus > SC_MAX_WORKERS ? SC_MAX_WORKERS : (int)cpus;
     }
     w->cfg.workers = nodes;
-    w->nlocal = nodes;
-    int all = nodes + (c.cluster ? SC_MAX_DAEMONS : 0);
-    w->nodes = sc_calloc_array((size_t)all, sizeof *w->nodes);
-    w->pool = sc_local_pool_create();
-    int rc = w->nodes && w->pool ? sc_sched_init(&w->sched, all) : SC_ENOMEM;
-    for (int k = 0; k < nodes && rc == SC_OK; k++) {
-        w->nodes[k] = sc_node_local_create(w->pool, k, k == 0);
-        if (!w->nodes[k])
-            rc = SC_ENOMEM;
-        else
-            w->nnodes++;
-        if (w->nodes[k] && sc_node_local_private_ode(w->nodes[k]))
-            w->stats.private_ode++;
-    }
+    int rc = sc_frame_scratch_init(&w->scr);
+    if (rc == SC_OK)
+        rc = sc_exec_nodes_init(&w->ex, nodes, c.cluster ? SC_MAX_DAEMONS : 0);
+    w->stats.private_ode = w->ex.private_ode;
     if (rc == SC_OK && c.cluster)
-        rc = sc_cluster_create(w, c.cluster, c.key_file, c.cluster_deadline_s, nodes,
-                               &w->cluster);
-    for (int k = 0; rc == SC_OK && k < SC_MAX_DAEMONS && w->cluster; k++)
-        w->nodes[w->nnodes++] = sc_cluster_node(w->cluster, k);
+        rc = sc_cluster_create(&w->ex, &w->stats, &w->st, c.cluster, c.key_file,
+                               c.cluster_deadline_s, &w->cluster);
     if (rc != SC_OK) {
         sc_world_destroy(w);
         sc_set_error(rc);
         return NULL;
     }
-    w->stats.nodes = w->nlocal;
+    w->stats.nodes = w->ex.nlocal;
     return w;
 }
 
@@ -106,49 +91,13 @@ SC_API void sc_world_destroy(sc_world *w)
 {
     if (!w)
         return;
-    for (int i = 0; i < w->nbodies; i++)
-        sc_shape_release(w->bodies[i].shape);
-    sc_local_pool_stop(w->pool);
-    for (int k = 0; k < w->nnodes; k++)
-        w->nodes[k]->ops->destroy(w->nodes[k]);
-    free(w->nodes);
+    for (int i = 0; i < w->st.nbodies; i++)
+        sc_shape_release(w->st.bodies[i].shape);
+    sc_exec_nodes_free(&w->ex);     /* the cluster's nodes too */
     sc_cluster_destroy(w->cluster);
-    sc_local_pool_destroy(w->pool);
-    sc_world_scratch_free(w->bigsub);
-    sc_world_scratch_free(w);
-}
-
-/* Everything a world owns but its bodies' shapes and its nodes
- * (also a group's scratch sub-world, whose bodies are copies). */
-void sc_world_scratch_free(void *world)
-{
-    sc_world *w = world;
-    if (!w)
-        return;
-    sc_bp_destroy(w->gbp);
-    sc_group_scratch_free(w);
-    free(w->gcontacts);
-    free(w->gpairs);
-    free(w->gout);
-    free(w->sub_ids);
-    sc_sched_free(&w->sched);
-    free(w->units);
-    free(w->upairs);
-    free(w->ucontacts);
-    free(w->uncontact);
-    free(w->utoi);
-    free(w->centre);
-    free(w->poses);
-    free(w->radius);
-    free(w->active);
-    free(w->pairs);
-    free(w->contacts);
-    free(w->saved);
-    free(w->touched);
-    free(w->c0);
-    sc_islands_free(&w->islands);
-    free(w->bodies);
-    sc_bp_destroy(w->bp);
+    sc_frame_scratch_free(&w->scr);
+    free(w->st.bodies);
+    free(w->st.contacts);
     free(w);
 }
 
@@ -178,10 +127,11 @@ SC_API int sc_body_add(sc_world *w, const sc_body_desc *d)
         return SC_EINVAL;
     if (d->shape->kind == SC_SHAPE_PLANE && mass != 0)
         return SC_ENOTSUP;              /* an infinite half space cannot move */
-    int err = sc_grow((void **)&w->bodies, &w->cap, w->nbodies + 1, sizeof *w->bodies, INT_MAX);
+    int err = sc_grow((void **)&w->st.bodies, &w->cap, w->st.nbodies + 1, sizeof *w->st.bodies,
+                      INT_MAX);
     if (err != SC_OK)
         return err;
-    sc_body *b = &w->bodies[w->nbodies];
+    sc_body *b = &w->st.bodies[w->st.nbodies];
     memset(b, 0, sizeof *b);
     b->shape = sc_shape_retain(d->shape);
     b->mass = mass;
@@ -212,13 +162,13 @@ SC_API int sc_body_add(sc_world *w, const sc_body_desc *d)
     }
     b->restitution = d->restitution;
     b->friction = d->friction;
-    w->contacts_valid = 0;
-    return w->nbodies++;
+    w->st.contacts_valid = 0;
+    return w->st.nbodies++;
 }
 
 SC_API int sc_world_body_count(const sc_world *w)
 {
-    return w ? w->nbodies : 0;
+    return w ? w->st.nbodies : 0;
 }
 
 void sc_body_pose(const sc_body *b, sc_pose *p)
@@ -243,16 +193,9 @@ double sc_wall_now(void)
     return (double)ts.tv_sec + 1e-9 * (double)ts.tv_nsec;
 }
 
-void sc_stage_add(sc_world *w, int stage, double t0)
-{
-    double dt = sc_cpu_now() - t0;
-    w->stats.stage_s[stage] += dt;
-    w->stats.stage_total_s[stage] += dt;
-}
-
 static const sc_body *body_get(const sc_world *w, int id)
 {
-    return (w && id >= 0 && id < w->nbodies) ? &w->bodies[id] : NULL;
+    return (w && id >= 0 && id < w->st.nbodies) ? &w->st.bodies[id] : NULL;
 }
 
 SC_API void sc_body_get_pose(const sc_world *w, int id, double pos[3], double quat[4])
@@ -296,9 +239,9 @@ SC_API int sc_body_apply_force(sc_world *w, int id, const double f[3], const dou
 {
     if (!w || !f || !sc_finite3(f) || (at && !sc_finite3(at)))
         return SC_EINVAL;
-    if (id < 0 || id >= w->nbodies)
+    if (id < 0 || id >= w->st.nbodies)
         return SC_ERANGE;
-    sc_body *b = &w->bodies[id];
+    sc_body *b = &w->st.bodies[id];
     if (b->inv_mass == 0)
         return SC_ENOTSUP;
     if (b->state == SC_ASLEEP) {       /* a push wakes it */
@@ -319,8 +262,8 @@ SC_API int sc_world_at_rest(const sc_world *w)
 {
     if (!w)
         return 0;
-    for (int i = 0; i < w->nbodies; i++) {
-        const sc_body *b = &w->bodies[i];
+    for (int i = 0; i < w->st.nbodies; i++) {
+        const sc_body *b = &w->st.bodies[i];
         if (b->inv_mass > 0 && b->state != SC_ASLEEP)
             return 0;
     }
@@ -332,8 +275,8 @@ SC_API double sc_world_energy(const sc_world *w)
     if (!w)
         return NAN;
     double e = 0;
-    for (int i = 0; i < w->nbodies; i++) {
-        const sc_body *b = &w->bodies[i];
+    for (int i = 0; i < w->st.nbodies; i++) {
+        const sc_body *b = &w->st.bodies[i];
         if (b->inv_mass == 0)
             continue;
         /* rotational: 0.5 w^T (R I R^T) w = 0.5 wb^T I wb, wb in body frame */
@@ -342,7 +285,7 @@ SC_API double sc_world_energy(const sc_world *w)
         m3_tmulv(wb, R, b->w);
         m3_mulv(Iw, b->inertia, wb);
         e += 0.5 * b->mass * v3_dot(b->v, b->v) + 0.5 * v3_dot(wb, Iw) -
-             b->mass * v3_dot(w->cfg.gravity, b->x);
+             b->mass * v3_dot(w->fcfg.gravity, b->x);
     }
     return e;
 }
@@ -352,8 +295,8 @@ SC_API uint64_t sc_world_hash(const sc_world *w)
     uint64_t h = 0xcbf29ce484222325ULL;
     if (!w)
         return h;
-    for (int i = 0; i < w->nbodies; i++) {
-        const sc_body *b = &w->bodies[i];
+    for (int i = 0; i < w->st.nbodies; i++) {
+        const sc_body *b = &w->st.bodies[i];
         const double *parts[4] = { b->x, b->q, b->v, b->w };
         const int len[4] = { 3, 4, 3, 3 };
         for (int p = 0; p < 4; p++)
@@ -379,15 +322,55 @@ SC_API void sc_world_stats(const sc_world *w, sc_stats *s)
         return;
     }
     *s = w->stats;
-    s->bodies = w->nbodies;
+    s->bodies = w->st.nbodies;
 }
 
 SC_API int sc_world_contacts(const sc_world *w, sc_contact *out, int max)
 {
     if (!w)
         return SC_EINVAL;
-    int n = w->ncontacts < max ? w->ncontacts : max;
+    int n = w->st.ncontacts < max ? w->st.ncontacts : max;
     if (out && n > 0)
-        memcpy(out, w->contacts, (size_t)n * sizeof *out);
-    return w->ncontacts;
+        memcpy(out, w->st.contacts, (size_t)n * sizeof *out);
+    return w->st.ncontacts;
+}
+
+SC_API int sc_world_step(sc_world *w, double dt)
+{
+    if (!w || !(dt > 0) || !isfinite(dt))
+        return SC_EINVAL;
+    /* the last frame's figures start again; totals and cluster counts stay */
+    sc_stats *st = &w->stats;
+    memset(st->stage_s, 0, sizeof st->stage_s);
+    st->lcp_pivots = 0;
+    st->lcp_fallbacks = 0;
+    st->collider_warnings = 0;
+    st->units = 0;
+    st->sched_s = 0;
+    st->makespan_s = 0;
+    st->makespan_bound_s = 0;
+    st->groups = 0;
+    st->pairs = 0;
+    st->contacts = 0;
+    st->islands = 0;
+    st->max_penetration = 0;
+    st->remote_units = 0;
+    st->recomputed_units = 0;
+    st->late_results = 0;
+    st->comm_s = 0;
+    st->remote_wait_s = 0;
+    if (w->cluster)
+        sc_cluster_frame(w->cluster);
+    int rc = sc_arena_reset(&w->scr.arena);
+    if (rc != SC_OK)
+        return rc;
+    rc = w->cfg.motion_groups
+             ? sc_groups_step(&w->fcfg, &w->st, dt, &w->scr, &w->ex.base, st)
+             : sc_frame_step(&w->fcfg, &w->st, dt, &w->scr, &w->ex.base, st);
+    if (rc == SC_OK) {
+        st->frames++;
+        st->makespan_ratio = st->makespan_bound_s > 0 ? st->makespan_s / st->makespan_bound_s
+                                                      : 0;
+    }
+    return rc;
 }

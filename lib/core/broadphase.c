@@ -66,7 +66,7 @@
 #include <stdlib.h>
 #include <string.h>
 
-#include "sc_internal.h"
+#include "core.h"
 
 /* The predicate must round the same way in both methods: IEEE arithmetic
  * and no contraction into FMA (GCC has it off in ISO mode, -std=c11; other

@@ -16,7 +16,8 @@
 #include <stdlib.h>
 #include <string.h>
 
-#include "sc_internal.h"
+#include "core.h"
+#include "lcp.h"
 #include "vecmath.h"
 
 typedef struct row {
@@ -158,9 +159,10 @@ static void apply(const row *rw, double z, sc_body *bodies, int pseudo, double h
  * slides, so that the friction pyramid's edge opposes the motion exactly
  * (as ODE's fdir1); otherwise a fixed rule, the axis least aligned with n. */
 /* The staggered fallback (see sc_island_solve): rows[nsel[k]] are the
- * normals; scratch holds 6 n doubles, the first n the rows' q. */
+ * normals; scratch holds 6 n doubles, the first n the rows' q; sel room
+ * for n ints. */
 static int staggered(const row *rows, int nrows, const int *nsel, int nn, const int *findex,
-                     const double *mu, sc_body *bodies, double *A, double *scratch,
+                     const double *mu, sc_body *bodies, double *A, double *scratch, int *sel,
                      sc_solve_info *info)
 {
     size_t n = (size_t)nrows;
@@ -182,9 +184,6 @@ static int staggered(const row *rows, int nrows, const int *nsel, int nn, const 
     int nt = nrows - nn;
     if (nt == 0)
         return SC_OK;
-    int *sel = sc_alloc_array((size_t)nt, sizeof *sel);
-    if (!sel)
-        return SC_ENOMEM;
     nt = 0;
     for (int i = 0; i < nrows; i++)
         if (findex[i] >= 0)
@@ -200,7 +199,6 @@ static int staggered(const row *rows, int nrows, const int *nsel, int nn, const 
     if (rc == SC_OK)
         for (int k = 0; k < nt; k++)
             apply(&rows[sel[k]], z[k], bodies, 0, 0);
-    free(sel);
     return rc;
 }
 
@@ -231,8 +229,8 @@ static void tangents(const sc_body *bodies, const sc_contact *c, double t1[3], d
     v3_cross(t2, n, t1);
 }
 
-int sc_island_solve(sc_body *bodies, const sc_contact *c, const int *ci, int nc, double h,
-                    const sc_contact_params *p, sc_solve_info *info)
+int sc_island_solve(sc_arena *arena, sc_body *bodies, const sc_contact *c, const int *ci, int nc,
+                    double h, const sc_contact_params *p, sc_solve_info *info)
 {
     if (nc == 0)
         return SC_OK;
@@ -244,13 +242,18 @@ int sc_island_solve(sc_body *bodies, const sc_contact *c, const int *ci, int nc,
         nrows += mu > 0 ? 3 : 1;
     }
     size_t n = (size_t)nrows;
-    row *rows = sc_alloc_array(n, sizeof *rows);
-    double *A = sc_alloc_array(n * n, sizeof *A);
-    double *buf = sc_alloc_array(n * 6, sizeof *buf);
-    int *findex = sc_alloc_array(n, sizeof *findex);
-    int *nsel = sc_alloc_array(n, sizeof *nsel);
+    /* per island, from the thread's arena: no allocation once it has
+     * grown to the largest island */
+    if (n > SIZE_MAX / sizeof(double) / n)
+        return SC_ETOOBIG;
+    row *rows = sc_arena_alloc(arena, n * sizeof *rows);
+    double *A = rows ? sc_arena_alloc(arena, n * n * sizeof *A) : NULL;
+    double *buf = A ? sc_arena_alloc(arena, n * 6 * sizeof *buf) : NULL;
+    int *findex = buf ? sc_arena_alloc(arena, n * sizeof *findex) : NULL;
+    int *nsel = findex ? sc_arena_alloc(arena, n * sizeof *nsel) : NULL;
+    int *sel = nsel ? sc_arena_alloc(arena, n * sizeof *sel) : NULL;
     int rc = SC_ENOMEM;
-    if (!rows || !A || !buf || !findex || !nsel)
+    if (!sel)
         goto out;
     double *q = buf, *lo = buf + n, *hi = buf + 2 * n, *mu = buf + 3 * n, *z = buf + 4 * n,
            *w = buf + 5 * n;
@@ -305,7 +308,7 @@ int sc_island_solve(sc_body *bodies, const sc_contact *c, const int *ci, int nc,
          * back into the normals is lost for this substep: counted in
          * sc_stats.lcp_fallbacks, never silent. */
         info->failures++;
-        rc = staggered(rows, nrows, nsel, nn, findex, mu, bodies, A, buf, info);
+        rc = staggered(rows, nrows, nsel, nn, findex, mu, bodies, A, buf, sel, info);
     } else if (rc == SC_OK) {
         for (int i = 0; i < nrows; i++)
             apply(&rows[i], z[i], bodies, 0, h);
@@ -328,10 +331,11 @@ int sc_island_solve(sc_body *bodies, const sc_contact *c, const int *ci, int nc,
     for (int k = 0; k < nn; k++)
         apply(&rows[nsel[k]], z[k], bodies, 1, h);
 out:
-    free(rows);
-    free(A);
-    free(buf);
-    free(findex);
-    free(nsel);
+    sc_arena_free(arena, sel);
+    sc_arena_free(arena, nsel);
+    sc_arena_free(arena, findex);
+    sc_arena_free(arena, buf);
+    sc_arena_free(arena, A);
+    sc_arena_free(arena, rows);
     return rc;
 }

@@ -1,7 +1,7 @@
 /* error.c - error codes, their sentences, the per-thread last error. */
 #include <stdlib.h>
 
-#include "sc_internal.h"
+#include "core.h"
 
 /* Like errno: per thread, so constructors stay thread-safe. */
 static _Thread_local int last_error;

@@ -1,15 +1,14 @@
-/* step.c - one frame (the paper's steps 3-7): substeps of force, contact
- * impulses and integration, each checked for contacts that got deeper than
- * the tolerance and backed up to their time of impact (steps 5-6). */
+/* frame.c - one frame as a value (the paper's steps 3-7; docs/DESIGN.md
+ * section 3): substeps of force, contact impulses and integration, each
+ * checked for contacts that got deeper than the tolerance and backed up to
+ * their time of impact (steps 5-6). It reads and writes only the state it
+ * is given; its jobs go to the executor it is given. */
 #include <limits.h>
 #include <stdlib.h>
 #include <string.h>
 
-#include "cluster.h"
-#include "sc_internal.h"
+#include "frame.h"
 #include "vecmath.h"
-
-/* ---- the frame: the paper's steps (3)-(7) ---------------------------- */
 
 #define MAX_SUBSTEPS 16       /* time-of-impact back-ups per frame */
 #define TOI_AIM 0.9           /* back up to this share of the tolerance */
@@ -20,48 +19,137 @@ static const sc_contact_params contact_params = {
     .baumgarte = 0.2,
 };
 
-/* Steps (4)-(7) once over h: islands, contact impulses, positions. */
-static int substep(sc_world *w, double h, sc_islands *is, unsigned char *touched)
-
+void sc_stage_add(sc_stats *st, int stage, double t0)
 {
-    int n = w->nbodies;
-    sc_apply_forces(w, h);
+    double dt = sc_cpu_now() - t0;
+    st->stage_s[stage] += dt;
+    st->stage_total_s[stage] += dt;
+}
+
+/* ---- executors: the serial one ---------------------------------------- */
+
+/* Every job as one unit: its pairs or islands are computed one by one
+ * either way, so the outputs are those of any cut. */
+static int serial_run(sc_exec *ex, sc_job *job, int stage, sc_stats *st)
+{
+    (void)stage;
+    sc_exec_serial *s = (sc_exec_serial *)ex;
+    sc_unit one;
+    memset(&one, 0, sizeof one);
+    one.kind = job->kind;
+    if (job->kind == SC_UNIT_ISLAND) {
+        one.islands = job->islands->count;
+        one.count = job->islands->contact_start[job->islands->count];
+        if (one.islands == 0)
+            return SC_OK;
+    } else if (job->kind != SC_UNIT_GROUP) {
+        one.count = job->npairs;
+        if (one.count == 0)
+            return SC_OK;
+    }
+    if (job->kind == SC_UNIT_GROUP) {
+        /* group units come made: run them in order */
+        int rc = SC_OK;
+        for (int i = 0; i < job->nunits; i++) {
+            sc_unit_run(s->np, job, &job->units[i]);
+            st->collider_warnings += job->units[i].messages;
+            if (job->units[i].rc != SC_OK && rc == SC_OK)
+                rc = job->units[i].rc;
+        }
+        st->units += job->nunits;
+        return rc;
+    }
+    job->units = &one;
+    job->nunits = 1;
+    sc_unit_run(s->np, job, &one);
+    job->units = NULL;
+    job->nunits = 0;
+    st->collider_warnings += one.messages;
+    st->units++;
+    if (job->kind == SC_UNIT_ISLAND) {
+        st->lcp_pivots += one.info.pivots;
+        st->lcp_fallbacks += one.info.failures;
+    }
+    if (one.arena_high > st->unit_arena_bytes)
+        st->unit_arena_bytes = one.arena_high;
+    return one.rc;
+}
+
+static int serial_width(const sc_exec *ex)
+{
+    (void)ex;
+    return 1;
+}
+
+void sc_exec_serial_init(sc_exec_serial *s, sc_np_ctx *np)
+{
+    s->base.run = serial_run;
+    s->base.width = serial_width;
+    s->np = np;
+}
+
+/* ---- scratch ---------------------------------------------------------- */
+
+int sc_frame_scratch_init(sc_frame_scratch *s)
+{
+    memset(s, 0, sizeof *s);
+    sc_arena_init(&s->arena);
+    s->bp = sc_bp_create();
+    return s->bp ? SC_OK : SC_ENOMEM;
+}
+
+void sc_frame_scratch_free(sc_frame_scratch *s)
+{
+    if (!s)
+        return;
+    sc_group_scratch_destroy(s->groups);
+    sc_bp_destroy(s->bp);
+    free(s->pairs);
+    sc_islands_free(&s->islands);
+    sc_arena_destroy(&s->arena);
+    memset(s, 0, sizeof *s);
+}
+
+/* ---- the frame: the paper's steps (3)-(7) ---------------------------- */
+
+/* Steps (4)-(7) once over h: islands, contact impulses, positions. */
+static int substep(sc_frame *f, double h, sc_islands *is, unsigned char *touched)
+{
+    sc_frame_state *st = f->st;
+    int n = st->nbodies;
+    sc_apply_forces(f, h);
     double t0 = sc_cpu_now();
     for (int i = 0; i < n; i++)
-        w->active[i] = sc_body_movable(&w->bodies[i]);
-    int rc = sc_islands_build(n, w->active, w->contacts, w->ncontacts, is);
-    sc_stage_add(w, SC_STAGE_ISLANDS, t0);
+        f->active[i] = sc_body_movable(&st->bodies[i]);
+    int rc = sc_islands_build(&f->scr->arena, n, f->active, st->contacts, st->ncontacts, is);
+    sc_stage_add(f->stats, SC_STAGE_ISLANDS, t0);
     if (rc != SC_OK)
         return rc;
     memset(touched, 0, (size_t)n);
-    for (int k = 0; k < w->ncontacts; k++) {
-        touched[w->contacts[k].body_a] = 1;
-        touched[w->contacts[k].body_b] = 1;
+    for (int k = 0; k < st->ncontacts; k++) {
+        touched[st->contacts[k].body_a] = 1;
+        touched[st->contacts[k].body_b] = 1;
     }
     /* step 7: one work unit per island (islands share no movable body) */
     t0 = sc_cpu_now();
     sc_job job = {
         .kind = SC_UNIT_ISLAND,
-        .bodies = w->bodies,
-        .c = w->contacts,
+        .bodies = st->bodies,
+        .c = st->contacts,
         .islands = is,
         .h = h,
         .params = &contact_params,
     };
-    rc = sc_job_run(w, &job, SC_STAGE_LCP);
-    sc_stage_add(w, SC_STAGE_LCP, t0);
-    for (int i = 0; i < job.nunits; i++) {
-        w->stats.lcp_pivots += job.units[i].info.pivots;
-        w->stats.lcp_fallbacks += job.units[i].info.failures;
-    }
-    w->stats.islands = is->count;
+    rc = f->ex->run(f->ex, &job, SC_STAGE_LCP, f->stats);
+    sc_stage_add(f->stats, SC_STAGE_LCP, t0);
+    f->stats->islands = is->count;
     if (rc != SC_OK)
         return rc;
     t0 = sc_cpu_now();
-    sc_integrate_positions(w, h);
-    sc_stage_add(w, SC_STAGE_INTEGRATE, t0);
+    sc_integrate_positions(f, h);
+    sc_stage_add(f->stats, SC_STAGE_INTEGRATE, t0);
     for (int i = 0; i < n; i++) {
-        sc_body *b = &w->bodies[i];
+        sc_body *b = &st->bodies[i];
         if (sc_body_movable(b) && (!sc_finite3(b->x) || !sc_finite3(b->v) || !sc_finite3(b->w)))
             return SC_ENUMERIC;
     }
@@ -71,24 +159,37 @@ static int substep(sc_world *w, double h, sc_islands *is, unsigned char *touched
 /* Step 5: the earliest time of impact (fraction of the substep) among new
  * contacts deeper than the tolerance; 1 when there is none. One query per
  * pair, as work units; the minimum does not depend on who ran what. */
-static int earliest_impact(sc_world *w, const sc_body *saved, const sc_contact *c0, int n0,
+static int earliest_impact(sc_frame *f, const sc_body *saved, const sc_contact *c0, int n0,
                            double *frac)
 {
+    const sc_frame_state *st = f->st;
     double t0 = sc_cpu_now();
     *frac = 1;
     int np = 0;
-    for (int k = 0; k < w->ncontacts; k++) {
-        const sc_contact *c = &w->contacts[k];
-        if (c->depth <= w->cfg.contact_tol_m)
+    for (int k = 0; k < st->ncontacts; k++)
+        np += st->contacts[k].depth > f->cfg->contact_tol_m;
+    if (np == 0) {
+        sc_stage_add(f->stats, SC_STAGE_TOI, t0);
+        return SC_OK;
+    }
+    sc_arena *a = &f->scr->arena;
+    sc_unit_pair *pairs = sc_arena_alloc(a, (size_t)np * sizeof *pairs);
+    double *toi = pairs ? sc_arena_alloc(a, (size_t)np * sizeof *toi) : NULL;
+    if (!toi) {
+        sc_arena_free(a, pairs);
+        return SC_ENOMEM;
+    }
+    np = 0;
+    for (int k = 0; k < st->ncontacts; k++) {
+        const sc_contact *c = &st->contacts[k];
+        if (c->depth <= f->cfg->contact_tol_m)
             continue;
-        if (np > 0 && w->upairs[np - 1].body_a == c->body_a &&
-            w->upairs[np - 1].body_b == c->body_b)
+        if (np > 0 && pairs[np - 1].body_a == c->body_a && pairs[np - 1].body_b == c->body_b)
             continue;    /* one query per pair */
-        if (sc_grow((void **)&w->upairs, &w->upair_cap, np + 1, sizeof *w->upairs, INT_MAX))
-            return SC_ENOMEM;
-        sc_unit_pair *p = &w->upairs[np++];
-        p->sa = w->bodies[c->body_a].shape;
-        p->sb = w->bodies[c->body_b].shape;
+        sc_unit_pair *p = &pairs[np++];
+        memset(p, 0, sizeof *p);
+        p->sa = st->bodies[c->body_a].shape;
+        p->sb = st->bodies[c->body_b].shape;
         p->body_a = c->body_a;
         p->body_b = c->body_b;
         /* a new pair backs up to first touch; a pair already touching that
@@ -97,129 +198,108 @@ static int earliest_impact(sc_world *w, const sc_body *saved, const sc_contact *
         p->deepen = sc_contacts_have_pair(c0, n0, c->body_a, c->body_b);
         sc_body_pose(&saved[c->body_a], &p->a0);
         sc_body_pose(&saved[c->body_b], &p->b0);
-        p->a1 = w->poses[c->body_a];    /* the detection just before */
-        p->b1 = w->poses[c->body_b];
+        p->a1 = f->poses[c->body_a];    /* the detection just before */
+        p->b1 = f->poses[c->body_b];
     }
-    int rc = SC_OK;
-    if (np > 0) {
-        rc = sc_grow((void **)&w->utoi, &w->utoi_cap, np, sizeof *w->utoi, INT_MAX);
-        if (rc != SC_OK)
-            return rc;
-        sc_job job = {
-            .kind = SC_UNIT_TOI,
-            .pairs = w->upairs,
-            .npairs = np,
-            /* aim below the tolerance: the backed-up substep's impulses
-             * and push-out differ a little from the path the search
-             * interpolated */
-            .tol_m = TOI_AIM * w->cfg.contact_tol_m,
-            .toi = w->utoi,
-        };
-        for (int i = 0; i < np; i++)
-            w->utoi[i] = 1;
-        rc = sc_job_run(w, &job, SC_STAGE_TOI);
-        for (int i = 0; rc == SC_OK && i < np; i++)
-            *frac = fmin(*frac, w->utoi[i]);
-    }
-    sc_stage_add(w, SC_STAGE_TOI, t0);
+    sc_job job = {
+        .kind = SC_UNIT_TOI,
+        .pairs = pairs,
+        .npairs = np,
+        /* aim below the tolerance: the backed-up substep's impulses
+         * and push-out differ a little from the path the search
+         * interpolated */
+        .tol_m = TOI_AIM * f->cfg->contact_tol_m,
+        .toi = toi,
+    };
+    for (int i = 0; i < np; i++)
+        toi[i] = 1;
+    int rc = f->ex->run(f->ex, &job, SC_STAGE_TOI, f->stats);
+    for (int i = 0; rc == SC_OK && i < np; i++)
+        *frac = fmin(*frac, toi[i]);
+    sc_arena_free(a, toi);
+    sc_arena_free(a, pairs);
+    sc_stage_add(f->stats, SC_STAGE_TOI, t0);
     return rc;
 }
 
-int sc_frame(sc_world *w, double dt)
+/* The substeps of a frame, with the frame's arrays in place. */
+static int substeps(sc_frame *f, double dt, sc_body *saved, unsigned char *touched)
 {
-    int n = w->nbodies;
-    /* scratch owned by the world: grows with the body count, no malloc
-     * per frame once it has */
-    int rc = sc_grow((void **)&w->saved, &w->saved_cap, n, sizeof *w->saved, INT_MAX);
-    if (rc == SC_OK)
-        rc = sc_body_scratch(w);
-    if (rc == SC_OK)
-        rc = sc_grow((void **)&w->touched, &w->touched_cap, n, 1, INT_MAX);
-    if (rc != SC_OK)
-        return rc;
-    sc_body *saved = w->saved;
-    unsigned char *touched = w->touched;
-    sc_islands *is = &w->islands;
-    if (!w->contacts_valid)
-        rc = sc_detect(w);
+    sc_frame_state *st = f->st;
+    sc_arena *a = &f->scr->arena;
+    sc_islands *is = &f->scr->islands;
+    int n = st->nbodies;
+    int rc = st->contacts_valid ? SC_OK : sc_detect(f);
     double left = dt;
     for (int sub = 0; rc == SC_OK && left > 0; sub++) {
         /* keep the start of the substep: contacts and state */
-        memcpy(saved, w->bodies, (size_t)n * sizeof *saved);
-        int n0 = w->ncontacts;
-        rc = sc_grow((void **)&w->c0, &w->c0_cap, n0, sizeof *w->c0, INT_MAX);
-        if (rc != SC_OK)
-            break;
-        sc_contact *c0 = w->c0;
+        memcpy(saved, st->bodies, (size_t)n * sizeof *saved);
+        int n0 = st->ncontacts;
+        sc_contact *c0 = sc_arena_alloc(a, (size_t)n0 * sizeof *c0);
+        if (!c0)
+            return SC_ENOMEM;
         if (n0 > 0)
-            memcpy(c0, w->contacts, (size_t)n0 * sizeof *c0);
+            memcpy(c0, st->contacts, (size_t)n0 * sizeof *c0);
         double h = left;
-        rc = substep(w, h, is, touched);
+        rc = substep(f, h, is, touched);
         if (rc == SC_OK)
-            rc = sc_detect(w);
+            rc = sc_detect(f);
         double frac = 1;
         if (rc == SC_OK && sub + 1 < MAX_SUBSTEPS)
-            rc = earliest_impact(w, saved, c0, n0, &frac);
+            rc = earliest_impact(f, saved, c0, n0, &frac);
         if (rc == SC_OK && frac < 1) {
             /* steps 5-6: back up and advance only until they touch */
-            memcpy(w->bodies, saved, (size_t)n * sizeof *saved);
+            memcpy(st->bodies, saved, (size_t)n * sizeof *saved);
             if (n0 > 0)
-                memcpy(w->contacts, c0, (size_t)n0 * sizeof *c0);
-            w->ncontacts = n0;
+                memcpy(st->contacts, c0, (size_t)n0 * sizeof *c0);
+            st->ncontacts = n0;
             h = fmax(frac * h, 1e-6 * dt);
-            rc = substep(w, h, is, touched);
+            rc = substep(f, h, is, touched);
             if (rc == SC_OK)
-                rc = sc_detect(w);
+                rc = sc_detect(f);
         }
+        sc_arena_free(a, c0);
         left -= h;
         if (left < 1e-9 * dt)
             left = 0;
     }
-    if (rc == SC_OK) {
-        sc_update_states(w, is, touched, dt);
-        for (int i = 0; i < n; i++) {
-            v3_set(w->bodies[i].force, 0, 0, 0);
-            v3_set(w->bodies[i].torque, 0, 0, 0);
-        }
-        w->contacts_valid = 1;
-    }
+    if (rc == SC_OK)
+        sc_update_states(f, is, touched, dt);
     return rc;
 }
 
-SC_API int sc_world_step(sc_world *w, double dt)
+int sc_frame_step(const sc_frame_config *cfg, sc_frame_state *st, double dt,
+                  sc_frame_scratch *scr, sc_exec *ex, sc_stats *stats)
 {
-    if (!w || !(dt > 0) || !isfinite(dt))
-        return SC_EINVAL;
-    memset(w->stats.stage_s, 0, sizeof w->stats.stage_s);
-    w->stats.lcp_pivots = 0;
-    w->stats.lcp_fallbacks = 0;
-    w->stats.collider_warnings = 0;
-    w->stats.units = 0;
-    w->stats.sched_s = 0;
-    w->stats.makespan_s = 0;
-    w->stats.makespan_bound_s = 0;
-    w->stats.groups = 0;
-    w->stats.pairs = 0;
-    w->stats.contacts = 0;
-    w->stats.islands = 0;
-    w->stats.max_penetration = 0;
-    w->stats.remote_units = 0;
-    w->stats.recomputed_units = 0;
-    w->stats.late_results = 0;
-    w->stats.comm_s = 0;
-    w->stats.remote_wait_s = 0;
-    if (w->cluster)
-        sc_cluster_frame(w->cluster);
-    if (w->nbodies == 0) {
-        w->stats.frames++;      /* nothing to move */
+    int n = st->nbodies;
+    if (n == 0)
         return SC_OK;
+    sc_arena *a = &scr->arena;
+    sc_frame f = { .cfg = cfg, .st = st, .scr = scr, .ex = ex, .stats = stats };
+    /* the frame's arrays, last in first out */
+    sc_body *saved = sc_arena_alloc(a, (size_t)n * sizeof *saved);
+    unsigned char *touched = sc_arena_alloc(a, (size_t)n);
+    f.centre = sc_arena_alloc(a, (size_t)n * 3 * sizeof *f.centre);
+    f.radius = sc_arena_alloc(a, (size_t)n * sizeof *f.radius);
+    f.active = sc_arena_alloc(a, (size_t)n);
+    f.poses = sc_arena_alloc(a, (size_t)n * sizeof *f.poses);
+    int rc = saved && touched && f.centre && f.radius && f.active && f.poses
+                 ? substeps(&f, dt, saved, touched)
+                 : SC_ENOMEM;
+    sc_arena_free(a, f.poses);
+    sc_arena_free(a, f.active);
+    sc_arena_free(a, f.radius);
+    sc_arena_free(a, f.centre);
+    sc_arena_free(a, touched);
+    sc_arena_free(a, saved);
+    if (a->high > stats->arena_bytes)
+        stats->arena_bytes = a->high;
+    if (rc != SC_OK)
+        return rc;
+    for (int i = 0; i < n; i++) {
+        v3_set(st->bodies[i].force, 0, 0, 0);
+        v3_set(st->bodies[i].torque, 0, 0, 0);
     }
-    int rc = w->cfg.motion_groups ? sc_groups_step(w, dt) : sc_frame(w, dt);
-    if (rc == SC_OK) {
-        w->stats.frames++;
-        w->stats.makespan_ratio = w->stats.makespan_bound_s > 0
-                                      ? w->stats.makespan_s / w->stats.makespan_bound_s
-                                      : 0;
-    }
-    return rc;
+    st->contacts_valid = 1;
+    return SC_OK;
 }

@@ -11,8 +11,8 @@
  * those whose gap can close within the frame at twice their relative speed
  * (may_meet(): bodies falling side by side do not) are joined, and bodies
  * joined directly or through others form a group. Each group runs the whole
- * frame (sc_frame(): substeps, back-ups, islands, states) on a sub-world
- * holding its bodies and the static ones. Static bodies join no group:
+ * frame (sc_frame_step(): substeps, back-ups, islands, states) on a copy
+ * of its bodies and the static ones. Static bodies join no group:
  * they are only read. A group with no awake body is asleep and skipped.
  *
  * Groups are independent, so they are work units of their own: each runs
@@ -29,169 +29,232 @@
 #include <limits.h>
 #include <stdlib.h>
 
-#include "sc_internal.h"
+#include "frame.h"
 #include "vecmath.h"
 
 #define REACH_MARGIN 2e-3     /* m added to every body's reach */
 #define BIG_GROUP 0.5         /* share of the awake bodies that makes a pile */
 
+/* A group's frame runs on a copy of its bodies: this holds the copy and a
+ * frame scratch of its own, kept between frames (one per thread that runs
+ * groups, and one for a pile on the calling thread). The parent's also
+ * keeps the broad phase that finds the groups. */
+typedef struct sc_group_scratch {
+    sc_frame_scratch scr;
+    sc_frame_state st;
+    int body_cap;
+    int *ids;                       /* the copy's world ids, ascending */
+    int ids_cap;
+    sc_broadphase *gbp;             /* the parent's: reach spheres */
+    sc_pair *gpairs;
+    int gpair_cap;
+} sc_group_scratch;
+
+/* The groups of a frame: arrays from the parent frame's arena. */
+typedef struct sc_groups {
+    int n, ngroups, nstatics;
+    double *centre, *radius;
+    unsigned char *active;
+    int *parent, *start, *members, *gid, *statics, *cstart, *contacts;
+} sc_groups;
+
+typedef struct sc_group_out {
+    int rc;
+    sc_contact *contacts;           /* world ids, canonical order; malloc'd */
+    int ncontacts;
+    sc_stats stats;                 /* of the group's frame */
+} sc_group_out;
+
+/* What a GROUP job's units read (and the bodies they write back). */
+typedef struct sc_group_job {
+    const sc_frame_config *cfg;
+    sc_frame_state *st;
+    const sc_groups *g;
+    double dt;
+    sc_group_out *out;              /* per group */
+} sc_group_job;
+
+static sc_group_scratch *group_scratch_create(void)
+{
+    sc_group_scratch *gs = calloc(1, sizeof *gs);
+    if (gs && sc_frame_scratch_init(&gs->scr) != SC_OK) {
+        sc_frame_scratch_free(&gs->scr);
+        free(gs);
+        return NULL;
+    }
+    return gs;
+}
+
+void sc_group_scratch_destroy(sc_group_scratch *gs)
+{
+    if (!gs)
+        return;
+    sc_frame_scratch_free(&gs->scr);
+    free(gs->st.bodies);
+    free(gs->st.contacts);
+    free(gs->ids);
+    sc_bp_destroy(gs->gbp);
+    free(gs->gpairs);
+    free(gs);
+}
+
+static void group_scratch_free(void *p)
+{
+    sc_group_scratch_destroy(p);
+}
+
 /* Whether bodies a and b (spheres overlapping) can touch within dt: the
  * gap between their bounds closes at most at twice their relative speed,
  * plus the sweep of their shape origins, their relative acceleration and a
  * margin. Bodies falling side by side do not meet. */
-static int may_meet(const sc_world *w, int a, int b, double dt)
+static int may_meet(const sc_frame_config *cfg, const sc_frame_state *st, const sc_groups *g,
+                    int a, int b, double dt)
 {
-    const sc_body *A = &w->bodies[a], *B = &w->bodies[b];
+    const sc_body *A = &st->bodies[a], *B = &st->bodies[b];
     double dv[3], acc[3], aa[3], ab[3];
     v3_sub(dv, A->v, B->v);
-    v3_madd(aa, w->cfg.gravity, A->force, A->inv_mass);
-    v3_madd(ab, w->cfg.gravity, B->force, B->inv_mass);
+    v3_madd(aa, cfg->gravity, A->force, A->inv_mass);
+    v3_madd(ab, cfg->gravity, B->force, B->inv_mass);
     v3_sub(acc, aa, ab);
-    double gap = v3_dist(&w->gcentre[3 * a], &w->gcentre[3 * b]) - A->shape->bound_r -
-                 B->shape->bound_r - 2 * w->cfg.contact_tol_m;
+    double gap = v3_dist(&g->centre[3 * a], &g->centre[3 * b]) - A->shape->bound_r -
+                 B->shape->bound_r - 2 * cfg->contact_tol_m;
     double close = (2 * v3_len(dv) + v3_len(A->w) * v3_len(A->com) +
                     v3_len(B->w) * v3_len(B->com)) * dt +
                    0.5 * v3_len(acc) * dt * dt + 2 * REACH_MARGIN;
     return gap < close;
 }
 
-void sc_group_scratch_free(sc_world *w)
+/* The arrays of g for n bodies and nc contacts from arena a, freed by
+ * groups_free() in reverse. */
+static int groups_alloc(sc_arena *a, sc_groups *g, int n, int nc)
 {
-    free(w->gcentre);
-    free(w->gradius);
-    free(w->gactive);
-    free(w->gparent);
-    free(w->gstart);
-    free(w->gmembers);
-    free(w->gid);
-    free(w->statics);
-    free(w->gcstart);
-    w->gcap = 0;
+    memset(g, 0, sizeof *g);
+    g->n = n;
+    size_t N = (size_t)n;
+    g->centre = sc_arena_alloc(a, N * 3 * sizeof *g->centre);
+    g->radius = g->centre ? sc_arena_alloc(a, N * sizeof *g->radius) : NULL;
+    g->active = g->radius ? sc_arena_alloc(a, N) : NULL;
+    g->parent = g->active ? sc_arena_alloc(a, N * sizeof(int)) : NULL;
+    g->start = g->parent ? sc_arena_alloc(a, (N + 1) * sizeof(int)) : NULL;
+    g->members = g->start ? sc_arena_alloc(a, N * sizeof(int)) : NULL;
+    g->gid = g->members ? sc_arena_alloc(a, N * sizeof(int)) : NULL;
+    g->statics = g->gid ? sc_arena_alloc(a, N * sizeof(int)) : NULL;
+    g->cstart = g->statics ? sc_arena_alloc(a, (N + 2) * sizeof(int)) : NULL;
+    g->contacts = g->cstart ? sc_arena_alloc(a, (size_t)nc * sizeof(int)) : NULL;
+    return g->contacts ? SC_OK : SC_ENOMEM;
 }
 
-static int grow_scratch(sc_world *w, int n)
+static void groups_free(sc_arena *a, sc_groups *g)
 {
-    if (n <= w->gcap)
-        return SC_OK;
-    int cap = n > 2 * w->gcap ? n : 2 * w->gcap;
-    sc_group_scratch_free(w);
-    w->gcentre = sc_alloc_array((size_t)cap * 3, sizeof *w->gcentre);
-    w->gradius = sc_alloc_array((size_t)cap, sizeof *w->gradius);
-    w->gactive = sc_alloc_array((size_t)cap, sizeof *w->gactive);
-    w->gparent = sc_alloc_array((size_t)cap, sizeof *w->gparent);
-    w->gstart = sc_alloc_array((size_t)cap + 1, sizeof *w->gstart);
-    w->gmembers = sc_alloc_array((size_t)cap, sizeof *w->gmembers);
-    w->gid = sc_alloc_array((size_t)cap, sizeof *w->gid);
-    w->statics = sc_alloc_array((size_t)cap, sizeof *w->statics);
-    w->gcstart = sc_alloc_array((size_t)cap + 2, sizeof *w->gcstart);
-    w->gcap = w->gcentre && w->gradius && w->gactive && w->gparent && w->gstart &&
-                      w->gmembers && w->gid && w->statics && w->gcstart
-                  ? cap
-                  : 0;
-    return w->gcap ? SC_OK : SC_ENOMEM;
+    sc_arena_free(a, g->contacts);
+    sc_arena_free(a, g->cstart);
+    sc_arena_free(a, g->statics);
+    sc_arena_free(a, g->gid);
+    sc_arena_free(a, g->members);
+    sc_arena_free(a, g->start);
+    sc_arena_free(a, g->parent);
+    sc_arena_free(a, g->active);
+    sc_arena_free(a, g->radius);
+    sc_arena_free(a, g->centre);
 }
 
-/* The groups of w: w->ngroups, members of group g in
- * gmembers[gstart[g] .. gstart[g + 1]) (ascending), gid[i] (-1: none),
+/* The groups of st: g->ngroups, members of group k in
+ * members[start[k] .. start[k + 1]) (ascending), gid[i] (-1: none),
  * the static bodies, and the last frame's contacts of each group in
- * gcontacts[gcstart[g] .. gcstart[g + 1]). */
-static int build_groups(sc_world *w, double dt)
+ * contacts[cstart[k] .. cstart[k + 1]). */
+static int build_groups(const sc_frame_config *cfg, const sc_frame_state *st,
+                        sc_group_scratch *gs, sc_groups *g, double dt)
 {
-    int n = w->nbodies, rc = grow_scratch(w, n);
-    if (rc != SC_OK)
-        return rc;
-    if (!w->gbp && !(w->gbp = sc_bp_create()))
+    int n = st->nbodies;
+    if (!gs->gbp && !(gs->gbp = sc_bp_create()))
         return SC_ENOMEM;
-    w->nstatics = 0;
+    g->nstatics = 0;
     for (int i = 0; i < n; i++) {
-        const sc_body *b = &w->bodies[i];
-        w->gparent[i] = i;
-        w->gid[i] = -1;
+        const sc_body *b = &st->bodies[i];
+        g->parent[i] = i;
+        g->gid[i] = -1;
         if (b->inv_mass == 0) {
             /* static: parked out of the sweep, joins no group */
-            v3_set(&w->gcentre[3 * i], 0, 0, 0);
-            w->gradius[i] = 0;
-            w->gactive[i] = 0;
-            w->statics[w->nstatics++] = i;
+            v3_set(&g->centre[3 * i], 0, 0, 0);
+            g->radius[i] = 0;
+            g->active[i] = 0;
+            g->statics[g->nstatics++] = i;
             continue;
         }
         sc_pose p;
         sc_body_pose(b, &p);
-        v3_copy(&w->gcentre[3 * i], p.pos);
+        v3_copy(&g->centre[3 * i], p.pos);
         double a[3];
-        v3_madd(a, w->cfg.gravity, b->force, b->inv_mass);
+        v3_madd(a, cfg->gravity, b->force, b->inv_mass);
         double reach = (2 * v3_len(b->v) + v3_len(b->w) * v3_len(b->com)) * dt +
                        0.5 * v3_len(a) * dt * dt + REACH_MARGIN;
-        w->gradius[i] = b->shape->bound_r + w->cfg.contact_tol_m + reach;
-        w->gactive[i] = sc_body_movable(b);
+        g->radius[i] = b->shape->bound_r + cfg->contact_tol_m + reach;
+        g->active[i] = sc_body_movable(b);
     }
-    int np = sc_bp_find_pairs(w->gbp, n < 256 ? SC_BROADPHASE_SPHERES : SC_BROADPHASE_SAP,
-                              w->gcentre, w->gradius, w->gactive, n, &w->gpairs,
-                              &w->gpair_cap);
+    int np = sc_bp_find_pairs(gs->gbp, n < 256 ? SC_BROADPHASE_SPHERES : SC_BROADPHASE_SAP,
+                              g->centre, g->radius, g->active, n, &gs->gpairs, &gs->gpair_cap);
     if (np < 0)
         return np;
     for (int k = 0; k < np; k++) {
-        const sc_pair *pr = &w->gpairs[k];
-        if (w->bodies[pr->a].inv_mass > 0 && w->bodies[pr->b].inv_mass > 0 &&
-            may_meet(w, pr->a, pr->b, dt))
-            sc_uf_unite(w->gparent, pr->a, pr->b);
+        const sc_pair *pr = &gs->gpairs[k];
+        if (st->bodies[pr->a].inv_mass > 0 && st->bodies[pr->b].inv_mass > 0 &&
+            may_meet(cfg, st, g, pr->a, pr->b, dt))
+            sc_uf_unite(g->parent, pr->a, pr->b);
     }
     /* bodies touching at the end of the last frame stay together, asleep
      * ones too (an awake neighbour may wake them) */
-    for (int k = 0; w->contacts_valid && k < w->ncontacts; k++) {
-        const sc_contact *c = &w->contacts[k];
-        if (w->bodies[c->body_a].inv_mass > 0 && w->bodies[c->body_b].inv_mass > 0)
-            sc_uf_unite(w->gparent, c->body_a, c->body_b);
+    for (int k = 0; st->contacts_valid && k < st->ncontacts; k++) {
+        const sc_contact *c = &st->contacts[k];
+        if (st->bodies[c->body_a].inv_mass > 0 && st->bodies[c->body_b].inv_mass > 0)
+            sc_uf_unite(g->parent, c->body_a, c->body_b);
     }
     /* a group needs an awake body; groups numbered by their first member */
     for (int i = 0; i < n; i++)
-        if (w->gactive[i])
-            w->gid[sc_uf_find(w->gparent, i)] = 0;
+        if (g->active[i])
+            g->gid[sc_uf_find(g->parent, i)] = 0;
     int ng = 0;
     for (int i = 0; i < n; i++) {
-        if (w->bodies[i].inv_mass == 0)
+        if (st->bodies[i].inv_mass == 0)
             continue;
-        int r = sc_uf_find(w->gparent, i);
-        if (r == i && w->gid[i] == 0)
-            w->gid[i] = ++ng;    /* 1-based while numbering */
+        int r = sc_uf_find(g->parent, i);
+        if (r == i && g->gid[i] == 0)
+            g->gid[i] = ++ng;    /* 1-based while numbering */
     }
     for (int i = 0; i < n; i++)
-        if (w->bodies[i].inv_mass > 0 && sc_uf_find(w->gparent, i) != i)
-            w->gid[i] = w->gid[sc_uf_find(w->gparent, i)];
-    memset(w->gstart, 0, (size_t)(ng + 1) * sizeof *w->gstart);
+        if (st->bodies[i].inv_mass > 0 && sc_uf_find(g->parent, i) != i)
+            g->gid[i] = g->gid[sc_uf_find(g->parent, i)];
+    memset(g->start, 0, (size_t)(ng + 1) * sizeof *g->start);
     for (int i = 0; i < n; i++) {
-        if (w->gid[i] > 0)
-            w->gstart[w->gid[i]]++;
-        w->gid[i] = w->gid[i] > 0 ? w->gid[i] - 1 : -1;
+        if (g->gid[i] > 0)
+            g->start[g->gid[i]]++;
+        g->gid[i] = g->gid[i] > 0 ? g->gid[i] - 1 : -1;
     }
-    for (int g = 0; g < ng; g++)
-        w->gstart[g + 1] += w->gstart[g];
+    for (int k = 0; k < ng; k++)
+        g->start[k + 1] += g->start[k];
     /* members, ascending within each group (counting sort) */
-    for (int g = ng; g > 0; g--)
-        w->gstart[g] = w->gstart[g - 1];
-    w->gstart[0] = 0;
+    for (int k = ng; k > 0; k--)
+        g->start[k] = g->start[k - 1];
+    g->start[0] = 0;
     for (int i = 0; i < n; i++)
-        if (w->gid[i] >= 0)
-            w->gmembers[w->gstart[w->gid[i] + 1]++] = i;
-    w->ngroups = ng;
+        if (g->gid[i] >= 0)
+            g->members[g->start[g->gid[i] + 1]++] = i;
+    g->ngroups = ng;
     /* the last frame's contacts, by group, in their canonical order */
-    int nc = w->contacts_valid ? w->ncontacts : 0;
-    if (sc_grow((void **)&w->gcontacts, &w->gcontact_cap, nc, sizeof *w->gcontacts, INT_MAX))
-        return SC_ENOMEM;
-    memset(w->gcstart, 0, (size_t)(ng + 2) * sizeof *w->gcstart);
+    int nc = st->contacts_valid ? st->ncontacts : 0;
+    memset(g->cstart, 0, (size_t)(ng + 2) * sizeof *g->cstart);
     for (int k = 0; k < nc; k++) {
-        int g = w->gid[w->contacts[k].body_a] >= 0 ? w->gid[w->contacts[k].body_a]
-                                                   : w->gid[w->contacts[k].body_b];
-        if (g >= 0)
-            w->gcstart[g + 2]++;
+        int q = g->gid[st->contacts[k].body_a] >= 0 ? g->gid[st->contacts[k].body_a]
+                                                    : g->gid[st->contacts[k].body_b];
+        if (q >= 0)
+            g->cstart[q + 2]++;
     }
-    for (int g = 0; g < ng; g++)
-        w->gcstart[g + 2] += w->gcstart[g + 1];
+    for (int k = 0; k < ng; k++)
+        g->cstart[k + 2] += g->cstart[k + 1];
     for (int k = 0; k < nc; k++) {
-        int g = w->gid[w->contacts[k].body_a] >= 0 ? w->gid[w->contacts[k].body_a]
-                                                   : w->gid[w->contacts[k].body_b];
-        if (g >= 0)
-            w->gcontacts[w->gcstart[g + 1]++] = k;
+        int q = g->gid[st->contacts[k].body_a] >= 0 ? g->gid[st->contacts[k].body_a]
+                                                    : g->gid[st->contacts[k].body_b];
+        if (q >= 0)
+            g->contacts[g->cstart[q + 1]++] = k;
     }
     return SC_OK;
 }
@@ -211,87 +274,76 @@ static int local_id(const int *ids, int m, int id)
     return -1;
 }
 
-static sc_world *sub_create(const sc_world *w)
+/* Group k's frame on the copy in gs: its members and the static bodies,
+ * in world order (so contacts keep their canonical order), the last
+ * frame's contacts, sc_frame_step() with executor ex, and back. */
+static void group_frame(const sc_group_job *gj, sc_group_scratch *gs, int k, sc_exec *ex)
 {
-    sc_world *sub = calloc(1, sizeof *sub);
-    if (!sub)
-        return NULL;
-    sub->cfg = w->cfg;    /* a sub-world runs sc_frame() only */
-    sub->bp = sc_bp_create();
-    if (!sub->bp) {
-        free(sub);
-        return NULL;
-    }
-    return sub;
-}
-
-/* Group g's frame on the scratch world sub: its members and the static
- * bodies, in world order (so contacts keep their canonical order), the
- * last frame's contacts, sc_frame(), and back. */
-static void group_frame(sc_world *w, sc_world *sub, int g, double dt, sc_group_out *out)
-{
-    const int *mem = &w->gmembers[w->gstart[g]];
-    int nm = w->gstart[g + 1] - w->gstart[g], ns = w->nstatics, m = nm + ns;
+    const sc_groups *g = gj->g;
+    sc_frame_state *ps = gj->st;
+    sc_group_out *out = &gj->out[k];
+    const int *mem = &g->members[g->start[k]];
+    int nm = g->start[k + 1] - g->start[k], ns = g->nstatics, m = nm + ns;
     memset(out, 0, sizeof *out);
     out->rc = SC_ENOMEM;
-    if (sc_grow((void **)&sub->sub_ids, &sub->sub_ids_cap, m, sizeof *sub->sub_ids, INT_MAX) ||
-        sc_grow((void **)&sub->bodies, &sub->cap, m, sizeof *sub->bodies, INT_MAX))
+    sc_frame_state *st = &gs->st;
+    if (sc_grow((void **)&gs->ids, &gs->ids_cap, m, sizeof *gs->ids, INT_MAX) ||
+        sc_grow((void **)&st->bodies, &gs->body_cap, m, sizeof *st->bodies, INT_MAX))
         return;
-    int *ids = sub->sub_ids;
-    for (int i = 0, j = 0, k = 0; k < m; k++)
-        ids[k] = j >= ns || (i < nm && mem[i] < w->statics[j]) ? mem[i++] : w->statics[j++];
-    for (int k = 0; k < m; k++)
-        sub->bodies[k] = w->bodies[ids[k]];
-    sub->nbodies = m;
-    const int *ck = &w->gcontacts[w->gcstart[g]];
-    int nc = w->gcstart[g + 1] - w->gcstart[g];
-    if (sc_grow((void **)&sub->contacts, &sub->contact_cap, nc, sizeof *sub->contacts,
-                INT_MAX))
+    int *ids = gs->ids;
+    for (int i = 0, j = 0, q = 0; q < m; q++)
+        ids[q] = j >= ns || (i < nm && mem[i] < g->statics[j]) ? mem[i++] : g->statics[j++];
+    for (int q = 0; q < m; q++)
+        st->bodies[q] = ps->bodies[ids[q]];
+    st->nbodies = m;
+    const int *ck = &g->contacts[g->cstart[k]];
+    int nc = g->cstart[k + 1] - g->cstart[k];
+    if (sc_grow((void **)&st->contacts, &st->contact_cap, nc, sizeof *st->contacts, INT_MAX))
         return;
-    for (int k = 0; k < nc; k++) {
-        sc_contact c = w->contacts[ck[k]];
+    for (int q = 0; q < nc; q++) {
+        sc_contact c = ps->contacts[ck[q]];
         c.body_a = local_id(ids, m, c.body_a);
         c.body_b = local_id(ids, m, c.body_b);
-        sub->contacts[k] = c;
+        st->contacts[q] = c;
     }
-    sub->ncontacts = nc;
-    sub->contacts_valid = w->contacts_valid;
-    memset(&sub->stats, 0, sizeof sub->stats);
-    out->rc = sc_frame(sub, dt);
-    out->stats = sub->stats;
-    for (int k = 0; k < m; k++)
-        if (sub->bodies[k].inv_mass > 0)
-            w->bodies[ids[k]] = sub->bodies[k];
-    if (out->rc != SC_OK || sub->ncontacts == 0)
+    st->ncontacts = nc;
+    st->contacts_valid = ps->contacts_valid;
+    if (sc_arena_reset(&gs->scr.arena) != SC_OK)
         return;
-    out->contacts = sc_alloc_array((size_t)sub->ncontacts, sizeof *out->contacts);
+    out->rc = sc_frame_step(gj->cfg, st, gj->dt, &gs->scr, ex, &out->stats);
+    for (int q = 0; q < m; q++)
+        if (st->bodies[q].inv_mass > 0)
+            ps->bodies[ids[q]] = st->bodies[q];
+    if (out->rc != SC_OK || st->ncontacts == 0)
+        return;
+    out->contacts = sc_alloc_array((size_t)st->ncontacts, sizeof *out->contacts);
     if (!out->contacts) {
         out->rc = SC_ENOMEM;
         return;
     }
-    for (int k = 0; k < sub->ncontacts; k++) {
-        sc_contact c = sub->contacts[k];
+    for (int q = 0; q < st->ncontacts; q++) {
+        sc_contact c = st->contacts[q];
         c.body_a = ids[c.body_a];
         c.body_b = ids[c.body_b];
-        out->contacts[k] = c;
+        out->contacts[q] = c;
     }
-    out->ncontacts = sub->ncontacts;
+    out->ncontacts = st->ncontacts;
 }
 
 int sc_group_unit_run(sc_np_ctx *np, const sc_job *job, const sc_unit *u)
 {
-    void (*fn)(void *) = sc_world_scratch_free;
+    void (*fn)(void *) = group_scratch_free;
     void **slot = sc_np_scratch(np, &fn);
     if (!*slot)
-        *slot = sub_create(job->world);
-    sc_world *sub = *slot;
-    if (!sub)
+        *slot = group_scratch_create();
+    sc_group_scratch *gs = *slot;
+    if (!gs)
         return SC_ENOMEM;
-    sub->cfg = job->world->cfg;
-    sub->inline_np = np;
-    sub->parent = NULL;
-    group_frame(job->world, sub, u->first, job->dt, &job->gout[u->first]);
-    return job->gout[u->first].rc;
+    /* a group unit runs on this thread alone */
+    sc_exec_serial ex;
+    sc_exec_serial_init(&ex, np);
+    group_frame(job->group, gs, u->first, &ex.base);
+    return job->group->out[u->first].rc;
 }
 
 static void add_stats(sc_stats *s, const sc_stats *g)
@@ -310,6 +362,10 @@ static void add_stats(sc_stats *s, const sc_stats *g)
     s->sched_s += g->sched_s;
     s->makespan_s += g->makespan_s;
     s->makespan_bound_s += g->makespan_bound_s;
+    if (g->arena_bytes > s->unit_arena_bytes)
+        s->unit_arena_bytes = g->arena_bytes;
+    if (g->unit_arena_bytes > s->unit_arena_bytes)
+        s->unit_arena_bytes = g->unit_arena_bytes;
 }
 
 typedef struct pair_run {
@@ -325,28 +381,28 @@ static int cmp_run(const void *x, const void *y)
     return (p->b > q->b) - (p->b < q->b);
 }
 
-/* The groups' contacts into w->contacts in canonical order (by pair, then
- * as found). A pair belongs to one group, where its contacts are
+/* The groups' contacts into st->contacts in canonical order (by pair,
+ * then as found). A pair belongs to one group, where its contacts are
  * consecutive and in order: whole runs are sorted by their pair. */
-static int merge_contacts(sc_world *w)
+static int merge_contacts(sc_arena *a, sc_frame_state *st, const sc_group_out *out, int ng)
 {
     int total = 0;
-    for (int g = 0; g < w->ngroups; g++)
-        total += w->gout[g].ncontacts;
-    if (sc_grow((void **)&w->c0, &w->c0_cap, total, sizeof *w->c0, INT_MAX) ||
-        sc_grow((void **)&w->contacts, &w->contact_cap, total, sizeof *w->contacts, INT_MAX))
+    for (int k = 0; k < ng; k++)
+        total += out[k].ncontacts;
+    if (sc_grow((void **)&st->contacts, &st->contact_cap, total, sizeof *st->contacts, INT_MAX))
         return SC_ENOMEM;
-    sc_contact *all = w->c0;
-    int n = 0;
-    for (int g = 0; g < w->ngroups; g++) {
-        if (w->gout[g].ncontacts)
-            memcpy(&all[n], w->gout[g].contacts,
-                   (size_t)w->gout[g].ncontacts * sizeof *all);
-        n += w->gout[g].ncontacts;
+    sc_contact *all = sc_arena_alloc(a, (size_t)total * sizeof *all);
+    pair_run *run = all ? sc_arena_alloc(a, (size_t)total * sizeof *run) : NULL;
+    if (!run) {
+        sc_arena_free(a, all);
+        return SC_ENOMEM;
     }
-    pair_run *run = sc_alloc_array((size_t)(n > 0 ? n : 1), sizeof *run);
-    if (!run)
-        return SC_ENOMEM;
+    int n = 0;
+    for (int k = 0; k < ng; k++) {
+        if (out[k].ncontacts)
+            memcpy(&all[n], out[k].contacts, (size_t)out[k].ncontacts * sizeof *all);
+        n += out[k].ncontacts;
+    }
     int r = 0;
     for (int k = 0; k < n; k++) {
         if (k == 0 || all[k].body_a != all[k - 1].body_a || all[k].body_b != all[k - 1].body_b)
@@ -354,56 +410,52 @@ static int merge_contacts(sc_world *w)
         run[r - 1].len++;
     }
     qsort(run, (size_t)r, sizeof *run, cmp_run);    /* pairs are unique */
-    w->ncontacts = 0;
+    st->ncontacts = 0;
     for (int i = 0; i < r; i++) {
-        memcpy(&w->contacts[w->ncontacts], &all[run[i].start],
+        memcpy(&st->contacts[st->ncontacts], &all[run[i].start],
                (size_t)run[i].len * sizeof *all);
-        w->ncontacts += run[i].len;
+        st->ncontacts += run[i].len;
     }
-    free(run);
+    sc_arena_free(a, run);
+    sc_arena_free(a, all);
     return SC_OK;
 }
 
-int sc_groups_step(sc_world *w, double dt)
+/* The groups' frames, with the groups built in g. */
+static int step_groups(const sc_frame_config *cfg, sc_frame_state *st, double dt,
+                       sc_frame_scratch *scr, sc_exec *ex, sc_stats *stats, sc_groups *g)
 {
-    double t0 = sc_cpu_now();
-    int rc = build_groups(w, dt);
-    sc_stage_add(w, SC_STAGE_BROADPHASE, t0);
-    if (rc != SC_OK)
-        return rc;
-    int ng = w->ngroups;
-    w->stats.groups = ng;
-    if (sc_grow((void **)&w->gout, &w->gout_cap, ng, sizeof *w->gout, INT_MAX) ||
-        sc_grow((void **)&w->units, &w->unit_cap, ng, sizeof *w->units, INT_MAX))
+    sc_arena *a = &scr->arena;
+    int ng = g->ngroups;
+    stats->groups = ng;
+    sc_group_out *out = sc_arena_calloc(a, (size_t)ng, sizeof *out);
+    sc_unit *units = out ? sc_arena_calloc(a, (size_t)ng, sizeof *units) : NULL;
+    if (!units) {
+        sc_arena_free(a, out);
         return SC_ENOMEM;
-    memset(w->gout, 0, (size_t)ng * sizeof *w->gout);
+    }
+    sc_group_job gj = { .cfg = cfg, .st = st, .g = g, .dt = dt, .out = out };
     int awake = 0;
-    for (int i = 0; i < w->nbodies; i++)
-        awake += w->gactive[i];
+    for (int i = 0; i < st->nbodies; i++)
+        awake += g->active[i];
     /* a pile: on the calling thread, its jobs over every node */
     int big = -1;
-    for (int g = 0; g < ng && w->nnodes > 1; g++)
-        if (w->gstart[g + 1] - w->gstart[g] > BIG_GROUP * awake)
-            big = g;
-    if (big >= 0) {
-        if (!w->bigsub && !(w->bigsub = sub_create(w)))
-            return SC_ENOMEM;
-        w->bigsub->cfg = w->cfg;
-        w->bigsub->parent = w;
-        w->bigsub->inline_np = NULL;
-        group_frame(w, w->bigsub, big, dt, &w->gout[big]);
-    }
+    for (int k = 0; k < ng && ex->width(ex) > 1; k++)
+        if (g->start[k + 1] - g->start[k] > BIG_GROUP * awake)
+            big = k;
+    int rc = SC_OK;
+    if (big >= 0)
+        group_frame(&gj, scr->groups, big, ex);
     /* the others: one unit each */
     int nu = 0;
-    for (int g = 0; g < ng; g++) {
-        if (g == big)
+    for (int k = 0; k < ng; k++) {
+        if (k == big)
             continue;
-        int nm = w->gstart[g + 1] - w->gstart[g];
-        int nc = w->gcstart[g + 1] - w->gcstart[g];
-        sc_unit *u = &w->units[nu++];
-        memset(u, 0, sizeof *u);
+        int nm = g->start[k + 1] - g->start[k];
+        int nc = g->cstart[k + 1] - g->cstart[k];
+        sc_unit *u = &units[nu++];
         u->kind = SC_UNIT_GROUP;
-        u->first = g;
+        u->first = k;
         u->count = nm;
         u->islands = 1;
         /* bodies, and their contacts of the last frame (work per substep) */
@@ -415,30 +467,52 @@ int sc_groups_step(sc_world *w, double dt)
     if (nu > 0) {
         sc_job job = {
             .kind = SC_UNIT_GROUP,
-            .units = w->units,
+            .units = units,
             .nunits = nu,
-            .world = w,
-            .dt = dt,
-            .gout = w->gout,
+            .group = &gj,
         };
-        rc = sc_job_run(w, &job, -1);
+        rc = ex->run(ex, &job, -1, stats);
     }
-    for (int g = 0; g < ng; g++) {
-        add_stats(&w->stats, &w->gout[g].stats);
-        if (w->gout[g].rc != SC_OK && rc == SC_OK)
-            rc = w->gout[g].rc;
+    for (int k = 0; k < ng; k++) {
+        add_stats(stats, &out[k].stats);
+        if (out[k].rc != SC_OK && rc == SC_OK)
+            rc = out[k].rc;
     }
     if (rc == SC_OK)
-        rc = merge_contacts(w);
-    for (int g = 0; g < ng; g++)
-        free(w->gout[g].contacts);
+        rc = merge_contacts(a, st, out, ng);
+    for (int k = 0; k < ng; k++)
+        free(out[k].contacts);
+    sc_arena_free(a, units);
+    sc_arena_free(a, out);
+    return rc;
+}
+
+int sc_groups_step(const sc_frame_config *cfg, sc_frame_state *st, double dt,
+                   sc_frame_scratch *scr, sc_exec *ex, sc_stats *stats)
+{
+    if (st->nbodies == 0)
+        return SC_OK;
+    if (!scr->groups && !(scr->groups = group_scratch_create()))
+        return SC_ENOMEM;
+    sc_arena *a = &scr->arena;
+    double t0 = sc_cpu_now();
+    sc_groups g;
+    int rc = groups_alloc(a, &g, st->nbodies, st->contacts_valid ? st->ncontacts : 0);
+    if (rc == SC_OK)
+        rc = build_groups(cfg, st, scr->groups, &g, dt);
+    sc_stage_add(stats, SC_STAGE_BROADPHASE, t0);
+    if (rc == SC_OK)
+        rc = step_groups(cfg, st, dt, scr, ex, stats, &g);
+    groups_free(a, &g);
+    if (a->high > stats->arena_bytes)
+        stats->arena_bytes = a->high;
     if (rc != SC_OK)
         return rc;
-    w->stats.contacts = w->ncontacts;
-    for (int i = 0; i < w->nbodies; i++) {
-        v3_set(w->bodies[i].force, 0, 0, 0);
-        v3_set(w->bodies[i].torque, 0, 0, 0);
+    stats->contacts = st->ncontacts;
+    for (int i = 0; i < st->nbodies; i++) {
+        v3_set(st->bodies[i].force, 0, 0, 0);
+        v3_set(st->bodies[i].torque, 0, 0, 0);
     }
-    w->contacts_valid = 1;
+    st->contacts_valid = 1;
     return SC_OK;
 }

@@ -47,7 +47,7 @@
 #include <stdlib.h>
 #include <string.h>
 
-#include "sc_internal.h"
+#include "core.h"
 #include "vecmath.h"
 
 #ifdef __FAST_MATH__

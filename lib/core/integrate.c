@@ -4,7 +4,7 @@
 #include <stdlib.h>
 #include <string.h>
 
-#include "sc_internal.h"
+#include "frame.h"
 #include "vecmath.h"
 
 /* Rotate q by angle |w| h about w (exact for constant w). */
@@ -44,16 +44,16 @@ static void gyroscopic(double wb[3], const double I[9], const double inv_I[9], d
 
 /* Step 3, first half: u* = u + h (g + F/m), gyroscopic term, and the world
  * inverse inertia the contact solve needs. v0/w0 keep u for restitution. */
-void sc_apply_forces(sc_world *w, double h)
+void sc_apply_forces(sc_frame *f, double h)
 {
-    for (int i = 0; i < w->nbodies; i++) {
-        sc_body *b = &w->bodies[i];
+    for (int i = 0; i < f->st->nbodies; i++) {
+        sc_body *b = &f->st->bodies[i];
         if (!sc_body_movable(b))
             continue;
         v3_copy(b->v0, b->v);
         v3_copy(b->w0, b->w);
         double a[3], R[9], Rt[9], t[9];
-        v3_madd(a, w->cfg.gravity, b->force, b->inv_mass);
+        v3_madd(a, f->cfg->gravity, b->force, b->inv_mass);
         v3_madd(b->v, b->v, a, h);
         q_to_m3(R, b->q);
         m3_transpose(Rt, R);
@@ -73,16 +73,16 @@ void sc_apply_forces(sc_world *w, double h)
  * is exact for free fall and for a constant friction deceleration; a body
  * that collided this substep took its impulse at the start and then flew
  * under the external forces: x += h (u' - a h / 2). */
-void sc_integrate_positions(sc_world *w, double h)
+void sc_integrate_positions(sc_frame *f, double h)
 {
-    for (int i = 0; i < w->nbodies; i++) {
-        sc_body *b = &w->bodies[i];
+    for (int i = 0; i < f->st->nbodies; i++) {
+        sc_body *b = &f->st->bodies[i];
         if (!sc_body_movable(b))
             continue;
         double step[3], avg_w[3];
         if (b->collided == 2) {
             double a[3];
-            v3_madd(a, w->cfg.gravity, b->force, b->inv_mass);
+            v3_madd(a, f->cfg->gravity, b->force, b->inv_mass);
             v3_madd(step, b->v, a, -0.5 * h);
             v3_copy(avg_w, b->w);
             b->collided = 1;

@@ -6,7 +6,7 @@
 #include <stdlib.h>
 #include <string.h>
 
-#include "sc_internal.h"
+#include "core.h"
 
 int sc_uf_find(int *parent, int i)
 {
@@ -39,20 +39,56 @@ void sc_islands_free(sc_islands *is)
     memset(is, 0, sizeof *is);
 }
 
-int sc_islands_build(int nbodies, const unsigned char *joins, const sc_contact *c,
-                     int ncontacts, sc_islands *is)
+/* Room for nbodies and ncontacts in is (kept between builds). */
+static int reserve(sc_islands *is, int nbodies, int ncontacts)
+{
+    if (nbodies > is->body_cap || !is->body_start) {
+        int cap = nbodies > 2 * is->body_cap ? nbodies : 2 * is->body_cap;
+        cap = cap > 0 ? cap : 1;
+        int *bs = sc_alloc_array((size_t)cap + 1, sizeof *bs);
+        int *b = sc_alloc_array((size_t)cap, sizeof *b);
+        int *cs = sc_alloc_array((size_t)cap + 1, sizeof *cs);
+        if (!bs || !b || !cs) {
+            free(bs);
+            free(b);
+            free(cs);
+            return SC_ENOMEM;
+        }
+        free(is->body_start);
+        free(is->bodies);
+        free(is->contact_start);
+        is->body_start = bs;
+        is->bodies = b;
+        is->contact_start = cs;
+        is->body_cap = cap;
+    }
+    if (ncontacts > is->contact_cap || !is->contacts) {
+        int cap = ncontacts > 2 * is->contact_cap ? ncontacts : 2 * is->contact_cap;
+        cap = cap > 0 ? cap : 1;
+        int *c = sc_alloc_array((size_t)cap, sizeof *c);
+        if (!c)
+            return SC_ENOMEM;
+        free(is->contacts);
+        is->contacts = c;
+        is->contact_cap = cap;
+    }
+    return SC_OK;
+}
+
+int sc_islands_build(sc_arena *arena, int nbodies, const unsigned char *joins,
+                     const sc_contact *c, int ncontacts, sc_islands *is)
 {
     if (nbodies < 0 || ncontacts < 0 || (!joins && (nbodies || ncontacts)) || !is || (ncontacts && !c))
         return SC_EINVAL;
-    sc_islands_free(is);
-    int *parent = sc_alloc_array((size_t)nbodies, sizeof *parent);
-    int *slot = sc_alloc_array((size_t)nbodies, sizeof *slot);
-    is->body_start = sc_calloc_array((size_t)nbodies + 1, sizeof *is->body_start);
-    is->bodies = sc_alloc_array((size_t)nbodies, sizeof *is->bodies);
-    is->contact_start = sc_calloc_array((size_t)nbodies + 1, sizeof *is->contact_start);
-    is->contacts = sc_alloc_array((size_t)ncontacts, sizeof *is->contacts);
+    is->count = 0;
+    if (reserve(is, nbodies, ncontacts) != SC_OK)
+        return SC_ENOMEM;
+    memset(is->body_start, 0, ((size_t)nbodies + 1) * sizeof *is->body_start);
+    memset(is->contact_start, 0, ((size_t)nbodies + 1) * sizeof *is->contact_start);
+    int *parent = sc_arena_alloc(arena, (size_t)nbodies * sizeof *parent);
+    int *slot = parent ? sc_arena_alloc(arena, (size_t)nbodies * sizeof *slot) : NULL;
     int rc = SC_ENOMEM;
-    if (!parent || !slot || !is->body_start || !is->bodies || !is->contact_start || !is->contacts)
+    if (!slot)
         goto out;
     for (int i = 0; i < nbodies; i++)
         parent[i] = i;
@@ -111,9 +147,9 @@ int sc_islands_build(int nbodies, const unsigned char *joins, const sc_contact *
     is->count = n;
     rc = SC_OK;
 out:
-    free(parent);
-    free(slot);
+    sc_arena_free(arena, slot);
+    sc_arena_free(arena, parent);
     if (rc != SC_OK)
-        sc_islands_free(is);
+        is->count = 0;
     return rc;
 }

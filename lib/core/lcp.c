@@ -77,7 +77,8 @@
 #include <stdlib.h>
 #include <string.h>
 
-#include "sc_internal.h"
+#include "core.h"
+#include "lcp.h"
 
 /* A pivot is singular when |pivot| <= LCP_TAU_PIV * (the magnitude of the
  * terms it was computed from): exact redundancy leaves ~1e-16 there, a

@@ -16,7 +16,8 @@
 #include <math.h>
 #include <string.h>
 
-#include "sc_internal.h"
+#include "core.h"
+#include "lcp.h"
 
 /* A rank-one update whose new pivot cancels to this fraction of its terms
  * is treated as singular (never for symmetric positive definite blocks,

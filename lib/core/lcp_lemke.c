@@ -22,7 +22,8 @@
 #include <stdlib.h>
 #include <string.h>
 
-#include "sc_internal.h"
+#include "core.h"
+#include "lcp.h"
 
 /* Relative size below which a lexicographic key entry is rounding noise. */
 #define LEMKE_NOISE 1e-11

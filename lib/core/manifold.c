@@ -5,7 +5,7 @@
  * while the LCP stays small. Deterministic: ties keep the lower index. */
 #include <string.h>
 
-#include "sc_internal.h"
+#include "core.h"
 #include "vecmath.h"
 
 static double tri_area2(const double a[3], const double b[3], const double c[3])

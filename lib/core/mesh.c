@@ -9,7 +9,7 @@
 #include <stdlib.h>
 #include <string.h>
 
-#include "sc_internal.h"
+#include "core.h"
 #include "vecmath.h"
 
 static int cmp_u64(const void *a, const void *b)

@@ -25,8 +25,8 @@
 #include <stdlib.h>
 #include <string.h>
 
-#include "ode_copy.h"
-#include "sc_internal.h"
+#include "ode_table.h"
+#include "core.h"
 #include "vecmath.h"
 
 #define RAW_CONTACTS 64
@@ -68,9 +68,15 @@ struct sc_np_ctx {
     const sc_ode *ode;
     geom_slot *slots;
     int n, cap;
-    void *scratch;                 /* the thread's scratch world (group.c) */
+    void *scratch;                 /* the thread's motion-group scratch (group.c) */
     void (*scratch_free)(void *);
+    sc_arena arena;                /* the thread's arena (island solves) */
 };
+
+sc_arena *sc_np_arena(sc_np_ctx *ctx)
+{
+    return &ctx->arena;
+}
 
 void **sc_np_scratch(sc_np_ctx *ctx, void (**free_fn)(void *))
 {
@@ -82,8 +88,10 @@ void **sc_np_scratch(sc_np_ctx *ctx, void (**free_fn)(void *))
 sc_np_ctx *sc_np_create_on(const sc_ode *ode)
 {
     sc_np_ctx *ctx = calloc(1, sizeof(sc_np_ctx));
-    if (ctx)
+    if (ctx) {
         ctx->ode = ode;
+        sc_arena_init(&ctx->arena);
+    }
     return ctx;
 }
 
@@ -107,6 +115,7 @@ void sc_np_destroy(sc_np_ctx *ctx)
         if (ctx->slots[i].tridata)
             ctx->ode->dGeomTriMeshDataDestroy(ctx->slots[i].tridata);
     free(ctx->slots);
+    sc_arena_destroy(&ctx->arena);
     free(ctx);
 }
 
@@ -325,7 +334,7 @@ int sc_np_collide(sc_np_ctx *ctx, const sc_shape *a, const sc_pose *pa, const sc
         v3_scale(c[i].normal, raw[i].normal, -1.0);
         c[i].depth = raw[i].depth;
     }
-    /* ODE's convex-convex and convex-box colliders give one point (DESIGN.md
+    /* ODE's convex-convex and convex-box colliders give one point (docs/DESIGN.md
      * section 8): a face resting on a face gets its whole footprint by
      * clipping (polyhedron.c). Box-box is native and gives several. */
     if (ra == REP_CONVEX || rb == REP_CONVEX) {

@@ -22,7 +22,7 @@
 #include <stdlib.h>
 #include <string.h>
 
-#include "sc_internal.h"
+#include "core.h"
 #include "vecmath.h"
 
 /* Triangles whose normals differ by less than about 1e-5 rad and whose

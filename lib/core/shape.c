@@ -9,7 +9,7 @@
 
 #include <ode/ode.h>
 
-#include "sc_internal.h"
+#include "core.h"
 #include "vecmath.h"
 
 static sc_shape *shape_new(int kind)

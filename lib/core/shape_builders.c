@@ -7,7 +7,7 @@
  */
 #include <stdlib.h>
 
-#include "sc_internal.h"
+#include "core.h"
 
 /* Bolt: hex head (circumradius, height) and shaft (radius, length). */
 #define BOLT_HEAD_R 0.020

@@ -24,7 +24,7 @@
 #include <time.h>
 #include <unistd.h>
 
-#include "sc_internal.h"
+#include "core.h"
 
 #define LOAD_MAX_BYTES ((size_t)256 << 20)  /* largest file sc_shape_load reads */
 #define NUM_MAX_CHARS 255                   /* longest number token accepted */

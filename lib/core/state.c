@@ -4,7 +4,7 @@
 #include <stdlib.h>
 #include <string.h>
 
-#include "sc_internal.h"
+#include "frame.h"
 #include "vecmath.h"
 
 #define SLEEP_SPEED 0.02      /* m/s and rad/s below which a body is slow */
@@ -12,11 +12,11 @@
 
 /* The paper's states: free fall, collision, contact; islands that stay slow
  * go to sleep and cost nothing until touched. */
-void sc_update_states(sc_world *w, const sc_islands *is, const unsigned char *touched,
-                          double dt)
+void sc_update_states(sc_frame *f, const sc_islands *is, const unsigned char *touched,
+                      double dt)
 {
-    for (int i = 0; i < w->nbodies; i++) {
-        sc_body *b = &w->bodies[i];
+    for (int i = 0; i < f->st->nbodies; i++) {
+        sc_body *b = &f->st->bodies[i];
         if (!sc_body_movable(b))
             continue;
         int slow = v3_len(b->v) < SLEEP_SPEED && v3_len(b->w) < SLEEP_SPEED;
@@ -27,11 +27,11 @@ void sc_update_states(sc_world *w, const sc_islands *is, const unsigned char *to
     for (int k = 0; k < is->count; k++) {
         double rest = INFINITY;
         for (int j = is->body_start[k]; j < is->body_start[k + 1]; j++)
-            rest = fmin(rest, w->bodies[is->bodies[j]].rest_s);
+            rest = fmin(rest, f->st->bodies[is->bodies[j]].rest_s);
         if (rest < SLEEP_TIME)
             continue;
         for (int j = is->body_start[k]; j < is->body_start[k + 1]; j++) {
-            sc_body *b = &w->bodies[is->bodies[j]];
+            sc_body *b = &f->st->bodies[is->bodies[j]];
             b->state = SC_ASLEEP;
             v3_set(b->v, 0, 0, 0);
             v3_set(b->w, 0, 0, 0);

@@ -8,7 +8,7 @@
  * first overlapping sample is bracketed and bisected until the penetration
  * is within tolerance.
  */
-#include "sc_internal.h"
+#include "core.h"
 #include "vecmath.h"
 
 #define TOI_MAX_SAMPLES 256

@@ -1,8 +1,8 @@
-/* unit.c - running one work unit (DESIGN.md sections 1 and 3): a batch of
+/* unit.c - running one work unit (docs/DESIGN.md section 5): a batch of
  * body pairs through the narrow phase or the time-of-impact search, or one
  * island through the contact LCP. A unit reads its job's inputs and writes
  * only its own outputs (its pairs' slots, its island's bodies). */
-#include "sc_internal.h"
+#include "frame.h"
 
 /* Polygons the paper counts for a shape: primitives count as one. */
 static double polygons(const sc_shape *s)
@@ -53,6 +53,8 @@ static int run_toi(sc_np_ctx *np, const sc_job *job, const sc_unit *u)
 void sc_unit_run(sc_np_ctx *np, const sc_job *job, sc_unit *u)
 {
     long msgs = sc_ode_message_count();
+    sc_arena *arena = sc_np_arena(np);
+    sc_arena_reset(arena);    /* grows it, when the last unit overflowed */
     memset(&u->info, 0, sizeof u->info);
     switch (job->kind) {
     case SC_UNIT_COLLIDE:
@@ -66,7 +68,7 @@ void sc_unit_run(sc_np_ctx *np, const sc_job *job, sc_unit *u)
         const sc_islands *is = job->islands;
         u->rc = SC_OK;
         for (int i = u->first; i < u->first + u->islands && u->rc == SC_OK; i++)
-            u->rc = sc_island_solve(job->bodies, job->c, &is->contacts[is->contact_start[i]],
+            u->rc = sc_island_solve(arena, job->bodies, job->c, &is->contacts[is->contact_start[i]],
                                     is->contact_start[i + 1] - is->contact_start[i], job->h,
                                     job->params, &u->info);
         break;
@@ -78,4 +80,5 @@ void sc_unit_run(sc_np_ctx *np, const sc_job *job, sc_unit *u)
         u->rc = SC_EINVAL;
     }
     u->messages = sc_ode_message_count() - msgs;
+    u->arena_high = arena->high;
 }

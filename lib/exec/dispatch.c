@@ -1,12 +1,11 @@
-/* dispatch.c - a job through the world's nodes: units cut and costed,
- * assigned by the scheduler, submitted, waited for, learned from, and
- * accounted in the frame's statistics. Outputs are merged by the stages in
+/* dispatch.c - the executor over nodes (docs/DESIGN.md section 5): a
+ * job's units cut and costed, assigned by the scheduler, submitted, waited
+ * for, learned from, and accounted in the frame's statistics. Outputs are merged by the stages in
  * unit order, so the result does not depend on who ran what. */
 #include <limits.h>
 #include <stdlib.h>
 
-#include "cluster.h"
-#include "sc_internal.h"
+#include "exec.h"
 
 #define UNITS_PER_NODE 8      /* pair units per node and job (balance) */
 #define MAX_UNIT_PAIRS 256    /* pairs per unit at most */
@@ -19,9 +18,9 @@
 #define WIRE_BODY 400
 #define WIRE_CONTACT 64
 
-static int grow_units(sc_world *w, int n)
+static int grow_units(sc_exec_nodes *x, int n)
 {
-    return sc_grow((void **)&w->units, &w->unit_cap, n, sizeof *w->units, INT_MAX);
+    return sc_grow((void **)&x->units, &x->unit_cap, n, sizeof *x->units, INT_MAX);
 }
 
 static void unit_init(sc_unit *u, int kind, int first, int count, double cost, double f1,
@@ -40,7 +39,7 @@ static void unit_init(sc_unit *u, int kind, int first, int count, double cost, d
 
 /* Pairs cut into contiguous units of about equal estimated cost: a few per
  * node, so the scheduler has something to balance. */
-static int pair_units(sc_world *w, sc_job *job, int nnodes)
+static int pair_units(sc_exec_nodes *w, sc_job *job, int nnodes)
 {
     double total = 0;
     for (int i = 0; i < job->npairs; i++)
@@ -80,7 +79,7 @@ static int pair_units(sc_world *w, sc_job *job, int nnodes)
  * floor) share a unit up to that many contacts, each still solved on its
  * own, so that a thousand tiny islands are not a thousand units to cost,
  * sort, time and learn from. Grouping does not depend on the nodes. */
-static int island_units(sc_world *w, sc_job *job)
+static int island_units(sc_exec_nodes *w, sc_job *job)
 {
     const sc_islands *is = job->islands;
     int rc = grow_units(w, is->count);
@@ -108,44 +107,33 @@ static int island_units(sc_world *w, sc_job *job)
     return SC_OK;
 }
 
-/* A group's sub-world running as one unit: everything on this thread. */
-static int run_inline(sc_world *w, sc_job *job)
+static int nodes_width(const sc_exec *ex)
 {
-    int rc = SC_OK;
-    for (int i = 0; i < job->nunits; i++) {
-        sc_unit *u = &job->units[i];
-        sc_unit_run(w->inline_np, job, u);
-        w->stats.collider_warnings += u->messages;
-        if (u->rc != SC_OK && rc == SC_OK)
-            rc = u->rc;
-    }
-    w->stats.units += job->nunits;
-    return rc;
+    return ((const sc_exec_nodes *)ex)->nnodes;
 }
 
-int sc_job_run(sc_world *w, sc_job *job, int stage)
+/* A job on the nodes: cut, cost, assign, submit, wait, learn, and account
+ * it in st (stage CPU of the other nodes, makespan). */
+static int nodes_run(sc_exec *ex, sc_job *job, int stage, sc_stats *st)
 {
+    sc_exec_nodes *x = (sc_exec_nodes *)ex;
     double t0 = sc_wall_now();
-    /* a sub-world (group.c) uses its parent's nodes and scheduler */
-    sc_world *top = w->parent ? w->parent : w;
-    int nnodes = w->inline_np ? 1 : top->nnodes;
+    int nnodes = x->nnodes;
     int rc = SC_OK;
     if (job->kind == SC_UNIT_ISLAND)
-        rc = island_units(w, job);
+        rc = island_units(x, job);
     else if (job->kind != SC_UNIT_GROUP)    /* group units come made */
-        rc = pair_units(w, job, w->inline_np ? 1 : top->nlocal + top->stats.daemons);
+        rc = pair_units(x, job, x->nlocal + (x->prov.ctx ? x->prov.available(x->prov.ctx) : 0));
     if (rc != SC_OK)
         return rc;
     if (job->nunits == 0)
         return SC_OK;
-    if (w->inline_np)
-        return run_inline(w, job);
-    sc_sched *s = &top->sched;
-    sc_node **nodes = top->nodes;
+    sc_sched *s = &x->sched;
+    sc_node **nodes = x->nodes;
     rc = sc_sched_assign(s, nodes, job->units, job->nunits);
     if (rc != SC_OK)
         return rc;
-    if (top->cluster && (rc = sc_cluster_begin(top->cluster, job)) != SC_OK)
+    if (x->prov.ctx && (rc = x->prov.job_begin(x->prov.ctx, job)) != SC_OK)
         return rc;
     double t1 = sc_wall_now();
     /* every list is in place before any node can look for more */
@@ -164,26 +152,71 @@ int sc_job_run(sc_world *w, sc_job *job, int stage)
         if (k > 0)
             cpu_others += cpu;
     }
-    if (top->cluster)
-        sc_cluster_end(top->cluster);
+    if (x->prov.ctx)
+        x->prov.job_end(x->prov.ctx);
     double t2 = sc_wall_now();
     double bound = 0;
     sc_sched_observe(s, job->units, job->nunits, &bound);
     /* CPU of the other nodes is CPU of this stage too (Table 1); group
      * units count their own */
     if (stage >= 0) {
-        w->stats.stage_s[stage] += cpu_others;
-        w->stats.stage_total_s[stage] += cpu_others;
+        st->stage_s[stage] += cpu_others;
+        st->stage_total_s[stage] += cpu_others;
     }
-    w->stats.units += job->nunits;
-    w->stats.makespan_s += t2 - t1;
-    w->stats.makespan_bound_s += bound;
+    st->units += job->nunits;
+    st->makespan_s += t2 - t1;
+    st->makespan_bound_s += bound;
     for (int i = 0; i < job->nunits; i++) {
         const sc_unit *u = &job->units[i];
-        w->stats.collider_warnings += u->messages;
+        st->collider_warnings += u->messages;
+        if (job->kind == SC_UNIT_ISLAND) {
+            st->lcp_pivots += u->info.pivots;
+            st->lcp_fallbacks += u->info.failures;
+        }
+        if (u->arena_high > st->unit_arena_bytes)
+            st->unit_arena_bytes = u->arena_high;
         if (u->rc != SC_OK && rc == SC_OK)
             rc = u->rc;    /* the first in unit order: the same for any assignment */
     }
-    w->stats.sched_s += (t1 - t0) + (sc_wall_now() - t2);
+    st->sched_s += (t1 - t0) + (sc_wall_now() - t2);
     return rc;
+}
+
+int sc_exec_nodes_init(sc_exec_nodes *x, int nlocal, int extra)
+{
+    memset(x, 0, sizeof *x);
+    x->base.run = nodes_run;
+    x->base.width = nodes_width;
+    x->cap = nlocal + extra;
+    x->nodes = sc_calloc_array((size_t)x->cap, sizeof *x->nodes);
+    x->pool = sc_local_pool_create();
+    int rc = x->nodes && x->pool ? sc_sched_init(&x->sched, x->cap) : SC_ENOMEM;
+    for (int k = 0; k < nlocal && rc == SC_OK; k++) {
+        /* node 0 is the calling thread, the others worker threads */
+        x->nodes[k] = sc_node_local_create(x->pool, k, k == 0);
+        if (!x->nodes[k])
+            return SC_ENOMEM;
+        x->nnodes++;
+        x->private_ode += sc_node_local_private_ode(x->nodes[k]);
+    }
+    x->nlocal = x->nnodes;
+    return rc;
+}
+
+void sc_exec_nodes_add(sc_exec_nodes *x, sc_node *n)
+{
+    SC_ASSERT(x->nnodes < x->cap);
+    x->nodes[x->nnodes++] = n;
+}
+
+void sc_exec_nodes_free(sc_exec_nodes *x)
+{
+    sc_local_pool_stop(x->pool);
+    for (int k = 0; k < x->nnodes; k++)
+        x->nodes[k]->ops->destroy(x->nodes[k]);
+    free(x->nodes);
+    sc_local_pool_destroy(x->pool);
+    sc_sched_free(&x->sched);
+    free(x->units);
+    memset(x, 0, sizeof *x);
 }

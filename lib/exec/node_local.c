@@ -20,7 +20,7 @@
 #include <stdatomic.h>
 #include <stdlib.h>
 
-#include "sc_internal.h"
+#include "exec.h"
 
 #define WORKER_SPIN_S 3e-3    /* a worker stays awake this long for more */
 #define WAITER_SPIN_S 2e-3    /* the caller spins this long for results */

@@ -20,8 +20,8 @@
 #include <stdarg.h>
 #include <stdlib.h>
 
-#include "ode_copy.h"
-#include "sc_internal.h"
+#include "ode_table.h"
+#include "exec.h"
 
 #define MAX_COPIES 15
 
@@ -31,42 +31,11 @@
 #define PRIVATE_COPIES 1
 #endif
 
-static pthread_once_t shared_once = PTHREAD_ONCE_INIT;
-static struct sc_ode shared;
-
 static pthread_mutex_t copies_lock = PTHREAD_MUTEX_INITIALIZER;
 static struct sc_ode *copies[MAX_COPIES];
 static int ncopies;
 static unsigned char in_use[MAX_COPIES];
 static int load_failed;
-
-static void shared_init(void)
-{
-#define SC_ODE_LINKED(f) shared.f = f;
-    SC_ODE_FUNCS(SC_ODE_LINKED)
-#undef SC_ODE_LINKED
-    shared.trimesh_class = dTriMeshClass;
-    /* ODE's global init (its own tables, no simulation state); never closed
-     * so that worlds in any thread can come and go. */
-    dInitODE2(0);
-    dSetMessageHandler(sc_ode_message);
-}
-
-void sc_ode_init(void)
-{
-    pthread_once(&shared_once, shared_init);
-}
-
-const sc_ode *sc_ode_shared(void)
-{
-    sc_ode_init();
-    return &shared;
-}
-
-int sc_ode_is_private(const sc_ode *o)
-{
-    return o && o->handle != NULL;
-}
 
 /* A new copy of the libode this library is linked with; NULL if it cannot
  * be had. Called with copies_lock held. */
@@ -105,7 +74,7 @@ const sc_ode *sc_ode_acquire(void)
 {
     sc_ode_init();
     if (!PRIVATE_COPIES)
-        return &shared;
+        return sc_ode_shared();
     struct sc_ode *o = NULL;
     pthread_mutex_lock(&copies_lock);
     for (int i = 0; i < ncopies && !o; i++)
@@ -124,7 +93,7 @@ const sc_ode *sc_ode_acquire(void)
     }
     pthread_mutex_unlock(&copies_lock);
     if (!o)
-        return &shared;
+        return sc_ode_shared();
     o->dAllocateODEDataForThread(dAllocateMaskAll);
     return o;
 }

@@ -23,7 +23,7 @@
 #include <gsl/gsl_multifit.h>
 #include <gsl/gsl_vector.h>
 
-#include "sc_internal.h"
+#include "exec.h"
 
 #define SPEED_KEEP 0.7        /* EWMA weight of the old speed per job */
 #define MIN_FIT 8             /* samples before a model is used */

@@ -1,4 +1,4 @@
-/* cluster.c - daemons as nodes of a world's scheduler (DESIGN.md section 6).
+/* cluster.c - daemons as nodes of a world's scheduler (docs/DESIGN.md section 7).
  *
  * The world's node list ends with SC_MAX_DAEMONS remote nodes, one per
  * daemon slot; a slot is bound to a daemon when its first heartbeat comes.
@@ -29,7 +29,8 @@
 
 #include "cluster.h"
 #include "cluster_msg.h"
-#include "sc_internal.h"
+#include "exec.h"
+#include "unit_wire.h"
 
 #define CHANNEL_MAX 48
 #define SILENT_S 1.0            /* no heartbeat this long: no work */
@@ -71,8 +72,11 @@ struct sc_cluster {
     uint8_t key[SC_KEY_BYTES];
     int64_t id, seq;
     sc_msg_guard guard;
-    sc_world *w;
-    int first_node;             /* world node index of slot 0 */
+    sc_sched *sched;            /* the executor's scheduler */
+    sc_stats *stats;            /* the owner's figures */
+    const sc_frame_state *st;   /* the owner's bodies (shapes asked for) */
+    int first_node;             /* executor node index of slot 0 */
+    int available;              /* daemons heard from and not owner-busy */
     daemon_slot d[SC_MAX_DAEMONS];
     remote_node node[SC_MAX_DAEMONS];
     double deadline_s;
@@ -128,7 +132,7 @@ static void on_announce(sc_cluster *c, const sc_msg *m)
         snprintf(d->shape_channel, sizeof d->shape_channel, "SC_SHAPE_%016" PRIx64,
                  (uint64_t)a.node);
         /* a new daemon in this slot: nothing learned about the last one holds */
-        sc_sched_node *nd = &c->w->sched.nodes[c->first_node + k];
+        sc_sched_node *nd = &c->sched->nodes[c->first_node + k];
         memset(nd, 0, sizeof *nd);
     }
     c->d[k].a = a;
@@ -140,7 +144,7 @@ static void take_result(sc_cluster *c, sc_msg_work *r)
     const sc_job *job = c->job;
     if (!job || r->frame != c->serial || r->unit >= job->nunits || c->out[r->unit] != OUT_SENT) {
         c->late++;              /* an old job, taken already, or recomputed */
-        c->w->stats.late_results++;
+        c->stats->late_results++;
         return;
     }
     sc_unit *u = &job->units[r->unit];
@@ -158,7 +162,7 @@ static void take_result(sc_cluster *c, sc_msg_work *r)
     d->compute_s += u->time_s;
     if (c->recv_us > d->last_us)
         d->last_us = c->recv_us;
-    c->w->stats.remote_units++;
+    c->stats->remote_units++;
 }
 
 static void on_result(sc_cluster *c, const sc_msg *m)
@@ -187,9 +191,9 @@ static void on_shape_request(sc_cluster *c, const sc_msg *m)
         if (c->d[k].used && c->d[k].id == m->node)
             break;
     const sc_shape *s = NULL;
-    for (int i = 0; i < c->w->nbodies && !s; i++)
-        if (c->w->bodies[i].shape->hash == hash)
-            s = c->w->bodies[i].shape;
+    for (int i = 0; i < c->st->nbodies && !s; i++)
+        if (c->st->bodies[i].shape->hash == hash)
+            s = c->st->bodies[i].shape;
     if (k == SC_MAX_DAEMONS || !s)
         return;                 /* not one of our daemons, or not our shape */
     uint8_t *p, *env;
@@ -232,7 +236,7 @@ static void pump(sc_cluster *c, double timeout_s)
             break;
         double t0 = sc_wall_now();
         int rc = lcm_handle(c->lcm);
-        c->w->stats.comm_s += sc_wall_now() - t0;
+        c->stats->comm_s += sc_wall_now() - t0;
         if (rc != 0)
             break;
         ms = 0;
@@ -331,7 +335,7 @@ static int remote_submit(sc_node *n, const sc_job *job, const int *units, int co
         add_unit(c, d, job, units[i]);
     }
     flush(c, d);
-    c->w->stats.comm_s += sc_wall_now() - t0;
+    c->stats->comm_s += sc_wall_now() - t0;
     return SC_OK;
 }
 
@@ -354,7 +358,7 @@ static void recompute(sc_cluster *c, daemon_slot *d, int k)
         u->time_s = sc_wall_now() - t0;
         u->node = 0;            /* it taught us about this thread, not the daemon */
         c->out[i] = OUT_LOCAL;
-        c->w->stats.recomputed_units++;
+        c->stats->recomputed_units++;
         missed++;
     }
     if (missed)
@@ -391,7 +395,7 @@ static int remote_wait(sc_node *n, double *cpu_s)
             o = 0;
         d->overhead = d->overhead > 0 ? OVERHEAD_KEEP * d->overhead + (1 - OVERHEAD_KEEP) * o : o;
     }
-    c->w->stats.remote_wait_s += sc_wall_now() - t_wait;
+    c->stats->remote_wait_s += sc_wall_now() - t_wait;
     *cpu_s = d->compute_s;
     return SC_OK;
 }
@@ -424,8 +428,13 @@ static const sc_node_ops remote_ops = {
 
 /* ---- the cluster ---- */
 
-int sc_cluster_create(sc_world *w, const char *url, const char *key_file, double deadline_s,
-                      int first_node, sc_cluster **out)
+static int prov_begin(void *ctx, const sc_job *job);
+static void prov_end(void *ctx);
+static int prov_available(void *ctx);
+
+int sc_cluster_create(sc_exec_nodes *x, sc_stats *stats, const sc_frame_state *st,
+                      const char *url, const char *key_file, double deadline_s,
+                      sc_cluster **out)
 {
     *out = NULL;
     sc_cluster *c = calloc(1, sizeof *c);
@@ -436,7 +445,10 @@ int sc_cluster_create(sc_world *w, const char *url, const char *key_file, double
         free(c);
         return rc;
     }
-    c->w = w;
+    c->sched = &x->sched;
+    c->stats = stats;
+    c->st = st;
+    int first_node = x->nnodes;
     c->first_node = first_node;
     c->deadline_s = deadline_s > 0 ? deadline_s : DEFAULT_DEADLINE_S;
     uint64_t id = 0;
@@ -459,15 +471,13 @@ int sc_cluster_create(sc_world *w, const char *url, const char *key_file, double
         sc_cluster_destroy(c);
         return SC_EIO;
     }
-    for (int k = 0; k < SC_MAX_DAEMONS; k++)
+    for (int k = 0; k < SC_MAX_DAEMONS; k++) {
         c->node[k] = (remote_node){ { &remote_ops, first_node + k }, c, k };
+        sc_exec_nodes_add(x, &c->node[k].base);
+    }
+    x->prov = (sc_node_provider){ prov_begin, prov_end, prov_available, c };
     *out = c;
     return SC_OK;
-}
-
-sc_node *sc_cluster_node(sc_cluster *c, int k)
-{
-    return &c->node[k].base;
 }
 
 void sc_cluster_destroy(sc_cluster *c)
@@ -487,7 +497,7 @@ void sc_cluster_frame(sc_cluster *c)
 {
     pump(c, 0);
     double now = sc_wall_now();
-    c->w->stats.daemons = c->w->stats.daemons_busy = 0;
+    c->stats->daemons = c->stats->daemons_busy = 0;
     for (int k = 0; k < SC_MAX_DAEMONS; k++) {
         daemon_slot *d = &c->d[k];
         if (d->used && now - d->heard > FORGET_S)
@@ -495,17 +505,24 @@ void sc_cluster_frame(sc_cluster *c)
         if (!d->used || now - d->heard > SILENT_S)
             continue;
         if (d->a.owner_busy)
-            c->w->stats.daemons_busy++;
+            c->stats->daemons_busy++;
         else
-            c->w->stats.daemons++;
+            c->stats->daemons++;
     }
-    c->w->stats.nodes = c->first_node + c->w->stats.daemons;
-    c->w->stats.dropped_messages =
+    c->stats->nodes = c->first_node + c->stats->daemons;
+    c->available = c->stats->daemons;
+    c->stats->dropped_messages =
         c->guard.dropped_format + c->guard.dropped_auth + c->guard.dropped_replay;
 }
 
-int sc_cluster_begin(sc_cluster *c, const sc_job *job)
+static int prov_available(void *ctx)
 {
+    return ((const sc_cluster *)ctx)->available;
+}
+
+static int prov_begin(void *ctx, const sc_job *job)
+{
+    sc_cluster *c = ctx;
     if (job->nunits > c->out_cap) {
         uint8_t *o = realloc(c->out, (size_t)job->nunits);
         if (!o)
@@ -535,9 +552,9 @@ void sc_cluster_force(sc_cluster *c)
     c->force = 1;
 }
 
-void sc_cluster_end(sc_cluster *c)
+static void prov_end(void *ctx)
 {
-    c->job = NULL;
+    ((sc_cluster *)ctx)->job = NULL;
 }
 
 SC_API int sc_cluster_wait(const sc_world_config *cfg, int k, double timeout_s)

@@ -26,7 +26,8 @@
 #include <unistd.h>
 
 #include "cluster_msg.h"
-#include "sc_internal.h"
+#include "exec.h"
+#include "unit_wire.h"
 #include "sclcm_announce_t.h"
 #include "sclcm_envelope_t.h"
 #include "sclcm_result_t.h"

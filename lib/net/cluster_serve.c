@@ -23,7 +23,8 @@
 
 #include "cluster_serve.h"
 #include "idle.h"
-#include "sc_internal.h"
+#include "exec.h"
+#include "unit_wire.h"
 
 #define QUEUE_MAX 4096            /* decoded units waiting for a thread */
 #define PARKED_MAX 1024           /* units waiting for shapes */

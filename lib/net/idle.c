@@ -3,7 +3,8 @@
 #include <stdlib.h>
 
 #include "idle.h"
-#include "sc_internal.h"
+#include "exec.h"
+#include "unit_wire.h"
 
 /* Read an unsigned decimal at *p (after spaces); 0 when there is none. */
 static int read_u64(const char **p, const char *end, uint64_t *v)

@@ -36,7 +36,7 @@
 #include <stdlib.h>
 #include <string.h>
 
-#include "sc_internal.h"
+#include "unit_wire.h"
 
 #define WIRE_VERSION 2
 #define MAGIC_UNIT 0x55574353u        /* "SCWU" */

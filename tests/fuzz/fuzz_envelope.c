@@ -11,7 +11,7 @@
 #include <string.h>
 
 #include "cluster_msg.h"
-#include "sc_internal.h"
+#include "unit_wire.h"
 
 int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size);
 

@@ -1,6 +1,7 @@
-/* ode_copy.h - the ODE functions the narrow phase calls, through one copy
- * of libode (see sc_ode_acquire() in sc_internal.h). Only narrowphase.c
- * and ode_copy.c see ODE's headers. */
+/* ode_table.h - the ODE functions the narrow phase calls, through one copy
+ * of libode: the shared one the library links (ode.c) or a private copy
+ * (lib/exec/ode_copy.c). Only narrowphase.c, ode.c and ode_copy.c see
+ * ODE's headers. */
 #ifndef SC_ODE_COPY_H
 #define SC_ODE_COPY_H
 

@@ -1,0 +1,258 @@
+/*
+ * core.h - what the physics core's files share and do not export
+ * (docs/DESIGN.md section 2). The core knows nothing of threads or
+ * networks. Every symbol here is hidden (-fvisibility=hidden); only SC_API
+ * ones leave the shared object.
+ */
+#ifndef SC_CORE_H
+#define SC_CORE_H
+#include <assert.h>
+#include <math.h>
+#include <stdatomic.h>
+#include <stddef.h>
+#include <stdint.h>
+#include <string.h>
+
+#include "simcluster.h"
+#include "arena.h"
+
+/* Internal invariants only, never bad input (that gets an SC_E* code). */
+#define SC_ASSERT(c) assert(c)
+
+/* Record err as this thread's last error (see sc_last_error()); returns err. */
+int sc_set_error(int err);
+
+/* Checked allocation helpers: NULL on overflow or failure. */
+void *sc_alloc_array(size_t n, size_t size);
+void *sc_calloc_array(size_t n, size_t size);
+/* Grow the array *p (capacity *cap items of size bytes) to hold need items,
+ * doubling, never past max items: SC_OK, SC_ETOOBIG or SC_ENOMEM (then *p
+ * and *cap are unchanged). */
+int sc_grow(void **p, int *cap, int need, size_t size, int max);
+
+static inline int sc_finite3(const double v[3])
+{
+    return isfinite(v[0]) && isfinite(v[1]) && isfinite(v[2]);
+}
+
+/* ---- shapes ---- */
+struct sc_shape {
+    atomic_int refs;
+    int kind;                 /* SC_SHAPE_* */
+    double radius;            /* sphere */
+    double half[3];           /* box */
+    double plane[4];          /* plane: n (unit), d */
+    /* SC_SHAPE_MESH and SC_SHAPE_CONVEX: outward triangles */
+    int nverts, ntris;
+    double *xyz;
+    int *tri;
+    int convex;               /* 1 if the mesh is convex (hulls always) */
+    sc_mass_props mp;         /* per unit density */
+    double bound_r;           /* about the shape origin */
+    uint64_t hash;            /* content hash (cluster shape cache) */
+    /* ODE data built once at creation, read-only afterwards */
+    void *ode_tridata;        /* dTriMeshDataID for meshes and hulls */
+    unsigned *ode_index;      /* dTriIndex copy of tri */
+    double *ode_planes;       /* dConvex: 4 per triangle */
+    unsigned *ode_polys;      /* dConvex: 3, i, j, k per triangle */
+    /* boxes and convex meshes: polygon faces (coplanar triangles merged)
+     * for the face-clipping manifold (polyhedron.c); nfaces 0 if none */
+    int nfaces;
+    int nface_xyz;
+    double *face_xyz;         /* corners, 3 per point, shape frame */
+    double *face_plane;       /* 4 per face: outward unit normal, offset */
+    int *face_start;          /* face f: face_vert[face_start[f] .. face_start[f + 1]) */
+    int *face_vert;           /* corner indices, counter-clockwise seen from out */
+};
+
+/* A builder's mesh moved so its centre of mass is the origin; takes
+ * ownership of xyz and tri. NULL on error (sc_last_error()). */
+sc_shape *sc_shape_mesh_centered(double *xyz, int nverts, int *tri, int ntris);
+/* A shape from the content its hash covers (received by a daemon); the
+ * arrays are copied. NULL on error (sc_last_error()). */
+sc_shape *sc_shape_rebuild(int kind, double radius, const double half[3], const double plane[4],
+                           const double *xyz, int nverts, const int *tri, int ntris);
+
+/* ODE: process-wide initialisation (once) and the calling thread's ODE data
+ * (idempotent, cheap); both needed before any ODE collision call. */
+void sc_ode_init(void);
+void sc_ode_thread_init(void);
+/* ODE messages (warnings) raised in the calling thread so far. */
+long sc_ode_message_count(void);
+
+/* ---- bodies (world.c owns them; the stages read and update them) ---- */
+typedef struct sc_body {
+    /* dynamics are kept at the centre of mass; the shape frame is derived */
+    sc_shape *shape;
+    double mass, inv_mass;          /* 0 inverse mass = static */
+    double inertia[9];              /* about the centre of mass, body frame */
+    double inv_inertia[9];
+    double com[3];                  /* centre of mass in the shape frame */
+    double x[3], q[4];              /* centre of mass position, orientation */
+    double v[3], w[3];              /* of the centre of mass, world frame */
+    double force[3], torque[3];     /* user forces for the next frame */
+    double restitution, friction;
+    int state;
+    /* per substep, set by the world before the contact solve */
+    double v0[3], w0[3];            /* velocity before gravity (restitution) */
+    double iw[9];                   /* world-frame inverse inertia */
+    double rest_s;                  /* how long it has been slow (sleep) */
+    int collided;                   /* 2: collision in this substep, 1: earlier
+                                       in this frame, 0: none this frame */
+} sc_body;
+
+/* Contact model constants (Baraff's velocity-level LCP, the paper's states). */
+typedef struct sc_contact_params {
+    double bounce_speed;            /* m/s: approach faster = collision (restitution),
+                                       slower = resting contact (e = 0) */
+    double slop;                    /* m of penetration left alone */
+    double baumgarte;               /* fraction of the rest removed per substep */
+} sc_contact_params;
+
+typedef struct sc_solve_info {
+    long pivots;
+    int failures;                   /* friction LCPs that failed even regularised
+                                       (the island was solved without friction) */
+    int regularised;                /* LCPs solved only after regularisation */
+    int lemke;                      /* solved by the Lemke fallback */
+    int collisions;                 /* contacts resolved with restitution */
+} sc_solve_info;
+
+/* Contact impulses for one island (the paper's step 7): the velocity LCP
+ * with restitution and Coulomb friction (boxed), then a split-impulse
+ * position correction that moves bodies out of deep penetration without
+ * touching velocities. bodies[*].v/w hold u* (gravity applied), v0/w0 the
+ * velocities before it, iw the world inverse inertia. ci lists the
+ * island's contact indices into c. Updates v, w (and x, q by h * pseudo
+ * velocity). */
+int sc_island_solve(sc_arena *a, sc_body *bodies, const sc_contact *c, const int *ci, int nc,
+                    double h, const sc_contact_params *p, sc_solve_info *info);
+
+/* ---- narrow phase (narrowphase.c, manifold.c) ---- */
+
+/* A copy of libode (ode_copy.c). The process's linked copy is shared by
+ * every thread and serialises trimesh pairs (Debian's ODE keeps its
+ * trimesh collider cache in a global); worker threads take a private copy
+ * loaded with dlmopen() into its own link namespace when one can be had, so
+ * their trimesh pairs run concurrently. Copies are process-wide and kept
+ * (glibc cannot reliably unload a namespace, and allows only a few). */
+typedef struct sc_ode sc_ode;
+const sc_ode *sc_ode_shared(void);
+/* 1 when o is a private copy (no lock needed). */
+int sc_ode_is_private(const sc_ode *o);
+
+typedef struct sc_np_ctx sc_np_ctx;     /* one per thread: owns ODE geoms */
+/* The thread's scratch arena (island solves), reset by sc_unit_run(). */
+sc_arena *sc_np_arena(sc_np_ctx *ctx);
+/* A slot for the thread's motion-group scratch (group.c), freed with the
+ * context by free_fn. */
+void **sc_np_scratch(sc_np_ctx *ctx, void (**free_fn)(void *));
+sc_np_ctx *sc_np_create(void);          /* on the shared copy of ODE */
+sc_np_ctx *sc_np_create_on(const sc_ode *ode);
+void sc_np_destroy(sc_np_ctx *ctx);
+/* Contacts of a at pa with b at pb, normals from a to b, reduced to at most
+ * SC_MAX_PAIR_CONTACTS; returns how many were written (<= max) or a code. */
+int sc_np_collide(sc_np_ctx *ctx, const sc_shape *a, const sc_pose *pa,
+                  const sc_shape *b, const sc_pose *pb, sc_contact *out, int max);
+/* Reduce n raw contacts in place to at most SC_MAX_PAIR_CONTACTS well-spread
+ * ones (points closer than merge_dist merged); returns the new count. */
+int sc_manifold_reduce(sc_contact *c, int n, double merge_dist);
+
+/* Polygon faces of a box or convex mesh s (others: none), built once with
+ * the shape: SC_OK (also when s is too big to merge faces: then none) or
+ * SC_ENOMEM. sc_poly_free() frees them. */
+int sc_poly_build(sc_shape *s);
+void sc_poly_free(sc_shape *s);
+/* The contacts of an overlapping convex pair (the collider's deepest
+ * point depth deep) by clipping: the face of least penetration of either
+ * shape is the reference, the other shape's face most opposed to it is
+ * clipped by its sides; up to max points, each with its own depth, normals
+ * from a to b. Returns 0 (keep the collider's contacts) when a shape has
+ * no faces, is too big, or an edge-edge axis is clearly shallower. */
+int sc_poly_clip(const sc_shape *a, const sc_pose *pa, const sc_shape *b, const sc_pose *pb,
+                 double depth, sc_contact *out, int max);
+
+/* The whole file at path in a malloc'd buffer (*out, *len bytes; pipes are
+ * read to their end too): SC_OK, SC_ETOOBIG past max bytes, SC_ENOMEM, or
+ * SC_EIO with errno saying why (EISDIR for a folder). */
+int sc_read_file(const char *path, size_t max, unsigned char **out, size_t *len);
+
+/* sc_toi() with the caller's (per-thread) narrow-phase context. */
+int sc_toi_ctx(sc_np_ctx *ctx, const sc_shape *a, const sc_pose *a0, const sc_pose *a1,
+               const sc_shape *b, const sc_pose *b0, const sc_pose *b1, double tol_m,
+               double *t);
+
+/* For a pair already in contact: the last time in [0, 1] at which its
+ * penetration is still <= limit_m, when it exceeds limit_m later (1 and
+ * *t), 0 when it never does. A pair deeper than limit_m at t = 0 is held
+ * to its depth there plus a tenth of limit_m, unless it is deeper than
+ * twice limit_m (0: left to the push-out). */
+int sc_toi_deepen_ctx(sc_np_ctx *ctx, const sc_shape *a, const sc_pose *a0, const sc_pose *a1,
+                      const sc_shape *b, const sc_pose *b0, const sc_pose *b1, double limit_m,
+                      double *t);
+
+/* Validate a triangle mesh and compute its mass properties:
+ * SC_EINVAL (NaN, bad index), SC_ETOOBIG, SC_EDEGENERATE (zero-area
+ * triangles, no volume), SC_ENOTCLOSED (an edge not shared by exactly two
+ * triangles of opposite orientation, or inward orientation). */
+int sc_mesh_check(const double *xyz, int nverts, const int *tri, int ntris,
+                  sc_mass_props *mp);
+
+/* Convex hull (hull.c): the hull of n points as a closed, outward triangle
+ * mesh whose vertices are hull vertices only. Caller frees *xyz and *tri. */
+int sc_hull_build(const double *pts, int n, double **xyz, int *nverts,
+                  int **tri, int *ntris);
+
+/* Mesh file parsing (shape_load.c): OBJ, ASCII STL or binary STL from memory,
+ * STL vertices welded, OBJ vertices no face uses dropped. Returns SC_OK with arrays the caller frees, or
+ * SC_EFORMAT / SC_ETOOBIG / SC_ENOMEM. Does not check closedness. */
+int sc_mesh_parse(const void *buf, size_t len, double **xyz, int *nverts,
+                  int **tri, int *ntris);
+
+/* ---- broad phase (broadphase.c) ---- */
+typedef struct sc_pair { int a, b; } sc_pair;   /* a < b */
+typedef struct sc_broadphase sc_broadphase;
+
+sc_broadphase *sc_bp_create(void);
+void sc_bp_destroy(sc_broadphase *bp);
+/* All pairs (a < b) whose spheres (centre c[3i..], radius r[i]) overlap and
+ * of which at least one is active (active[i] != 0), sorted by (a, b).
+ * method: SC_BROADPHASE_SPHERES (all pairs, the paper) or SC_BROADPHASE_SAP
+ * (sweep and prune, keeps its sort order between calls). Returns the number
+ * of pairs (written to the growing array *pairs of capacity *cap) or a
+ * negative code. */
+int sc_bp_find_pairs(sc_broadphase *bp, int method, const double *c, const double *r,
+                     const unsigned char *active, int n, sc_pair **pairs, int *cap);
+
+/* ---- islands (island.c) ---- */
+typedef struct sc_islands {
+    int count;
+    int *body_start, *bodies;        /* island i: bodies[body_start[i] .. body_start[i+1]) */
+    int *contact_start, *contacts;   /* and contact indices, same layout */
+    int body_cap, contact_cap;       /* arrays kept and grown between builds */
+} sc_islands;
+/* Union-find over contacts between bodies with joins[i] != 0 (awake,
+ * dynamic); a contact with one joining body belongs to that body's island,
+ * one with none to no island. Canonical order throughout. The arrays of is
+ * are reused and grown; temporaries come from a (NULL: malloc). */
+int sc_islands_build(sc_arena *a, int nbodies, const unsigned char *joins, const sc_contact *c,
+                     int ncontacts, sc_islands *is);
+/* Union-find with path halving; the smaller id becomes the root. */
+int sc_uf_find(int *parent, int i);
+void sc_uf_unite(int *parent, int a, int b);
+void sc_islands_free(sc_islands *is);
+
+
+static inline int sc_body_movable(const sc_body *b)
+{
+    return b->inv_mass > 0 && b->state != SC_ASLEEP;
+}
+/* Pose of a body's shape frame (the centre of mass is what is stored). */
+void sc_body_pose(const sc_body *b, sc_pose *p);
+/* Thread CPU seconds and monotonic wall seconds. */
+double sc_cpu_now(void);
+double sc_wall_now(void);
+/* 1 if the contact list c (sorted by pair) has a contact of pair (a, b). */
+int sc_contacts_have_pair(const sc_contact *c, int n, int a, int b);
+
+#endif /* SC_CORE_H */

@@ -1,0 +1,174 @@
+/* frame.h - a frame as a value (frame.c, detect.c, integrate.c, state.c,
+ * group.c) and the work units its expensive stages are cut into (unit.c);
+ * docs/DESIGN.md sections 3 to 5. A frame reads and writes only what it is
+ * given: the bodies' states and last contacts, the shapes they reference
+ * (immutable), the configuration, its scratch and an executor that runs its
+ * jobs. Nothing here knows of threads or networks: executors do. */
+#ifndef SC_FRAME_H
+#define SC_FRAME_H
+
+#include "core.h"
+
+/* The expensive stages of a substep are batches ("jobs") of work units of
+ * one kind. A unit reads only its job's inputs and writes only its own
+ * outputs, so units run on any node in any order and the merge, in unit
+ * order, gives the same bits whoever computed what. */
+enum { SC_UNIT_COLLIDE, SC_UNIT_TOI, SC_UNIT_ISLAND, SC_UNIT_GROUP, SC_UNIT_KINDS };
+
+/* One body pair of a COLLIDE or TOI unit. */
+typedef struct sc_unit_pair {
+    const sc_shape *sa, *sb;        /* serialised as content hashes */
+    int body_a, body_b;             /* world ids (a < b), carried through */
+    int deepen;                     /* TOI: the pair touched at the start */
+    int touching;                   /* COLLIDE: in contact at the last detection
+                                       (only a cost feature, not sent) */
+    sc_pose a0, b0;                 /* COLLIDE: the poses; TOI: start ... */
+    sc_pose a1, b1;                 /* ... and end of the substep */
+} sc_unit_pair;
+
+typedef struct sc_unit {
+    int kind;                       /* SC_UNIT_* (the job's kind) */
+    int first, count;               /* pairs [first, first + count) of the job,
+                                       or islands [first, first + islands),
+                                       each solved on its own (count = their
+                                       contacts) */
+    int islands;
+    double cost;                    /* the paper's estimate: sum of polygon count
+                                       products, or of contacts^3 */
+    double feat[3];                 /* cost model features: 1, then for pairs
+                                       the cost of those touching at the last
+                                       detection and of the others, for islands
+                                       contacts and contacts^3 */
+    size_t bytes;                   /* wire size of the unit (transfer time) */
+    int node;                       /* assigned node */
+    double predict_s;               /* the scheduler's estimate on that node */
+    int rc;                         /* SC_OK or the unit's error */
+    double time_s;                  /* measured wall time on its node */
+    long messages;                  /* ODE messages raised while running it */
+    sc_solve_info info;             /* ISLAND: the solve's counters */
+    size_t arena_high;              /* high-water mark of the running thread's
+                                       arena after it (0: not known) */
+} sc_unit;
+
+struct sc_group_job;
+
+typedef struct sc_job {
+    int kind;
+    sc_unit *units;                 /* set by the executor that runs the job */
+    int nunits;
+    /* COLLIDE and TOI */
+    const sc_unit_pair *pairs;
+    int npairs;
+    sc_contact *contacts;           /* COLLIDE: SC_MAX_PAIR_CONTACTS per pair */
+    int *ncontact;                  /* COLLIDE: contacts of each pair */
+    double tol_m;                   /* TOI: contact tolerance */
+    double *toi;                    /* TOI: per pair, 1 = no impact */
+    /* ISLAND: bodies are updated in place (islands share no movable body;
+     * static and sleeping ones are only read) */
+    sc_body *bodies;
+    const sc_contact *c;
+    const sc_islands *islands;
+    double h;
+    const sc_contact_params *params;
+    /* GROUP: motion groups' whole frames (group.c); units come made */
+    const struct sc_group_job *group;
+} sc_job;
+
+/* Run unit u of job on the calling thread with its narrow-phase context;
+ * sets u->rc, u->messages, u->info, u->arena_high (not u->time_s). */
+void sc_unit_run(sc_np_ctx *np, const sc_job *job, sc_unit *u);
+/* The paper's cost estimate of a pair (product of polygon counts). */
+double sc_pair_cost(const sc_shape *a, const sc_shape *b);
+
+/* An executor runs a job's units: it cuts the job into units (COLLIDE,
+ * TOI and ISLAND jobs; GROUP jobs come cut), runs them wherever it likes
+ * and returns the first unit error in unit order (the same whoever ran
+ * what). It adds its own figures to st: units, scheduling and makespan
+ * times, other nodes' CPU in stage_s[stage] (stage < 0: none). */
+typedef struct sc_exec sc_exec;
+struct sc_exec {
+    int (*run)(sc_exec *ex, sc_job *job, int stage, sc_stats *st);
+    int (*width)(const sc_exec *ex);   /* nodes it can run units on */
+};
+/* The serial executor: every job as one unit on the calling thread, with
+ * its narrow-phase context np. */
+typedef struct sc_exec_serial {
+    sc_exec base;
+    sc_np_ctx *np;
+} sc_exec_serial;
+void sc_exec_serial_init(sc_exec_serial *s, sc_np_ctx *np);
+
+/* ---- the frame ---- */
+typedef struct sc_frame_config {
+    double gravity[3];
+    double contact_tol_m;
+    int broadphase;                 /* SC_BROADPHASE_* */
+} sc_frame_config;
+
+/* What a frame reads and writes: the bodies (states in, new states out)
+ * and the contacts of the last detection. The arrays belong to the
+ * caller; contacts grow as needed (sc_grow). */
+typedef struct sc_frame_state {
+    sc_body *bodies;
+    int nbodies;
+    sc_contact *contacts;
+    int ncontacts, contact_cap;
+    int contacts_valid;             /* contacts match the current bodies */
+} sc_frame_state;
+
+/* Scratch a frame needs, kept between frames: the arena (reset by the
+ * caller between frames), the broad phase's sort order and pair list, the
+ * islands' arrays, and (motion groups) the scratch of groups run on this
+ * thread. */
+typedef struct sc_frame_scratch {
+    sc_arena arena;
+    sc_broadphase *bp;
+    sc_pair *pairs;
+    int pair_cap;
+    sc_islands islands;
+    struct sc_group_scratch *groups;   /* group.c, created when first used */
+} sc_frame_scratch;
+/* SC_OK or SC_ENOMEM (sc_frame_scratch_free() still applies). */
+int sc_frame_scratch_init(sc_frame_scratch *s);
+void sc_group_scratch_destroy(struct sc_group_scratch *g);
+void sc_frame_scratch_free(sc_frame_scratch *s);
+
+/* One frame of dt seconds (the paper's steps 3-7: substeps, back-ups to
+ * the time of impact, islands, states). Adds the frame's figures to
+ * stats (the caller clears the per-frame ones). SC_OK or an error code;
+ * st is then in a defined but unspecified state. */
+int sc_frame_step(const sc_frame_config *cfg, sc_frame_state *st, double dt,
+                  sc_frame_scratch *scr, sc_exec *ex, sc_stats *stats);
+/* The same frame by motion groups (group.c): bodies that cannot meet
+ * within it step apart, each group by sc_frame_step() as a unit of its own. */
+int sc_groups_step(const sc_frame_config *cfg, sc_frame_state *st, double dt,
+                   sc_frame_scratch *scr, sc_exec *ex, sc_stats *stats);
+/* Run GROUP unit u (group.c; called by sc_unit_run). */
+int sc_group_unit_run(sc_np_ctx *np, const sc_job *job, const sc_unit *u);
+
+/* ---- inside a frame: the stages' shared view ---- */
+typedef struct sc_frame {
+    const sc_frame_config *cfg;
+    sc_frame_state *st;
+    sc_frame_scratch *scr;
+    sc_exec *ex;
+    sc_stats *stats;
+    /* per frame, from the arena: of the last broad phase (detect.c) */
+    double *centre, *radius;
+    unsigned char *active;
+    sc_pose *poses;
+} sc_frame;
+
+/* Adding the CPU time since t0 to a Table 1 row of f's figures. */
+void sc_stage_add(sc_stats *st, int stage, double t0);
+/* Step 4: pairs and contacts of the current state into f->st->contacts. */
+int sc_detect(sc_frame *f);
+/* Step 3: u* = u + h (g + F/m) (keeping u in v0/w0); positions after the
+ * contact solve. */
+void sc_apply_forces(sc_frame *f, double h);
+void sc_integrate_positions(sc_frame *f, double h);
+/* States after a frame: free / colliding / contact, islands asleep. */
+void sc_update_states(sc_frame *f, const sc_islands *is, const unsigned char *touched,
+                      double dt);
+
+#endif /* SC_FRAME_H */

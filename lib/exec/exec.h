@@ -1,0 +1,131 @@
+/* exec.h - execution (docs/DESIGN.md section 5): nodes that run work
+ * units (local worker threads here, daemons from the network layer), the
+ * scheduler, and the executor that runs a frame's jobs on a set of nodes.
+ * Depends on the core only. */
+#ifndef SC_EXEC_H
+#define SC_EXEC_H
+
+#include "frame.h"
+
+/* ODE copies (ode_copy.c): a private copy of libode for the calling
+ * thread, or the shared one when none can be loaded (limit reached,
+ * dlmopen unsupported). Never NULL. */
+const sc_ode *sc_ode_acquire(void);
+/* Give a copy from sc_ode_acquire() back for other threads; NULL is a no-op. */
+void sc_ode_release(const sc_ode *o);
+
+/* A node: something that runs units: a local worker thread, or a daemon
+ * (lib/net/cluster.c) behind the same interface. submit() starts the units (indices into
+ * job->units) and returns at once; wait() returns when they are done, with
+ * each unit's rc and time_s set and *cpu_s the CPU seconds the node used. */
+typedef struct sc_node sc_node;
+typedef struct sc_node_ops {
+    int (*submit)(sc_node *n, const sc_job *job, const int *units, int count);
+    int (*wait)(sc_node *n, double *cpu_s);
+    double (*transfer_s)(const sc_node *n, size_t bytes);   /* to and back,
+                                       affine in bytes */
+    double (*latency_s)(const sc_node *n);   /* per job: wake-up and reply */
+    /* NULL = 1. What share of its measured speed the node offers now for
+     * units of kind (a daemon: its idle fraction); 0 = give it none (gone,
+     * owner-busy, or a kind it cannot run). Asked once per job. */
+    double (*capacity)(const sc_node *n, int kind);
+    void (*destroy)(sc_node *n);
+} sc_node_ops;
+struct sc_node {
+    const sc_node_ops *ops;
+    int id;
+};
+/* A local node. inline_node = 1: the calling thread itself (runs its
+ * units inside wait(), on the shared ODE); 0: a worker thread of its own
+ * (with a private ODE copy when one can be had). Nodes of one pool take
+ * not-yet-started units from each other's lists when they run out; pool
+ * may be NULL. NULL on error. */
+typedef struct sc_local_pool sc_local_pool;
+sc_local_pool *sc_local_pool_create(void);
+/* Stop every worker thread of the pool (before destroying its nodes). */
+void sc_local_pool_stop(sc_local_pool *p);
+void sc_local_pool_destroy(sc_local_pool *p);   /* after its nodes */
+sc_node *sc_node_local_create(sc_local_pool *pool, int id, int inline_node);
+/* 1 when a local node runs on a private copy of ODE. */
+int sc_node_local_private_ode(const sc_node *n);
+
+/* The scheduler. Per node and unit kind: the paper's speed (cost per
+ * second, from recent response times) and a least-squares cost model
+ * (time = c . feat, fitted with GSL over the last measurements). */
+#define SC_MODEL_WINDOW 128
+typedef struct sc_cost_model {
+    double x[SC_MODEL_WINDOW][3], y[SC_MODEL_WINDOW];
+    int n, pos, fresh;              /* samples held, next slot, since last fit */
+    int jobs;                       /* jobs since the last fit */
+    double c[3];
+    int ok;                         /* c is a usable fit */
+} sc_cost_model;
+typedef struct sc_sched_node {
+    double speed[SC_UNIT_KINDS];    /* cost units per second at full capacity (EWMA) */
+    int measured[SC_UNIT_KINDS];
+    int idle[SC_UNIT_KINDS];        /* jobs since it last got work */
+    sc_cost_model model[SC_UNIT_KINDS];
+    double ready;                   /* predicted finish in the current job */
+    double busy;                    /* measured busy time in the current job */
+    double done;                    /* cost done in the current job */
+    double job_speed, job_latency;  /* for the current job's assignment */
+    double job_tr0, job_tr1;        /* transfer: seconds fixed, per byte */
+    double job_cap;                 /* capacity offered in the current job */
+} sc_sched_node;
+typedef struct sc_sched {
+    int nnodes;
+    sc_sched_node *nodes;
+    void *keys;                     /* scratch: the LPT order */
+    int *assigned, *start, *cursor; /* per-node unit lists */
+    int order_cap;
+    int use_models;                 /* 0: the paper's cost / speed only */
+    uint64_t shuffle;               /* tests: != 0 seeds a random assignment */
+    int learn_alone;                /* tests: learn with a single node too */
+    double home_capacity;           /* node 0's capacity (1; benchmarks: 0 sends
+                                       everything to the other nodes) */
+} sc_sched;
+int sc_sched_init(sc_sched *s, int nnodes);
+void sc_sched_free(sc_sched *s);
+/* Predicted time of u on node k (cost model, or cost / speed). */
+double sc_sched_predict(const sc_sched *s, int k, const sc_unit *u);
+/* Greedy longest-first: units sorted by cost, each to the node with the
+ * earliest predicted finish (ready + transfer + predicted time). Sets
+ * u->node and the per-node lists s->assigned[s->start[k] .. start[k+1]). */
+int sc_sched_assign(sc_sched *s, sc_node *const *nodes, sc_unit *units, int n);
+/* After a job: learn from the measured times; *bound_s the lower bound on
+ * its makespan (max of total work / total speed and the largest unit). */
+void sc_sched_observe(sc_sched *s, const sc_unit *units, int n, double *bound_s);
+
+
+/* Something that adds nodes of its own to an executor (the cluster): told
+ * around every job run on the nodes (after assignment, before the first
+ * submit; after the last wait), and asked how many of its nodes can take
+ * work now (for cutting pair jobs). */
+typedef struct sc_node_provider {
+    int (*job_begin)(void *ctx, const sc_job *job);
+    void (*job_end)(void *ctx);
+    int (*available)(void *ctx);
+    void *ctx;
+} sc_node_provider;
+
+/* The executor over nodes (dispatch.c): node 0 is the calling thread,
+ * nodes 1 .. nlocal - 1 worker threads, then a provider's nodes. */
+typedef struct sc_exec_nodes {
+    sc_exec base;
+    sc_node **nodes;
+    int nnodes, nlocal, cap;
+    sc_local_pool *pool;
+    sc_sched sched;
+    sc_node_provider prov;          /* .ctx NULL: none */
+    sc_unit *units;                 /* jobs' units, grown and kept */
+    int unit_cap;
+    int private_ode;                /* local nodes on a private ODE copy */
+} sc_exec_nodes;
+/* nlocal local nodes and room for extra more (a provider's): SC_OK or
+ * SC_ENOMEM (then sc_exec_nodes_free() still applies). */
+int sc_exec_nodes_init(sc_exec_nodes *x, int nlocal, int extra);
+/* Add a provider's node (after init, at most extra of them). */
+void sc_exec_nodes_add(sc_exec_nodes *x, sc_node *n);
+void sc_exec_nodes_free(sc_exec_nodes *x);
+
+#endif /* SC_EXEC_H */
