@@ -1,5 +1,5 @@
 /* bench_cluster.c - simclusterd daemons on this host (LCM, ttl=0), three
- * measurements (issue "simclusterd", DESIGN.md section 7):
+ * measurements (issue "simclusterd", docs/DESIGN.md section 10):
  *   scaling   the bolts/nuts drop with one local worker and 0, 1, 2, ...
  *             one-thread daemons: wall time, speedup over no daemons, the
  *             share of units daemons computed, recomputed units, and the

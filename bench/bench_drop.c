@@ -1,5 +1,5 @@
 /* bench_drop.c - the bolt/nut drop of the paper's Figs 3-4, side by side
- * with ODE (DESIGN section 7): the same scene simulated by
+ * with ODE (docs/DESIGN.md section 10): the same scene simulated by
  *   quick  ODE dWorldQuickStep, 20 iterations
  *   step   ODE dWorldStep (its Dantzig-type LCP)
  *   sc1    simcluster, sc_world_step on a default world with workers = 1

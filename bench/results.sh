@@ -7,7 +7,7 @@
 #   (c) scaling: bench_cluster -p scaling, 1000 bodies, daemons up to the CPUs
 #   (d) cycle stealing: bench_cluster -p fg,busy
 #   (e) Figs 3-4: bench/figs34.sh, when it exists
-# Each section has the exact command, its output and, where DESIGN.md sets a
+# Each section has the exact command, its output and, where docs/DESIGN.md section 10 sets a
 # target, a line computed here from the figures (met, or missed by how much).
 # The prose that cannot be computed is bench/RESULTS.notes.md, included at
 # the end under "Analysis". Figures measured earlier (the 16-core machine)
@@ -165,7 +165,7 @@ if [ -n "$drift" ]; then
 else
     v="not measured (no energy line in the output)"
 fi
-target "(a) energy of the e = 1 sphere scene within 0.5 % over 5000 frames (DESIGN.md §5)" "$v"
+target "(a) energy of the e = 1 sphere scene within 0.5 % over 5000 frames (docs/DESIGN.md §10)" "$v"
 
 # ---- (b) peers ----
 w ""
@@ -208,14 +208,14 @@ if v=$(row200 scN); then
         if ($8 <= 1.01) printf "met: %.5f", $8;
         else printf "missed by %.2f points: %.5f", 100 * ($8 - 1.01), $8 }')
 fi
-target "(b) 200 bodies, scN: peak energy <= 1.01 x initial (DESIGN.md §5)" "$v"
+target "(b) 200 bodies, scN: peak energy <= 1.01 x initial (docs/DESIGN.md §10)" "$v"
 if v=$(row200 scN); then
     v=$(echo "$v" | awk '{
         if ($9 <= 0.001) printf "met: %.3f mm", 1000 * $9;
         else printf "missed by %.3f mm: %.3f mm (%.1fx the limit)", 1000 * ($9 - 0.001),
                     1000 * $9, $9 / 0.001 }')
 fi
-target "(b) 200 bodies, scN: penetration <= 1 mm (DESIGN.md §5)" "$v"
+target "(b) 200 bodies, scN: penetration <= 1 mm (docs/DESIGN.md §10)" "$v"
 if v=$(row200 scN); then
     v=$(echo "$v" | awk '{
         if ($10 != "none") {
@@ -357,7 +357,7 @@ fi
     echo "| commit | $commit |"
     echo "| load average | $load0 at the start, $load1 at the end |"
     echo ""
-    echo "## Targets (DESIGN.md sections 5 and 7), from the figures below"
+    echo "## Targets (docs/DESIGN.md section 10), from the figures below"
     echo ""
     cat "$tmp/targets"
     echo ""

@@ -223,7 +223,7 @@ typedef struct sc_stats {
     double max_penetration;   /* deepest contact, m, last frame */
     long collider_warnings;   /* ODE collider messages (e.g. contact buffer
                                  overflow), last frame; never printed */
-    /* work units and the scheduler (DESIGN.md section 6), last frame */
+    /* work units and the scheduler (docs/DESIGN.md sections 5 and 6), last frame */
     int groups;               /* motion groups stepped apart (bodies that cannot
                                  meet within the frame), last frame */
     int nodes;                /* nodes the scheduler used (local threads) */

@@ -49,6 +49,10 @@ for build in "$@"; do
         count "$t ($build)" $?
         echo "  $(tail -n 1 "$log")"
     done
+    # the library's files call downward only, without cycles (its objects)
+    sh tests/layers.sh "$build" >"$log" 2>&1
+    count "layers ($build)" $?
+    echo "  $(tail -n 1 "$log")"
     # daemons and a master in network namespaces: the plain build only
     # (under ASan the timings it checks do not hold)
     if [ "$build" = "$1" ]; then

@@ -3,7 +3,7 @@
  * a local run when daemons work, stop mid-run or never answer; results
  * really come from them; hostile messages are dropped and counted. The
  * multi-host version with real simclusterd processes in network
- * namespaces is tests/cluster.sh. (Internal API: lib/sc_internal.h.) */
+ * namespaces is tests/cluster.sh. (Internal API: lib/net/unit_wire.h, lib/api/world.h.) */
 #include <pthread.h>
 #include <setjmp.h>
 #include <stdarg.h>

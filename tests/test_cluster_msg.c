@@ -1,8 +1,8 @@
-/* test_cluster_msg.c - sealed cluster messages (lib/cluster_msg.c): what is
+/* test_cluster_msg.c - sealed cluster messages (lib/net/cluster_msg.c): what is
  * sealed opens to the same node, seq, kind and payload; a changed bit, a
  * wrong key, a truncation, a lying length field or a replay is refused with
  * the documented code and counted; payloads and key files round-trip and
- * bad ones are refused. (Internal API: lib/cluster_msg.h.) */
+ * bad ones are refused. (Internal API: lib/net/cluster_msg.h.) */
 #include <setjmp.h>
 #include <stdarg.h>
 #include <stddef.h>

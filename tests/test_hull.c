@@ -1,4 +1,4 @@
-/* test_hull.c - convex hull (lib/hull.c): exact answers for cubes, a
+/* test_hull.c - convex hull (lib/core/hull.c): exact answers for cubes, a
  * tetrahedron, UV spheres and cylinders fed with points on their faces and
  * edges, duplicated and near-duplicated points; the hull invariants (closed,
  * manifold, outward, convex, every input point inside within eps) for random
@@ -6,7 +6,7 @@
  * plate's rim, in clusters a few eps wide); degenerate and bad input;
  * determinism; allocation failure; timing of 100 000 points.
  *
- * Internal test: sc_hull_build is declared in lib/sc_internal.h.
+ * Internal test: sc_hull_build is declared in lib/core/core.h.
  */
 #include <math.h>
 #include <setjmp.h>
@@ -21,7 +21,7 @@
 
 #include "core.h"
 
-/* Fault injection hook in lib/hull.c (allocations left before failure). */
+/* Fault injection hook in lib/core/hull.c (allocations left before failure). */
 extern _Thread_local long sc_hull_alloc_budget;
 
 /* ---- helpers --------------------------------------------------------------- */
@@ -72,7 +72,7 @@ static void shuffle(rng *r, double *p, int n)
     }
 }
 
-/* The tolerance lib/hull.c documents. */
+/* The tolerance lib/core/hull.c documents. */
 static double hull_eps(const double *p, int n)
 {
     double m = 0, lo[3] = { INFINITY, INFINITY, INFINITY };

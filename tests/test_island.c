@@ -1,5 +1,5 @@
 /* test_island.c - contact-graph islands: static and sleeping bodies split
- * islands, order is canonical. (Internal API: lib/sc_internal.h.) */
+ * islands, order is canonical. (Internal API: lib/core/core.h.) */
 #include <setjmp.h>
 #include <stdarg.h>
 #include <stddef.h>

@@ -1,8 +1,8 @@
-/* test_lcp.c - the LCP solver (lib/lcp.c, lcp_factor.c, lcp_lemke.c):
+/* test_lcp.c - the LCP solver (lib/core/lcp.c, lcp_factor.c, lcp_lemke.c):
  * answers checked independently (long double residuals, exhaustive
  * enumeration, Lemke's method written here, projected Gauss-Seidel,
  * rigid-body momentum balance), never "did not crash". An internal test:
- * it calls sc_lcp_dantzig / sc_lcp_boxed through lib/sc_internal.h.
+ * it calls sc_lcp_dantzig / sc_lcp_boxed through lib/core/lcp.h.
  * Run from the repository root (reads tests/data/siconos/). */
 #include <float.h>
 #include <glob.h>
@@ -579,7 +579,7 @@ static void solve_and_check(int n, const double *M, const double *q, double *z, 
     assert_int_equal(rc, SC_OK);
     double worst;
     assert_true(answer_ok(n, M, q, NULL, NULL, z, w, &worst));
-    /* the solver's claim (lib/lcp.c): residual, in units of w, at most
+    /* the solver's claim (lib/core/lcp.c): residual, in units of w, at most
      * 1000 (n+1) eps max_i S_i */
     double smax = 0;
     for (int i = 0; i < n; i++) {

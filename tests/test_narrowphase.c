@@ -442,7 +442,7 @@ static void *mt_run(void *arg)
     return NULL;
 }
 
-/* Mesh against plane (lib/narrowphase.c: mesh_plane, our own vertex test
+/* Mesh against plane (lib/core/narrowphase.c: mesh_plane, our own vertex test
  * instead of ODE's trimesh-plane collider): the deepest vertex is always a
  * contact, with its exact depth, the normal is the plane's (flipped with
  * the order), a mesh clear of the plane gets none, and a mesh with more

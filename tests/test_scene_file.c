@@ -1,4 +1,4 @@
-/* test_scene_file.c - scene files (lib/scene_file.c, simcluster.conf(5)):
+/* test_scene_file.c - scene files (lib/api/scene_file.c, simcluster.conf(5)):
  * what each keyword builds, checked against the same world built by hand
  * with the public API (same hash), grids and rotations, world settings,
  * meshes named relative to the scene file, and every kind of bad input

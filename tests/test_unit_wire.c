@@ -1,8 +1,8 @@
-/* test_unit_wire.c - the wire form of work units (lib/unit_wire.c): a unit
+/* test_unit_wire.c - the wire form of work units (lib/net/unit_wire.c): a unit
  * packed, decoded, run elsewhere and its result applied gives the bits a
  * local run gives, for narrow-phase, time-of-impact and island units of a
  * real bolts-and-nuts scene; malformed buffers are refused, never crash.
- * (Internal API: lib/sc_internal.h.) */
+ * (Internal API: lib/net/unit_wire.h, lib/api/world.h.) */
 #include <math.h>
 #include <setjmp.h>
 #include <stdarg.h>
@@ -24,7 +24,7 @@
 #define FRAMES 100            /* the bolts land from frame 60 on (seed 7) */
 #define TOI_BACK 5            /* TOI units span frames FRAMES - TOI_BACK .. FRAMES */
 
-/* The contact parameters of lib/step.c. */
+/* The contact parameters of lib/core/frame.c. */
 static const sc_contact_params params = { .bounce_speed = 0.1, .slop = 0.5e-3, .baumgarte = 0.2 };
 
 static uint64_t rng = 0x853c49e6748fea9bULL;

@@ -1,5 +1,5 @@
 /* simcluster-top - the cluster at a glance (simcluster-top(1)): listens to
- * the daemons' heartbeats (announce_t on SC_ANNOUNCE, lib/cluster_serve.h)
+ * the daemons' heartbeats (announce_t on SC_ANNOUNCE, lib/net/cluster_serve.h)
  * and shows one row per daemon: its cores, speed, idle fraction, owner-busy
  * flag and the rate at which it computes units, refreshed every interval
  * (live) or once after a wait (--once, for scripts). It only listens: it
@@ -212,7 +212,7 @@ static void heard(top *t, const sc_msg_announce *a, double now)
 }
 
 /* LCM's callback: open the envelope with the guard (which counts what it
- * drops), then take what is on SC_ANNOUNCE as masters do (lib/cluster.c):
+ * drops), then take what is on SC_ANNOUNCE as masters do (lib/net/cluster.c):
  * an announce_t of this protocol version from the node that sealed it. */
 static void on_message(const lcm_recv_buf_t *rb, const char *channel, void *ctx)
 {

@@ -3,7 +3,7 @@
  * as text (lcp), and write a cluster key (keygen); run --record writes
  * an LCM log that simcluster-view(1) renders (run --render runs it), and
  * run --publish sends the same messages live. A scene is bolts, spheres or
- * a scene file (simcluster.conf(5), lib/scene_file.c). */
+ * a scene file (simcluster.conf(5), lib/api/scene_file.c). */
 #include <errno.h>
 #include <getopt.h>
 #include <limits.h>

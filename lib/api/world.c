@@ -5,7 +5,6 @@
 #include <limits.h>
 #include <stdlib.h>
 #include <string.h>
-#include <time.h>
 #include <unistd.h>
 
 #include "cluster.h"
@@ -169,28 +168,6 @@ SC_API int sc_body_add(sc_world *w, const sc_body_desc *d)
 SC_API int sc_world_body_count(const sc_world *w)
 {
     return w ? w->st.nbodies : 0;
-}
-
-void sc_body_pose(const sc_body *b, sc_pose *p)
-{
-    double rc[3];
-    q_rotate(rc, b->q, b->com);
-    v3_sub(p->pos, b->x, rc);
-    memcpy(p->quat, b->q, sizeof p->quat);
-}
-
-double sc_cpu_now(void)
-{
-    struct timespec ts;
-    clock_gettime(CLOCK_THREAD_CPUTIME_ID, &ts);
-    return (double)ts.tv_sec + 1e-9 * (double)ts.tv_nsec;
-}
-
-double sc_wall_now(void)
-{
-    struct timespec ts;
-    clock_gettime(CLOCK_MONOTONIC, &ts);
-    return (double)ts.tv_sec + 1e-9 * (double)ts.tv_nsec;
 }
 
 static const sc_body *body_get(const sc_world *w, int id)

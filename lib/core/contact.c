@@ -106,13 +106,13 @@ static void build_a(const row *rows, const int *sel, int n, double *A)
 
 /* Solve, and on failure retry once with the diagonal raised by 1e-9 of its
  * largest entry (redundant contacts make A singular); counted, never hidden. */
-static int solve(int n, double *A, const double *q, const double *lo, const double *hi,
-                 const int *findex, const double *mu, double *z, double *w,
+static int solve(sc_arena *a, int n, double *A, const double *q, const double *lo,
+                 const double *hi, const int *findex, const double *mu, double *z, double *w,
                  sc_solve_info *info)
 {
     sc_lcp_info li = { 0 };
-    int rc = lo ? sc_lcp_boxed(n, A, q, lo, hi, findex, mu, z, w, &li)
-                : sc_lcp_dantzig(n, A, q, z, w, &li);
+    int rc = lo ? sc_lcp_boxed_in(a, n, A, q, lo, hi, findex, mu, z, w, &li)
+                : sc_lcp_dantzig_in(a, n, A, q, z, w, &li);
     info->pivots += li.pivots;
     info->lemke += li.lemke;
     if (rc == SC_OK || rc == SC_EINVAL || rc == SC_ENOMEM)
@@ -122,8 +122,8 @@ static int solve(int n, double *A, const double *q, const double *lo, const doub
         dmax = fmax(dmax, A[i * n + i]);
     for (int i = 0; i < n; i++)
         A[i * n + i] += 1e-9 * dmax + 1e-300;
-    rc = lo ? sc_lcp_boxed(n, A, q, lo, hi, findex, mu, z, w, &li)
-            : sc_lcp_dantzig(n, A, q, z, w, &li);
+    rc = lo ? sc_lcp_boxed_in(a, n, A, q, lo, hi, findex, mu, z, w, &li)
+            : sc_lcp_dantzig_in(a, n, A, q, z, w, &li);
     info->pivots += li.pivots;
     if (rc == SC_OK)
         info->regularised++;
@@ -161,9 +161,9 @@ static void apply(const row *rw, double z, sc_body *bodies, int pseudo, double h
 /* The staggered fallback (see sc_island_solve): rows[nsel[k]] are the
  * normals; scratch holds 6 n doubles, the first n the rows' q; sel room
  * for n ints. */
-static int staggered(const row *rows, int nrows, const int *nsel, int nn, const int *findex,
-                     const double *mu, sc_body *bodies, double *A, double *scratch, int *sel,
-                     sc_solve_info *info)
+static int staggered(sc_arena *arena, const row *rows, int nrows, const int *nsel, int nn,
+                     const int *findex, const double *mu, sc_body *bodies, double *A,
+                     double *scratch, int *sel, sc_solve_info *info)
 {
     size_t n = (size_t)nrows;
     double *q = scratch, *lo = scratch + n, *hi = scratch + 2 * n, *z = scratch + 3 * n,
@@ -171,7 +171,7 @@ static int staggered(const row *rows, int nrows, const int *nsel, int nn, const 
     build_a(rows, nsel, nn, A);
     for (int k = 0; k < nn; k++)
         q[k] = q[nsel[k]];       /* the normals' q, restitution included; nsel[k] >= k */
-    int rc = solve(nn, A, q, NULL, NULL, NULL, NULL, z, w, info);
+    int rc = solve(arena, nn, A, q, NULL, NULL, NULL, NULL, z, w, info);
     if (rc != SC_OK)
         return rc;
     for (int i = 0; i < nrows; i++)
@@ -195,7 +195,7 @@ static int staggered(const row *rows, int nrows, const int *nsel, int nn, const 
         hi[k] = mu[r] * zrow[findex[r]];
         lo[k] = -hi[k];
     }
-    rc = solve(nt, A, q, lo, hi, NULL, NULL, z, w, info);
+    rc = solve(arena, nt, A, q, lo, hi, NULL, NULL, z, w, info);
     if (rc == SC_OK)
         for (int k = 0; k < nt; k++)
             apply(&rows[sel[k]], z[k], bodies, 0, 0);
@@ -299,7 +299,7 @@ int sc_island_solve(sc_arena *arena, sc_body *bodies, const sc_contact *c, const
         }
     }
     build_a(rows, NULL, nrows, A);
-    rc = solve(nrows, A, q, lo, hi, friction ? findex : NULL, mu, z, w, info);
+    rc = solve(arena, nrows, A, q, lo, hi, friction ? findex : NULL, mu, z, w, info);
     if (rc != SC_OK && friction && rc != SC_ENOMEM && rc != SC_EINVAL) {
         /* The friction fixed point can fail (pivot limit, ill-conditioned
          * near-duplicate rows). Then stagger: normals alone (a PSD LCP the
@@ -308,7 +308,7 @@ int sc_island_solve(sc_arena *arena, sc_body *bodies, const sc_contact *c, const
          * back into the normals is lost for this substep: counted in
          * sc_stats.lcp_fallbacks, never silent. */
         info->failures++;
-        rc = staggered(rows, nrows, nsel, nn, findex, mu, bodies, A, buf, sel, info);
+        rc = staggered(arena, rows, nrows, nsel, nn, findex, mu, bodies, A, buf, sel, info);
     } else if (rc == SC_OK) {
         for (int i = 0; i < nrows; i++)
             apply(&rows[i], z[i], bodies, 0, h);
@@ -325,7 +325,7 @@ int sc_island_solve(sc_arena *arena, sc_body *bodies, const sc_contact *c, const
     build_a(rows, nsel, nn, A);
     for (int k = 0; k < nn; k++)
         q[k] = -p->baumgarte * fmax(c[ci[k]].depth - p->slop, 0.0) / h;
-    rc = solve(nn, A, q, NULL, NULL, NULL, NULL, z, w, info);
+    rc = solve(arena, nn, A, q, NULL, NULL, NULL, NULL, z, w, info);
     if (rc != SC_OK)
         goto out;
     for (int k = 0; k < nn; k++)

@@ -19,75 +19,6 @@ static const sc_contact_params contact_params = {
     .baumgarte = 0.2,
 };
 
-void sc_stage_add(sc_stats *st, int stage, double t0)
-{
-    double dt = sc_cpu_now() - t0;
-    st->stage_s[stage] += dt;
-    st->stage_total_s[stage] += dt;
-}
-
-/* ---- executors: the serial one ---------------------------------------- */
-
-/* Every job as one unit: its pairs or islands are computed one by one
- * either way, so the outputs are those of any cut. */
-static int serial_run(sc_exec *ex, sc_job *job, int stage, sc_stats *st)
-{
-    (void)stage;
-    sc_exec_serial *s = (sc_exec_serial *)ex;
-    sc_unit one;
-    memset(&one, 0, sizeof one);
-    one.kind = job->kind;
-    if (job->kind == SC_UNIT_ISLAND) {
-        one.islands = job->islands->count;
-        one.count = job->islands->contact_start[job->islands->count];
-        if (one.islands == 0)
-            return SC_OK;
-    } else if (job->kind != SC_UNIT_GROUP) {
-        one.count = job->npairs;
-        if (one.count == 0)
-            return SC_OK;
-    }
-    if (job->kind == SC_UNIT_GROUP) {
-        /* group units come made: run them in order */
-        int rc = SC_OK;
-        for (int i = 0; i < job->nunits; i++) {
-            sc_unit_run(s->np, job, &job->units[i]);
-            st->collider_warnings += job->units[i].messages;
-            if (job->units[i].rc != SC_OK && rc == SC_OK)
-                rc = job->units[i].rc;
-        }
-        st->units += job->nunits;
-        return rc;
-    }
-    job->units = &one;
-    job->nunits = 1;
-    sc_unit_run(s->np, job, &one);
-    job->units = NULL;
-    job->nunits = 0;
-    st->collider_warnings += one.messages;
-    st->units++;
-    if (job->kind == SC_UNIT_ISLAND) {
-        st->lcp_pivots += one.info.pivots;
-        st->lcp_fallbacks += one.info.failures;
-    }
-    if (one.arena_high > st->unit_arena_bytes)
-        st->unit_arena_bytes = one.arena_high;
-    return one.rc;
-}
-
-static int serial_width(const sc_exec *ex)
-{
-    (void)ex;
-    return 1;
-}
-
-void sc_exec_serial_init(sc_exec_serial *s, sc_np_ctx *np)
-{
-    s->base.run = serial_run;
-    s->base.width = serial_width;
-    s->np = np;
-}
-
 /* ---- scratch ---------------------------------------------------------- */
 
 int sc_frame_scratch_init(sc_frame_scratch *s)
@@ -102,7 +33,8 @@ void sc_frame_scratch_free(sc_frame_scratch *s)
 {
     if (!s)
         return;
-    sc_group_scratch_destroy(s->groups);
+    if (s->groups_free)
+        s->groups_free(s->groups);
     sc_bp_destroy(s->bp);
     free(s->pairs);
     sc_islands_free(&s->islands);

@@ -70,8 +70,10 @@ typedef struct sc_job {
     const sc_islands *islands;
     double h;
     const sc_contact_params *params;
-    /* GROUP: motion groups' whole frames (group.c); units come made */
+    /* GROUP: motion groups' whole frames (group.c); units come made, and
+     * run_group runs one (so that unit.c need not know group.c) */
     const struct sc_group_job *group;
+    int (*run_group)(sc_np_ctx *np, const struct sc_job *job, const sc_unit *u);
 } sc_job;
 
 /* Run unit u of job on the calling thread with its narrow-phase context;
@@ -127,10 +129,10 @@ typedef struct sc_frame_scratch {
     int pair_cap;
     sc_islands islands;
     struct sc_group_scratch *groups;   /* group.c, created when first used */
+    void (*groups_free)(struct sc_group_scratch *);
 } sc_frame_scratch;
 /* SC_OK or SC_ENOMEM (sc_frame_scratch_free() still applies). */
 int sc_frame_scratch_init(sc_frame_scratch *s);
-void sc_group_scratch_destroy(struct sc_group_scratch *g);
 void sc_frame_scratch_free(sc_frame_scratch *s);
 
 /* One frame of dt seconds (the paper's steps 3-7: substeps, back-ups to
@@ -143,8 +145,6 @@ int sc_frame_step(const sc_frame_config *cfg, sc_frame_state *st, double dt,
  * within it step apart, each group by sc_frame_step() as a unit of its own. */
 int sc_groups_step(const sc_frame_config *cfg, sc_frame_state *st, double dt,
                    sc_frame_scratch *scr, sc_exec *ex, sc_stats *stats);
-/* Run GROUP unit u (group.c; called by sc_unit_run). */
-int sc_group_unit_run(sc_np_ctx *np, const sc_job *job, const sc_unit *u);
 
 /* ---- inside a frame: the stages' shared view ---- */
 typedef struct sc_frame {

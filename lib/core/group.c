@@ -85,7 +85,7 @@ static sc_group_scratch *group_scratch_create(void)
     return gs;
 }
 
-void sc_group_scratch_destroy(sc_group_scratch *gs)
+static void group_scratch_destroy(sc_group_scratch *gs)
 {
     if (!gs)
         return;
@@ -100,7 +100,7 @@ void sc_group_scratch_destroy(sc_group_scratch *gs)
 
 static void group_scratch_free(void *p)
 {
-    sc_group_scratch_destroy(p);
+    group_scratch_destroy(p);
 }
 
 /* Whether bodies a and b (spheres overlapping) can touch within dt: the
@@ -330,7 +330,7 @@ static void group_frame(const sc_group_job *gj, sc_group_scratch *gs, int k, sc_
     out->ncontacts = st->ncontacts;
 }
 
-int sc_group_unit_run(sc_np_ctx *np, const sc_job *job, const sc_unit *u)
+static int group_unit_run(sc_np_ctx *np, const sc_job *job, const sc_unit *u)
 {
     void (*fn)(void *) = group_scratch_free;
     void **slot = sc_np_scratch(np, &fn);
@@ -470,6 +470,7 @@ static int step_groups(const sc_frame_config *cfg, sc_frame_state *st, double dt
             .units = units,
             .nunits = nu,
             .group = &gj,
+            .run_group = group_unit_run,
         };
         rc = ex->run(ex, &job, -1, stats);
     }
@@ -492,8 +493,11 @@ int sc_groups_step(const sc_frame_config *cfg, sc_frame_state *st, double dt,
 {
     if (st->nbodies == 0)
         return SC_OK;
-    if (!scr->groups && !(scr->groups = group_scratch_create()))
-        return SC_ENOMEM;
+    if (!scr->groups) {
+        if (!(scr->groups = group_scratch_create()))
+            return SC_ENOMEM;
+        scr->groups_free = group_scratch_destroy;
+    }
     sc_arena *a = &scr->arena;
     double t0 = sc_cpu_now();
     sc_groups g;

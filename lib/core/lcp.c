@@ -623,7 +623,7 @@ static int symmetric(int n, const double *M)
 /* One allocation for everything a call needs (nothing is allocated in the
  * pivot loop): 17 vectors, kmat (n x n, friction only), two stamp arrays,
  * the factorisation, the set of each index. */
-static int work_init(work *wk, int n, const double *M, int friction)
+static int work_init(sc_arena *arena, work *wk, int n, const double *M, int friction)
 {
     enum { VECS = 17 };
     int sym = symmetric(n, M);
@@ -632,7 +632,7 @@ static int work_init(work *wk, int n, const double *M, int friction)
         return SC_ENOMEM;
     size_t bytes = (VECS * nd + (friction ? nn : 0)) * sizeof(double) +
                    2 * nd * sizeof(long) + sc_ldu_size(n, sym) + nd;
-    wk->mem = malloc(bytes);
+    wk->mem = sc_arena_alloc(arena, bytes);
     if (!wk->mem)
         return SC_ENOMEM;
     double *p = wk->mem;
@@ -711,8 +711,8 @@ static void report(sc_lcp_info *info, const work *wk, double residual)
 
 /* ---- standard LCP -------------------------------------------------------- */
 
-int sc_lcp_dantzig(int n, const double *M, const double *q, double *z, double *w,
-                   sc_lcp_info *info)
+int sc_lcp_dantzig_in(sc_arena *arena, int n, const double *M, const double *q, double *z,
+                      double *w, sc_lcp_info *info)
 {
     if (info) {
         info->pivots = 0;
@@ -727,7 +727,7 @@ int sc_lcp_dantzig(int n, const double *M, const double *q, double *z, double *w
         return SC_EINVAL;
     int lemke = 0;
     work wk;
-    int rc = work_init(&wk, n, M, 0);
+    int rc = work_init(arena, &wk, n, M, 0);
     if (rc != SC_OK)
         return rc;
     for (int i = 0; i < n; i++) {
@@ -748,8 +748,14 @@ int sc_lcp_dantzig(int n, const double *M, const double *q, double *z, double *w
     report(info, &wk, residual);
     if (info)
         info->lemke = lemke;    /* never silent: callers can count it */
-    free(wk.mem);
+    sc_arena_free(arena, wk.mem);
     return rc;
+}
+
+int sc_lcp_dantzig(int n, const double *M, const double *q, double *z, double *w,
+                   sc_lcp_info *info)
+{
+    return sc_lcp_dantzig_in(NULL, n, M, q, z, w, info);
 }
 
 SC_API int sc_lcp_solve(int n, const double *M, const double *q, double *z, double *w)
@@ -902,9 +908,9 @@ static int solve_friction(work *wk, const double *q, const double *lo, const dou
     return SC_EMAXITER;
 }
 
-int sc_lcp_boxed(int n, const double *M, const double *q, const double *lo,
-                 const double *hi, const int *findex, const double *mu,
-                 double *z, double *w, sc_lcp_info *info)
+int sc_lcp_boxed_in(sc_arena *arena, int n, const double *M, const double *q,
+                    const double *lo, const double *hi, const int *findex, const double *mu,
+                    double *z, double *w, sc_lcp_info *info)
 {
     if (info) {
         info->pivots = 0;
@@ -921,7 +927,7 @@ int sc_lcp_boxed(int n, const double *M, const double *q, const double *lo,
         !all_finite(q, (size_t)n) || !boxed_args_ok(n, lo, hi, friction ? findex : NULL, mu))
         return SC_EINVAL;
     work wk;
-    int rc = work_init(&wk, n, M, friction);
+    int rc = work_init(arena, &wk, n, M, friction);
     if (rc != SC_OK)
         return rc;
     double residual;
@@ -930,6 +936,13 @@ int sc_lcp_boxed(int n, const double *M, const double *q, const double *lo,
     else
         rc = solve_fixed(&wk, q, lo, hi, 0, z, w, &residual);
     report(info, &wk, residual);
-    free(wk.mem);
+    sc_arena_free(arena, wk.mem);
     return rc;
+}
+
+int sc_lcp_boxed(int n, const double *M, const double *q, const double *lo,
+                 const double *hi, const int *findex, const double *mu,
+                 double *z, double *w, sc_lcp_info *info)
+{
+    return sc_lcp_boxed_in(NULL, n, M, q, lo, hi, findex, mu, z, w, info);
 }

@@ -6,6 +6,8 @@
 
 #include <stddef.h>
 
+#include "arena.h"
+
 typedef struct sc_lcp_info {
     long pivots;              /* principal pivots made */
     double residual;          /* max complementarity / feasibility violation */
@@ -24,6 +26,14 @@ int sc_lcp_dantzig(int n, const double *M, const double *q, double *z, double *w
 int sc_lcp_boxed(int n, const double *M, const double *q, const double *lo,
                  const double *hi, const int *findex, const double *mu,
                  double *z, double *w, sc_lcp_info *info);
+
+/* The same two with their workspace (one block a call) from arena a
+ * (NULL: malloc): the contact solves use their thread's arena. */
+int sc_lcp_dantzig_in(sc_arena *a, int n, const double *M, const double *q, double *z,
+                      double *w, sc_lcp_info *info);
+int sc_lcp_boxed_in(sc_arena *a, int n, const double *M, const double *q, const double *lo,
+                    const double *hi, const int *findex, const double *mu, double *z,
+                    double *w, sc_lcp_info *info);
 
 /* L D U factorisation of the clamped block M_CC of an n x n row-major M,
  * updated as indices enter (sc_ldu_border + sc_ldu_commit) and leave

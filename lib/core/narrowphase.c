@@ -33,28 +33,6 @@
 
 /* Guards the shared copy's global trimesh collider cache (see above). */
 static pthread_mutex_t ode_trimesh_lock = PTHREAD_MUTEX_INITIALIZER;
-/* ODE messages (e.g. "contact hash table bucket overflow") of this thread. */
-static _Thread_local long ode_messages;
-
-void sc_ode_message(int num, const char *msg, va_list ap)
-{
-    /* a library must not print on its users' stderr: count instead */
-    (void)num;
-    (void)msg;
-    (void)ap;
-    ode_messages++;
-}
-
-long sc_ode_message_count(void)
-{
-    return ode_messages;
-}
-
-void sc_ode_thread_init(void)
-{
-    sc_ode_init();
-    dAllocateODEDataForThread(dAllocateMaskAll);
-}
 
 enum { REP_NATIVE, REP_CONVEX, REP_TRIMESH, REP_COUNT };
 
@@ -335,7 +313,7 @@ int sc_np_collide(sc_np_ctx *ctx, const sc_shape *a, const sc_pose *pa, const sc
         c[i].depth = raw[i].depth;
     }
     /* ODE's convex-convex and convex-box colliders give one point (docs/DESIGN.md
-     * section 8): a face resting on a face gets its whole footprint by
+     * section 3.3): a face resting on a face gets its whole footprint by
      * clipping (polyhedron.c). Box-box is native and gives several. */
     if (ra == REP_CONVEX || rb == REP_CONVEX) {
         double deepest = 0;

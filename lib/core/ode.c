@@ -9,6 +9,29 @@
 #include "core.h"
 #include "ode_table.h"
 
+/* ODE messages (e.g. "contact hash table bucket overflow") of this thread. */
+static _Thread_local long ode_messages;
+
+void sc_ode_message(int num, const char *msg, va_list ap)
+{
+    /* a library must not print on its users' stderr: count instead */
+    (void)num;
+    (void)msg;
+    (void)ap;
+    ode_messages++;
+}
+
+long sc_ode_message_count(void)
+{
+    return ode_messages;
+}
+
+void sc_ode_thread_init(void)
+{
+    sc_ode_init();
+    dAllocateODEDataForThread(dAllocateMaskAll);
+}
+
 static pthread_once_t shared_once = PTHREAD_ONCE_INIT;
 static struct sc_ode shared;
 

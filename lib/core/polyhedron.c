@@ -1,5 +1,5 @@
 /* polyhedron.c - polygon faces of convex shapes and a face-clipping
- * contact manifold for convex pairs (DESIGN.md section 8).
+ * contact manifold for convex pairs (docs/DESIGN.md section 3.3).
  *
  * ODE's convex-convex and convex-box colliders return one contact per pair
  * (the deepest point of the separating-axis test), wherever the two shapes

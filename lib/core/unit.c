@@ -74,7 +74,7 @@ void sc_unit_run(sc_np_ctx *np, const sc_job *job, sc_unit *u)
         break;
     }
     case SC_UNIT_GROUP:
-        u->rc = sc_group_unit_run(np, job, u);
+        u->rc = job->run_group(np, job, u);
         break;
     default:
         u->rc = SC_EINVAL;

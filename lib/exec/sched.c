@@ -1,4 +1,4 @@
-/* sched.c - the scheduler of the paper (DESIGN.md section 6) and what goes
+/* sched.c - the scheduler of the paper (docs/DESIGN.md section 6) and what goes
  * beyond it.
  *
  * The paper: estimate each unit's cost (pairs: product of polygon counts;

@@ -1,5 +1,5 @@
 /* cluster_msg.c - sealed cluster messages, their payloads and the key file
- * (DESIGN.md section 6; formats in proto/simcluster.lcm).
+ * (docs/DESIGN.md section 7.2; formats in proto/simcluster.lcm).
  *
  * A sealed message is the LCM encoding of an envelope_t (big-endian, as LCM
  * is: type fingerprint u64, version i16, node i64, seq i64, kind i16, len

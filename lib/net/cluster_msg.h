@@ -1,5 +1,5 @@
 /*
- * cluster_msg.h - the cluster's message layer (DESIGN.md section 6): sealed
+ * cluster_msg.h - the cluster's message layer (docs/DESIGN.md section 7.2): sealed
  * envelopes (HMAC-SHA-512/256 under a shared key, per-sender sequence numbers
  * checked against replay), the payloads they carry, and the key file.
  * The wire format is proto/simcluster.lcm, encoded by the C that lcm-gen

@@ -1,5 +1,5 @@
-/* unit_wire.c - the wire form of work units and of their results (DESIGN.md
- * sections 1 and 3): what a remote node needs to run a unit, and what it
+/* unit_wire.c - the wire form of work units and of their results (docs/DESIGN.md
+ * sections 5 and 7.1): what a remote node needs to run a unit, and what it
  * sends back, so that the master's merge gives the bits a local run gives.
  *
  * Self-contained: shapes travel as content hashes resolved in the
@@ -27,7 +27,7 @@
  * A unit's counts are bounded and its length checked exactly before
  * anything is allocated; its doubles must be finite. A result's doubles
  * are carried verbatim (a solve that blew up reaches the master as NaN, as
- * it would locally, for step.c's check); its kind, counts and body ids must
+ * it would locally, for frame.c's check); its kind, counts and body ids must
  * match the master's unit, and nothing is written unless all of it is
  * valid. Outputs of a unit that failed (rc < 0) are as undefined as after
  * a local failure.
