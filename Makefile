@@ -105,7 +105,7 @@ $(GEN_SRC): $(GEN)/stamp ;
 
 # Generated headers exist before any library object is compiled.
 $(filter $(BUILD)/lib/%,$(LIB_OBJ)): | $(GEN)/stamp
-$(BUILD)/lib/net/cluster_msg.o: $(GEN)/stamp
+$(BUILD)/lib/net/cluster_msg.o $(BUILD)/lib/net/frame_record.o: $(GEN)/stamp
 
 # lcm-gen's cleanup functions for types without arrays or strings do not
 # use their argument: -Wno-unused-parameter, for these files only.
@@ -204,7 +204,7 @@ install: lib $(TOOL_BIN) $(DAEMON_BIN) $(BUILD)/simcluster.pc
 	install -m 755 $(SHARED) $(DESTDIR)$(LIBDIR)/
 	ln -sf libsimcluster.so.$(VERSION) $(DESTDIR)$(LIBDIR)/libsimcluster.so.$(SOMAJOR)
 	ln -sf libsimcluster.so.$(SOMAJOR) $(DESTDIR)$(LIBDIR)/libsimcluster.so
-	install -m 644 include/simcluster.h $(DESTDIR)$(INCDIR)/
+	install -m 644 include/simcluster.h include/simcluster_net.h $(DESTDIR)$(INCDIR)/
 	install -m 644 $(BUILD)/simcluster.pc $(DESTDIR)$(PCDIR)/
 	$(if $(TOOL_BIN),install -m 755 $(TOOL_BIN) $(DESTDIR)$(BINDIR)/)
 	$(if $(DAEMON_BIN),install -d $(DESTDIR)$(SBINDIR) && install -m 755 $(DAEMON_BIN) $(DESTDIR)$(SBINDIR)/)
@@ -216,6 +216,7 @@ install: lib $(TOOL_BIN) $(DAEMON_BIN) $(BUILD)/simcluster.pc
 
 uninstall:
 	rm -f $(DESTDIR)$(LIBDIR)/libsimcluster.* $(DESTDIR)$(INCDIR)/simcluster.h \
+	      $(DESTDIR)$(INCDIR)/simcluster_net.h \
 	      $(DESTDIR)$(PCDIR)/simcluster.pc $(DESTDIR)$(SBINDIR)/simclusterd \
 	      $(TOOL_BIN:$(BUILD)/tools/%=$(DESTDIR)$(BINDIR)/%) $(DESTDIR)$(SYSTEMDDIR)/simclusterd.service
 	for m in man/*.[1-8]; do rm -f $(DESTDIR)$(MANDIR)/man$${m##*.}/$${m##*/}; done

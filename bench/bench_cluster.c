@@ -34,7 +34,7 @@
 
 #include "bench_util.h"
 #include "cluster.h"
-#include "cluster_msg.h"
+#include "simcluster_net.h"
 #include "sc_internal.h"
 #include "simcluster.h"
 

@@ -26,7 +26,7 @@
 #include <syslog.h>
 #include <unistd.h>
 
-#include "cluster_msg.h"
+#include "simcluster_net.h"
 #include "cluster_serve.h"
 #include "simcluster.h"
 

@@ -14,7 +14,7 @@
 #include <unistd.h>
 #include <cmocka.h>
 
-#include "cluster_msg.h"
+#include "simcluster_net.h"
 #include "sc_internal.h"
 
 static const uint8_t key[SC_KEY_BYTES] = "0123456789abcdef0123456789abcde";

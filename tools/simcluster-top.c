@@ -20,7 +20,7 @@
 #include <time.h>
 #include <unistd.h>
 
-#include "cluster_msg.h"
+#include "simcluster_net.h"
 #include "simcluster.h"
 
 #define MAX_NODES 1024             /* rows the table holds */

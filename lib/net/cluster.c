@@ -28,7 +28,7 @@
 #include <unistd.h>
 
 #include "cluster.h"
-#include "cluster_msg.h"
+#include "simcluster_net.h"
 #include "sc_internal.h"
 
 #define CHANNEL_MAX 48

@@ -25,7 +25,7 @@
 #include <sys/stat.h>
 #include <unistd.h>
 
-#include "cluster_msg.h"
+#include "simcluster_net.h"
 #include "sc_internal.h"
 #include "sclcm_announce_t.h"
 #include "sclcm_envelope_t.h"
@@ -428,6 +428,11 @@ int sc_msg_shape_decode(const void *buf, size_t len, sc_shape **out)
     }
     sclcm_shape_t_decode_cleanup(&m);
     return rc;
+}
+
+uint64_t sc_shape_hash(const sc_shape *s)
+{
+    return s ? s->hash : 0;
 }
 
 /* ---- key files ---- */

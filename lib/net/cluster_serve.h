@@ -21,7 +21,7 @@
 #include <stddef.h>
 #include <stdint.h>
 
-#include "cluster_msg.h"
+#include "simcluster_net.h"
 
 #define SC_SERVE_MAX_THREADS 256
 
