@@ -35,6 +35,10 @@ DEP_PKGS := ode gsl lcm libsodium
 GEN     := $(BUILD)/gen
 LAYERS  := core exec net api
 CPPFLAGS += -Iinclude -Ilib $(LAYERS:%=-Ilib/%) -I$(GEN) -D_GNU_SOURCE
+# Programs (tools, the daemon, examples) see only the public headers; tests
+# and benchmarks may include the library's and the daemon's own.
+PROG_CPPFLAGS := -Iinclude -D_GNU_SOURCE
+TEST_CPPFLAGS := $(CPPFLAGS) -Idaemon
 CFLAGS  += -std=c11 $(OPT) -g -Wall -Wextra -Werror -fPIC -fvisibility=hidden \
            -pthread $(XFLAGS)
 LDFLAGS += -pthread $(XFLAGS)
@@ -69,6 +73,11 @@ TOOL_SRC  := $(sort $(wildcard tools/*.c))
 TOOL_BIN  := $(TOOL_SRC:tools/%.c=$(BUILD)/tools/%)
 DAEMON_SRC := $(sort $(wildcard daemon/*.c))
 DAEMON_BIN := $(if $(DAEMON_SRC),$(BUILD)/daemon/simclusterd)
+# The daemon's engine (everything but its main), also linked into the tests
+# and benchmarks that start daemons in-process.
+DAEMON_LIB_SRC := $(filter-out daemon/simclusterd.c,$(DAEMON_SRC))
+DAEMON_LIB := $(BUILD)/daemon/libscd.a
+DAEMON_HDR := $(wildcard daemon/*.h)
 BENCH_SRC := $(sort $(wildcard bench/*.c))
 BENCH_BIN := $(BENCH_SRC:%.c=$(BUILD)/%)
 FUZZ_SRC  := $(sort $(wildcard tests/fuzz/fuzz_*.c))
@@ -124,37 +133,47 @@ $(SHARED): $(LIB_OBJ)
 	$(Q)ln -sf libsimcluster.so.$(VERSION) $(BUILD)/libsimcluster.so.$(SOMAJOR)
 	$(Q)ln -sf libsimcluster.so.$(SOMAJOR) $(BUILD)/libsimcluster.so
 
-# Tests link the static library (internal tests may include lib/*.h).
-$(BUILD)/tests/%: tests/%.c $(STATIC)
+# Tests link the static library and the daemon's engine (internal tests
+# may include lib/*.h and daemon/*.h).
+$(BUILD)/tests/%: tests/%.c $(DAEMON_LIB) $(STATIC)
 	@mkdir -p $(dir $@)
 	@$(if $(Q),echo "  TEST    $@")
-	$(Q)$(CC) $(CPPFLAGS) $(CFLAGS) $< -o $@ $(LDFLAGS) $(STATIC) $(TESTLIBS)
+	$(Q)$(CC) $(TEST_CPPFLAGS) $(CFLAGS) $< -o $@ $(LDFLAGS) $(DAEMON_LIB) $(STATIC) $(TESTLIBS)
 
-$(BUILD)/examples/%: examples/%.c $(STATIC)
+$(BUILD)/examples/%: examples/%.c include/simcluster.h $(STATIC)
 	@mkdir -p $(dir $@)
 	@$(if $(Q),echo "  EXAMPLE $@")
-	$(Q)$(CC) $(CPPFLAGS) $(CFLAGS) $< -o $@ $(LDFLAGS) $(STATIC) $(LIBS)
+	$(Q)$(CC) $(PROG_CPPFLAGS) $(CFLAGS) $< -o $@ $(LDFLAGS) $(STATIC) $(LIBS)
 
-$(BUILD)/tools/%: tools/%.c $(STATIC)
+$(BUILD)/tools/%: tools/%.c $(wildcard include/*.h) $(STATIC)
 	@mkdir -p $(dir $@)
 	@$(if $(Q),echo "  TOOL    $@")
-	$(Q)$(CC) $(CPPFLAGS) $(CFLAGS) $< -o $@ $(LDFLAGS) $(STATIC) $(LIBS) $(TOOL_LIBS_$*)
+	$(Q)$(CC) $(PROG_CPPFLAGS) $(CFLAGS) $< -o $@ $(LDFLAGS) $(STATIC) $(LIBS) $(TOOL_LIBS_$*)
 
 $(BUILD)/tests/png_check: tests/png_check.c Makefile
 	@mkdir -p $(dir $@)
 	@$(if $(Q),echo "  TEST    $@")
 	$(Q)$(CC) $(CFLAGS) $< -o $@ $(LDFLAGS) $(PNG_LIBS) -lm
 
-# simclusterd(8): every daemon/*.c into one program.
-$(BUILD)/daemon/simclusterd: $(DAEMON_SRC) $(LIB_HDR) $(STATIC)
+# simclusterd(8): daemon/simclusterd.c (the process) and the engine, with
+# the public headers only, like any program.
+$(BUILD)/daemon/%.o: daemon/%.c $(DAEMON_HDR) $(wildcard include/*.h) Makefile
 	@mkdir -p $(dir $@)
-	@$(if $(Q),echo "  DAEMON  $@")
-	$(Q)$(CC) $(CPPFLAGS) $(CFLAGS) $(DAEMON_SRC) -o $@ $(LDFLAGS) $(STATIC) $(LIBS)
+	@$(if $(Q),echo "  CC      $<")
+	$(Q)$(CC) $(PROG_CPPFLAGS) $(CFLAGS) -c $< -o $@
 
-$(BUILD)/bench/%: bench/%.c $(wildcard bench/*.h) $(STATIC)
+$(DAEMON_LIB): $(DAEMON_LIB_SRC:%.c=$(BUILD)/%.o)
+	@$(if $(Q),echo "  AR      $@")
+	$(Q)rm -f $@ && ar rcs $@ $^
+
+$(BUILD)/daemon/simclusterd: $(BUILD)/daemon/simclusterd.o $(DAEMON_LIB) $(STATIC)
+	@$(if $(Q),echo "  DAEMON  $@")
+	$(Q)$(CC) $(CFLAGS) $< -o $@ $(LDFLAGS) $(DAEMON_LIB) $(STATIC) $(LIBS)
+
+$(BUILD)/bench/%: bench/%.c $(wildcard bench/*.h) $(DAEMON_LIB) $(STATIC)
 	@mkdir -p $(dir $@)
 	@$(if $(Q),echo "  BENCH   $@")
-	$(Q)$(CC) $(CPPFLAGS) $(CFLAGS) $< -o $@ $(LDFLAGS) $(STATIC) $(LIBS) -ldl
+	$(Q)$(CC) $(TEST_CPPFLAGS) $(CFLAGS) $< -o $@ $(LDFLAGS) $(DAEMON_LIB) $(STATIC) $(LIBS) -ldl
 
 # Fuzz targets: a replay driver (every file of the corpus, run by make check)
 # and, with clang, a libFuzzer binary (make fuzz).

@@ -1,8 +1,9 @@
 /*
  * simcluster_net.h - the network side of libsimcluster, for programs that
  * talk to a cluster themselves (simclusterd, simcluster-top, recorders and
- * viewers): the cluster key, sealed messages and their payloads, and frame
- * records (simcluster run --record/--publish). A physics-only program needs only
+ * viewers): the cluster key, sealed messages and their payloads, frame
+ * records (simcluster run --record/--publish), and the compute node a
+ * daemon runs received work units on. A physics-only program needs only
  * simcluster.h. Message formats: proto/simcluster.lcm (LCM encodings; no
  * LCM or libsodium header is needed here). man simcluster(3) documents
  * every function below.
@@ -196,6 +197,37 @@ SC_API int sc_frame_shape_decode(const void *buf, size_t len, sc_frame_shape *ou
 SC_API int sc_frame_shape_hash(const void *buf, size_t len, uint64_t *hash);
 /* Free out's arrays and zero it (out may be NULL). */
 SC_API void sc_frame_shape_free(sc_frame_shape *out);
+
+/* ---- the compute node ------------------------------------------------------
+ * What a daemon does with a received unit (the wire bytes of an
+ * SC_MSG_UNIT record): decode it against its shape cache, run it on a
+ * compute thread, and send back the result's bytes. */
+typedef struct sc_compute sc_compute;
+typedef struct sc_remote_unit sc_remote_unit;
+/* Finds a shape by content hash; NULL when the caller does not have it. */
+typedef const sc_shape *(*sc_shape_find_fn)(void *ctx, uint64_t hash);
+
+/* A compute context for the calling thread: its narrow phase runs on a
+ * private copy of ODE when one can be had (else the shared one). One per
+ * thread. NULL on error (sc_last_error()). */
+SC_API sc_compute *sc_compute_create(void);
+/* Free c (on the thread that created it); NULL is a no-op. */
+SC_API void sc_compute_destroy(sc_compute *c);
+/* Decode a received unit, finding its shapes through find. Returns SC_OK
+ * with *out (holding a reference to each shape it uses), a count > 0 of
+ * shapes find did not have (each passed to find; *out NULL: decode again
+ * once they are in), or SC_EFORMAT (malformed, truncated, counts out of
+ * range, NaN), SC_EINVAL, SC_ENOMEM. */
+SC_API int sc_remote_unit_decode(const void *wire, size_t len, sc_shape_find_fn find,
+                                 void *find_ctx, sc_remote_unit **out);
+/* Run u on c (the calling thread); u's own error, if any, travels in its
+ * result. SC_OK or SC_EINVAL. */
+SC_API int sc_compute_run(sc_compute *c, sc_remote_unit *u);
+/* The result bytes of a unit that ran, for an SC_MSG_RESULT record: *out
+ * malloc'd, *len bytes. SC_OK, SC_EINVAL (not run yet) or SC_ENOMEM. */
+SC_API int sc_remote_unit_result(const sc_remote_unit *u, uint8_t **out, size_t *len);
+/* Free u and drop its shape references; NULL is a no-op. */
+SC_API void sc_remote_unit_free(sc_remote_unit *u);
 
 #ifdef __cplusplus
 }

@@ -19,7 +19,7 @@
 #include <lcm/lcm.h>
 
 #include "cluster.h"
-#include "cluster_serve.h"
+#include "engine.h"
 #include "sc_internal.h"
 
 #define BODIES 30
