@@ -116,9 +116,11 @@ int sc_frame_record_encode(const sc_frame_record *r, uint8_t **out, size_t *len)
         rows[i] = &r->pos[3 * i];
         rows[n + i] = &r->quat[4 * i];
     }
+    /* lcm's int8 array codec memcpy()s even 0 bytes: never from NULL */
+    static int8_t no_state[1];
     sclcm_state_t m = { .frame = r->frame, .time = r->time_s, .n = n,
                         .shape = (int64_t *)r->shape, .pos = rows, .quat = rows + n,
-                        .state = r->state };
+                        .state = n > 0 ? r->state : no_state };
     int wrote = sclcm_state_t_encode(buf, 0, (int)size, &m);
     SC_ASSERT(wrote == (int)size);
     (void)wrote;
@@ -126,6 +128,24 @@ int sc_frame_record_encode(const sc_frame_record *r, uint8_t **out, size_t *len)
     *out = buf;
     *len = size;
     return SC_OK;
+}
+
+/* A state of no bodies, read here: lcm's decoder would memcpy() its empty
+ * state array to NULL. p holds STATE_HEAD bytes. */
+static int decode_empty(const uint8_t *p, sc_frame_record *r)
+{
+    uint64_t t = be64(p + FP_BYTES + 8);
+    double time_s;
+    memcpy(&time_s, &t, sizeof time_s);
+    int64_t frame = (int64_t)be64(p + FP_BYTES);
+    if (be64(p) != (uint64_t)__sclcm_state_t_get_hash() || frame < 0 || !isfinite(time_s))
+        return SC_EFORMAT;
+    int rc = record_alloc(r, 0);
+    if (rc == SC_OK) {
+        r->frame = frame;
+        r->time_s = time_s;
+    }
+    return rc;
 }
 
 int sc_frame_record_decode(const void *buf, size_t len, sc_frame_record *r)
@@ -140,6 +160,8 @@ int sc_frame_record_decode(const void *buf, size_t len, sc_frame_record *r)
     int64_t n = (int32_t)((uint32_t)q[0] << 24 | (uint32_t)q[1] << 16 | (uint32_t)q[2] << 8 | q[3]);
     if (n < 0 || n > SC_FRAME_MAX_BODIES || len != STATE_HEAD + (size_t)n * STATE_PER_BODY)
         return SC_EFORMAT;
+    if (n == 0)
+        return decode_empty(p, r);
     sclcm_state_t m;
     memset(&m, 0, sizeof m);
     int rc = SC_EFORMAT;
