@@ -2,7 +2,7 @@
  * sealed opens to the same node, seq, kind and payload; a changed bit, a
  * wrong key, a truncation, a lying length field or a replay is refused with
  * the documented code and counted; payloads and key files round-trip and
- * bad ones are refused. (Internal API: lib/cluster_msg.h.) */
+ * bad ones are refused. (simcluster_net.h.) */
 #include <setjmp.h>
 #include <stdarg.h>
 #include <stddef.h>

@@ -1,5 +1,5 @@
 /* cluster.h - simclusterd daemons as nodes of a world's scheduler
- * (cluster.c; the daemon's side is cluster_serve.h). */
+ * (cluster.c; the daemon's side is daemon/engine.h). */
 #ifndef SC_CLUSTER_H
 #define SC_CLUSTER_H
 
