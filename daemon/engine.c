@@ -308,7 +308,7 @@ static void *compute(void *arg)
 
 /* ---- shapes ---- */
 
-static sc_shape *cache_find(const sc_serve *s, uint64_t hash)
+static const sc_shape *cache_find(const sc_serve *s, uint64_t hash)
 {
     for (int i = 0; i < s->ncache; i++)
         if (s->cache[i].hash == hash)
