@@ -52,7 +52,8 @@ LAYER_test_shape_load := core
 LAYER_test_units := api
 LAYER_test_cluster_msg := net
 LAYER_test_unit_wire := api
-LAYER_test_idle := net
+LAYER_test_compute := net
+LAYER_test_idle := core
 LAYER_test_cluster := api
 LAYER_bench_broadphase := core
 LAYER_bench_lcp := core
@@ -60,8 +61,9 @@ LAYER_bench_cluster := api
 LAYER_fuzz_envelope := net
 LAYER_cluster_inject := net
 LAYER_fuzz_load := core
-# tools and the daemon: until their calls are public
-PROG_INC := $(INC_api)
+# Programs (tools, the daemon, examples) see only the public headers;
+# tests and benchmarks may also include the daemon's own (-Idaemon).
+PROG_CPPFLAGS := -Iinclude -D_GNU_SOURCE
 CFLAGS  += -std=c11 $(OPT) -g -Wall -Wextra -Werror -fPIC -fvisibility=hidden \
            -pthread $(XFLAGS)
 LDFLAGS += -pthread $(XFLAGS)
@@ -96,6 +98,11 @@ TOOL_SRC  := $(sort $(wildcard tools/*.c))
 TOOL_BIN  := $(TOOL_SRC:tools/%.c=$(BUILD)/tools/%)
 DAEMON_SRC := $(sort $(wildcard daemon/*.c))
 DAEMON_BIN := $(if $(DAEMON_SRC),$(BUILD)/daemon/simclusterd)
+# The daemon's engine (everything but its main), also linked into the tests
+# and benchmarks that start daemons in-process.
+DAEMON_LIB_SRC := $(filter-out daemon/simclusterd.c,$(DAEMON_SRC))
+DAEMON_LIB := $(BUILD)/daemon/libscd.a
+DAEMON_HDR := $(wildcard daemon/*.h)
 BENCH_SRC := $(sort $(wildcard bench/*.c))
 BENCH_BIN := $(BENCH_SRC:%.c=$(BUILD)/%)
 FUZZ_SRC  := $(sort $(wildcard tests/fuzz/fuzz_*.c))
@@ -133,7 +140,7 @@ $(GEN_SRC): $(GEN)/stamp ;
 
 # Generated headers exist before any library object is compiled.
 $(filter $(BUILD)/lib/%,$(LIB_OBJ)): | $(GEN)/stamp
-$(BUILD)/lib/net/cluster_msg.o: $(GEN)/stamp
+$(BUILD)/lib/net/cluster_msg.o $(BUILD)/lib/net/frame_record.o: $(GEN)/stamp
 
 # lcm-gen's cleanup functions for types without arrays or strings do not
 # use their argument: -Wno-unused-parameter, for these files only.
@@ -152,37 +159,47 @@ $(SHARED): $(LIB_OBJ)
 	$(Q)ln -sf libsimcluster.so.$(VERSION) $(BUILD)/libsimcluster.so.$(SOMAJOR)
 	$(Q)ln -sf libsimcluster.so.$(SOMAJOR) $(BUILD)/libsimcluster.so
 
-# Tests link the static library (internal tests may include lib/*.h).
-$(BUILD)/tests/%: tests/%.c $(STATIC)
+# Tests link the static library and the daemon's engine (internal tests
+# name their layer above, LAYER_<name>; any may include daemon/*.h).
+$(BUILD)/tests/%: tests/%.c $(DAEMON_LIB) $(STATIC)
 	@mkdir -p $(dir $@)
 	@$(if $(Q),echo "  TEST    $@")
-	$(Q)$(CC) $(CPPFLAGS) $(INC_$(LAYER_$(notdir $*))) $(CFLAGS) $< -o $@ $(LDFLAGS) $(STATIC) $(TESTLIBS)
+	$(Q)$(CC) $(CPPFLAGS) $(INC_$(LAYER_$(notdir $*))) -Idaemon $(CFLAGS) $< -o $@ $(LDFLAGS) $(DAEMON_LIB) $(STATIC) $(TESTLIBS)
 
-$(BUILD)/examples/%: examples/%.c $(STATIC)
+$(BUILD)/examples/%: examples/%.c include/simcluster.h $(STATIC)
 	@mkdir -p $(dir $@)
 	@$(if $(Q),echo "  EXAMPLE $@")
-	$(Q)$(CC) $(CPPFLAGS) $(CFLAGS) $< -o $@ $(LDFLAGS) $(STATIC) $(LIBS)
+	$(Q)$(CC) $(PROG_CPPFLAGS) $(CFLAGS) $< -o $@ $(LDFLAGS) $(STATIC) $(LIBS)
 
-$(BUILD)/tools/%: tools/%.c $(STATIC)
+$(BUILD)/tools/%: tools/%.c $(wildcard include/*.h) $(STATIC)
 	@mkdir -p $(dir $@)
 	@$(if $(Q),echo "  TOOL    $@")
-	$(Q)$(CC) $(CPPFLAGS) $(PROG_INC) $(CFLAGS) $< -o $@ $(LDFLAGS) $(STATIC) $(LIBS) $(TOOL_LIBS_$*)
+	$(Q)$(CC) $(PROG_CPPFLAGS) $(CFLAGS) $< -o $@ $(LDFLAGS) $(STATIC) $(LIBS) $(TOOL_LIBS_$*)
 
 $(BUILD)/tests/png_check: tests/png_check.c Makefile
 	@mkdir -p $(dir $@)
 	@$(if $(Q),echo "  TEST    $@")
 	$(Q)$(CC) $(CFLAGS) $< -o $@ $(LDFLAGS) $(PNG_LIBS) -lm
 
-# simclusterd(8): every daemon/*.c into one program.
-$(BUILD)/daemon/simclusterd: $(DAEMON_SRC) $(LIB_HDR) $(STATIC)
+# simclusterd(8): daemon/simclusterd.c (the process) and the engine, with
+# the public headers only, like any program.
+$(BUILD)/daemon/%.o: daemon/%.c $(DAEMON_HDR) $(wildcard include/*.h) Makefile
 	@mkdir -p $(dir $@)
-	@$(if $(Q),echo "  DAEMON  $@")
-	$(Q)$(CC) $(CPPFLAGS) $(PROG_INC) $(CFLAGS) $(DAEMON_SRC) -o $@ $(LDFLAGS) $(STATIC) $(LIBS)
+	@$(if $(Q),echo "  CC      $<")
+	$(Q)$(CC) $(PROG_CPPFLAGS) $(CFLAGS) -c $< -o $@
 
-$(BUILD)/bench/%: bench/%.c $(wildcard bench/*.h) $(STATIC)
+$(DAEMON_LIB): $(DAEMON_LIB_SRC:%.c=$(BUILD)/%.o)
+	@$(if $(Q),echo "  AR      $@")
+	$(Q)rm -f $@ && ar rcs $@ $^
+
+$(BUILD)/daemon/simclusterd: $(BUILD)/daemon/simclusterd.o $(DAEMON_LIB) $(STATIC)
+	@$(if $(Q),echo "  DAEMON  $@")
+	$(Q)$(CC) $(CFLAGS) $< -o $@ $(LDFLAGS) $(DAEMON_LIB) $(STATIC) $(LIBS)
+
+$(BUILD)/bench/%: bench/%.c $(wildcard bench/*.h) $(DAEMON_LIB) $(STATIC)
 	@mkdir -p $(dir $@)
 	@$(if $(Q),echo "  BENCH   $@")
-	$(Q)$(CC) $(CPPFLAGS) $(INC_$(LAYER_$*)) $(CFLAGS) $< -o $@ $(LDFLAGS) $(STATIC) $(LIBS) -ldl
+	$(Q)$(CC) $(CPPFLAGS) $(INC_$(LAYER_$*)) -Idaemon $(CFLAGS) $< -o $@ $(LDFLAGS) $(DAEMON_LIB) $(STATIC) $(LIBS) -ldl
 
 # Fuzz targets: a replay driver (every file of the corpus, run by make check)
 # and, with clang, a libFuzzer binary (make fuzz).
@@ -232,7 +249,7 @@ install: lib $(TOOL_BIN) $(DAEMON_BIN) $(BUILD)/simcluster.pc
 	install -m 755 $(SHARED) $(DESTDIR)$(LIBDIR)/
 	ln -sf libsimcluster.so.$(VERSION) $(DESTDIR)$(LIBDIR)/libsimcluster.so.$(SOMAJOR)
 	ln -sf libsimcluster.so.$(SOMAJOR) $(DESTDIR)$(LIBDIR)/libsimcluster.so
-	install -m 644 include/simcluster.h $(DESTDIR)$(INCDIR)/
+	install -m 644 include/simcluster.h include/simcluster_net.h $(DESTDIR)$(INCDIR)/
 	install -m 644 $(BUILD)/simcluster.pc $(DESTDIR)$(PCDIR)/
 	$(if $(TOOL_BIN),install -m 755 $(TOOL_BIN) $(DESTDIR)$(BINDIR)/)
 	$(if $(DAEMON_BIN),install -d $(DESTDIR)$(SBINDIR) && install -m 755 $(DAEMON_BIN) $(DESTDIR)$(SBINDIR)/)
@@ -244,6 +261,7 @@ install: lib $(TOOL_BIN) $(DAEMON_BIN) $(BUILD)/simcluster.pc
 
 uninstall:
 	rm -f $(DESTDIR)$(LIBDIR)/libsimcluster.* $(DESTDIR)$(INCDIR)/simcluster.h \
+	      $(DESTDIR)$(INCDIR)/simcluster_net.h \
 	      $(DESTDIR)$(PCDIR)/simcluster.pc $(DESTDIR)$(SBINDIR)/simclusterd \
 	      $(TOOL_BIN:$(BUILD)/tools/%=$(DESTDIR)$(BINDIR)/%) $(DESTDIR)$(SYSTEMDDIR)/simclusterd.service
 	for m in man/*.[1-8]; do rm -f $(DESTDIR)$(MANDIR)/man$${m##*.}/$${m##*/}; done

@@ -34,7 +34,7 @@
 
 #include "bench_util.h"
 #include "cluster.h"
-#include "cluster_msg.h"
+#include "simcluster_net.h"
 #include "world.h"
 #include "simcluster.h"
 

@@ -1,5 +1,5 @@
 /* simclusterd - the worker daemon (simclusterd(8), docs/DESIGN.md section 7.3): the
- * process around the engine of lib/net/cluster_serve.h. It reads its options
+ * process around the engine of daemon/engine.h. It reads its options
  * (command line over simcluster.conf(5)) and the cluster key, gives up root,
  * joins the LCM group and serves until SIGTERM or SIGINT; SIGHUP re-reads
  * the configuration file, SIGUSR1 logs the counters. It runs in the
@@ -26,8 +26,8 @@
 #include <syslog.h>
 #include <unistd.h>
 
-#include "cluster_msg.h"
-#include "cluster_serve.h"
+#include "simcluster_net.h"
+#include "engine.h"
 #include "simcluster.h"
 
 #define DEFAULT_CONFIG "/etc/simcluster/simclusterd.conf"

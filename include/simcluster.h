@@ -294,9 +294,9 @@ SC_API void sc_world_stats(const sc_world *w, sc_stats *s);
 SC_API int sc_world_contacts(const sc_world *w, sc_contact *out, int max);
 /* Wait, at most timeout_s seconds, until k daemons that are not owner-busy
  * answer on cfg's cluster (cfg->cluster, cfg->key_file): returns how many
- * were heard (>= k, or fewer when the time ran out) or a negative code. A
- * world hears heartbeats as it steps, so a private world with no work
- * steps meanwhile; a world created from cfg afterwards has them queued. */
+ * were heard (>= k, or fewer when the time ran out) or a negative code.
+ * It listens to the daemons' heartbeats itself (no world is created); a
+ * world created afterwards hears them within its first frames. */
 SC_API int sc_cluster_wait(const sc_world_config *cfg, int k, double timeout_s);
 
 /* ---- the paper's scenes ---- */

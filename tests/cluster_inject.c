@@ -29,7 +29,7 @@
 #include <string.h>
 #include <time.h>
 
-#include "cluster_msg.h"
+#include "simcluster_net.h"
 #include "simcluster.h"
 
 #define ENV_LEN_AT (8 + 2 + 8 + 8 + 2)  /* fingerprint, version, node, seq, kind */

@@ -11,6 +11,45 @@ test -f "$pc/simcluster.pc"
 flags=$(PKG_CONFIG_PATH="$pc" pkg-config --define-variable=prefix="$d/usr/local" --cflags --libs simcluster)
 cc -std=c11 -Wall -Wextra -Werror examples/hello.c -o "$d/hello" $flags
 LD_LIBRARY_PATH="$d/usr/local/lib" "$d/hello"
+# the network header: installed, needing only the C library's headers and
+# simcluster.h (no LCM, no libsodium), and usable with the same flags
+inc="$d/usr/local/include"
+test -f "$inc/simcluster_net.h"
+other=$(grep -h '^#include' "$inc/simcluster.h" "$inc/simcluster_net.h" |
+        grep -v -e '<stddef.h>' -e '<stdint.h>' -e '"simcluster.h"' || true)
+if [ -n "$other" ]; then echo "public headers include: $other"; exit 1; fi
+cat >"$d/net.c" <<'EOF'
+#include <stdio.h>
+#include <stdlib.h>
+#include <simcluster_net.h>
+
+int main(void)
+{
+    sc_world *w = sc_world_create(NULL);
+    sc_shape *ball = sc_shape_sphere(0.1);
+    sc_body_desc b = sc_body_desc_default();
+    b.shape = ball;
+    if (!w || !ball || sc_body_add(w, &b) != 0)
+        return 1;
+    sc_frame_record r = { 0 }, back = { 0 };
+    uint8_t *buf;
+    size_t len;
+    int ok = sc_frame_record_capture(&r, w, 0, 0) == SC_OK &&
+             sc_frame_record_encode(&r, &buf, &len) == SC_OK &&
+             sc_frame_record_decode(buf, len, &back) == SC_OK && back.n == 1 &&
+             back.shape[0] == sc_shape_hash(ball);
+    printf("frame record of one body: %zu bytes\n", ok ? len : 0);
+    sc_frame_record_free(&r);
+    sc_frame_record_free(&back);
+    if (ok)
+        free(buf);
+    sc_shape_release(ball);
+    sc_world_destroy(w);
+    return !ok;
+}
+EOF
+cc -std=c11 -Wall -Wextra -Werror "$d/net.c" -o "$d/net" $flags
+LD_LIBRARY_PATH="$d/usr/local/lib" "$d/net"
 # only sc_* symbols leave the shared library
 bad=$(nm -D --defined-only "$d/usr/local/lib/libsimcluster.so" | awk '$2 ~ /[TDBR]/ {print $3}' | grep -v '^sc_' || true)
 if [ -n "$bad" ]; then echo "exported non-sc_ symbols: $bad"; exit 1; fi

@@ -19,7 +19,7 @@
 #include <lcm/lcm.h>
 
 #include "cluster.h"
-#include "cluster_serve.h"
+#include "engine.h"
 #include "world.h"
 
 #define BODIES 30
@@ -211,9 +211,12 @@ static void test_wrong_key_daemon_is_never_used(void **state)
     sc_world_destroy(w);
 }
 
-/* sc_cluster_wait: returns once two daemons answer; with a third wanted it
- * waits out its timeout and says two; a config without a cluster, or a
- * bad count or timeout, is SC_EINVAL. */
+/* sc_cluster_wait: returns once two daemons answer (within a few of their
+ * 0.05 s heartbeats); with a third wanted it waits out its timeout and
+ * says two; under another key it hears none; a config without a cluster,
+ * or a bad count or timeout, is SC_EINVAL, one not made by
+ * sc_world_config_default() SC_ENOINIT, a URL LCM cannot open or a missing
+ * key file SC_EIO. */
 static void test_cluster_wait_counts_daemons(void **state)
 {
     (void)state;
@@ -226,11 +229,25 @@ static void test_cluster_wait_counts_daemons(void **state)
     struct timespec t0, t1;
     clock_gettime(CLOCK_MONOTONIC, &t0);
     assert_true(sc_cluster_wait(&c, 2, 5) >= 2);
-    assert_int_equal(sc_cluster_wait(&c, 3, 0.3), 2);
     clock_gettime(CLOCK_MONOTONIC, &t1);
     double s = (double)(t1.tv_sec - t0.tv_sec) + 1e-9 * (double)(t1.tv_nsec - t0.tv_nsec);
+    assert_true(s < 2);
+    assert_int_equal(sc_cluster_wait(&c, 3, 0.3), 2);
+    clock_gettime(CLOCK_MONOTONIC, &t1);
+    s = (double)(t1.tv_sec - t0.tv_sec) + 1e-9 * (double)(t1.tv_nsec - t0.tv_nsec);
     assert_true(s >= 0.3 && s < 4);
-    assert_true(sc_cluster_wait(&c, 0, 0) >= 0);      /* at once: one frame */
+    assert_true(sc_cluster_wait(&c, 0, 0) >= 0);      /* at once: one look */
+    c.key_file = NULL;              /* the all-zero key: their MACs fail */
+    assert_int_equal(sc_cluster_wait(&c, 1, 0.3), 0);
+    c.key_file = "/nonexistent/simcluster.key";
+    assert_int_equal(sc_cluster_wait(&c, 1, 1), SC_EIO);
+    c.key_file = key_path;
+    c.cluster = "udpm://999.1.1.1:7667";
+    assert_int_equal(sc_cluster_wait(&c, 1, 1), SC_EIO);
+    c.cluster = url;
+    sc_world_config raw = c;
+    raw.internal_cookie = 0;
+    assert_int_equal(sc_cluster_wait(&raw, 1, 1), SC_ENOINIT);
     assert_int_equal(sc_cluster_wait(&c, -1, 1), SC_EINVAL);
     assert_int_equal(sc_cluster_wait(&c, SC_MAX_DAEMONS + 1, 1), SC_EINVAL);
     assert_int_equal(sc_cluster_wait(&c, 1, -1), SC_EINVAL);

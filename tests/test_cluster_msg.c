@@ -2,7 +2,7 @@
  * sealed opens to the same node, seq, kind and payload; a changed bit, a
  * wrong key, a truncation, a lying length field or a replay is refused with
  * the documented code and counted; payloads and key files round-trip and
- * bad ones are refused. (Internal API: lib/net/cluster_msg.h.) */
+ * bad ones are refused. (simcluster_net.h.) */
 #include <setjmp.h>
 #include <stdarg.h>
 #include <stddef.h>
@@ -14,7 +14,7 @@
 #include <unistd.h>
 #include <cmocka.h>
 
-#include "cluster_msg.h"
+#include "simcluster_net.h"
 #include "unit_wire.h"
 
 static const uint8_t key[SC_KEY_BYTES] = "0123456789abcdef0123456789abcde";

@@ -1,5 +1,5 @@
 /* test_idle.c - idle CPU fraction without our own use, and the owner-busy
- * flag with hysteresis (lib/net/idle.c), on /proc texts written here and on the
+ * flag with hysteresis (daemon/idle.c), on /proc texts written here and on the
  * real /proc of this machine. */
 #include <setjmp.h>
 #include <stdarg.h>

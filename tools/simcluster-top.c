@@ -1,5 +1,5 @@
 /* simcluster-top - the cluster at a glance (simcluster-top(1)): listens to
- * the daemons' heartbeats (announce_t on SC_ANNOUNCE, lib/net/cluster_serve.h)
+ * the daemons' heartbeats (announce_t on SC_ANNOUNCE, daemon/engine.h)
  * and shows one row per daemon: its cores, speed, idle fraction, owner-busy
  * flag and the rate at which it computes units, refreshed every interval
  * (live) or once after a wait (--once, for scripts). It only listens: it
@@ -20,7 +20,7 @@
 #include <time.h>
 #include <unistd.h>
 
-#include "cluster_msg.h"
+#include "simcluster_net.h"
 #include "simcluster.h"
 
 #define MAX_NODES 1024             /* rows the table holds */

@@ -22,13 +22,10 @@
 #include <GL/gl.h>
 #include <png.h>
 
-#include "cluster_msg.h"
-#include "sclcm_shape_t.h"
-#include "sclcm_state_t.h"
 #include "simcluster.h"
+#include "simcluster_net.h"
 
 #define MAX_SHAPES 4096            /* distinct shapes a log may hold */
-#define MAX_BODIES 100001          /* the largest scene and its floor */
 #define MAX_CHANNEL 256
 #define LOG_SYNC 0xEDA1DA01u       /* LCM event log: every event starts with it */
 #define PLANE_HALF 40              /* the floor quad: 80 m, 1 m checkers */
@@ -52,7 +49,7 @@ typedef struct viewer {
     view_opts o;
     FILE *log, *pipe;
     long event;                    /* events read so far (1-based in errors) */
-    struct { int64_t hash; GLuint list; } shapes[MAX_SHAPES];   /* lists: shape frame */
+    struct { uint64_t hash; GLuint list; } shapes[MAX_SHAPES];  /* lists: shape frame */
     int nshapes, frames_out, camera_set;
     int quiet;                     /* live: malformed messages are counted, not printed */
     uint8_t *rgba;
@@ -333,7 +330,7 @@ static void draw_plane(const double *pl)
 }
 
 /* A display list drawing shape m in its own frame. */
-static GLuint compile_shape(const sclcm_shape_t *m)
+static GLuint compile_shape(const sc_frame_shape *m)
 {
     GLuint list = glGenLists(1);
     glNewList(list, GL_COMPILE);
@@ -346,7 +343,7 @@ static GLuint compile_shape(const sclcm_shape_t *m)
         else if (m->kind == SC_SHAPE_BOX)
             draw_box(m->half);
         else    /* indices were checked against the vertices by the decode */
-            for (int t = 0; t + 2 < m->nidx; t += 3)
+            for (int t = 0; t < 3 * m->ntris; t += 3)
                 face(m->xyz + 3 * m->tri[t], m->xyz + 3 * m->tri[t + 1], m->xyz + 3 * m->tri[t + 2]);
         glEnd();
     }
@@ -354,11 +351,8 @@ static GLuint compile_shape(const sclcm_shape_t *m)
     return list;
 }
 
-/* An SC_SHAPE event: checked as a daemon checks a shape (sc_msg_shape_decode
- * rebuilds it and compares its content hash), then compiled to a display
- * list. A shape already known is skipped. */
 /* The shape with content hash h among those read, or -1. */
-static int shape_index(const viewer *v, int64_t h)
+static int shape_index(const viewer *v, uint64_t h)
 {
     for (int k = 0; k < v->nshapes; k++)
         if (v->shapes[k].hash == h)
@@ -366,67 +360,52 @@ static int shape_index(const viewer *v, int64_t h)
     return -1;
 }
 
+/* A shape record: checked as a daemon checks a shape (rebuilt, its content
+ * hash compared), then compiled to a display list. A shape already known
+ * (a live run sends them again every second) is not checked again. */
 static int add_shape(viewer *v, const uint8_t *data, size_t len)
 {
-    /* shape_t.hash follows the 8-byte fingerprint: a shape already checked
-     * (a live run sends them again every second) is not rebuilt */
-    if (len >= 16 && shape_index(v, (int64_t)be(data + 8, 8)) >= 0)
+    uint64_t h;
+    if (sc_frame_shape_hash(data, len, &h) == SC_OK && shape_index(v, h) >= 0)
         return 0;
-    sc_shape *s;
-    if (sc_msg_shape_decode(data, len, &s) != SC_OK)
-        return fail(v, "malformed shape");
-    sc_shape_release(s);
-    sclcm_shape_t m;
-    if (sclcm_shape_t_decode(data, 0, (int)len, &m) != (int)len)
-        return fail(v, "malformed shape");
-    int known = shape_index(v, m.hash) >= 0, full = v->nshapes == MAX_SHAPES;
-    if (!known && !full) {    /* with --dump, no GL: the shape is only checked */
+    sc_frame_shape m;
+    int rc = sc_frame_shape_decode(data, len, &m);
+    if (rc != SC_OK)
+        return fail(v, rc == SC_ENOMEM ? "out of memory" : "malformed shape");
+    int full = v->nshapes == MAX_SHAPES;
+    if (!full) {    /* with --dump, no GL: the shape is only checked */
         v->shapes[v->nshapes].hash = m.hash;
         v->shapes[v->nshapes++].list = v->o.dump ? 0 : compile_shape(&m);
     }
-    sclcm_shape_t_decode_cleanup(&m);
-    return !known && full ? fail(v, "too many shapes") : 0;
+    sc_frame_shape_free(&m);
+    return full ? fail(v, "too many shapes") : 0;
 }
 
-/* An SC_STATE event: n is checked against the exact size before the
- * generated decoder allocates anything. */
-static int decode_state(viewer *v, const uint8_t *data, size_t len, sclcm_state_t *m)
+/* A state record (sc_frame_record_decode checks sizes, poses and states). */
+static int decode_state(viewer *v, const uint8_t *data, size_t len, sc_frame_record *m)
 {
-    const size_t head = 8 + 8 + 8 + 4, per = 8 + 3 * 8 + 4 * 8 + 1;
-    int64_t n = len >= head ? (int32_t)be(data + 24, 4) : -1;
-    if (n < 0 || n > MAX_BODIES || len != head + (size_t)n * per)
-        return fail(v, "malformed state (size)");
-    if (sclcm_state_t_decode(data, 0, (int)len, m) != (int)len)
-        return fail(v, "malformed state");
-    for (int i = 0; i < m->n; i++) {
-        int ok = m->state[i] >= SC_FREE && m->state[i] <= SC_STATIC;
-        for (int a = 0; a < 7; a++)
-            ok &= isfinite(a < 3 ? m->pos[i][a] : m->quat[i][a - 3]);
-        if (!ok) {
-            sclcm_state_t_decode_cleanup(m);
-            return fail(v, "malformed state (pose or state out of range)");
-        }
-    }
-    return 0;
+    int rc = sc_frame_record_decode(data, len, m);
+    return rc == SC_OK ? 0 : fail(v, rc == SC_ENOMEM ? "out of memory" : "malformed state");
 }
 
 /* The first frame: unless given, look at the centroid of the moving bodies
  * from up and to the side, far enough that all of them fit. */
-static void default_camera(viewer *v, const sclcm_state_t *m)
+static void default_camera(viewer *v, const sc_frame_record *m)
 {
     double c[3] = { 0, 0, 0 }, r = 0.25;
     int k = 0;
     for (int i = 0; i < m->n; i++)
         if (m->state[i] != SC_STATIC) {
             for (int a = 0; a < 3; a++)
-                c[a] += m->pos[i][a];
+                c[a] += m->pos[3 * i + a];
             k++;
         }
     for (int a = 0; a < 3 && k; a++)
         c[a] /= k;
     for (int i = 0; i < m->n; i++)
         if (m->state[i] != SC_STATIC) {
-            double d[3] = { m->pos[i][0] - c[0], m->pos[i][1] - c[1], m->pos[i][2] - c[2] };
+            const double *p = &m->pos[3 * i];
+            double d[3] = { p[0] - c[0], p[1] - c[1], p[2] - c[2] };
             r = fmax(r, sqrt(d[0] * d[0] + d[1] * d[1] + d[2] * d[2]) + 0.15);
         }
     if (!v->o.have_look)
@@ -478,12 +457,12 @@ static int write_png(viewer *v, long frame)
     return 0;
 }
 
-static int render(viewer *v, const sclcm_state_t *m)
+static int render(viewer *v, const sc_frame_record *m)
 {
     if (v->o.dump) {               /* text, for scripts: no GL at all */
         for (int i = 0; i < m->n; i++)
             printf("frame %ld body %d state %d pos %.9g %.9g %.9g\n", (long)m->frame, i,
-                   m->state[i], m->pos[i][0], m->pos[i][1], m->pos[i][2]);
+                   m->state[i], m->pos[3 * i], m->pos[3 * i + 1], m->pos[3 * i + 2]);
         v->frames_out++;
         return 0;
     }
@@ -499,7 +478,7 @@ static int render(viewer *v, const sclcm_state_t *m)
         if (k < 0)
             return fail(v, "a body's shape is not in the log");
         glColor3fv(state_rgb[m->state[i]]);
-        const double *q = m->quat[i], *p = m->pos[i];
+        const double *q = &m->quat[4 * i], *p = &m->pos[3 * i];
         double w = q[0], x = q[1], y = q[2], z = q[3];
         /* rotation of the unit quaternion, column-major, then translation */
         const GLdouble M[16] = { 1 - 2 * (y * y + z * z), 2 * (x * y + w * z), 2 * (x * z - w * y), 0,
@@ -582,7 +561,7 @@ static void on_live(const lcm_recv_buf_t *rb, const char *chan, void *user)
     live *L = user;
     size_t n = rb->data_size;
     L->v->event++;
-    if (!strcmp(chan, "SC_SHAPE")) {
+    if (!strcmp(chan, SC_FRAME_SHAPE_CHANNEL)) {
         L->bad += add_shape(L->v, rb->data, n) != 0;
         return;
     }
@@ -605,7 +584,7 @@ static void on_live(const lcm_recv_buf_t *rb, const char *chan, void *user)
     L->states++;
 }
 
-static int shapes_known(const viewer *v, const sclcm_state_t *m)
+static int shapes_known(const viewer *v, const sc_frame_record *m)
 {
     for (int i = 0; i < m->n; i++)
         if (shape_index(v, m->shape[i]) < 0)
@@ -623,8 +602,8 @@ static int run_live(viewer *v)
         return -1;
     }
     live L = { .v = v };
-    lcm_subscription_t *sh = lcm_subscribe(l, "SC_SHAPE", on_live, &L);
-    lcm_subscription_t *st = lcm_subscribe(l, "SC_STATE", on_live, &L);
+    lcm_subscription_t *sh = lcm_subscribe(l, SC_FRAME_SHAPE_CHANNEL, on_live, &L);
+    lcm_subscription_t *st = lcm_subscribe(l, SC_FRAME_STATE_CHANNEL, on_live, &L);
     if (!sh || !st) {
         fprintf(stderr, "%s: --live: cannot subscribe on %s\n", prog, v->o.live);
         lcm_destroy(l);
@@ -655,7 +634,7 @@ static int run_live(viewer *v)
         }
         L.fresh = 0;
         heard = now_s();
-        sclcm_state_t m;
+        sc_frame_record m;
         if (decode_state(v, L.state, L.len, &m)) {
             L.bad++;
             continue;
@@ -670,7 +649,7 @@ static int run_live(viewer *v)
             last = m.frame;
         }
         done = m.frame >= v->o.last;
-        sclcm_state_t_decode_cleanup(&m);
+        sc_frame_record_free(&m);
     }
     lcm_destroy(l);
     free(L.state);
@@ -700,17 +679,17 @@ static int run(viewer *v)
     size_t len;
     int r, states = 0;
     while ((r = next_event(v, chan, &data, &len)) == 1) {
-        if (!strcmp(chan, "SC_SHAPE")) {
+        if (!strcmp(chan, SC_FRAME_SHAPE_CHANNEL)) {
             r = add_shape(v, data, len);
-        } else if (!strcmp(chan, "SC_STATE")) {
-            sclcm_state_t m;
+        } else if (!strcmp(chan, SC_FRAME_STATE_CHANNEL)) {
+            sc_frame_record m;
             r = decode_state(v, data, len, &m);
             if (r == 0) {
                 states++;
                 if (m.frame >= v->o.first && m.frame <= v->o.last &&
                     (m.frame - v->o.first) % v->o.every == 0)
                     r = render(v, &m);
-                sclcm_state_t_decode_cleanup(&m);
+                sc_frame_record_free(&m);
             }
         }   /* other channels: not ours, skipped */
         free(data);

@@ -19,9 +19,8 @@
 #include <lcm/eventlog.h>
 #include <lcm/lcm.h>
 
-#include "cluster_msg.h"
-#include "sclcm_state_t.h"
 #include "simcluster.h"
+#include "simcluster_net.h"
 
 #define DT 0.01
 #define MAX_LCP 2000               /* lcp: variables at most */
@@ -293,10 +292,10 @@ static int awake(const sc_world *w)
 
 /* ---- run --record: an LCM event log (simcluster-view(1) reads it) ---- */
 
-/* One SC_SHAPE event per distinct shape (shape_t, unsealed: a log is local),
- * then one SC_STATE event (state_t) per frame, the initial state as frame 0.
- * Event timestamps are simulated microseconds, so lcm-logplayer replays a
- * run in simulated time. */
+/* One shape record per distinct shape (unsealed: a log is local), then one
+ * state record per frame, the initial state as frame 0 (frame records,
+ * simcluster_net.h). Event timestamps are simulated microseconds, so
+ * lcm-logplayer replays a run in simulated time. */
 typedef struct recorder {
     lcm_eventlog_t *log;    /* --record, else NULL */
     const char *path;
@@ -307,9 +306,7 @@ typedef struct recorder {
     double shapes_sent;     /* when they were last published */
     long publish_failed;
     int64_t events;
-    sclcm_state_t m;
-    uint8_t *buf;
-    size_t cap;
+    sc_frame_record m;
 } recorder;
 
 static int record_event(recorder *r, const char *channel, int64_t t_us, const void *data,
@@ -338,11 +335,7 @@ static void record_close(recorder *r)
         lcm_destroy(r->lcm);
     for (int i = 0; i < r->nshape_msgs; i++)
         free(r->shape_msg[i]);
-    free(r->m.shape);
-    free(r->m.pos);
-    free(r->m.quat);
-    free(r->m.state);
-    free(r->buf);
+    sc_frame_record_free(&r->m);
     memset(r, 0, sizeof *r);
 }
 
@@ -361,63 +354,36 @@ static int record_open(recorder *r, const char *path, const char *url, const sc_
         return 1;
     }
     r->shapes_sent = now_s();
-    int n = sc_world_body_count(w);
-    size_t un = n > 0 ? (size_t)n : 1;
-    sclcm_state_t *m = &r->m;
-    m->n = n;
-    m->shape = calloc(un, sizeof *m->shape);
-    m->pos = calloc(un, sizeof *m->pos + 3 * sizeof **m->pos);
-    m->quat = calloc(un, sizeof *m->quat + 4 * sizeof **m->quat);
-    m->state = calloc(un, sizeof *m->state);
-    if (!m->shape || !m->pos || !m->quat || !m->state) {
-        fprintf(stderr, "simcluster: run: out of memory\n");
-        return 1;
-    }
-    /* the rows of pos and quat live after their row pointers */
-    for (int i = 0; i < n; i++) {
-        m->pos[i] = (double *)(m->pos + un) + 3 * i;
-        m->quat[i] = (double *)(m->quat + un) + 4 * i;
-    }
     /* distinct shapes, each written once; a scene has few, so a linear
      * search over the ones seen is enough */
     const sc_shape *seen[64];
-    int64_t hash[64];
     int nseen = 0;
-    for (int i = 0; i < n; i++) {
+    for (int i = 0; i < sc_world_body_count(w); i++) {
         const sc_shape *s = sc_body_shape(w, i);
         int k = 0;
         while (k < nseen && seen[k] != s)
             k++;
-        if (k == nseen) {
-            uint8_t *bytes;
-            size_t len;
-            int rc = sc_msg_shape_encode(s, &bytes, &len);
-            if (rc != SC_OK) {
-                fprintf(stderr, "simcluster: run: %s: shape of body %d: %s\n", path, i,
-                        sc_strerror(rc));
-                return 1;
-            }
-            /* shape_t.hash: the first field, after the 8-byte fingerprint */
-            int64_t h = 0;
-            for (int b = 8; b < 16; b++)
-                h = (int64_t)((uint64_t)h << 8 | bytes[b]);
-            rc = record_event(r, "SC_SHAPE", 0, bytes, len);
-            if (r->lcm && r->nshape_msgs < MAX_SHAPE_MSGS) {
-                r->shape_msg[r->nshape_msgs] = bytes;
-                r->shape_len[r->nshape_msgs++] = len;
-            } else {
-                free(bytes);
-            }
-            if (rc)
-                return 1;
-            if (nseen < 64) {
-                seen[nseen] = s;
-                hash[nseen++] = h;
-            }
-            m->shape[i] = h;
-        } else {
-            m->shape[i] = hash[k];
+        if (k < nseen)
+            continue;
+        uint8_t *bytes;
+        size_t len;
+        int rc = sc_frame_shape_encode(s, &bytes, &len);
+        if (rc != SC_OK) {
+            fprintf(stderr, "simcluster: run: %s: shape of body %d: %s\n", path, i,
+                    sc_strerror(rc));
+            return 1;
         }
+        rc = record_event(r, SC_FRAME_SHAPE_CHANNEL, 0, bytes, len);
+        if (r->lcm && r->nshape_msgs < MAX_SHAPE_MSGS) {
+            r->shape_msg[r->nshape_msgs] = bytes;
+            r->shape_len[r->nshape_msgs++] = len;
+        } else {
+            free(bytes);
+        }
+        if (rc)
+            return 1;
+        if (nseen < 64)
+            seen[nseen++] = s;
     }
     return 0;
 }
@@ -425,39 +391,27 @@ static int record_open(recorder *r, const char *path, const char *url, const sc_
 /* Write the world's state as frame f; 0, or 1 with the error printed. */
 static int record_frame(recorder *r, const sc_world *w, long f)
 {
-    sclcm_state_t *m = &r->m;
     /* a viewer that starts late learns the shapes within a second */
     if (r->lcm && now_s() - r->shapes_sent >= 1.0) {
         r->shapes_sent = now_s();
         for (int i = 0; i < r->nshape_msgs; i++)
-            if (lcm_publish(r->lcm, "SC_SHAPE", r->shape_msg[i], (unsigned)r->shape_len[i]) != 0)
+            if (lcm_publish(r->lcm, SC_FRAME_SHAPE_CHANNEL, r->shape_msg[i],
+                            (unsigned)r->shape_len[i]) != 0)
                 r->publish_failed++;
     }
-    m->frame = f;
-    m->time = f * DT;
-    for (int i = 0; i < m->n; i++) {
-        sc_body_get_pose(w, i, m->pos[i], m->quat[i]);
-        m->state[i] = (int8_t)sc_body_state(w, i);
-    }
-    int len = sclcm_state_t_encoded_size(m);
-    if (len <= 0) {
-        fprintf(stderr, "simcluster: run: %s: too many bodies to record\n", r->path);
+    uint8_t *buf = NULL;
+    size_t len = 0;
+    int rc = sc_frame_record_capture(&r->m, w, f, f * DT);
+    if (rc == SC_OK)
+        rc = sc_frame_record_encode(&r->m, &buf, &len);
+    if (rc != SC_OK) {
+        fprintf(stderr, "simcluster: run: %s: frame %ld: %s\n", r->path ? r->path : "--publish",
+                f, rc == SC_ETOOBIG ? "too many bodies to record" : sc_strerror(rc));
         return 1;
     }
-    if ((size_t)len > r->cap) {
-        free(r->buf);
-        r->buf = malloc((size_t)len);
-        r->cap = r->buf ? (size_t)len : 0;
-        if (!r->buf) {
-            fprintf(stderr, "simcluster: run: out of memory\n");
-            return 1;
-        }
-    }
-    if (sclcm_state_t_encode(r->buf, 0, len, m) != len) {
-        fprintf(stderr, "simcluster: run: %s: cannot encode frame %ld\n", r->path, f);
-        return 1;
-    }
-    return record_event(r, "SC_STATE", (int64_t)llround(m->time * 1e6), r->buf, (size_t)len);
+    rc = record_event(r, SC_FRAME_STATE_CHANNEL, (int64_t)llround(r->m.time_s * 1e6), buf, len);
+    free(buf);
+    return rc;
 }
 
 /* Flush and close: 0, or 1 when the data did not all reach the file. */

@@ -11,37 +11,10 @@
 #include "world.h"
 #include "vecmath.h"
 
-#define CONFIG_COOKIE 0x5c0f1a
-#define BODY_COOKIE 0x5cb0d1
-
-SC_API sc_world_config sc_world_config_default(void)
-{
-    sc_world_config c;
-    memset(&c, 0, sizeof c);
-    v3_set(c.gravity, 0, 0, -9.81);
-    c.broadphase = SC_BROADPHASE_AUTO;
-    c.contact_tol_m = 1e-3;
-    c.internal_cookie = CONFIG_COOKIE;
-    return c;
-}
-
-SC_API sc_body_desc sc_body_desc_default(void)
-{
-    sc_body_desc d;
-    memset(&d, 0, sizeof d);
-    d.mass = 1;
-    d.quat[0] = 1;
-    d.restitution = 0.5;
-    d.friction = 0.5;
-    d.density = 1000;
-    d.internal_cookie = BODY_COOKIE;
-    return d;
-}
-
 SC_API sc_world *sc_world_create(const sc_world_config *cfg)
 {
     sc_world_config c = cfg ? *cfg : sc_world_config_default();
-    if (c.internal_cookie != CONFIG_COOKIE) {
+    if (c.internal_cookie != SC_CONFIG_COOKIE) {
         sc_set_error(SC_ENOINIT);
         return NULL;
     }
@@ -110,7 +83,7 @@ SC_API int sc_body_add(sc_world *w, const sc_body_desc *d)
 {
     if (!w || !d || !d->shape)
         return SC_EINVAL;
-    if (d->internal_cookie != BODY_COOKIE)
+    if (d->internal_cookie != SC_BODY_COOKIE)
         return SC_ENOINIT;
     if (!sc_finite3(d->pos) || !quat_ok(d->quat) || !sc_finite3(d->vel) ||
         !sc_finite3(d->omega) || !(d->restitution >= 0 && d->restitution <= 1) ||

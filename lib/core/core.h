@@ -19,6 +19,10 @@
 /* Internal invariants only, never bad input (that gets an SC_E* code). */
 #define SC_ASSERT(c) assert(c)
 
+/* The cookies of sc_world_config_default() and sc_body_desc_default(). */
+#define SC_CONFIG_COOKIE 0x5c0f1a
+#define SC_BODY_COOKIE 0x5cb0d1
+
 /* Record err as this thread's last error (see sc_last_error()); returns err. */
 int sc_set_error(int err);
 

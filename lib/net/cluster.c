@@ -28,8 +28,8 @@
 #include <unistd.h>
 
 #include "cluster.h"
-#include "cluster_msg.h"
 #include "exec.h"
+#include "simcluster_net.h"
 #include "unit_wire.h"
 
 #define CHANNEL_MAX 48
@@ -557,29 +557,82 @@ static void prov_end(void *ctx)
     ((sc_cluster *)ctx)->job = NULL;
 }
 
+/* ---- sc_cluster_wait: heartbeats only ---- */
+
+typedef struct listener {
+    uint8_t key[SC_KEY_BYTES];
+    sc_msg_guard guard;
+    struct {
+        int64_t id;
+        int busy;
+        double heard;
+    } d[SC_MAX_DAEMONS];
+    int n;
+} listener;
+
+/* An authenticated heartbeat, checked as a world checks it (on_announce). */
+static void on_heartbeat(const lcm_recv_buf_t *rb, const char *channel, void *ctx)
+{
+    (void)channel;
+    listener *l = ctx;
+    sc_msg m;
+    if (sc_msg_open(l->key, &l->guard, rb->data, rb->data_size, &m) != SC_OK)
+        return;
+    sc_msg_announce a;
+    if (m.kind == SC_MSG_ANNOUNCE && sc_msg_announce_decode(m.payload, m.len, &a) == SC_OK &&
+        a.node == m.node && a.version == SC_MSG_VERSION) {
+        int k = 0;
+        while (k < l->n && l->d[k].id != a.node)
+            k++;
+        if (k == l->n && l->n < SC_MAX_DAEMONS)
+            l->d[l->n++].id = a.node;
+        if (k < l->n) {
+            l->d[k].busy = a.owner_busy;
+            l->d[k].heard = sc_wall_now();
+        }
+    }
+    sc_msg_free(&m);
+}
+
+/* Daemons heard within SILENT_S that are not owner-busy (sc_stats.daemons). */
+static int available(const listener *l)
+{
+    double now = sc_wall_now();
+    int n = 0;
+    for (int k = 0; k < l->n; k++)
+        n += !l->d[k].busy && now - l->d[k].heard <= SILENT_S;
+    return n;
+}
+
 SC_API int sc_cluster_wait(const sc_world_config *cfg, int k, double timeout_s)
 {
     if (!cfg || !cfg->cluster || k < 0 || k > SC_MAX_DAEMONS || !(timeout_s >= 0) ||
         !isfinite(timeout_s))
         return sc_set_error(SC_EINVAL);
-    sc_world_config c = *cfg;
-    c.workers = 1;                 /* it has no work: no threads needed */
-    sc_world *probe = sc_world_create(&c);
-    if (!probe)
-        return sc_last_error();
-    sc_body_desc floor = sc_body_desc_default();
-    floor.shape = sc_shape_plane(0, 0, 1, 0);
-    floor.mass = 0;
-    int rc = floor.shape ? sc_body_add(probe, &floor) : sc_last_error();
-    sc_shape_release(floor.shape);
-    double t0 = sc_wall_now();
-    sc_stats st = { .daemons = 0 };
-    while (rc >= 0 && (rc = sc_world_step(probe, 0.01)) == SC_OK) {
-        sc_world_stats(probe, &st);
-        if (st.daemons >= k || sc_wall_now() - t0 >= timeout_s)
+    if (cfg->internal_cookie != SC_CONFIG_COOKIE)
+        return sc_set_error(SC_ENOINIT);
+    listener *l = calloc(1, sizeof *l);
+    if (!l)
+        return sc_set_error(SC_ENOMEM);
+    int rc = cfg->key_file ? sc_key_load(cfg->key_file, l->key) : SC_OK;
+    lcm_t *lcm = rc == SC_OK ? lcm_create(cfg->cluster) : NULL;
+    if (rc == SC_OK && (!lcm || !lcm_subscribe(lcm, "SC_ANNOUNCE", on_heartbeat, l)))
+        rc = SC_EIO;
+    /* handle what comes until k are heard or the time is up (at least once) */
+    double t0 = sc_wall_now(), left = timeout_s;
+    int n = 0;
+    while (rc == SC_OK) {
+        struct pollfd pf = { lcm_get_fileno(lcm), POLLIN, 0 };
+        int ms = k > 0 ? (int)(fmin(left, 0.05) * 1000) : 0;
+        if (poll(&pf, 1, ms) > 0 && (pf.revents & POLLIN) && lcm_handle(lcm) != 0)
+            rc = SC_EIO;
+        n = available(l);
+        left = timeout_s - (sc_wall_now() - t0);
+        if (n >= k || left <= 0)
             break;
-        nanosleep(&(struct timespec){ .tv_nsec = 50000000 }, NULL);
     }
-    sc_world_destroy(probe);
-    return rc < 0 ? sc_set_error(rc) : st.daemons;
+    if (lcm)
+        lcm_destroy(lcm);
+    free(l);
+    return rc == SC_OK ? n : sc_set_error(rc);
 }

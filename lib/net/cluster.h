@@ -1,5 +1,5 @@
 /* cluster.h - simclusterd daemons as nodes of an executor (cluster.c;
- * the daemon's side is cluster_serve.h); docs/DESIGN.md section 7. */
+ * the daemon's side is daemon/engine.h); docs/DESIGN.md section 7. */
 #ifndef SC_CLUSTER_H
 #define SC_CLUSTER_H
 

@@ -25,8 +25,7 @@
 #include <sys/stat.h>
 #include <unistd.h>
 
-#include "cluster_msg.h"
-#include "exec.h"
+#include "simcluster_net.h"
 #include "unit_wire.h"
 #include "sclcm_announce_t.h"
 #include "sclcm_envelope_t.h"
@@ -429,6 +428,11 @@ int sc_msg_shape_decode(const void *buf, size_t len, sc_shape **out)
     }
     sclcm_shape_t_decode_cleanup(&m);
     return rc;
+}
+
+uint64_t sc_shape_hash(const sc_shape *s)
+{
+    return s ? s->hash : 0;
 }
 
 /* ---- key files ---- */

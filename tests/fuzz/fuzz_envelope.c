@@ -10,7 +10,7 @@
 #include <stdlib.h>
 #include <string.h>
 
-#include "cluster_msg.h"
+#include "simcluster_net.h"
 #include "unit_wire.h"
 
 int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size);

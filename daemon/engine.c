@@ -1,10 +1,11 @@
-/* cluster_serve.c - the daemon's engine (cluster_serve.h): the LCM loop on
- * the thread that calls sc_serve_run() (envelopes opened and checked,
- * units decoded, shapes cached, heartbeats sent) and compute threads that
- * run units and send their results. Received bytes are never trusted:
- * envelopes are checked before anything is decoded (cluster_msg.c), units
- * by sc_wire_unit_decode (every size bounded), shapes rebuilt and checked
- * against the hash they claim. */
+/* engine.c - the daemon's engine (engine.h): the LCM loop on the thread
+ * that calls sc_serve_run() (envelopes opened and checked, units decoded,
+ * shapes cached, heartbeats sent) and compute threads that run units and
+ * send their results. Received bytes are never trusted: envelopes are
+ * checked before anything is decoded (sc_msg_open), units by
+ * sc_remote_unit_decode (every size bounded), shapes rebuilt and checked
+ * against the hash they claim (sc_msg_shape_decode). Only the library's
+ * public API is used (simcluster_net.h: the compute node). */
 #include <errno.h>
 #include <inttypes.h>
 #include <lcm/lcm.h>
@@ -12,8 +13,10 @@
 #include <pthread.h>
 #include <sched.h>
 #include <stdarg.h>
+#include <stdatomic.h>
 #include <stdio.h>
 #include <stdlib.h>
+#include <string.h>
 #include <sys/random.h>
 #include <sys/resource.h>
 #include <sys/syscall.h>
@@ -21,10 +24,9 @@
 #include <time.h>
 #include <unistd.h>
 
-#include "cluster_serve.h"
+#include "engine.h"
 #include "idle.h"
-#include "exec.h"
-#include "unit_wire.h"
+#include "simcluster_net.h"
 
 #define QUEUE_MAX 4096            /* decoded units waiting for a thread */
 #define PARKED_MAX 1024           /* units waiting for shapes */
@@ -33,11 +35,12 @@
 #define BUSY_HYSTERESIS 0.1
 #define CHANNEL_MAX 48
 #define BATCH_BYTES (256u << 10)  /* results sent together, at most */
+#define SHAPE_FIXED_BYTES 256     /* a cached shape's size besides its mesh */
 
 typedef struct task {
     int64_t master, frame;
     int unit;
-    sc_wire_unit wu;
+    sc_remote_unit *ru;
 } task;
 
 typedef struct parked {           /* a unit whose shapes are on their way */
@@ -97,6 +100,33 @@ struct sc_serve {
     sc_serve_counters n;
     pthread_mutex_t cfg_lock;     /* busy_threshold, heartbeat_s, log */
 };
+
+/* Monotonic wall seconds. */
+static double wall_now(void)
+{
+    struct timespec ts;
+    clock_gettime(CLOCK_MONOTONIC, &ts);
+    return (double)ts.tv_sec + 1e-9 * (double)ts.tv_nsec;
+}
+
+/* Grow *p (capacity *cap items of size bytes) to hold need items, doubling,
+ * never past max: 0, or -1 (then nothing changed). */
+static int grow(void **p, int *cap, int need, size_t size, int max)
+{
+    if (need <= *cap)
+        return 0;
+    if (need > max)
+        return -1;
+    int c = *cap > 0 ? *cap : 64;
+    while (c < need)
+        c = c > max / 2 ? max : 2 * c;
+    void *q = realloc(*p, (size_t)c * size);
+    if (!q)
+        return -1;
+    *p = q;
+    *cap = c;
+    return 0;
+}
 
 static void logf_(sc_serve *s, int prio, const char *fmt, ...)
     __attribute__((format(printf, 3, 4)));
@@ -207,16 +237,16 @@ static int outbox_add(outbox *o, const uint8_t *p, size_t n)
     return SC_OK;
 }
 
-static void run_task(sc_serve *s, sc_np_ctx *np, task *t, outbox *o)
+static void run_task(sc_serve *s, sc_compute *cc, task *t, outbox *o)
 {
     struct timespec c0, c1;
     clock_gettime(CLOCK_THREAD_CPUTIME_ID, &c0);
-    sc_unit_run(np, &t->wu.job, &t->wu.unit);
+    sc_compute_run(cc, t->ru);
     clock_gettime(CLOCK_THREAD_CPUTIME_ID, &c1);
     double sec = (double)(c1.tv_sec - c0.tv_sec) + 1e-9 * (double)(c1.tv_nsec - c0.tv_nsec);
-    size_t n = sc_wire_result_pack(&t->wu, NULL, 0);
-    uint8_t *buf = n ? malloc(n) : NULL;
-    int rc = buf && sc_wire_result_pack(&t->wu, buf, n) == n ? SC_OK : SC_ENOMEM;
+    uint8_t *buf;
+    size_t n;
+    int rc = sc_remote_unit_result(t->ru, &buf, &n);
     uint8_t *payload = NULL;
     size_t plen = 0;
     if (rc == SC_OK) {
@@ -246,8 +276,7 @@ static void *compute(void *arg)
     sc_serve *s = arg;
     if (s->cfg.idle_priority)
         set_idle_priority(s);
-    const sc_ode *ode = sc_ode_acquire();
-    sc_np_ctx *np = sc_np_create_on(ode);
+    sc_compute *cc = sc_compute_create();     /* a private ODE copy if one can be had */
     outbox o = { 0, NULL, 0, 0, 0 };
     for (;;) {
         pthread_mutex_lock(&s->lock);
@@ -267,14 +296,13 @@ static void *compute(void *arg)
         s->qhead = (s->qhead + 1) % QUEUE_MAX;
         s->qlen--;
         pthread_mutex_unlock(&s->lock);
-        if (np)
-            run_task(s, np, t, &o);
-        sc_wire_unit_free(&t->wu);
+        if (cc)
+            run_task(s, cc, t, &o);
+        sc_remote_unit_free(t->ru);
         free(t);
     }
     free(o.buf);
-    sc_np_destroy(np);
-    sc_ode_release(ode);
+    sc_compute_destroy(cc);
     return NULL;
 }
 
@@ -288,13 +316,11 @@ static const sc_shape *cache_find(const sc_serve *s, uint64_t hash)
     return NULL;
 }
 
-/* Lookup for sc_wire_unit_decode: cached shapes, and for missing ones a
- * stand-in with the right hash (so decoding goes on and finds them all;
- * a unit that needed one is never run). */
+/* The find of sc_remote_unit_decode: cached shapes; the missing ones
+ * (the first MISSING_MAX) are noted to be asked for. */
 typedef struct lookup_ctx {
     sc_serve *s;
     uint64_t missing[MISSING_MAX];
-    sc_shape stand_in[MISSING_MAX];
     int nmissing;
 } lookup_ctx;
 
@@ -306,19 +332,15 @@ static const sc_shape *lookup(void *ctx, uint64_t hash)
         return sh;
     for (int i = 0; i < l->nmissing; i++)
         if (l->missing[i] == hash)
-            return &l->stand_in[i];
-    if (l->nmissing == MISSING_MAX)
-        return NULL;
-    int i = l->nmissing++;
-    l->missing[i] = hash;
-    memset(&l->stand_in[i], 0, sizeof l->stand_in[i]);
-    l->stand_in[i].hash = hash;
-    return &l->stand_in[i];
+            return NULL;
+    if (l->nmissing < MISSING_MAX)
+        l->missing[l->nmissing++] = hash;
+    return NULL;
 }
 
 static void request_shape(sc_serve *s, int64_t master, uint64_t hash)
 {
-    double now = sc_wall_now();
+    double now = wall_now();
     int i;
     for (i = 0; i < s->nasked; i++)
         if (s->asked[i].hash == hash)
@@ -326,8 +348,7 @@ static void request_shape(sc_serve *s, int64_t master, uint64_t hash)
     if (i < s->nasked && now - s->asked[i].when < REQUEST_AGAIN_S)
         return;
     if (i == s->nasked) {
-        if (sc_grow((void **)&s->asked, &s->asked_cap, s->nasked + 1, sizeof *s->asked, 4096) !=
-            SC_OK)
+        if (grow((void **)&s->asked, &s->asked_cap, s->nasked + 1, sizeof *s->asked, 4096) != 0)
             return;
         s->nasked++;
     }
@@ -362,11 +383,10 @@ static void take_unit(sc_serve *s, int64_t master, int64_t frame, int unit, uint
         tp->frame = frame;
         tp->unit = unit;
         l->s = s;
-        rc = sc_wire_unit_decode(wire, len, lookup, l, &tp->wu);
+        rc = sc_remote_unit_decode(wire, len, lookup, l, &tp->ru);
     }
     if (l && l->nmissing > 0) {
-        if (rc == SC_OK)
-            sc_wire_unit_free(&tp->wu);
+        sc_remote_unit_free(tp->ru);
         free(tp);
         for (int i = 0; i < l->nmissing; i++)
             request_shape(s, master, l->missing[i]);
@@ -376,7 +396,7 @@ static void take_unit(sc_serve *s, int64_t master, int64_t frame, int unit, uint
             return;
         }
         s->parked[s->nparked++] = (parked){ master, frame, unit, wire, len,
-                                           since > 0 ? since : sc_wall_now() };
+                                           since > 0 ? since : wall_now() };
         return;
     }
     free(l);
@@ -393,8 +413,8 @@ static void take_unit(sc_serve *s, int64_t master, int64_t frame, int unit, uint
     }
     pthread_mutex_unlock(&s->lock);
     if (rc != SC_OK) {
-        if (rc == SC_ETOOBIG)
-            sc_wire_unit_free(&tp->wu);
+        if (tp)
+            sc_remote_unit_free(tp->ru);
         free(tp);
         logf_(s, LOG_DEBUG, "unit %d of job %" PRId64 " dropped: %s", unit, frame,
               sc_strerror(rc));
@@ -409,7 +429,7 @@ static void retry_parked(sc_serve *s)
         return;
     memcpy(old, s->parked, (size_t)n * sizeof *old);
     s->nparked = 0;
-    double now = sc_wall_now();
+    double now = wall_now();
     for (int i = 0; i < n; i++) {
         if (now - old[i].since > 10) {      /* the master has long moved on */
             free(old[i].wire);
@@ -432,7 +452,9 @@ static void count_format(sc_serve *s)
 
 static size_t shape_bytes(const sc_shape *sh)
 {
-    return sizeof *sh + (size_t)sh->nverts * 24 + (size_t)sh->ntris * 12 * 3;
+    int nverts = 0, ntris = 0;
+    sc_shape_mesh_data(sh, NULL, &nverts, NULL, &ntris);    /* analytic: none */
+    return SHAPE_FIXED_BYTES + (size_t)nverts * 24 + (size_t)ntris * 12 * 3;
 }
 
 static void take_shape(sc_serve *s, const uint8_t *p, size_t len)
@@ -444,7 +466,8 @@ static void take_shape(sc_serve *s, const uint8_t *p, size_t len)
         logf_(s, LOG_WARNING, "shape dropped: %s", sc_strerror(rc));
         return;
     }
-    if (cache_find(s, sh->hash)) {
+    uint64_t hash = sc_shape_hash(sh);
+    if (cache_find(s, hash)) {
         sc_shape_release(sh);
         return;
     }
@@ -458,17 +481,17 @@ static void take_shape(sc_serve *s, const uint8_t *p, size_t len)
         s->cache_bytes = 0;
         logf_(s, LOG_INFO, "shape cache full: emptied");
     }
-    if (sc_grow((void **)&s->cache, &s->cache_cap, s->ncache + 1, sizeof *s->cache, 1 << 20) !=
-        SC_OK) {
+    if (grow((void **)&s->cache, &s->cache_cap, s->ncache + 1, sizeof *s->cache, 1 << 20) != 0) {
         sc_shape_release(sh);
         return;
     }
-    s->cache[s->ncache++] = (cached){ sh->hash, sh, b };
+    s->cache[s->ncache++] = (cached){ hash, sh, b };
     s->cache_bytes += b;
     pthread_mutex_lock(&s->lock);
     s->n.shapes = s->ncache;
     pthread_mutex_unlock(&s->lock);
-    logf_(s, LOG_DEBUG, "shape %016" PRIx64 " cached (%d triangles)", sh->hash, sh->ntris);
+    logf_(s, LOG_DEBUG, "shape %016" PRIx64 " cached (%d triangles)", hash,
+          sc_shape_triangles(sh));
     retry_parked(s);
 }
 
@@ -640,7 +663,6 @@ int sc_serve_create(const sc_serve_config *c, sc_serve **out)
         sc_serve_destroy(s);
         return SC_EIO;
     }
-    sc_ode_init();
     measure_idle(s);
     *out = s;
     return SC_OK;
@@ -660,10 +682,10 @@ int sc_serve_run(sc_serve *s)
     logf_(s, LOG_INFO, "serving on %s as node %016" PRIx64 " with %d threads%s", s->cfg.url,
           (uint64_t)s->id, s->nthreads, s->cfg.idle_priority ? " (nice 19, SCHED_IDLE)" : "");
     int rc = SC_OK;
-    double next = sc_wall_now();
+    double next = wall_now();
     int fd = lcm_get_fileno(s->lcm);
     for (;;) {
-        double now = sc_wall_now();
+        double now = wall_now();
         if (now >= next) {
             heartbeat(s);
             pthread_mutex_lock(&s->cfg_lock);
@@ -734,7 +756,7 @@ void sc_serve_destroy(sc_serve *s)
         lcm_destroy(s->lcm);
     for (int i = 0; s->queue && i < s->qlen; i++) {
         task *t = s->queue[(s->qhead + i) % QUEUE_MAX];
-        sc_wire_unit_free(&t->wu);
+        sc_remote_unit_free(t->ru);
         free(t);
     }
     for (int i = 0; i < s->nparked; i++)

@@ -1,7 +1,7 @@
 /* idle.h - how idle a workstation's CPUs are, not counting our own work
- * (the daemon's heartbeat, docs/DESIGN.md section 7.3), and the owner-busy flag
- * with hysteresis. Parsers take the text of /proc/stat and
- * /proc/self/stat, so they are tested without a kernel. */
+ * (the daemon's heartbeat, docs/DESIGN.md section 7.3), and the owner-busy flag with hysteresis.
+ * Parsers take the text of /proc/stat and /proc/self/stat, so they are
+ * tested without a kernel. */
 #ifndef SC_IDLE_H
 #define SC_IDLE_H
 

@@ -1,12 +1,12 @@
 /*
- * cluster_serve.h - the daemon's engine (docs/DESIGN.md sections 7.3 and 7.5): it joins the
- * cluster's LCM group, announces itself, caches shapes by content hash
- * (asking the master for missing ones), computes the work units masters
- * send it on its compute threads, and replies with their results. The
- * process around it (configuration, logging, signals, privileges) is
- * daemon/simclusterd.c.
+ * engine.h - the daemon's engine (docs/DESIGN.md sections 7.3, 7.5): it
+ * joins the cluster's LCM group,
+ * announces itself, caches shapes by content hash (asking the master for
+ * missing ones), computes the work units masters send it on its compute
+ * threads, and replies with their results. The process around it
+ * (configuration, logging, signals, privileges) is daemon/simclusterd.c.
  *
- * Channels (every message a sealed envelope, lib/net/cluster_msg.h):
+ * Channels (every message a sealed envelope, simcluster_net.h):
  *   SC_ANNOUNCE          daemons' heartbeats (announce_t)
  *   SC_UNIT_<node>       units for daemon <node> (unit_t; frame = the
  *                        master's job serial)
@@ -15,13 +15,13 @@
  *   SC_SHAPE_<node>      shapes for daemon <node> (shape_t)
  * <node> is the id in 16 lower-case hex digits.
  */
-#ifndef SC_CLUSTER_SERVE_H
-#define SC_CLUSTER_SERVE_H
+#ifndef SCD_ENGINE_H
+#define SCD_ENGINE_H
 
 #include <stddef.h>
 #include <stdint.h>
 
-#include "cluster_msg.h"
+#include "simcluster_net.h"
 
 #define SC_SERVE_MAX_THREADS 256
 
@@ -31,7 +31,7 @@ typedef struct sc_serve_config {
     int threads;                /* compute threads, 1..SC_SERVE_MAX_THREADS */
     double busy_threshold;      /* owner-busy when the others' CPU use passes
                                   this fraction of the machine (0..1], with
-                                  hysteresis (lib/net/idle.h) */
+                                  hysteresis (idle.h) */
     double heartbeat_s;         /* announce period, 0.01..10 (default 0.2) */
     int64_t node_id;            /* > 0; 0 = random */
     int idle_priority;          /* 1: compute threads at nice 19 and SCHED_IDLE */

@@ -1,10 +1,10 @@
 /* idle.c - idle CPU fraction excluding our own use, and the owner-busy
  * flag (see idle.h). */
 #include <stdlib.h>
+#include <string.h>
 
 #include "idle.h"
-#include "exec.h"
-#include "unit_wire.h"
+#include "simcluster.h"
 
 /* Read an unsigned decimal at *p (after spaces); 0 when there is none. */
 static int read_u64(const char **p, const char *end, uint64_t *v)

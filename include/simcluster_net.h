@@ -1,0 +1,235 @@
+/*
+ * simcluster_net.h - the network side of libsimcluster, for programs that
+ * talk to a cluster themselves (simclusterd, simcluster-top, recorders and
+ * viewers): the cluster key, sealed messages and their payloads, frame
+ * records (simcluster run --record/--publish), and the compute node a
+ * daemon runs received work units on. A physics-only program needs only
+ * simcluster.h. Message formats: proto/simcluster.lcm (LCM encodings; no
+ * LCM or libsodium header is needed here). man simcluster(3) documents
+ * every function below.
+ */
+#ifndef SIMCLUSTER_NET_H
+#define SIMCLUSTER_NET_H
+
+#include <stddef.h>
+#include <stdint.h>
+
+#include "simcluster.h"
+
+#ifdef __cplusplus
+extern "C" {
+#endif
+
+/* ---- the cluster key ------------------------------------------------------ */
+#define SC_KEY_BYTES 32
+
+/* Write a new random key to path as 64 hex digits and a newline, mode 0600;
+ * an existing file is never overwritten: SC_OK or SC_EIO. */
+SC_API int sc_key_generate(const char *path);
+/* Read a key file: SC_OK, SC_EIO (cannot be opened or read, not a regular
+ * file), SC_EPERM (group or others may read or write it) or SC_EFORMAT. */
+SC_API int sc_key_load(const char *path, uint8_t key[SC_KEY_BYTES]);
+
+/* ---- sealed messages --------------------------------------------------------
+ * Every message between masters and daemons is an envelope: HMAC-SHA-512/256
+ * under the shared key over all its bytes, and a per-sender sequence number
+ * checked against replay. Channels: SC_ANNOUNCE (heartbeats),
+ * SC_UNIT_<node>, SC_RESULT_<node>, SC_SHAPEREQ_<node>, SC_SHAPE_<node>,
+ * <node> the receiver's id in 16 lower-case hex digits. */
+#define SC_MSG_VERSION 3        /* 2: HMAC-SHA-512/256, batches; 3: announce units */
+#define SC_MSG_MAX_BYTES (8u << 20)        /* a whole envelope, at most */
+#define SC_MSG_OVERHEAD 64u                 /* envelope bytes besides the payload */
+#define SC_MSG_MAX_PAYLOAD (SC_MSG_MAX_BYTES - SC_MSG_OVERHEAD)
+#define SC_MSG_MAX_WIRE (SC_MSG_MAX_PAYLOAD - 28u)  /* unit_t / result_t bytes */
+#define SC_MSG_HOST_MAX 256                 /* host name bytes, with the NUL */
+#define SC_MSG_SENDERS 64                   /* senders a replay guard follows */
+#define SC_MSG_WINDOW 64                    /* seqs behind the highest still accepted */
+
+/* What an envelope's payload is. */
+enum {
+    SC_MSG_ANNOUNCE = 1,        /* sc_msg_announce */
+    SC_MSG_SHAPE_REQUEST = 2,   /* a shape's content hash */
+    SC_MSG_SHAPE = 3,           /* a shape */
+    SC_MSG_UNIT = 4,            /* sc_msg_work: units */
+    SC_MSG_RESULT = 5           /* sc_msg_work: results */
+};
+
+/* An opened message; payload is a malloc'd copy (sc_msg_free). */
+typedef struct sc_msg {
+    int64_t node, seq;
+    int kind;
+    uint8_t *payload;
+    size_t len;
+} sc_msg;
+
+/* Per sender: the highest seq accepted and which of the SC_MSG_WINDOW
+ * before it were (bit i: top - i). When all slots are taken the sender
+ * heard from least recently is forgotten. Zero-initialise; one thread. */
+typedef struct sc_msg_guard {
+    struct {
+        int64_t node;
+        uint64_t top, seen, used;   /* used: 0 free, else last-accept stamp */
+    } slot[SC_MSG_SENDERS];
+    uint64_t clock;
+    long dropped_format, dropped_auth, dropped_replay, accepted;
+} sc_msg_guard;
+
+/* Seal payload (len bytes, kind SC_MSG_*) from node as its message seq:
+ * *out (malloc'd, *outlen bytes) is the envelope. SC_OK, SC_EINVAL (bad
+ * kind, seq < 0, len too big) or SC_ENOMEM. */
+SC_API int sc_msg_seal(const uint8_t key[SC_KEY_BYTES], int64_t node, int64_t seq, int kind,
+                       const void *payload, size_t len, uint8_t **out, size_t *outlen);
+/* Check and open a received envelope: SC_OK with *out filled, SC_EFORMAT
+ * (malformed, truncated, oversized, unknown version or kind) or SC_EAUTH
+ * (bad MAC, replayed or older than the window), counted in g; SC_ENOMEM. */
+SC_API int sc_msg_open(const uint8_t key[SC_KEY_BYTES], sc_msg_guard *g, const void *buf,
+                       size_t len, sc_msg *out);
+/* Free an opened message's payload (m may be NULL). */
+SC_API void sc_msg_free(sc_msg *m);
+
+/* A daemon's heartbeat. */
+typedef struct sc_msg_announce {
+    int64_t node;
+    char host[SC_MSG_HOST_MAX];
+    int cores;                  /* 1..4096 */
+    double speed;               /* finite, > 0 */
+    double idle_fraction;       /* 0..1 */
+    int owner_busy;             /* 0 or 1 */
+    int version;
+    int64_t time_us;
+    int64_t units;              /* units computed since the daemon started, >= 0 */
+} sc_msg_announce;
+
+/* Encode a (validated) to *out, malloc'd, *len bytes: SC_OK, SC_EINVAL, SC_ENOMEM. */
+SC_API int sc_msg_announce_encode(const sc_msg_announce *a, uint8_t **out, size_t *len);
+/* Decode and validate: SC_OK, SC_EFORMAT or SC_ENOMEM. */
+SC_API int sc_msg_announce_decode(const void *buf, size_t len, sc_msg_announce *a);
+
+/* Units (SC_MSG_UNIT) or results (SC_MSG_RESULT): frame (the master's job
+ * serial), unit index and the unit's or result's wire bytes. */
+typedef struct sc_msg_work {
+    int64_t frame;
+    int unit;
+    uint8_t *wire;              /* decoded: malloc'd (sc_msg_work_free) */
+    size_t len;                 /* at most SC_MSG_MAX_WIRE */
+    int compute_us;             /* results: the daemon's thread time, >= 0 */
+} sc_msg_work;
+
+/* Encode w as kind SC_MSG_UNIT or SC_MSG_RESULT: SC_OK, SC_EINVAL, SC_ENOMEM. */
+SC_API int sc_msg_work_encode(int kind, const sc_msg_work *w, uint8_t **out, size_t *len);
+/* Decode exactly one: SC_OK, SC_EFORMAT or SC_ENOMEM. */
+SC_API int sc_msg_work_decode(int kind, const void *buf, size_t len, sc_msg_work *w);
+/* A batch (one or more encodings back to back, an envelope's payload):
+ * decode the one at *off and move *off past it: SC_OK, SC_EFORMAT (then
+ * stop), SC_ENOMEM. */
+SC_API int sc_msg_work_next(int kind, const void *buf, size_t len, size_t *off,
+                            sc_msg_work *w);
+/* Free a decoded w's bytes (w may be NULL). */
+SC_API void sc_msg_work_free(sc_msg_work *w);
+
+/* A shape request: the content hash asked for. */
+SC_API int sc_msg_shape_request_encode(uint64_t hash, uint8_t **out, size_t *len);
+SC_API int sc_msg_shape_request_decode(const void *buf, size_t len, uint64_t *hash);
+/* A shape's hashed content (SC_ETOOBIG past SC_MSG_MAX_PAYLOAD). */
+SC_API int sc_msg_shape_encode(const sc_shape *s, uint8_t **out, size_t *len);
+/* Rebuild a sent shape (meshes are checked as sc_shape_mesh checks them)
+ * and check that its content hash is the one the message carries: SC_OK
+ * with *out (one reference), SC_EFORMAT or SC_ENOMEM. */
+SC_API int sc_msg_shape_decode(const void *buf, size_t len, sc_shape **out);
+/* The content hash of s that shape messages and work units name it by
+ * (equal content, equal hash); 0 for NULL. */
+SC_API uint64_t sc_shape_hash(const sc_shape *s);
+
+/* ---- frame records -------------------------------------------------------
+ * What simcluster run --record writes to an LCM event log and --publish
+ * sends (unsealed): one SC_FRAME_SHAPE_CHANNEL record per distinct shape
+ * (the bytes of sc_frame_shape_encode), then one SC_FRAME_STATE_CHANNEL
+ * record per frame. Decoders refuse anything malformed, truncated or
+ * oversized with SC_EFORMAT. */
+#define SC_FRAME_SHAPE_CHANNEL "SC_SHAPE"
+#define SC_FRAME_STATE_CHANNEL "SC_STATE"
+#define SC_FRAME_MAX_BODIES 100001      /* the largest scene and its floor */
+
+/* The bodies of one frame; arrays of n (pos: 3 per body, quat: 4). */
+typedef struct sc_frame_record {
+    int64_t frame;              /* frames stepped so far (0: the initial state) */
+    double time_s;              /* simulated seconds */
+    int n;                      /* bodies, 0..SC_FRAME_MAX_BODIES */
+    uint64_t *shape;            /* each body's shape content hash (sc_shape_hash) */
+    double *pos;                /* m */
+    double *quat;               /* w, x, y, z */
+    int8_t *state;              /* SC_FREE .. SC_STATIC */
+} sc_frame_record;
+
+/* Fill r with w's bodies as frame number frame at time_s, (re)allocating
+ * r's arrays (r zeroed first, or from an earlier call; free with
+ * sc_frame_record_free): SC_OK, SC_ETOOBIG, SC_ENOMEM. */
+SC_API int sc_frame_record_capture(sc_frame_record *r, const sc_world *w, int64_t frame,
+                                   double time_s);
+/* Encode r to *out (malloc'd, *len bytes): SC_OK, SC_EINVAL (NULL array,
+ * non-finite pose or time, state out of range), SC_ETOOBIG, SC_ENOMEM. */
+SC_API int sc_frame_record_encode(const sc_frame_record *r, uint8_t **out, size_t *len);
+/* Decode and check a state record into *r (arrays malloc'd, freed by
+ * sc_frame_record_free; zeroed on error): SC_OK, SC_EFORMAT, SC_ENOMEM. */
+SC_API int sc_frame_record_decode(const void *buf, size_t len, sc_frame_record *r);
+/* Free r's arrays and zero it (r may be NULL). */
+SC_API void sc_frame_record_free(sc_frame_record *r);
+
+/* A recorded shape, as a renderer needs it. */
+typedef struct sc_frame_shape {
+    uint64_t hash;              /* content hash: sc_frame_record.shape */
+    int kind;                   /* SC_SHAPE_* */
+    double radius;              /* sphere */
+    double half[3];             /* box */
+    double plane[4];            /* plane: unit normal, d */
+    int nverts, ntris;          /* mesh and convex: outward triangles */
+    double *xyz;                /* 3 * nverts, malloc'd */
+    int *tri;                   /* 3 * ntris, indices checked */
+} sc_frame_shape;
+
+/* The shape record of s (the bytes of sc_msg_shape_encode). */
+SC_API int sc_frame_shape_encode(const sc_shape *s, uint8_t **out, size_t *len);
+/* Decode a shape record, checked as a daemon checks a received shape
+ * (rebuilt, its content hash compared): SC_OK, SC_EFORMAT, SC_ENOMEM. */
+SC_API int sc_frame_shape_decode(const void *buf, size_t len, sc_frame_shape *out);
+/* The hash a shape record claims, without checking the rest (to skip a
+ * shape already known): SC_OK or SC_EFORMAT. */
+SC_API int sc_frame_shape_hash(const void *buf, size_t len, uint64_t *hash);
+/* Free out's arrays and zero it (out may be NULL). */
+SC_API void sc_frame_shape_free(sc_frame_shape *out);
+
+/* ---- the compute node ------------------------------------------------------
+ * What a daemon does with a received unit (the wire bytes of an
+ * SC_MSG_UNIT record): decode it against its shape cache, run it on a
+ * compute thread, and send back the result's bytes. */
+typedef struct sc_compute sc_compute;
+typedef struct sc_remote_unit sc_remote_unit;
+/* Finds a shape by content hash; NULL when the caller does not have it. */
+typedef const sc_shape *(*sc_shape_find_fn)(void *ctx, uint64_t hash);
+
+/* A compute context for the calling thread: its narrow phase runs on a
+ * private copy of ODE when one can be had (else the shared one). One per
+ * thread. NULL on error (sc_last_error()). */
+SC_API sc_compute *sc_compute_create(void);
+/* Free c (on the thread that created it); NULL is a no-op. */
+SC_API void sc_compute_destroy(sc_compute *c);
+/* Decode a received unit, finding its shapes through find. Returns SC_OK
+ * with *out (holding a reference to each shape it uses), a count > 0 of
+ * shapes find did not have (each passed to find; *out NULL: decode again
+ * once they are in), or SC_EFORMAT (malformed, truncated, counts out of
+ * range, NaN), SC_EINVAL, SC_ENOMEM. */
+SC_API int sc_remote_unit_decode(const void *wire, size_t len, sc_shape_find_fn find,
+                                 void *find_ctx, sc_remote_unit **out);
+/* Run u on c (the calling thread); u's own error, if any, travels in its
+ * result. SC_OK or SC_EINVAL. */
+SC_API int sc_compute_run(sc_compute *c, sc_remote_unit *u);
+/* The result bytes of a unit that ran, for an SC_MSG_RESULT record: *out
+ * malloc'd, *len bytes. SC_OK, SC_EINVAL (not run yet) or SC_ENOMEM. */
+SC_API int sc_remote_unit_result(const sc_remote_unit *u, uint8_t **out, size_t *len);
+/* Free u and drop its shape references; NULL is a no-op. */
+SC_API void sc_remote_unit_free(sc_remote_unit *u);
+
+#ifdef __cplusplus
+}
+#endif
+#endif /* SIMCLUSTER_NET_H */
