@@ -24,4 +24,12 @@ grep -qx 'ExecStart=/usr/local/sbin/simclusterd .*' "$d/usr/local/lib/systemd/sy
 MAKEFLAGS= make --no-print-directory uninstall PREFIX=/usr/local DESTDIR="$d" >/dev/null
 left=$(find "$d/usr/local" -type f)
 if [ -n "$left" ]; then echo "left after uninstall: $left"; exit 1; fi
+# -Werror only where asked (make check, CI): a plain make or make install
+# must not fail on a newer compiler's new warning
+MAKEFLAGS= make --no-print-directory -n -B V=1 build/lib/core/error.o | grep -q -- -Werror &&
+    { echo "a plain make compiles with -Werror"; exit 1; }
+MAKEFLAGS= make --no-print-directory -n -B V=1 WERROR=-Werror build/lib/core/error.o | grep -q -- -Werror ||
+    { echo "make WERROR=-Werror compiles without -Werror"; exit 1; }
+grep -q 'MAKE).*WERROR=-Werror all' Makefile && grep -q 'MAKE).*WERROR=-Werror SAN=1' Makefile ||
+    { echo "make check does not build with -Werror"; exit 1; }
 echo "install test: ok"
