@@ -2,6 +2,7 @@
 # tests/tools.sh BUILD - the command-line tools as a user meets them: exit
 # statuses, one-line errors, the files they write.
 tool="$1/tools/simcluster"
+atool=$(cd "$1/tools" && pwd)/simcluster   # for commands run in $dir
 dir=$(mktemp -d) || exit 1
 trap 'rm -rf "$dir"' EXIT
 fail=0
@@ -26,6 +27,33 @@ grep -q keygen "$dir/out" || { echo "FAIL: --help does not list keygen"; fail=1;
 for c in run profile lcp; do
     grep -q "$c" "$dir/out" || { echo "FAIL: --help does not list $c"; fail=1; }
 done
+# --version (the Makefile's VERSION) and COMMAND --help / -h: to stdout,
+# status 0; keygen --help writes no key file named --help
+version=$(sed -n 's/^VERSION *:= *//p' "$(dirname "$0")/../Makefile")
+for c in "" run profile lcp keygen; do
+    check "$c --version" 0 "$tool" $c --version
+    grep -qx "simcluster $version" "$dir/out" || { echo "FAIL: $c --version: $(cat "$dir/out")"; fail=1; }
+done
+for c in run profile lcp keygen; do
+    for h in --help -h; do
+        (cd "$dir" && "$atool" $c $h >"$dir/out" 2>"$dir/err")
+        rc=$?
+        [ "$rc" -eq 0 ] && [ ! -s "$dir/err" ] && grep -q "^usage: simcluster $c " "$dir/out" ||
+            { echo "FAIL: $c $h: exit $rc"; cat "$dir/out" "$dir/err"; fail=1; }
+        [ -e "$dir/$h" ] && { echo "FAIL: $c $h wrote a file $h"; rm -f "$dir/$h"; fail=1; }
+    done
+done
+grep -q -- "--record" "$dir/out" && { echo "FAIL: keygen -h lists run's options"; fail=1; }
+check "run --help" 0 "$tool" run --help
+grep -q -- "--render DIR" "$dir/out" && grep -q -- "--wait-daemons" "$dir/out" ||
+    { echo "FAIL: run --help: options"; cat "$dir/out"; fail=1; }
+check "profile --help" 0 "$tool" profile --help
+grep -q -- "--render" "$dir/out" && { echo "FAIL: profile --help lists run's --render"; fail=1; }
+check "keygen, an unknown option" 2 "$tool" keygen --frobnicate
+one_line "keygen, an unknown option" "keygen -- FILE"
+(cd "$dir" && "$atool" keygen -- -k >/dev/null 2>&1) && [ -s "$dir/-k" ] ||
+    { echo "FAIL: keygen -- -k wrote no file -k"; fail=1; }
+check "lcp, an unknown option" 2 "$tool" lcp --frobnicate
 
 # run: a short drop, text and JSON; the same seed gives the same state
 check "run bolts" 0 "$tool" run bolts --bodies 12 --frames 60 --workers 2

@@ -31,7 +31,8 @@ stop_live() {
 }
 
 check "--version" 0 "$top" --version
-grep -qx "simcluster-top 0.1.0" "$dir/out" || { echo "FAIL: --version says $(cat "$dir/out")"; fail=1; }
+version=$(sed -n 's/^VERSION *:= *//p' "$(dirname "$0")/../Makefile")
+grep -qx "simcluster-top $version" "$dir/out" || { echo "FAIL: --version says $(cat "$dir/out")"; fail=1; }
 check "--help" 0 "$top" --help
 for o in --url --key --insecure --once --wait --interval; do
     grep -q -- "$o" "$dir/out" || { echo "FAIL: --help does not list $o"; fail=1; }

@@ -28,6 +28,24 @@
 #define MAX_SHAPE_MSGS 256         /* run --publish: shapes sent again each second */
 #define WAIT_DAEMONS_S 10.0        /* --wait-daemons: at most this long */
 
+/* The version: the Makefile's VERSION, else the header's numbers. */
+#ifndef SC_VERSION_STRING
+#define SC_STR_(x) #x
+#define SC_STR(x) SC_STR_(x)
+#define SC_VERSION_STRING \
+    SC_STR(SC_VERSION_MAJOR) "." SC_STR(SC_VERSION_MINOR) "." SC_STR(SC_VERSION_PATCH)
+#endif
+
+static const char run_help[] =
+    "run and profile options: --bodies N --seed S --frames F --until-rest\n"
+    "  --workers W --groups --cluster URL --key FILE --deadline S --json\n"
+    "  --wait-daemons K (before the first frame, at most 10 s)\n";
+static const char run_only_help[] =
+    "run only: --record LOG (an LCM log of every frame, for simcluster-view)\n"
+    "  --render DIR (every frame as DIR/frame_NNNNN.png, by simcluster-view)\n"
+    "  --publish URL (frames live on LCM, for simcluster-view --live)\n"
+    "  --realtime (no faster than simulated time)\n";
+
 static int usage(FILE *f, int status)
 {
     fprintf(f,
@@ -35,16 +53,34 @@ static int usage(FILE *f, int status)
             "       simcluster profile SCENE [options] CPU time per stage (Table 1)\n"
             "       simcluster lcp FILE                solve an LCP given as text\n"
             "       simcluster keygen FILE             write a new cluster key (mode 0600)\n"
-            "       simcluster --help\n"
-            "run and profile options: --bodies N --seed S --frames F --until-rest\n"
-            "  --workers W --groups --cluster URL --key FILE --deadline S --json\n"
-            "  --wait-daemons K (before the first frame, at most 10 s)\n"
-            "run only: --record LOG (an LCM log of every frame, for simcluster-view)\n"
-            "  --render DIR (every frame as DIR/frame_NNNNN.png, by simcluster-view)\n"
-            "  --publish URL (frames live on LCM, for simcluster-view --live)\n"
-            "  --realtime (no faster than simulated time)\n"
-            "scene files: simcluster.conf(5)\n");
+            "       simcluster --help | --version      (COMMAND --help: that command)\n"
+            "%s%sscene files: simcluster.conf(5)\n", run_help, run_only_help);
     return status;
+}
+
+/* COMMAND --help: that command's part of usage() */
+static int usage_cmd(const char *cmd)
+{
+    if (!strcmp(cmd, "run") || !strcmp(cmd, "profile")) {
+        printf("usage: simcluster %s SCENE [options]   %s\n%s%s", cmd,
+               !strcmp(cmd, "run") ? "simulate bolts, spheres or a scene file"
+                                   : "CPU time per stage (the paper's Table 1)",
+               run_help, !strcmp(cmd, "run") ? run_only_help : "");
+        printf("scenes: bolts, spheres or a scene file (simcluster.conf(5))\n");
+    } else if (!strcmp(cmd, "lcp")) {
+        printf("usage: simcluster lcp FILE   solve the LCP w = Mz + q, z >= 0, w >= 0, z.w = 0\n"
+               "  FILE (- for standard input): n, then M row by row, then q; # comments\n");
+    } else {
+        printf("usage: simcluster keygen FILE   write a new cluster key (mode 0600)\n"
+               "  an existing FILE is never overwritten; a FILE starting with -: -- FILE\n");
+    }
+    return 0;
+}
+
+static int version(void)
+{
+    printf("simcluster %s\n", SC_VERSION_STRING);
+    return 0;
 }
 
 static int bad(const char *cmd, const char *what)
@@ -62,15 +98,27 @@ static double now_s(void)
 
 static int keygen(int argc, char **argv)
 {
-    if (argc != 3 || argv[2][0] == '\0')
-        return usage(stderr, 2);
-    int rc = sc_key_generate(argv[2]);
+    /* an argument starting with - is an option, never a file name (-- ends
+     * the options), so that keygen --help writes no file "--help" */
+    int i = 2;
+    if (i < argc && (!strcmp(argv[i], "--help") || !strcmp(argv[i], "-h")))
+        return usage_cmd("keygen");
+    if (i < argc && !strcmp(argv[i], "--version"))
+        return version();
+    if (i < argc && !strcmp(argv[i], "--"))
+        i++;
+    else if (i < argc && argv[i][0] == '-' && argv[i][1] != '\0')
+        return bad("keygen", "unknown option (a file name starting with -: keygen -- FILE)");
+    if (argc != i + 1 || argv[i][0] == '\0')
+        return bad("keygen", "give one file name");
+    const char *path = argv[i];
+    int rc = sc_key_generate(path);
     if (rc != SC_OK) {
         /* sc_key_generate never overwrites: say which case it was */
         const char *why = rc == SC_EIO && errno == EEXIST ? "the file exists (never overwritten)"
                           : rc == SC_EIO                  ? strerror(errno)
                                                           : sc_strerror(rc);
-        fprintf(stderr, "simcluster: keygen: %s: %s\n", argv[2], why);
+        fprintf(stderr, "simcluster: keygen: %s: %s\n", path, why);
         return 1;
     }
     return 0;
@@ -98,6 +146,8 @@ static int parse_long(const char *s, long lo, long hi, long *out)
     return 1;
 }
 
+/* Read the options of run or profile into o: -1 to go on, else the exit
+ * status (0 after --help or --version). */
 static int parse_options(const char *cmd, int argc, char **argv, options *o)
 {
     static const struct option longs[] = {
@@ -109,6 +159,7 @@ static int parse_options(const char *cmd, int argc, char **argv, options *o)
         { "record", required_argument, 0, 'o' },   { "render", required_argument, 0, 'p' },
         { "publish", required_argument, 0, 'P' },  { "realtime", no_argument, 0, 'R' },
         { "wait-daemons", required_argument, 0, 'W' },
+        { "help", no_argument, 0, 'h' },           { "version", no_argument, 0, 'V' },
         { 0, 0, 0, 0 }
     };
     memset(o, 0, sizeof *o);
@@ -119,13 +170,17 @@ static int parse_options(const char *cmd, int argc, char **argv, options *o)
     optind = 2;
     int c, li;
     char *end, what[160];
-    while ((c = getopt_long(argc, argv, "", longs, &li)) != -1) {
+    while ((c = getopt_long(argc, argv, "h", longs, &li)) != -1) {
         /* --record, --render, --publish, --realtime: run only */
         if (c != '?' && strchr("opPR", c) && strcmp(cmd, "run")) {
             snprintf(what, sizeof what, "--%s is an option of run", longs[li].name);
             return bad(cmd, what);
         }
         switch (c) {
+        case 'h':
+            return usage_cmd(cmd);
+        case 'V':
+            return version();
         case 'n':
             if (!parse_long(optarg, 1, 100000, &o->bodies))
                 return bad(cmd, "--bodies takes 1..100000");
@@ -205,7 +260,7 @@ static int parse_options(const char *cmd, int argc, char **argv, options *o)
         return bad(cmd, "--bodies and --seed are for the built-in bolts scene; a scene file "
                         "places its own bodies");
     if (builtin)
-        return 0;
+        return -1;
     /* a scene file: read and checked now, so a bad one stops before any work */
     char err[512];
     o->file = sc_scene_load(o->scene, err, sizeof err);
@@ -213,7 +268,7 @@ static int parse_options(const char *cmd, int argc, char **argv, options *o)
         fprintf(stderr, "simcluster: %s: %s\n", cmd, err);
         return 1;
     }
-    return 0;
+    return -1;
 }
 
 /* s as a JSON string (a scene file's name can hold anything). */
@@ -581,7 +636,7 @@ static int run_cmd(int argc, char **argv)
 {
     options o;
     int u = parse_options("run", argc, argv, &o);
-    if (u)
+    if (u >= 0)
         return u;
     sc_world *w = make_world(&o, "run");
     sc_scene_free(o.file);          /* built; not needed any more */
@@ -669,7 +724,7 @@ static int profile_cmd(int argc, char **argv)
 {
     options o;
     int u = parse_options("profile", argc, argv, &o);
-    if (u)
+    if (u >= 0)
         return u;
     if (o.frames < 0 && !strcmp(o.scene, "spheres"))
         o.frames = 5000;    /* the paper's 50 s */
@@ -770,6 +825,12 @@ static int next_number(FILE *f, double *v, long *line, long *col, long *at_line,
 
 static int lcp_cmd(int argc, char **argv)
 {
+    if (argc == 3 && (!strcmp(argv[2], "--help") || !strcmp(argv[2], "-h")))
+        return usage_cmd("lcp");
+    if (argc == 3 && !strcmp(argv[2], "--version"))
+        return version();
+    if (argc == 3 && argv[2][0] == '-' && argv[2][1] != '\0')
+        return bad("lcp", "unknown option (a file name starting with -: ./-FILE)");
     if (argc != 3)
         return bad("lcp", "give one file (n, then M row by row, then q)");
     const char *path = argv[2];
@@ -842,6 +903,8 @@ int main(int argc, char **argv)
         return usage(stderr, 2);
     if (!strcmp(argv[1], "--help") || !strcmp(argv[1], "-h"))
         return usage(stdout, 0);
+    if (!strcmp(argv[1], "--version"))
+        return version();
     if (!strcmp(argv[1], "keygen"))
         return keygen(argc, argv);
     if (!strcmp(argv[1], "run"))
