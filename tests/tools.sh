@@ -79,6 +79,18 @@ check "run, unknown option" 2 "$tool" run bolts --frobnicate
 [ "$(wc -l <"$dir/err")" -eq 1 ] || { echo "FAIL: run: error is not one line"; fail=1; }
 check "run, --key without --cluster" 2 "$tool" run bolts --key "$dir/k"
 check "run, unopenable cluster URL" 1 "$tool" run bolts --cluster "udpm://999.1.1.1:7667"
+grep -q "^simcluster: run: --cluster udpm://999.1.1.1:7667: LCM cannot open this URL$" "$dir/err" ||
+    { echo "FAIL: run, unopenable cluster URL: the URL is not named"; cat "$dir/err"; fail=1; }
+# which of key file and URL could not be opened, named
+curl="udpm://239.255.76.67:7667?ttl=0"
+check "run, missing key file" 1 "$tool" run bolts --frames 1 --cluster "$curl" --key "$dir/nokey"
+one_line "run, missing key file" "^simcluster: run: --key $dir/nokey: No such file or directory$"
+cp "$dir/k" "$dir/k644" && chmod 644 "$dir/k644"
+check "run, key file mode 0644" 1 "$tool" run bolts --frames 1 --cluster "$curl" --key "$dir/k644"
+one_line "run, key file mode 0644" "^simcluster: run: --key $dir/k644: .*0600$"
+printf 'not a key\n' >"$dir/badkey" && chmod 600 "$dir/badkey"
+check "run, malformed key file" 1 "$tool" run bolts --frames 1 --cluster "$curl" --key "$dir/badkey"
+one_line "run, malformed key file" "^simcluster: run: --key $dir/badkey: not a cluster key"
 
 # scene files: the examples run; errors name file, line and column
 scenes="$(dirname "$0")/../examples/scenes"

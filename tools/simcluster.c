@@ -301,6 +301,34 @@ static int wait_daemons(const sc_world_config *cfg, int k, const char *cmd)
     return n >= k;
 }
 
+/* sc_world_create failed with err on a cluster: say whether the key file
+ * or the URL was at fault, and name it (the library's code alone cannot:
+ * SC_EIO is "file or cluster URL"). The key is loaded again to learn it. */
+static void cluster_error(const char *cmd, const options *o, int err)
+{
+    if (o->key) {
+        uint8_t key[SC_KEY_BYTES];
+        errno = 0;
+        int rc = sc_key_load(o->key, key);
+        int e = rc == SC_EIO ? errno : 0;
+        explicit_bzero(key, sizeof key);
+        if (rc != SC_OK) {
+            fprintf(stderr, "simcluster: %s: --key %s: %s\n", cmd, o->key,
+                    e                      ? strerror(e)
+                    : rc == SC_EFORMAT     ? "not a cluster key (64 hexadecimal digits, as "
+                                             "simcluster keygen writes)"
+                                           : sc_strerror(rc));
+            return;
+        }
+    }
+    if (err == SC_EIO)
+        fprintf(stderr, "simcluster: %s: --cluster %s: LCM cannot open this URL\n", cmd,
+                o->cluster);
+    else
+        fprintf(stderr, "simcluster: %s: %s (cluster %s%s%s)\n", cmd, sc_strerror(err),
+                o->cluster, o->key ? ", key " : "", o->key ? o->key : "");
+}
+
 static sc_world *make_world(const options *o, const char *cmd)
 {
     sc_world_config c = sc_world_config_default();
@@ -315,8 +343,7 @@ static sc_world *make_world(const options *o, const char *cmd)
     if (!w) {
         int err = sc_last_error();
         if (o->cluster)
-            fprintf(stderr, "simcluster: %s: %s (cluster %s%s%s)\n", cmd, sc_strerror(err),
-                    o->cluster, o->key ? ", key " : "", o->key ? o->key : "");
+            cluster_error(cmd, o, err);
         else
             fprintf(stderr, "simcluster: %s: %s\n", cmd, sc_strerror(err));
         return NULL;
