@@ -30,6 +30,14 @@
 #define MIN_S 0.1                  /* bounds of --wait and --interval */
 #define MAX_S 3600.0
 
+/* The version: the Makefile's VERSION, else the header's numbers. */
+#ifndef SC_VERSION_STRING
+#define SC_STR_(x) #x
+#define SC_STR(x) SC_STR_(x)
+#define SC_VERSION_STRING \
+    SC_STR(SC_VERSION_MAJOR) "." SC_STR(SC_VERSION_MINOR) "." SC_STR(SC_VERSION_PATCH)
+#endif
+
 static const char *prog = "simcluster-top";
 
 /* One daemon, as its last heartbeat showed it. */
@@ -129,7 +137,7 @@ static int parse_args(int argc, char **argv, options *o)
         switch (c) {
         case 'h': return usage(stdout, 0);
         case 'V':
-            printf("%s %d.%d.%d\n", prog, SC_VERSION_MAJOR, SC_VERSION_MINOR, SC_VERSION_PATCH);
+            printf("%s %s\n", prog, SC_VERSION_STRING);
             return 0;
         case 'u':
             if (!*optarg)
@@ -409,8 +417,7 @@ int main(int argc, char **argv)
         if (left <= 0) {
             forget(&t, now);
             if (tty)
-                printf("\033[H\033[2J%s %d.%d.%d on %s\n\n", prog, SC_VERSION_MAJOR,
-                       SC_VERSION_MINOR, SC_VERSION_PATCH, o.url);
+                printf("\033[H\033[2J%s %s on %s\n\n", prog, SC_VERSION_STRING, o.url);
             else if (shown)
                 putchar('\n');
             print_table(stdout, &t, now);
