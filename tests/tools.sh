@@ -131,6 +131,62 @@ check "run --render" 0 "$tool" run bolts --bodies 3 --frames 4 --workers 1 --ren
 check "run --render into a missing directory" 1 "$tool" run bolts --bodies 3 --frames 2 --render "$dir/no/such"
 check "profile --render" 2 "$tool" profile spheres --render "$dir/png"
 
+# SIGINT, SIGTERM: the run stops after the current frame, reports the frames
+# so far (marked interrupted; JSON stays JSON), exits 128 + the signal, and
+# its --record log ends on a whole event (simcluster-view reads all of it).
+# A background job of sh starts with SIGINT ignored; run sets its handler.
+view="$1/tools/simcluster-view"
+stop_run() { # $1 = signal, then the run's arguments; sets $rc
+    sig=$1; shift
+    rm -f "$dir/int.log"
+    "$tool" run "$@" --record "$dir/int.log" >"$dir/out" 2>"$dir/err" &
+    rp=$!
+    i=0     # until the log holds some frames (its shapes and frame 0: ~3 kB)
+    while [ "$(stat -c %s "$dir/int.log" 2>/dev/null || echo 0)" -lt 20000 ] && [ "$i" -lt 100 ]; do
+        i=$((i + 1)); sleep 0.1
+    done
+    kill -"$sig" "$rp"
+    i=0     # it stops within 10 s (a frame is milliseconds)
+    while kill -0 "$rp" 2>/dev/null && [ "$i" -lt 100 ]; do i=$((i + 1)); sleep 0.1; done
+    kill -0 "$rp" 2>/dev/null && { echo "FAIL: SIG$sig: still running after 10 s"; kill -9 "$rp"; fail=1; }
+    wait "$rp"
+    rc=$?
+}
+# the report against the log: the log's last frame is the report's count
+interrupted_log() { # $1 = what, $2 = the report's frame count
+    if "$view" --dump "$dir/int.log" >"$dir/dump" 2>"$dir/err"; then
+        last=$(awk '$1 == "frame" && $3 == "body" && $4 == 0 { f = $2 } END { print f }' "$dir/dump")
+        [ -n "$2" ] && [ "$last" = "$2" ] ||
+            { echo "FAIL: $1: log ends at frame $last, report says '$2'"; fail=1; }
+    else
+        echo "FAIL: $1: the log is not whole"; cat "$dir/err"; fail=1
+    fi
+}
+stop_run INT bolts --bodies 20 --frames 1000000 --realtime --workers 1 --json
+[ "$rc" -eq 130 ] || { echo "FAIL: SIGINT: exit $rc, expected 130"; cat "$dir/err"; fail=1; }
+python3 -c 'import json,sys; r = json.load(open(sys.argv[1])); sys.exit(not (r["interrupted"] == "SIGINT" and r["frames"] > 0 and r["error"] is None))' "$dir/out" ||
+    { echo "FAIL: SIGINT: the JSON report"; cat "$dir/out"; fail=1; }
+frames=$(sed -n 's/.*"frames": \([0-9]*\),.*/\1/p' "$dir/out")
+interrupted_log "SIGINT" "$frames"
+stop_run TERM bolts --bodies 20 --frames 1000000 --realtime --workers 1
+[ "$rc" -eq 143 ] || { echo "FAIL: SIGTERM: exit $rc, expected 143"; cat "$dir/err"; fail=1; }
+grep -q "^  interrupted by SIGTERM after frame [1-9][0-9]*$" "$dir/out" && grep -q "state hash" "$dir/out" ||
+    { echo "FAIL: SIGTERM: the report"; cat "$dir/out"; fail=1; }
+frames=$(sed -n 's/.* \([0-9]*\) frames of .*/\1/p' "$dir/out")
+interrupted_log "SIGTERM" "$frames"
+# a --render folder that cannot be used stops the run before its first frame
+: >"$dir/afile"
+check "run --render into a file" 1 "$tool" run bolts --frames 100000 --render "$dir/afile"
+one_line "run --render into a file" "^simcluster: run: --render $dir/afile: not a directory$"
+[ -s "$dir/out" ] && { echo "FAIL: run --render into a file: ran"; cat "$dir/out"; fail=1; }
+check "run --render in a missing directory" 1 "$tool" run bolts --frames 100000 --render "$dir/no/such"
+one_line "run --render in a missing directory" "no/such: No such file or directory$"
+if [ "$(id -u)" -ne 0 ]; then        # root writes anywhere
+    mkdir "$dir/ro" && chmod 555 "$dir/ro"
+    check "run --render, not writable" 1 "$tool" run bolts --frames 100000 --render "$dir/ro"
+    one_line "run --render, not writable" "ro: Permission denied$"
+fi
+
 # profile: the Table 1 rows
 check "profile" 0 "$tool" profile spheres --frames 50
 grep -q "Dantzig" "$dir/out" && grep -q "41.48" "$dir/out" || { echo "FAIL: profile rows"; fail=1; }

@@ -8,6 +8,7 @@
 #include <getopt.h>
 #include <limits.h>
 #include <math.h>
+#include <signal.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
@@ -561,7 +562,35 @@ typedef struct totals {
     double wall, peak_energy, max_pen, comm, max_frame;
     int at_rest;
     double rest_s;
+    int interrupted;            /* the signal that stopped the run, else 0 */
 } totals;
+
+/* SIGINT and SIGTERM during run and profile: the handler only notes the
+ * signal; the loop stops after the frame it is in (a --record log then
+ * ends on that frame's whole event) and the report so far is printed. A
+ * second one acts as it would have by default (SA_RESETHAND). */
+static volatile sig_atomic_t stop_signal;
+
+static void on_stop(int sig)
+{
+    stop_signal = sig;
+}
+
+static void catch_stop_signals(void)
+{
+    struct sigaction sa;
+    memset(&sa, 0, sizeof sa);
+    sa.sa_handler = on_stop;
+    sa.sa_flags = SA_RESTART | SA_RESETHAND;
+    sigemptyset(&sa.sa_mask);
+    sigaction(SIGINT, &sa, NULL);
+    sigaction(SIGTERM, &sa, NULL);
+}
+
+static const char *signal_name(int sig)
+{
+    return sig == SIGINT ? "SIGINT" : sig == SIGTERM ? "SIGTERM" : "a signal";
+}
 
 /* Step w for the options' frames; with rec, every frame goes to the log
  * (a write error stops the run: *rec_failed). */
@@ -576,6 +605,10 @@ static int simulate(const options *o, sc_world *w, totals *t, int progress, reco
     if (rec && (*rec_failed = record_frame(rec, w, 0)))
         frames = 0;
     for (long f = 0; f < frames; f++) {
+        if (stop_signal) {
+            t->interrupted = stop_signal;
+            break;
+        }
         double tf = now_s();
         rc = sc_world_step(w, DT);
         if (rc != SC_OK)
@@ -627,6 +660,26 @@ static int simulate(const options *o, sc_world *w, totals *t, int progress, reco
     return rc;
 }
 
+/* run --render DIR: created if it is not there (its parent must be) and
+ * checked before the run, so that a bad folder does not cost a simulation.
+ * 0, or 1 with the error printed. */
+static int render_dir(const char *dir)
+{
+    struct stat st;
+    const char *why = NULL;
+    if (mkdir(dir, 0777) != 0 && errno != EEXIST)
+        why = strerror(errno);
+    else if (stat(dir, &st) != 0)
+        why = strerror(errno);
+    else if (!S_ISDIR(st.st_mode))
+        why = "not a directory";
+    else if (access(dir, W_OK | X_OK) != 0)
+        why = strerror(errno);
+    if (why)
+        fprintf(stderr, "simcluster: run: --render %s: %s\n", dir, why);
+    return why != NULL;
+}
+
 /* run --render: simcluster-view (next to this program, else on PATH)
  * draws the log into dir; its output goes to standard error so that a
  * --json report stays alone on standard output. 0, or 1 with the error
@@ -639,10 +692,6 @@ static int render(const char *self, const char *log, const char *dir)
                   : -1;
     if (n < 0 || (size_t)n >= sizeof view || access(view, X_OK) != 0)
         snprintf(view, sizeof view, "simcluster-view");
-    if (mkdir(dir, 0777) != 0 && errno != EEXIST) {
-        fprintf(stderr, "simcluster: run: --render: %s: %s\n", dir, strerror(errno));
-        return 1;
-    }
     fflush(stdout);
     pid_t pid = fork();
     if (pid == 0) {
@@ -665,6 +714,11 @@ static int run_cmd(int argc, char **argv)
     int u = parse_options("run", argc, argv, &o);
     if (u >= 0)
         return u;
+    if (o.render && render_dir(o.render)) {
+        sc_scene_free(o.file);
+        return 1;
+    }
+    catch_stop_signals();
     sc_world *w = make_world(&o, "run");
     sc_scene_free(o.file);          /* built; not needed any more */
     o.file = NULL;
@@ -710,12 +764,13 @@ static int run_cmd(int argc, char **argv)
                "\"daemons\": %d, \"remote_units\": %ld, \"recomputed_units\": %ld, "
                "\"late_results\": %ld, \"dropped_messages\": %ld, \"comm_s\": %.4f, "
                "\"frames_over_budget\": %ld, \"max_frame_s\": %.4f, "
-               "\"hash\": \"%016llx\", \"error\": %s%s%s}\n",
+               "\"hash\": \"%016llx\", \"interrupted\": %s%s%s, \"error\": %s%s%s}\n",
                sc_world_body_count(w), seed, (int)(st.nodes - st.daemons), t.frames,
                sim, t.wall, t.wall > 0 ? sim / t.wall : 0, t.at_rest ? "true" : "false",
                t.rest_s, t.peak_energy, t.max_pen, t.units, st.daemons, t.remote, t.recomputed,
                t.late, st.dropped_messages, t.comm, t.over_budget, t.max_frame, hash,
-               rc ? "\"" : "null",
+               t.interrupted ? "\"" : "null", t.interrupted ? signal_name(t.interrupted) : "",
+               t.interrupted ? "\"" : "", rc ? "\"" : "null",
                rc ? sc_strerror(rc) : "", rc ? "\"" : "");
     } else {
         printf("%s: %d bodies%s%s, %ld frames of %.2f s\n", o.scene, sc_world_body_count(w),
@@ -734,9 +789,12 @@ static int run_cmd(int argc, char **argv)
             printf(", from daemons %ld, recomputed %ld, late %ld, dropped messages %ld",
                    t.remote, t.recomputed, t.late, st.dropped_messages);
         printf("\n  state hash %016llx\n", hash);
+        if (t.interrupted)
+            printf("  interrupted by %s after frame %ld\n", signal_name(t.interrupted),
+                   t.frames);
     }
     sc_world_destroy(w);
-    if (rc == SC_OK && !rec_failed && o.render)
+    if (rc == SC_OK && !rec_failed && o.render && !t.interrupted)
         rec_failed = render(argv[0], o.record, o.render);
     if (o.record == tmp_log)
         unlink(tmp_log);
@@ -744,7 +802,9 @@ static int run_cmd(int argc, char **argv)
         fprintf(stderr, "simcluster: run: step %ld: %s\n", t.frames + 1, sc_strerror(rc));
         return 1;
     }
-    return rec_failed;
+    if (rec_failed)
+        return 1;
+    return t.interrupted ? 128 + t.interrupted : 0;    /* as a shell reports it */
 }
 
 static int profile_cmd(int argc, char **argv)
@@ -753,6 +813,7 @@ static int profile_cmd(int argc, char **argv)
     int u = parse_options("profile", argc, argv, &o);
     if (u >= 0)
         return u;
+    catch_stop_signals();
     if (o.frames < 0 && !strcmp(o.scene, "spheres"))
         o.frames = 5000;    /* the paper's 50 s */
     sc_world *w = make_world(&o, "profile");
@@ -782,7 +843,8 @@ static int profile_cmd(int argc, char **argv)
         printf(", \"frames\": %ld, \"cpu_s\": {", t.frames);
         for (size_t i = 0; i < sizeof rows / sizeof *rows; i++)
             printf("%s\"%s\": %.6f", i ? ", " : "", rows[i].key, st.stage_total_s[rows[i].stage]);
-        printf("}}\n");
+        printf("}, \"interrupted\": %s%s%s}\n", t.interrupted ? "\"" : "null",
+               t.interrupted ? signal_name(t.interrupted) : "", t.interrupted ? "\"" : "");
     } else {
         printf("%s, %ld frames: CPU time by stage (paper: Table 1, 27 spheres)\n", o.scene,
                t.frames);
@@ -795,13 +857,16 @@ static int profile_cmd(int argc, char **argv)
             else
                 printf("%8.2f\n", rows[i].paper);
         }
+        if (t.interrupted)
+            printf("  interrupted by %s after frame %ld\n", signal_name(t.interrupted),
+                   t.frames);
     }
     sc_world_destroy(w);
     if (rc != SC_OK) {
         fprintf(stderr, "simcluster: profile: step %ld: %s\n", t.frames + 1, sc_strerror(rc));
         return 1;
     }
-    return 0;
+    return t.interrupted ? 128 + t.interrupted : 0;
 }
 
 /* ---- lcp ---- */
