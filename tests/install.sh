@@ -10,7 +10,14 @@ pc="$d/usr/local/lib/pkgconfig"
 test -f "$pc/simcluster.pc"
 flags=$(PKG_CONFIG_PATH="$pc" pkg-config --define-variable=prefix="$d/usr/local" --cflags --libs simcluster)
 cc -std=c11 -Wall -Wextra -Werror examples/hello.c -o "$d/hello" $flags
-LD_LIBRARY_PATH="$d/usr/local/lib" "$d/hello"
+LD_LIBRARY_PATH="$d/usr/local/lib" "$d/hello" >"$d/hello.out"
+cat "$d/hello.out"
+# it shows the drop: the first bounce reaches e^2 = 1/4 of the 0.9 m fall
+# (225 mm; 10 ms frames near the top: within 5 mm), and the ball sleeps
+first=$(sed -n 's/.*bounced up to .* (\([0-9.]*\) mm above the floor)$/\1/p' "$d/hello.out" | head -n 1)
+awk -v h="$first" 'BEGIN { exit !(h > 220 && h < 230) }' ||
+    { echo "hello: first bounce '$first' mm, expected 225"; exit 1; }
+tail -n 1 "$d/hello.out" | grep -q "ball asleep" || { echo "hello: the ball does not sleep"; exit 1; }
 # only sc_* symbols leave the shared library
 bad=$(nm -D --defined-only "$d/usr/local/lib/libsimcluster.so" | awk '$2 ~ /[TDBR]/ {print $3}' | grep -v '^sc_' || true)
 if [ -n "$bad" ]; then echo "exported non-sc_ symbols: $bad"; exit 1; fi
