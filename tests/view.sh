@@ -106,6 +106,17 @@ if [ "$(id -u)" -ne 0 ]; then        # root writes anywhere
 fi
 check "--mp4 without ffmpeg" 1 env PATH=/nonexistent "$view" --mp4 "$dir/v.mp4" "$dir/log"
 one_line "--mp4 without ffmpeg" "ffmpeg"
+# with ffmpeg (scripts/deps.sh video): the README's video command works
+if command -v ffmpeg >/dev/null 2>&1; then
+    check "--mp4" 0 "$view" --mp4 "$dir/v.mp4" --size 64x48 "$dir/log"
+    [ "$(od -An -c -j4 -N4 "$dir/v.mp4" 2>/dev/null | tr -d ' ')" = ftyp ] ||
+        { echo "FAIL: --mp4: not an MP4 file"; fail=1; }
+else
+    echo "skipped: --mp4 (no ffmpeg: sh scripts/deps.sh video)"
+fi
+# the optional packages are listed by scripts/deps.sh and named in the README
+grep -q '^VIDEO_PKGS="ffmpeg"' scripts/deps.sh && grep -q "scripts/deps.sh video" README.md ||
+    { echo "FAIL: ffmpeg is not in scripts/deps.sh video or the README"; fail=1; }
 
 # live: the viewer subscribed while a run publishes (ttl=0: this host only)
 url="udpm://239.255.76.67:7669?ttl=0"
