@@ -6,6 +6,9 @@
 #   make bench-raw  every benchmark with its defaults, tables to stdout
 #   make install PREFIX=/usr/local DESTDIR=   (SYSTEMDDIR: the systemd unit)
 #   make V=1        show commands;  make SAN=1  sanitizer build (in build-san/)
+#   make WERROR=-Werror   warnings are errors (make check and CI build this way;
+#                   a plain make does not, so a newer compiler's new warning
+#                   does not stop a packager's build)
 
 PREFIX  ?= /usr/local
 DESTDIR ?=
@@ -22,6 +25,7 @@ SOMAJOR := 0
 
 CC      ?= cc
 OPT     ?= -O2
+WERROR  ?=
 SANFLAGS := -fsanitize=address,undefined -fno-sanitize-recover=all -fno-omit-frame-pointer
 ifeq ($(SAN),1)
 BUILD   ?= build-san
@@ -64,7 +68,7 @@ LAYER_fuzz_load := core
 # Programs (tools, the daemon, examples) see only the public headers;
 # tests and benchmarks may also include the daemon's own (-Idaemon).
 PROG_CPPFLAGS := -Iinclude -D_GNU_SOURCE
-CFLAGS  += -std=c11 $(OPT) -g -Wall -Wextra -Werror -fPIC -fvisibility=hidden \
+CFLAGS  += -std=c11 $(OPT) -g -Wall -Wextra $(WERROR) -fPIC -fvisibility=hidden \
            -pthread $(XFLAGS)
 LDFLAGS += -pthread $(XFLAGS)
 LIBS    := $(shell pkg-config --libs $(DEP_PKGS) 2>/dev/null || \
@@ -74,6 +78,16 @@ TESTLIBS := $(LIBS) -lcmocka
 PNG_LIBS := $(shell pkg-config --cflags --libs libpng 2>/dev/null || echo -lpng)
 TOOL_LIBS_simcluster-view := $(shell pkg-config --cflags --libs osmesa 2>/dev/null || \
              echo -lOSMesa) $(PNG_LIBS)
+
+# Objects built without WERROR may hold warnings: a WERROR build depends on
+# $(BUILD)/werror.stamp, which any build without it removes, so make check
+# after a plain make compiles everything again, with -Werror.
+WSTAMP  := $(BUILD)/werror.stamp
+WDEP    := $(if $(WERROR),$(WSTAMP))
+WFORGET := $(if $(WERROR),:,rm -f $(WSTAMP))
+$(WSTAMP):
+	@mkdir -p $(dir $@)
+	@touch $@
 
 ifeq ($(V),1)
 Q :=
@@ -123,9 +137,10 @@ deps:
 	$(Q)sh scripts/deps.sh
 
 $(foreach l,$(LAYERS),$(eval $(BUILD)/lib/$(l)/%.o: LAYER_INC := $(INC_$(l))))
-$(BUILD)/%.o: %.c $(LIB_HDR) Makefile
+$(BUILD)/%.o: %.c $(LIB_HDR) Makefile $(WDEP)
 	@mkdir -p $(dir $@)
 	@$(if $(Q),echo "  CC      $<")
+	$(Q)$(WFORGET)
 	$(Q)$(CC) $(CPPFLAGS) $(LAYER_INC) $(CFLAGS) -c $< -o $@
 
 # --c-no-pubsub: messages go out as sealed bytes through lcm_publish
@@ -144,8 +159,9 @@ $(BUILD)/lib/net/cluster_msg.o $(BUILD)/lib/net/frame_record.o: $(GEN)/stamp
 
 # lcm-gen's cleanup functions for types without arrays or strings do not
 # use their argument: -Wno-unused-parameter, for these files only.
-$(GEN)/%.o: $(GEN)/%.c $(GEN)/stamp
+$(GEN)/%.o: $(GEN)/%.c $(GEN)/stamp $(WDEP)
 	@$(if $(Q),echo "  CC      $<")
+	$(Q)$(WFORGET)
 	$(Q)$(CC) $(CPPFLAGS) $(INC_net) $(CFLAGS) -Wno-unused-parameter -c $< -o $@
 
 $(STATIC): $(LIB_OBJ)
@@ -161,31 +177,38 @@ $(SHARED): $(LIB_OBJ)
 
 # Tests link the static library and the daemon's engine (internal tests
 # name their layer above, LAYER_<name>; any may include daemon/*.h).
-$(BUILD)/tests/%: tests/%.c $(DAEMON_LIB) $(STATIC)
+$(BUILD)/tests/%: tests/%.c $(DAEMON_LIB) $(STATIC) $(WDEP)
 	@mkdir -p $(dir $@)
 	@$(if $(Q),echo "  TEST    $@")
+	$(Q)$(WFORGET)
 	$(Q)$(CC) $(CPPFLAGS) $(INC_$(LAYER_$(notdir $*))) -Idaemon $(CFLAGS) $< -o $@ $(LDFLAGS) $(DAEMON_LIB) $(STATIC) $(TESTLIBS)
 
-$(BUILD)/examples/%: examples/%.c include/simcluster.h $(STATIC)
+$(BUILD)/examples/%: examples/%.c include/simcluster.h $(STATIC) $(WDEP)
 	@mkdir -p $(dir $@)
 	@$(if $(Q),echo "  EXAMPLE $@")
+	$(Q)$(WFORGET)
 	$(Q)$(CC) $(PROG_CPPFLAGS) $(CFLAGS) $< -o $@ $(LDFLAGS) $(STATIC) $(LIBS)
 
-$(BUILD)/tools/%: tools/%.c $(wildcard include/*.h) $(STATIC)
+# The tools' --version: the VERSION above.
+$(BUILD)/tools/%: tools/%.c $(wildcard include/*.h) $(STATIC) Makefile $(WDEP)
 	@mkdir -p $(dir $@)
 	@$(if $(Q),echo "  TOOL    $@")
-	$(Q)$(CC) $(PROG_CPPFLAGS) $(CFLAGS) $< -o $@ $(LDFLAGS) $(STATIC) $(LIBS) $(TOOL_LIBS_$*)
+	$(Q)$(WFORGET)
+	$(Q)$(CC) $(PROG_CPPFLAGS) -DSC_VERSION_STRING='"$(VERSION)"' $(CFLAGS) $< -o $@ $(LDFLAGS) \
+	    $(STATIC) $(LIBS) $(TOOL_LIBS_$*)
 
-$(BUILD)/tests/png_check: tests/png_check.c Makefile
+$(BUILD)/tests/png_check: tests/png_check.c Makefile $(WDEP)
 	@mkdir -p $(dir $@)
 	@$(if $(Q),echo "  TEST    $@")
+	$(Q)$(WFORGET)
 	$(Q)$(CC) $(CFLAGS) $< -o $@ $(LDFLAGS) $(PNG_LIBS) -lm
 
 # simclusterd(8): daemon/simclusterd.c (the process) and the engine, with
 # the public headers only, like any program.
-$(BUILD)/daemon/%.o: daemon/%.c $(DAEMON_HDR) $(wildcard include/*.h) Makefile
+$(BUILD)/daemon/%.o: daemon/%.c $(DAEMON_HDR) $(wildcard include/*.h) Makefile $(WDEP)
 	@mkdir -p $(dir $@)
 	@$(if $(Q),echo "  CC      $<")
+	$(Q)$(WFORGET)
 	$(Q)$(CC) $(PROG_CPPFLAGS) $(CFLAGS) -c $< -o $@
 
 $(DAEMON_LIB): $(DAEMON_LIB_SRC:%.c=$(BUILD)/%.o)
@@ -196,16 +219,18 @@ $(BUILD)/daemon/simclusterd: $(BUILD)/daemon/simclusterd.o $(DAEMON_LIB) $(STATI
 	@$(if $(Q),echo "  DAEMON  $@")
 	$(Q)$(CC) $(CFLAGS) $< -o $@ $(LDFLAGS) $(DAEMON_LIB) $(STATIC) $(LIBS)
 
-$(BUILD)/bench/%: bench/%.c $(wildcard bench/*.h) $(DAEMON_LIB) $(STATIC)
+$(BUILD)/bench/%: bench/%.c $(wildcard bench/*.h) $(DAEMON_LIB) $(STATIC) $(WDEP)
 	@mkdir -p $(dir $@)
 	@$(if $(Q),echo "  BENCH   $@")
+	$(Q)$(WFORGET)
 	$(Q)$(CC) $(CPPFLAGS) $(INC_$(LAYER_$*)) -Idaemon $(CFLAGS) $< -o $@ $(LDFLAGS) $(DAEMON_LIB) $(STATIC) $(LIBS) -ldl
 
 # Fuzz targets: a replay driver (every file of the corpus, run by make check)
 # and, with clang, a libFuzzer binary (make fuzz).
-$(BUILD)/tests/fuzz/%_replay: tests/fuzz/%.c tests/fuzz/replay_main.c $(STATIC)
+$(BUILD)/tests/fuzz/%_replay: tests/fuzz/%.c tests/fuzz/replay_main.c $(STATIC) $(WDEP)
 	@mkdir -p $(dir $@)
 	@$(if $(Q),echo "  FUZZ    $@")
+	$(Q)$(WFORGET)
 	$(Q)$(CC) $(CPPFLAGS) $(INC_$(LAYER_$*)) $(CFLAGS) $< tests/fuzz/replay_main.c -o $@ $(LDFLAGS) $(STATIC) $(LIBS)
 
 FUZZ_TIME ?= 60
@@ -213,8 +238,8 @@ fuzz:
 	$(Q)sh tests/fuzz/run.sh $(FUZZ_TIME)
 
 check: deps
-	$(Q)$(MAKE) --no-print-directory all $(TEST_BIN) $(FUZZ_REPLAY) $(CLUSTER_BIN) $(VIEW_BIN)
-	$(Q)$(MAKE) --no-print-directory SAN=1 lib $(TEST_BIN:$(BUILD)/%=build-san/%) $(FUZZ_REPLAY:$(BUILD)/%=build-san/%) \
+	$(Q)$(MAKE) --no-print-directory WERROR=-Werror all $(TEST_BIN) $(FUZZ_REPLAY) $(CLUSTER_BIN) $(VIEW_BIN)
+	$(Q)$(MAKE) --no-print-directory WERROR=-Werror SAN=1 lib $(TEST_BIN:$(BUILD)/%=build-san/%) $(FUZZ_REPLAY:$(BUILD)/%=build-san/%) \
 	    $(TOOL_BIN:$(BUILD)/%=build-san/%) $(DAEMON_BIN:$(BUILD)/%=build-san/%) $(VIEW_BIN:$(BUILD)/%=build-san/%)
 	$(Q)sh tests/run.sh $(BUILD) build-san
 

@@ -1,4 +1,5 @@
-/* hello.c - the smallest simcluster program: a ball falls onto a floor.
+/* hello.c - the smallest simcluster program: a ball falls 0.9 m onto a
+ * floor, bounces and comes to rest; it prints what happens when.
  * Build against an installed library:
  *   cc hello.c -o hello $(pkg-config --cflags --libs simcluster) */
 #include <stdio.h>
@@ -30,19 +31,31 @@ int main(void)
         sc_world_destroy(w);
         return 1;
     }
-    for (int frame = 1; frame <= 100; frame++) {
+    /* Step until the ball rests (at most 10 s): print each change of its
+     * state, the height at each touch-down, and the top of each bounce
+     * (with e = 0.5 each is a quarter of the one before). */
+    static const char *names[] = { "in free flight", "colliding", "in contact", "asleep",
+                                   "static" };
+    int state = sc_body_state(w, id), rising = 0;
+    double last_z = 1.0;
+    printf("t 0.00 s: ball %s at z = %.3f m\n", names[state], last_z);
+    for (int frame = 1; frame <= 1000 && state != SC_ASLEEP; frame++) {
         int rc = sc_world_step(w, 0.01);
         if (rc != SC_OK) {
             fprintf(stderr, "hello: %s\n", sc_strerror(rc));
             break;
         }
-        sc_contact c;
-        if (sc_world_contacts(w, &c, 1) > 0) {
-            double p[3];
-            sc_body_get_pose(w, id, p, NULL);
-            printf("frame %d: ball touches the floor at z = %.3f m (depth %.4f m)\n",
-                   frame, p[2], c.depth);
-            break;
+        double p[3];
+        sc_body_get_pose(w, id, p, NULL);
+        if (rising && p[2] < last_z && state == SC_FREE)   /* the top of a bounce */
+            printf("t %.2f s: bounced up to z = %.3f m (%.1f mm above the floor)\n",
+                   (frame - 1) * 0.01, last_z, 1e3 * (last_z - 0.1));
+        rising = p[2] > last_z;
+        last_z = p[2];
+        int s = sc_body_state(w, id);
+        if (s != state && s >= 0 && s <= SC_STATIC) {
+            printf("t %.2f s: ball %s at z = %.3f m\n", frame * 0.01, names[s], p[2]);
+            state = s;
         }
     }
     sc_world_destroy(w);

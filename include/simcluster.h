@@ -88,6 +88,10 @@ SC_API sc_shape *sc_shape_convex(const double *xyz, int npoints);
  * with the code (SC_EIO, SC_EFORMAT, SC_ETOOBIG, SC_ENOTCLOSED, ...) in
  * sc_last_error(). */
 SC_API sc_shape *sc_shape_load(const char *path);
+/* sc_shape_load(), and on failure one line in err (errlen bytes; err may be
+ * NULL): "path:LINE: what" for a malformed OBJ or ASCII STL, "path: byte N:
+ * what" for a malformed binary STL, else "path: " and the reason. */
+SC_API sc_shape *sc_shape_load_err(const char *path, char *err, size_t errlen);
 /* A UV sphere mesh: slices around, stacks pole to pole; 2*slices*(stacks-1)
  * triangles (224 for the paper's (r, 16, 8)). Convex. */
 SC_API sc_shape *sc_shape_uv_sphere(double r, int slices, int stacks);

@@ -5,13 +5,16 @@
 #   scripts/deps.sh         what make, make check and make demo need
 #   scripts/deps.sh bench   what the benchmark scripts need besides
 #                           (bench/figs34.sh: gnuplot, ip and tc)
+#   scripts/deps.sh video   what simcluster-view --mp4 needs besides (ffmpeg)
 PKGS="build-essential pkg-config libode-dev libccd-dev liblcm-dev liblcm-bin libglib2.0-dev \
 libgsl-dev libsodium-dev libcmocka-dev libosmesa6-dev libpng-dev mandoc cppcheck"
 BENCH_PKGS="gnuplot-nox iproute2"
+VIDEO_PKGS="ffmpeg"
 case ${1:-} in
 "") ;;
 bench) PKGS=$BENCH_PKGS ;;
-*) echo "usage: scripts/deps.sh [bench]" >&2; exit 2 ;;
+video) PKGS=$VIDEO_PKGS ;;
+*) echo "usage: scripts/deps.sh [bench|video]" >&2; exit 2 ;;
 esac
 missing=""
 for p in $PKGS; do

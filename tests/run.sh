@@ -69,6 +69,10 @@ count cppcheck $?
 echo "== man pages (mandoc -T lint)"
 mandoc -T lint -W warning man/*.[1-8] >"$log" 2>&1
 count mandoc $?
+echo "== README (tests/readme.sh)"
+sh tests/readme.sh >"$log" 2>&1
+count readme $?
+tail -n 1 "$log"
 echo "== systemd unit (systemd-analyze verify)"
 if command -v systemd-analyze >/dev/null 2>&1; then
     unit=$(mktemp -d)

@@ -211,6 +211,22 @@ static void test_meshes_are_found_next_to_the_scene_file(void **state)
     char want[512];
     snprintf(want, sizeof want, "%s:2:16: %s/gone.obj: No such file or directory", scene, dir);
     assert_string_equal(err, want);
+    /* a malformed mesh: the scene's line and column, then the mesh's line */
+    char bad[300];
+    snprintf(bad, sizeof bad, "%s/badv.obj", dir);
+    f = fopen(bad, "w");
+    assert_non_null(f);
+    fputs("v 0 0 0\nv 0 1 abc\n", f);
+    assert_int_equal(fclose(f), 0);
+    f = fopen(scene, "w");
+    assert_non_null(f);
+    fputs("shape m mesh badv.obj\n", f);
+    assert_int_equal(fclose(f), 0);
+    assert_null(sc_scene_load(scene, err, sizeof err));
+    assert_int_equal(sc_last_error(), SC_EFORMAT);
+    snprintf(want, sizeof want, "%s:1:14: %s/badv.obj:2: bad vertex coordinate", scene, dir);
+    assert_string_equal(err, want);
+    unlink(bad);
     unlink(scene);
     unlink(path);
     snprintf(path, sizeof path, "%s/sub", dir);

@@ -647,6 +647,84 @@ static void test_obj_over_the_vertex_and_triangle_limits_is_etoobig(void **state
     free(s);
 }
 
+/* sc_shape_load_err: the message for text "name" (contents s) is
+ * "DIR/name" + want. */
+static void assert_load_message(void **state, const char *name, const void *data, size_t len,
+                                int code, const char *want)
+{
+    char path[256], err[256], full[512];
+    write_file(state, name, data, len, path, sizeof path);
+    assert_null(sc_shape_load_err(path, err, sizeof err));
+    assert_int_equal(sc_last_error(), code);
+    snprintf(full, sizeof full, "%s%s", path, want);
+    assert_string_equal(err, full);
+}
+
+static void assert_obj_message(void **state, const char *s, const char *want)
+{
+    assert_load_message(state, "bad.obj", s, strlen(s), SC_EFORMAT, want);
+}
+
+static void test_load_err_names_the_obj_line_and_what_is_wrong(void **state)
+{
+    assert_obj_message(state, "v 0 1 abc\n", ":1: bad vertex coordinate");
+    assert_obj_message(state, "# a cube\r\nv 0 0 0\r\nv 1 0 0\r\nv 0 1\r\n",
+                       ":4: a vertex has 2 numbers (x y z, then w, or r g b [a])");
+    assert_obj_message(state, "v 0 0 0\rv 1 0 0\rv 0 1 0 1 2 3 4 5\r",
+                       ":3: a vertex has more than 7 numbers");
+    assert_obj_message(state, "v 0 0 0\nv 1 0 0\nv 0 1 0\n\nf 1 2\n",
+                       ":5: a face needs 3 corners or more, not 2");
+    assert_obj_message(state, "v 0 0 0\nv 1 0 0\nf 1 2/x 3\n", ":3: bad face corner '2/x'");
+    assert_obj_message(state, "v 0 0 0\nv 1 0 0\nf -1 -2 -3\nv 0 1 0\n",
+                       ":3: face index -3: only 2 vertices before it");
+    assert_obj_message(state, "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\nf 1 2 9\nf 1 2 3\n",
+                       ":5: face index 9: the file has 3 vertices");
+    assert_obj_message(state, "v 0 0 0\ncube\x1b[2J 1\n", ":2: unknown statement 'cube?[2J'");
+    assert_obj_message(state, "# nothing\n", ": no faces (is this an OBJ or STL file?)");
+    assert_obj_message(state, "", ": an empty file");
+    /* the code stays SC_EFORMAT, and sc_shape_load() says the same with no text */
+    assert_null(sc_shape_load_err(NULL, NULL, 0));
+    assert_int_equal(sc_last_error(), SC_EINVAL);
+}
+
+static void test_load_err_names_the_stl_line_or_byte(void **state)
+{
+    static const char *const stl[][2] = {
+        { "solid s\nfacet normal 0 0 1\nouter loop\nvertex 0 0 x\n",
+          ":4: bad vertex coordinate" },
+        { "solid s\nfacet normal 0 0 1\nouter loop\nvertex 0 0 0\n",
+          ":4: the file ends where 'vertex' or 'endloop' should be (truncated?)" },
+        { "solid s\nfacet normal 0 0 1\n  outer lop\n", ":3: 'loop' expected, not 'lop'" },
+        { "solid s\n  facets\nendsolid\n", ":2: 'facet' or 'endsolid' expected, not 'facets'" },
+        { "solid s\nfacet normal 0 0 1 outer loop\nvertex 0 0 0\nvertex 1 0 0\nendloop\n",
+          ":5: a facet needs 3 vertices or more, not 2" },
+    };
+    for (size_t i = 0; i < sizeof stl / sizeof stl[0]; i++)
+        assert_load_message(state, "bad.stl", stl[i][0], strlen(stl[i][0]), SC_EFORMAT,
+                            stl[i][1]);
+    /* binary: the byte offset of the first coordinate of the vertex at fault */
+    size_t len;
+    unsigned char *b = binary_stl(cube_xyz, cube_tri, 12, 0, &len);
+    put_float(b + 84 + 50 * 2 + 12 + 12 * 1 + 4, INFINITY);   /* facet 2, vertex 1, y */
+    assert_load_message(state, "bad_binary.stl", b, len, SC_EFORMAT,
+                        ": byte 208: facet 2: a vertex coordinate is not finite");
+    put_le32(b + 80, 0);
+    assert_load_message(state, "zero.stl", b, 84, SC_EFORMAT,
+                        ": byte 80: binary STL with no facets (a count of 0)");
+    free(b);
+    /* other failures: the system's reason, or the library's sentence */
+    char err[256];
+    assert_null(sc_shape_load_err("/nonexistent/x.obj", err, sizeof err));
+    assert_string_equal(err, "/nonexistent/x.obj: No such file or directory");
+    static const char open_obj[] = "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n";
+    assert_load_message(state, "open.obj", open_obj, strlen(open_obj), SC_ENOTCLOSED,
+                        ": mesh is not a closed, consistently outward-oriented surface");
+    /* a short buffer is cut, never overrun */
+    char tiny[8];
+    assert_null(sc_shape_load_err("/nonexistent/x.obj", tiny, sizeof tiny));
+    assert_string_equal(tiny, "/nonexi");
+}
+
 static void test_open_mesh_is_enotclosed_from_shape_load(void **state)
 {
     /* the cube without its last triangle */
@@ -684,6 +762,8 @@ int main(void)
         cmocka_unit_test(test_null_arguments_are_einval),
         cmocka_unit_test(test_garbage_empty_and_faceless_files_are_eformat),
         cmocka_unit_test(test_obj_syntax_errors_are_eformat),
+        cmocka_unit_test(test_load_err_names_the_obj_line_and_what_is_wrong),
+        cmocka_unit_test(test_load_err_names_the_stl_line_or_byte),
         cmocka_unit_test(test_face_with_fewer_than_3_vertices_is_eformat),
         cmocka_unit_test(test_index_out_of_range_or_zero_is_eformat),
         cmocka_unit_test(test_nan_and_infinite_coordinates_are_eformat),

@@ -2,6 +2,7 @@
 # tests/tools.sh BUILD - the command-line tools as a user meets them: exit
 # statuses, one-line errors, the files they write.
 tool="$1/tools/simcluster"
+atool=$(cd "$1/tools" && pwd)/simcluster   # for commands run in $dir
 dir=$(mktemp -d) || exit 1
 trap 'rm -rf "$dir"' EXIT
 fail=0
@@ -26,6 +27,33 @@ grep -q keygen "$dir/out" || { echo "FAIL: --help does not list keygen"; fail=1;
 for c in run profile lcp; do
     grep -q "$c" "$dir/out" || { echo "FAIL: --help does not list $c"; fail=1; }
 done
+# --version (the Makefile's VERSION) and COMMAND --help / -h: to stdout,
+# status 0; keygen --help writes no key file named --help
+version=$(sed -n 's/^VERSION *:= *//p' "$(dirname "$0")/../Makefile")
+for c in "" run profile lcp keygen; do
+    check "$c --version" 0 "$tool" $c --version
+    grep -qx "simcluster $version" "$dir/out" || { echo "FAIL: $c --version: $(cat "$dir/out")"; fail=1; }
+done
+for c in run profile lcp keygen; do
+    for h in --help -h; do
+        (cd "$dir" && "$atool" $c $h >"$dir/out" 2>"$dir/err")
+        rc=$?
+        [ "$rc" -eq 0 ] && [ ! -s "$dir/err" ] && grep -q "^usage: simcluster $c " "$dir/out" ||
+            { echo "FAIL: $c $h: exit $rc"; cat "$dir/out" "$dir/err"; fail=1; }
+        [ -e "$dir/$h" ] && { echo "FAIL: $c $h wrote a file $h"; rm -f "$dir/$h"; fail=1; }
+    done
+done
+grep -q -- "--record" "$dir/out" && { echo "FAIL: keygen -h lists run's options"; fail=1; }
+check "run --help" 0 "$tool" run --help
+grep -q -- "--render DIR" "$dir/out" && grep -q -- "--wait-daemons" "$dir/out" ||
+    { echo "FAIL: run --help: options"; cat "$dir/out"; fail=1; }
+check "profile --help" 0 "$tool" profile --help
+grep -q -- "--render" "$dir/out" && { echo "FAIL: profile --help lists run's --render"; fail=1; }
+check "keygen, an unknown option" 2 "$tool" keygen --frobnicate
+one_line "keygen, an unknown option" "keygen -- FILE"
+(cd "$dir" && "$atool" keygen -- -k >/dev/null 2>&1) && [ -s "$dir/-k" ] ||
+    { echo "FAIL: keygen -- -k wrote no file -k"; fail=1; }
+check "lcp, an unknown option" 2 "$tool" lcp --frobnicate
 
 # run: a short drop, text and JSON; the same seed gives the same state
 check "run bolts" 0 "$tool" run bolts --bodies 12 --frames 60 --workers 2
@@ -51,6 +79,18 @@ check "run, unknown option" 2 "$tool" run bolts --frobnicate
 [ "$(wc -l <"$dir/err")" -eq 1 ] || { echo "FAIL: run: error is not one line"; fail=1; }
 check "run, --key without --cluster" 2 "$tool" run bolts --key "$dir/k"
 check "run, unopenable cluster URL" 1 "$tool" run bolts --cluster "udpm://999.1.1.1:7667"
+grep -q "^simcluster: run: --cluster udpm://999.1.1.1:7667: LCM cannot open this URL$" "$dir/err" ||
+    { echo "FAIL: run, unopenable cluster URL: the URL is not named"; cat "$dir/err"; fail=1; }
+# which of key file and URL could not be opened, named
+curl="udpm://239.255.76.67:7667?ttl=0"
+check "run, missing key file" 1 "$tool" run bolts --frames 1 --cluster "$curl" --key "$dir/nokey"
+one_line "run, missing key file" "^simcluster: run: --key $dir/nokey: No such file or directory$"
+cp "$dir/k" "$dir/k644" && chmod 644 "$dir/k644"
+check "run, key file mode 0644" 1 "$tool" run bolts --frames 1 --cluster "$curl" --key "$dir/k644"
+one_line "run, key file mode 0644" "^simcluster: run: --key $dir/k644: .*0600$"
+printf 'not a key\n' >"$dir/badkey" && chmod 600 "$dir/badkey"
+check "run, malformed key file" 1 "$tool" run bolts --frames 1 --cluster "$curl" --key "$dir/badkey"
+one_line "run, malformed key file" "^simcluster: run: --key $dir/badkey: not a cluster key"
 
 # scene files: the examples run; errors name file, line and column
 scenes="$(dirname "$0")/../examples/scenes"
@@ -90,6 +130,62 @@ check "run --render" 0 "$tool" run bolts --bodies 3 --frames 4 --workers 1 --ren
 [ "$(wc -l <"$dir/out")" -eq 1 ] || { echo "FAIL: run --render --json: stdout"; cat "$dir/out"; fail=1; }
 check "run --render into a missing directory" 1 "$tool" run bolts --bodies 3 --frames 2 --render "$dir/no/such"
 check "profile --render" 2 "$tool" profile spheres --render "$dir/png"
+
+# SIGINT, SIGTERM: the run stops after the current frame, reports the frames
+# so far (marked interrupted; JSON stays JSON), exits 128 + the signal, and
+# its --record log ends on a whole event (simcluster-view reads all of it).
+# A background job of sh starts with SIGINT ignored; run sets its handler.
+view="$1/tools/simcluster-view"
+stop_run() { # $1 = signal, then the run's arguments; sets $rc
+    sig=$1; shift
+    rm -f "$dir/int.log"
+    "$tool" run "$@" --record "$dir/int.log" >"$dir/out" 2>"$dir/err" &
+    rp=$!
+    i=0     # until the log holds some frames (its shapes and frame 0: ~3 kB)
+    while [ "$(stat -c %s "$dir/int.log" 2>/dev/null || echo 0)" -lt 20000 ] && [ "$i" -lt 100 ]; do
+        i=$((i + 1)); sleep 0.1
+    done
+    kill -"$sig" "$rp"
+    i=0     # it stops within 10 s (a frame is milliseconds)
+    while kill -0 "$rp" 2>/dev/null && [ "$i" -lt 100 ]; do i=$((i + 1)); sleep 0.1; done
+    kill -0 "$rp" 2>/dev/null && { echo "FAIL: SIG$sig: still running after 10 s"; kill -9 "$rp"; fail=1; }
+    wait "$rp"
+    rc=$?
+}
+# the report against the log: the log's last frame is the report's count
+interrupted_log() { # $1 = what, $2 = the report's frame count
+    if "$view" --dump "$dir/int.log" >"$dir/dump" 2>"$dir/err"; then
+        last=$(awk '$1 == "frame" && $3 == "body" && $4 == 0 { f = $2 } END { print f }' "$dir/dump")
+        [ -n "$2" ] && [ "$last" = "$2" ] ||
+            { echo "FAIL: $1: log ends at frame $last, report says '$2'"; fail=1; }
+    else
+        echo "FAIL: $1: the log is not whole"; cat "$dir/err"; fail=1
+    fi
+}
+stop_run INT bolts --bodies 20 --frames 1000000 --realtime --workers 1 --json
+[ "$rc" -eq 130 ] || { echo "FAIL: SIGINT: exit $rc, expected 130"; cat "$dir/err"; fail=1; }
+python3 -c 'import json,sys; r = json.load(open(sys.argv[1])); sys.exit(not (r["interrupted"] == "SIGINT" and r["frames"] > 0 and r["error"] is None))' "$dir/out" ||
+    { echo "FAIL: SIGINT: the JSON report"; cat "$dir/out"; fail=1; }
+frames=$(sed -n 's/.*"frames": \([0-9]*\),.*/\1/p' "$dir/out")
+interrupted_log "SIGINT" "$frames"
+stop_run TERM bolts --bodies 20 --frames 1000000 --realtime --workers 1
+[ "$rc" -eq 143 ] || { echo "FAIL: SIGTERM: exit $rc, expected 143"; cat "$dir/err"; fail=1; }
+grep -q "^  interrupted by SIGTERM after frame [1-9][0-9]*$" "$dir/out" && grep -q "state hash" "$dir/out" ||
+    { echo "FAIL: SIGTERM: the report"; cat "$dir/out"; fail=1; }
+frames=$(sed -n 's/.* \([0-9]*\) frames of .*/\1/p' "$dir/out")
+interrupted_log "SIGTERM" "$frames"
+# a --render folder that cannot be used stops the run before its first frame
+: >"$dir/afile"
+check "run --render into a file" 1 "$tool" run bolts --frames 100000 --render "$dir/afile"
+one_line "run --render into a file" "^simcluster: run: --render $dir/afile: not a directory$"
+[ -s "$dir/out" ] && { echo "FAIL: run --render into a file: ran"; cat "$dir/out"; fail=1; }
+check "run --render in a missing directory" 1 "$tool" run bolts --frames 100000 --render "$dir/no/such"
+one_line "run --render in a missing directory" "no/such: No such file or directory$"
+if [ "$(id -u)" -ne 0 ]; then        # root writes anywhere
+    mkdir "$dir/ro" && chmod 555 "$dir/ro"
+    check "run --render, not writable" 1 "$tool" run bolts --frames 100000 --render "$dir/ro"
+    one_line "run --render, not writable" "ro: Permission denied$"
+fi
 
 # profile: the Table 1 rows
 check "profile" 0 "$tool" profile spheres --frames 50

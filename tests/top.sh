@@ -31,9 +31,10 @@ stop_live() {
 }
 
 check "--version" 0 "$top" --version
-grep -qx "simcluster-top 0.1.0" "$dir/out" || { echo "FAIL: --version says $(cat "$dir/out")"; fail=1; }
+version=$(sed -n 's/^VERSION *:= *//p' "$(dirname "$0")/../Makefile")
+grep -qx "simcluster-top $version" "$dir/out" || { echo "FAIL: --version says $(cat "$dir/out")"; fail=1; }
 check "--help" 0 "$top" --help
-for o in --url --key --insecure --once --wait --interval; do
+for o in --url --key --insecure --once --wait --interval --json; do
     grep -q -- "$o" "$dir/out" || { echo "FAIL: --help does not list $o"; fail=1; }
 done
 check "unknown option" 2 "$top" --frobnicate
@@ -75,7 +76,7 @@ host=$(uname -n | cut -c 1-24)
 if wait_log "serving"; then
     check "--once" 0 "$top" --once --url "$url" --key "$dir/k"
     [ -s "$dir/err" ] && { echo "FAIL: --once: output on stderr"; cat "$dir/err"; fail=1; }
-    # node host cores speed idle% busy units/s last-seen
+    # node host cores units/s/core idle% busy units/s seen-s-ago
     row=$(awk '$1 == "0000000000001234"' "$dir/out")
     set -- $row
     if [ "$#" -ne 8 ]; then
@@ -89,12 +90,39 @@ if wait_log "serving"; then
         awk -v s="$8" 'BEGIN { exit !(s >= 0 && s < 1) }' ||
             { echo "FAIL: --once: last seen $8 s ago"; fail=1; }
     fi
-    head -n 1 "$dir/out" | grep -q "^node  *host  *cores  *speed  *idle%  *busy  *units/s  *last-seen$" ||
+    head -n 1 "$dir/out" | grep -q "^node  *host  *cores  *units/s/core  *idle%  *busy  *units/s  *seen-s-ago$" ||
         { echo "FAIL: --once: header"; cat "$dir/out"; fail=1; }
     tail -n 1 "$dir/out" | grep -q "^1 daemon, [01] busy, 1 core, .*; dropped 0 format, 0 auth, 0 replay$" ||
         { echo "FAIL: --once: footer"; cat "$dir/out"; fail=1; }
     [ "$(wc -l <"$dir/out")" -eq 3 ] || { echo "FAIL: --once: not 3 lines"; cat "$dir/out"; fail=1; }
     grep -q "$(printf '\033')" "$dir/out" && { echo "FAIL: --once: escape codes"; fail=1; }
+
+    # --json: the same table as one JSON object (units in the key names)
+    check "--once --json" 0 "$top" --once --json --url "$url" --key "$dir/k"
+    [ "$(wc -l <"$dir/out")" -eq 1 ] || { echo "FAIL: --once --json: not one line"; cat "$dir/out"; fail=1; }
+    python3 - "$dir/out" "$host" "$url" <<'EOF' || { echo "FAIL: --once --json"; cat "$dir/out"; fail=1; }
+import json, sys
+t = json.load(open(sys.argv[1]))
+d = t["daemons"]
+assert t["url"] == sys.argv[3], t["url"]
+assert len(d) == 1 and t["daemons_total"] == 1 and t["silent"] == 0, t
+d = d[0]
+assert d["node"] == "0000000000001234" and d["host"] == sys.argv[2] and d["cores"] == 1, d
+assert d["busy"] in (True, False) and d["silent"] is False, d
+assert d["units_per_s"] == 0 and 0 <= d["seen_s_ago"] < 1, d     # no unit was sent
+assert d["units_per_s_per_core"] > 0 and 0 <= d["idle_percent"] <= 100, d
+assert t["cores"] == 1 and t["dropped"] == {"format": 0, "auth": 0, "replay": 0}, t
+EOF
+    "$top" --json --url "$url" --key "$dir/k" --interval 0.2 >"$dir/live" 2>"$dir/err" &
+    live=$!
+    sleep 1.2
+    stop_live TERM
+    python3 -c 'import json, sys
+lines = open(sys.argv[1]).read().splitlines()
+assert len(lines) >= 3, len(lines)
+for l in lines:
+    assert json.loads(l)["daemons_total"] == 1' "$dir/live" ||
+        { echo "FAIL: live --json: not one object per line per interval"; cat "$dir/live"; fail=1; }
 
     # another key: every heartbeat fails the MAC check
     check "--once, wrong key" 0 "$top" --once --wait 1 --url "$url" --key "$dir/other"

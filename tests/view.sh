@@ -76,6 +76,10 @@ done
 check "--help" 0 "$view" --help
 grep -q -- "--eye" "$dir/out" || { echo "FAIL: --help does not list --eye"; fail=1; }
 check "--version" 0 "$view" --version
+version=$(sed -n 's/^VERSION *:= *//p' "$(dirname "$0")/../Makefile")
+grep -qx "simcluster-view $version" "$dir/out" || { echo "FAIL: --version: $(cat "$dir/out")"; fail=1; }
+check "-h" 0 "$view" -h
+grep -q -- "--out DIR" "$dir/out" || { echo "FAIL: -h does not list --out"; fail=1; }
 
 # bad input: exit 1, one line naming the file (and the event)
 check "missing log" 1 "$view" --out "$dir" "$dir/none"
@@ -88,9 +92,31 @@ head -c 1000 /dev/zero >"$dir/zero"
 check "not a log" 1 "$view" --out "$dir/png" "$dir/zero"
 one_line "not a log" "event 1: not an LCM event"
 check "a log without frames" 1 "$view" --out "$dir/png" --frames 100:200 "$dir/log"
-check "--out not a directory" 1 "$view" --out "$dir/none" "$dir/log"
+check "--out not a directory" 1 "$view" --out "$dir/zero" "$dir/log"
+one_line "--out not a directory" "zero: not a directory"
+check "--out in a missing directory" 1 "$view" --out "$dir/no/such" "$dir/log"
+one_line "--out in a missing directory" "no/such: No such file or directory"
+# --out DIR/ that is not there yet: created, as the man page's example needs
+check "--out a new directory" 0 "$view" --out "$dir/frames/" --every 10 --size 32x32 "$dir/log"
+[ "$(ls "$dir/frames" | wc -l)" -eq 4 ] || { echo "FAIL: --out frames/: $(ls "$dir/frames")"; fail=1; }
+if [ "$(id -u)" -ne 0 ]; then        # root writes anywhere
+    mkdir "$dir/ro" && chmod 555 "$dir/ro"
+    check "--out not writable" 1 "$view" --out "$dir/ro" "$dir/log"
+    one_line "--out not writable" "ro: Permission denied"
+fi
 check "--mp4 without ffmpeg" 1 env PATH=/nonexistent "$view" --mp4 "$dir/v.mp4" "$dir/log"
 one_line "--mp4 without ffmpeg" "ffmpeg"
+# with ffmpeg (scripts/deps.sh video): the README's video command works
+if command -v ffmpeg >/dev/null 2>&1; then
+    check "--mp4" 0 "$view" --mp4 "$dir/v.mp4" --size 64x48 "$dir/log"
+    [ "$(od -An -c -j4 -N4 "$dir/v.mp4" 2>/dev/null | tr -d ' ')" = ftyp ] ||
+        { echo "FAIL: --mp4: not an MP4 file"; fail=1; }
+else
+    echo "skipped: --mp4 (no ffmpeg: sh scripts/deps.sh video)"
+fi
+# the optional packages are listed by scripts/deps.sh and named in the README
+grep -q '^VIDEO_PKGS="ffmpeg"' scripts/deps.sh && grep -q "scripts/deps.sh video" README.md ||
+    { echo "FAIL: ffmpeg is not in scripts/deps.sh video or the README"; fail=1; }
 
 # live: the viewer subscribed while a run publishes (ttl=0: this host only)
 url="udpm://239.255.76.67:7669?ttl=0"

@@ -30,6 +30,14 @@
 #define MIN_S 0.1                  /* bounds of --wait and --interval */
 #define MAX_S 3600.0
 
+/* The version: the Makefile's VERSION, else the header's numbers. */
+#ifndef SC_VERSION_STRING
+#define SC_STR_(x) #x
+#define SC_STR(x) SC_STR_(x)
+#define SC_VERSION_STRING \
+    SC_STR(SC_VERSION_MAJOR) "." SC_STR(SC_VERSION_MINOR) "." SC_STR(SC_VERSION_PATCH)
+#endif
+
 static const char *prog = "simcluster-top";
 
 /* One daemon, as its last heartbeat showed it. */
@@ -53,7 +61,7 @@ typedef struct top {
 
 typedef struct options {
     const char *url, *key;
-    int insecure, once, have_wait, have_interval;
+    int insecure, once, json, have_wait, have_interval;
     double wait_s, interval_s;
 } options;
 
@@ -94,6 +102,7 @@ static int usage(FILE *f, int status)
             "      --once          listen for --wait seconds, print one table and exit\n"
             "      --wait S        seconds --once listens, %g..%g (1.5)\n"
             "      --interval S    seconds between tables, %g..%g (1)\n"
+            "      --json          each table as one JSON object on one line\n"
             "  -h, --help          this text\n"
             "      --version       print the version\n",
             MIN_S, MAX_S, MIN_S, MAX_S);
@@ -119,6 +128,7 @@ static int parse_args(int argc, char **argv, options *o)
         { "insecure", no_argument, 0, 'i' },   { "once", no_argument, 0, 'o' },
         { "wait", required_argument, 0, 'w' }, { "interval", required_argument, 0, 't' },
         { "help", no_argument, 0, 'h' },       { "version", no_argument, 0, 'V' },
+        { "json", no_argument, 0, 'j' },
         { 0, 0, 0, 0 }
     };
     *o = (options){ .url = SC_CLUSTER_URL, .wait_s = 1.5, .interval_s = 1 };
@@ -129,7 +139,7 @@ static int parse_args(int argc, char **argv, options *o)
         switch (c) {
         case 'h': return usage(stdout, 0);
         case 'V':
-            printf("%s %d.%d.%d\n", prog, SC_VERSION_MAJOR, SC_VERSION_MINOR, SC_VERSION_PATCH);
+            printf("%s %s\n", prog, SC_VERSION_STRING);
             return 0;
         case 'u':
             if (!*optarg)
@@ -139,6 +149,7 @@ static int parse_args(int argc, char **argv, options *o)
         case 'k': o->key = optarg; break;
         case 'i': o->insecure = 1; break;
         case 'o': o->once = 1; break;
+        case 'j': o->json = 1; break;
         case 'w':
         case 't':
             if (!parse_seconds(optarg, c == 'w' ? &o->wait_s : &o->interval_s))
@@ -274,8 +285,8 @@ static void print_table(FILE *f, const top *t, double now)
         hw = len > hw ? (len < HOST_COLS ? len : HOST_COLS) : hw;
     }
     qsort(rows, (size_t)t->n, sizeof rows[0], by_host);
-    fprintf(f, "%-16s  %-*s  %5s  %9s  %5s  %4s  %9s  %9s\n", "node", hw, "host", "cores",
-            "speed", "idle%", "busy", "units/s", "last-seen");
+    fprintf(f, "%-16s  %-*s  %5s  %12s  %5s  %4s  %9s  %10s\n", "node", hw, "host", "cores",
+            "units/s/core", "idle%", "busy", "units/s", "seen-s-ago");
     long silent = 0, busy = 0, cores = 0;
     double rate = 0;
     for (int i = 0; i < t->n; i++) {
@@ -284,7 +295,7 @@ static void print_table(FILE *f, const top *t, double now)
         int quiet = age > SILENT_S;
         char host[HOST_COLS + 1], sp[32], r[32];
         host_text(d->host, host, hw);
-        fprintf(f, "%016" PRIx64 "  %-*s  %5d  %9s  %5.1f  %4s  %9s  %9.1f%s\n",
+        fprintf(f, "%016" PRIx64 "  %-*s  %5d  %12s  %5.1f  %4s  %9s  %10.1f%s\n",
                 (uint64_t)d->id, hw, host, d->cores, rate_text(d->speed, sp, sizeof sp),
                 100 * d->idle, d->busy ? "yes" : "no",
                 rate_text(quiet ? -1 : d->rate, r, sizeof r), age, quiet ? " silent" : "");
@@ -308,6 +319,68 @@ static void print_table(FILE *f, const top *t, double now)
         fprintf(f, "; %ld %s of new nodes ignored (table full: %d)", t->ignored,
                 plural(t->ignored, "heartbeat", "heartbeats"), MAX_NODES);
     fputc('\n', f);
+}
+
+/* s as a JSON string. */
+static void json_text(FILE *f, const char *s)
+{
+    fputc('"', f);
+    for (; *s; s++) {
+        unsigned char c = (unsigned char)*s;
+        if (c == '"' || c == '\\')
+            fprintf(f, "\\%c", c);
+        else if (c < 0x20)
+            fprintf(f, "\\u%04x", c);
+        else
+            fputc(c, f);
+    }
+    fputc('"', f);
+}
+
+/* The table as one JSON object on one line (--json): the rows in the same
+ * order, with the same numbers, units in the key names; null for a rate
+ * not known yet; a silent daemon's rate is null and it is not in the totals. */
+static void print_json(FILE *f, const top *t, double now, const char *url)
+{
+    static const node *rows[MAX_NODES];
+    for (int i = 0; i < t->n; i++)
+        rows[i] = &t->nodes[i];
+    qsort(rows, (size_t)t->n, sizeof rows[0], by_host);
+    fputs("{\"url\": ", f);
+    json_text(f, url);
+    fputs(", \"daemons\": [", f);
+    long silent = 0, busy = 0, cores = 0;
+    double rate = 0;
+    for (int i = 0; i < t->n; i++) {
+        const node *d = rows[i];
+        double age = now - d->seen_s;
+        int quiet = age > SILENT_S;
+        char host[SC_MSG_HOST_MAX + 1];
+        host_text(d->host, host, SC_MSG_HOST_MAX);     /* printable ASCII only */
+        fprintf(f, "%s{\"node\": \"%016" PRIx64 "\", \"host\": ", i ? ", " : "",
+                (uint64_t)d->id);
+        json_text(f, host);
+        fprintf(f, ", \"cores\": %d, \"units_per_s_per_core\": %.6g, \"idle_percent\": %.1f, "
+                "\"busy\": %s, \"units_per_s\": ",
+                d->cores, d->speed, 100 * d->idle, d->busy ? "true" : "false");
+        if (quiet || d->rate < 0)
+            fputs("null", f);
+        else
+            fprintf(f, "%.6g", d->rate);
+        fprintf(f, ", \"seen_s_ago\": %.3f, \"silent\": %s}", age, quiet ? "true" : "false");
+        if (quiet) {
+            silent++;
+            continue;
+        }
+        busy += d->busy;
+        cores += d->cores;
+        rate += d->rate > 0 ? d->rate : 0;
+    }
+    fprintf(f, "], \"daemons_total\": %d, \"silent\": %ld, \"busy\": %ld, \"cores\": %ld, "
+            "\"units_per_s\": %.6g, \"dropped\": {\"format\": %ld, \"auth\": %ld, "
+            "\"replay\": %ld}, \"ignored_heartbeats\": %ld}\n",
+            t->n, silent, busy, cores, rate, t->guard.dropped_format, t->guard.dropped_auth,
+            t->guard.dropped_replay, t->ignored);
 }
 
 /* ---- listening ---------------------------------------------------------- */
@@ -401,7 +474,7 @@ int main(int argc, char **argv)
         fprintf(stderr, "%s: cannot listen on %s: %s\n", prog, o.url, why);
         return 1;
     }
-    int fd = lcm_get_fileno(l), tty = !o.once && isatty(STDOUT_FILENO), shown = 0;
+    int fd = lcm_get_fileno(l), tty = !o.once && !o.json && isatty(STDOUT_FILENO), shown = 0;
     double period = o.once ? o.wait_s : o.interval_s, next = now_s() + period;
     rc = 0;
     while (!stop_flag) {
@@ -409,11 +482,13 @@ int main(int argc, char **argv)
         if (left <= 0) {
             forget(&t, now);
             if (tty)
-                printf("\033[H\033[2J%s %d.%d.%d on %s\n\n", prog, SC_VERSION_MAJOR,
-                       SC_VERSION_MINOR, SC_VERSION_PATCH, o.url);
-            else if (shown)
+                printf("\033[H\033[2J%s %s on %s\n\n", prog, SC_VERSION_STRING, o.url);
+            else if (shown && !o.json)
                 putchar('\n');
-            print_table(stdout, &t, now);
+            if (o.json)
+                print_json(stdout, &t, now, o.url);
+            else
+                print_table(stdout, &t, now);
             fflush(stdout);
             shown = 1;
             if (o.once)

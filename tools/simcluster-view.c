@@ -15,6 +15,7 @@
 #include <string.h>
 #include <sys/stat.h>
 #include <time.h>
+#include <unistd.h>
 
 #include <lcm/lcm.h>
 
@@ -29,6 +30,14 @@
 #define MAX_CHANNEL 256
 #define LOG_SYNC 0xEDA1DA01u       /* LCM event log: every event starts with it */
 #define PLANE_HALF 40              /* the floor quad: 80 m, 1 m checkers */
+
+/* The version: the Makefile's VERSION, else the header's numbers. */
+#ifndef SC_VERSION_STRING
+#define SC_STR_(x) #x
+#define SC_STR(x) SC_STR_(x)
+#define SC_VERSION_STRING \
+    SC_STR(SC_VERSION_MAJOR) "." SC_STR(SC_VERSION_MINOR) "." SC_STR(SC_VERSION_PATCH)
+#endif
 
 static const char *prog = "simcluster-view";
 static const GLfloat sky[3] = { 0.60f, 0.75f, 0.92f };
@@ -177,7 +186,7 @@ static int parse_args(int argc, char **argv, view_opts *o)
         case 'h':
             exit(usage(stdout, 0));
         case 'V':
-            printf("%s %d.%d.%d\n", prog, SC_VERSION_MAJOR, SC_VERSION_MINOR, SC_VERSION_PATCH);
+            printf("%s %s\n", prog, SC_VERSION_STRING);
             exit(0);
         default:
             snprintf(what, sizeof what, "unknown option or missing value: %s", argv[optind - 1]);
@@ -519,15 +528,28 @@ static int open_mp4(viewer *v)
     return v->pipe ? 0 : -1;
 }
 
-/* The PNG folder must exist; --mp4 starts ffmpeg. 0, or -1 (printed). */
+/* The PNG folder is created if it is not there (its parent must be, as
+ * for mkdir(1)) and must be a writable directory; --mp4 starts ffmpeg.
+ * 0, or -1 (printed). */
 static int open_output(viewer *v)
 {
+    if (v->o.dump)
+        return 0;
+    if (v->o.mp4)
+        return open_mp4(v);
     struct stat st;
-    if (!v->o.mp4 && !v->o.dump && (stat(v->o.out, &st) != 0 || !S_ISDIR(st.st_mode))) {
-        fprintf(stderr, "%s: %s: not a directory\n", prog, v->o.out);
-        return -1;
-    }
-    return v->o.mp4 && !v->o.dump ? open_mp4(v) : 0;
+    const char *why = NULL;
+    if (mkdir(v->o.out, 0777) != 0 && errno != EEXIST)
+        why = strerror(errno);
+    else if (stat(v->o.out, &st) != 0)
+        why = strerror(errno);
+    else if (!S_ISDIR(st.st_mode))
+        why = "not a directory";
+    else if (access(v->o.out, W_OK | X_OK) != 0)
+        why = strerror(errno);
+    if (why)
+        fprintf(stderr, "%s: --out %s: %s\n", prog, v->o.out, why);
+    return why ? -1 : 0;
 }
 
 /* ---- live: the channels of simcluster run --publish ---- */

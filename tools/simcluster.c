@@ -8,6 +8,7 @@
 #include <getopt.h>
 #include <limits.h>
 #include <math.h>
+#include <signal.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
@@ -27,6 +28,24 @@
 #define MAX_SHAPE_MSGS 256         /* run --publish: shapes sent again each second */
 #define WAIT_DAEMONS_S 10.0        /* --wait-daemons: at most this long */
 
+/* The version: the Makefile's VERSION, else the header's numbers. */
+#ifndef SC_VERSION_STRING
+#define SC_STR_(x) #x
+#define SC_STR(x) SC_STR_(x)
+#define SC_VERSION_STRING \
+    SC_STR(SC_VERSION_MAJOR) "." SC_STR(SC_VERSION_MINOR) "." SC_STR(SC_VERSION_PATCH)
+#endif
+
+static const char run_help[] =
+    "run and profile options: --bodies N --seed S --frames F --until-rest\n"
+    "  --workers W --groups --cluster URL --key FILE --deadline S --json\n"
+    "  --wait-daemons K (before the first frame, at most 10 s)\n";
+static const char run_only_help[] =
+    "run only: --record LOG (an LCM log of every frame, for simcluster-view)\n"
+    "  --render DIR (every frame as DIR/frame_NNNNN.png, by simcluster-view)\n"
+    "  --publish URL (frames live on LCM, for simcluster-view --live)\n"
+    "  --realtime (no faster than simulated time)\n";
+
 static int usage(FILE *f, int status)
 {
     fprintf(f,
@@ -34,16 +53,34 @@ static int usage(FILE *f, int status)
             "       simcluster profile SCENE [options] CPU time per stage (Table 1)\n"
             "       simcluster lcp FILE                solve an LCP given as text\n"
             "       simcluster keygen FILE             write a new cluster key (mode 0600)\n"
-            "       simcluster --help\n"
-            "run and profile options: --bodies N --seed S --frames F --until-rest\n"
-            "  --workers W --groups --cluster URL --key FILE --deadline S --json\n"
-            "  --wait-daemons K (before the first frame, at most 10 s)\n"
-            "run only: --record LOG (an LCM log of every frame, for simcluster-view)\n"
-            "  --render DIR (every frame as DIR/frame_NNNNN.png, by simcluster-view)\n"
-            "  --publish URL (frames live on LCM, for simcluster-view --live)\n"
-            "  --realtime (no faster than simulated time)\n"
-            "scene files: simcluster.conf(5)\n");
+            "       simcluster --help | --version      (COMMAND --help: that command)\n"
+            "%s%sscene files: simcluster.conf(5)\n", run_help, run_only_help);
     return status;
+}
+
+/* COMMAND --help: that command's part of usage() */
+static int usage_cmd(const char *cmd)
+{
+    if (!strcmp(cmd, "run") || !strcmp(cmd, "profile")) {
+        printf("usage: simcluster %s SCENE [options]   %s\n%s%s", cmd,
+               !strcmp(cmd, "run") ? "simulate bolts, spheres or a scene file"
+                                   : "CPU time per stage (the paper's Table 1)",
+               run_help, !strcmp(cmd, "run") ? run_only_help : "");
+        printf("scenes: bolts, spheres or a scene file (simcluster.conf(5))\n");
+    } else if (!strcmp(cmd, "lcp")) {
+        printf("usage: simcluster lcp FILE   solve the LCP w = Mz + q, z >= 0, w >= 0, z.w = 0\n"
+               "  FILE (- for standard input): n, then M row by row, then q; # comments\n");
+    } else {
+        printf("usage: simcluster keygen FILE   write a new cluster key (mode 0600)\n"
+               "  an existing FILE is never overwritten; a FILE starting with -: -- FILE\n");
+    }
+    return 0;
+}
+
+static int version(void)
+{
+    printf("simcluster %s\n", SC_VERSION_STRING);
+    return 0;
 }
 
 static int bad(const char *cmd, const char *what)
@@ -61,15 +98,27 @@ static double now_s(void)
 
 static int keygen(int argc, char **argv)
 {
-    if (argc != 3 || argv[2][0] == '\0')
-        return usage(stderr, 2);
-    int rc = sc_key_generate(argv[2]);
+    /* an argument starting with - is an option, never a file name (-- ends
+     * the options), so that keygen --help writes no file "--help" */
+    int i = 2;
+    if (i < argc && (!strcmp(argv[i], "--help") || !strcmp(argv[i], "-h")))
+        return usage_cmd("keygen");
+    if (i < argc && !strcmp(argv[i], "--version"))
+        return version();
+    if (i < argc && !strcmp(argv[i], "--"))
+        i++;
+    else if (i < argc && argv[i][0] == '-' && argv[i][1] != '\0')
+        return bad("keygen", "unknown option (a file name starting with -: keygen -- FILE)");
+    if (argc != i + 1 || argv[i][0] == '\0')
+        return bad("keygen", "give one file name");
+    const char *path = argv[i];
+    int rc = sc_key_generate(path);
     if (rc != SC_OK) {
         /* sc_key_generate never overwrites: say which case it was */
         const char *why = rc == SC_EIO && errno == EEXIST ? "the file exists (never overwritten)"
                           : rc == SC_EIO                  ? strerror(errno)
                                                           : sc_strerror(rc);
-        fprintf(stderr, "simcluster: keygen: %s: %s\n", argv[2], why);
+        fprintf(stderr, "simcluster: keygen: %s: %s\n", path, why);
         return 1;
     }
     return 0;
@@ -97,6 +146,8 @@ static int parse_long(const char *s, long lo, long hi, long *out)
     return 1;
 }
 
+/* Read the options of run or profile into o: -1 to go on, else the exit
+ * status (0 after --help or --version). */
 static int parse_options(const char *cmd, int argc, char **argv, options *o)
 {
     static const struct option longs[] = {
@@ -108,6 +159,7 @@ static int parse_options(const char *cmd, int argc, char **argv, options *o)
         { "record", required_argument, 0, 'o' },   { "render", required_argument, 0, 'p' },
         { "publish", required_argument, 0, 'P' },  { "realtime", no_argument, 0, 'R' },
         { "wait-daemons", required_argument, 0, 'W' },
+        { "help", no_argument, 0, 'h' },           { "version", no_argument, 0, 'V' },
         { 0, 0, 0, 0 }
     };
     memset(o, 0, sizeof *o);
@@ -118,13 +170,17 @@ static int parse_options(const char *cmd, int argc, char **argv, options *o)
     optind = 2;
     int c, li;
     char *end, what[160];
-    while ((c = getopt_long(argc, argv, "", longs, &li)) != -1) {
+    while ((c = getopt_long(argc, argv, "h", longs, &li)) != -1) {
         /* --record, --render, --publish, --realtime: run only */
         if (c != '?' && strchr("opPR", c) && strcmp(cmd, "run")) {
             snprintf(what, sizeof what, "--%s is an option of run", longs[li].name);
             return bad(cmd, what);
         }
         switch (c) {
+        case 'h':
+            return usage_cmd(cmd);
+        case 'V':
+            return version();
         case 'n':
             if (!parse_long(optarg, 1, 100000, &o->bodies))
                 return bad(cmd, "--bodies takes 1..100000");
@@ -204,7 +260,7 @@ static int parse_options(const char *cmd, int argc, char **argv, options *o)
         return bad(cmd, "--bodies and --seed are for the built-in bolts scene; a scene file "
                         "places its own bodies");
     if (builtin)
-        return 0;
+        return -1;
     /* a scene file: read and checked now, so a bad one stops before any work */
     char err[512];
     o->file = sc_scene_load(o->scene, err, sizeof err);
@@ -212,7 +268,7 @@ static int parse_options(const char *cmd, int argc, char **argv, options *o)
         fprintf(stderr, "simcluster: %s: %s\n", cmd, err);
         return 1;
     }
-    return 0;
+    return -1;
 }
 
 /* s as a JSON string (a scene file's name can hold anything). */
@@ -245,6 +301,34 @@ static int wait_daemons(const sc_world_config *cfg, int k, const char *cmd)
     return n >= k;
 }
 
+/* sc_world_create failed with err on a cluster: say whether the key file
+ * or the URL was at fault, and name it (the library's code alone cannot:
+ * SC_EIO is "file or cluster URL"). The key is loaded again to learn it. */
+static void cluster_error(const char *cmd, const options *o, int err)
+{
+    if (o->key) {
+        uint8_t key[SC_KEY_BYTES];
+        errno = 0;
+        int rc = sc_key_load(o->key, key);
+        int e = rc == SC_EIO ? errno : 0;
+        explicit_bzero(key, sizeof key);
+        if (rc != SC_OK) {
+            fprintf(stderr, "simcluster: %s: --key %s: %s\n", cmd, o->key,
+                    e                      ? strerror(e)
+                    : rc == SC_EFORMAT     ? "not a cluster key (64 hexadecimal digits, as "
+                                             "simcluster keygen writes)"
+                                           : sc_strerror(rc));
+            return;
+        }
+    }
+    if (err == SC_EIO)
+        fprintf(stderr, "simcluster: %s: --cluster %s: LCM cannot open this URL\n", cmd,
+                o->cluster);
+    else
+        fprintf(stderr, "simcluster: %s: %s (cluster %s%s%s)\n", cmd, sc_strerror(err),
+                o->cluster, o->key ? ", key " : "", o->key ? o->key : "");
+}
+
 static sc_world *make_world(const options *o, const char *cmd)
 {
     sc_world_config c = sc_world_config_default();
@@ -259,8 +343,7 @@ static sc_world *make_world(const options *o, const char *cmd)
     if (!w) {
         int err = sc_last_error();
         if (o->cluster)
-            fprintf(stderr, "simcluster: %s: %s (cluster %s%s%s)\n", cmd, sc_strerror(err),
-                    o->cluster, o->key ? ", key " : "", o->key ? o->key : "");
+            cluster_error(cmd, o, err);
         else
             fprintf(stderr, "simcluster: %s: %s\n", cmd, sc_strerror(err));
         return NULL;
@@ -433,7 +516,35 @@ typedef struct totals {
     double wall, peak_energy, max_pen, comm, max_frame;
     int at_rest;
     double rest_s;
+    int interrupted;            /* the signal that stopped the run, else 0 */
 } totals;
+
+/* SIGINT and SIGTERM during run and profile: the handler only notes the
+ * signal; the loop stops after the frame it is in (a --record log then
+ * ends on that frame's whole event) and the report so far is printed. A
+ * second one acts as it would have by default (SA_RESETHAND). */
+static volatile sig_atomic_t stop_signal;
+
+static void on_stop(int sig)
+{
+    stop_signal = sig;
+}
+
+static void catch_stop_signals(void)
+{
+    struct sigaction sa;
+    memset(&sa, 0, sizeof sa);
+    sa.sa_handler = on_stop;
+    sa.sa_flags = SA_RESTART | SA_RESETHAND;
+    sigemptyset(&sa.sa_mask);
+    sigaction(SIGINT, &sa, NULL);
+    sigaction(SIGTERM, &sa, NULL);
+}
+
+static const char *signal_name(int sig)
+{
+    return sig == SIGINT ? "SIGINT" : sig == SIGTERM ? "SIGTERM" : "a signal";
+}
 
 /* Step w for the options' frames; with rec, every frame goes to the log
  * (a write error stops the run: *rec_failed). */
@@ -448,6 +559,10 @@ static int simulate(const options *o, sc_world *w, totals *t, int progress, reco
     if (rec && (*rec_failed = record_frame(rec, w, 0)))
         frames = 0;
     for (long f = 0; f < frames; f++) {
+        if (stop_signal) {
+            t->interrupted = stop_signal;
+            break;
+        }
         double tf = now_s();
         rc = sc_world_step(w, DT);
         if (rc != SC_OK)
@@ -499,6 +614,26 @@ static int simulate(const options *o, sc_world *w, totals *t, int progress, reco
     return rc;
 }
 
+/* run --render DIR: created if it is not there (its parent must be) and
+ * checked before the run, so that a bad folder does not cost a simulation.
+ * 0, or 1 with the error printed. */
+static int render_dir(const char *dir)
+{
+    struct stat st;
+    const char *why = NULL;
+    if (mkdir(dir, 0777) != 0 && errno != EEXIST)
+        why = strerror(errno);
+    else if (stat(dir, &st) != 0)
+        why = strerror(errno);
+    else if (!S_ISDIR(st.st_mode))
+        why = "not a directory";
+    else if (access(dir, W_OK | X_OK) != 0)
+        why = strerror(errno);
+    if (why)
+        fprintf(stderr, "simcluster: run: --render %s: %s\n", dir, why);
+    return why != NULL;
+}
+
 /* run --render: simcluster-view (next to this program, else on PATH)
  * draws the log into dir; its output goes to standard error so that a
  * --json report stays alone on standard output. 0, or 1 with the error
@@ -511,10 +646,6 @@ static int render(const char *self, const char *log, const char *dir)
                   : -1;
     if (n < 0 || (size_t)n >= sizeof view || access(view, X_OK) != 0)
         snprintf(view, sizeof view, "simcluster-view");
-    if (mkdir(dir, 0777) != 0 && errno != EEXIST) {
-        fprintf(stderr, "simcluster: run: --render: %s: %s\n", dir, strerror(errno));
-        return 1;
-    }
     fflush(stdout);
     pid_t pid = fork();
     if (pid == 0) {
@@ -535,8 +666,13 @@ static int run_cmd(int argc, char **argv)
 {
     options o;
     int u = parse_options("run", argc, argv, &o);
-    if (u)
+    if (u >= 0)
         return u;
+    if (o.render && render_dir(o.render)) {
+        sc_scene_free(o.file);
+        return 1;
+    }
+    catch_stop_signals();
     sc_world *w = make_world(&o, "run");
     sc_scene_free(o.file);          /* built; not needed any more */
     o.file = NULL;
@@ -582,12 +718,13 @@ static int run_cmd(int argc, char **argv)
                "\"daemons\": %d, \"remote_units\": %ld, \"recomputed_units\": %ld, "
                "\"late_results\": %ld, \"dropped_messages\": %ld, \"comm_s\": %.4f, "
                "\"frames_over_budget\": %ld, \"max_frame_s\": %.4f, "
-               "\"hash\": \"%016llx\", \"error\": %s%s%s}\n",
+               "\"hash\": \"%016llx\", \"interrupted\": %s%s%s, \"error\": %s%s%s}\n",
                sc_world_body_count(w), seed, (int)(st.nodes - st.daemons), t.frames,
                sim, t.wall, t.wall > 0 ? sim / t.wall : 0, t.at_rest ? "true" : "false",
                t.rest_s, t.peak_energy, t.max_pen, t.units, st.daemons, t.remote, t.recomputed,
                t.late, st.dropped_messages, t.comm, t.over_budget, t.max_frame, hash,
-               rc ? "\"" : "null",
+               t.interrupted ? "\"" : "null", t.interrupted ? signal_name(t.interrupted) : "",
+               t.interrupted ? "\"" : "", rc ? "\"" : "null",
                rc ? sc_strerror(rc) : "", rc ? "\"" : "");
     } else {
         printf("%s: %d bodies%s%s, %ld frames of %.2f s\n", o.scene, sc_world_body_count(w),
@@ -606,9 +743,12 @@ static int run_cmd(int argc, char **argv)
             printf(", from daemons %ld, recomputed %ld, late %ld, dropped messages %ld",
                    t.remote, t.recomputed, t.late, st.dropped_messages);
         printf("\n  state hash %016llx\n", hash);
+        if (t.interrupted)
+            printf("  interrupted by %s after frame %ld\n", signal_name(t.interrupted),
+                   t.frames);
     }
     sc_world_destroy(w);
-    if (rc == SC_OK && !rec_failed && o.render)
+    if (rc == SC_OK && !rec_failed && o.render && !t.interrupted)
         rec_failed = render(argv[0], o.record, o.render);
     if (o.record == tmp_log)
         unlink(tmp_log);
@@ -616,15 +756,18 @@ static int run_cmd(int argc, char **argv)
         fprintf(stderr, "simcluster: run: step %ld: %s\n", t.frames + 1, sc_strerror(rc));
         return 1;
     }
-    return rec_failed;
+    if (rec_failed)
+        return 1;
+    return t.interrupted ? 128 + t.interrupted : 0;    /* as a shell reports it */
 }
 
 static int profile_cmd(int argc, char **argv)
 {
     options o;
     int u = parse_options("profile", argc, argv, &o);
-    if (u)
+    if (u >= 0)
         return u;
+    catch_stop_signals();
     if (o.frames < 0 && !strcmp(o.scene, "spheres"))
         o.frames = 5000;    /* the paper's 50 s */
     sc_world *w = make_world(&o, "profile");
@@ -654,7 +797,8 @@ static int profile_cmd(int argc, char **argv)
         printf(", \"frames\": %ld, \"cpu_s\": {", t.frames);
         for (size_t i = 0; i < sizeof rows / sizeof *rows; i++)
             printf("%s\"%s\": %.6f", i ? ", " : "", rows[i].key, st.stage_total_s[rows[i].stage]);
-        printf("}}\n");
+        printf("}, \"interrupted\": %s%s%s}\n", t.interrupted ? "\"" : "null",
+               t.interrupted ? signal_name(t.interrupted) : "", t.interrupted ? "\"" : "");
     } else {
         printf("%s, %ld frames: CPU time by stage (paper: Table 1, 27 spheres)\n", o.scene,
                t.frames);
@@ -667,13 +811,16 @@ static int profile_cmd(int argc, char **argv)
             else
                 printf("%8.2f\n", rows[i].paper);
         }
+        if (t.interrupted)
+            printf("  interrupted by %s after frame %ld\n", signal_name(t.interrupted),
+                   t.frames);
     }
     sc_world_destroy(w);
     if (rc != SC_OK) {
         fprintf(stderr, "simcluster: profile: step %ld: %s\n", t.frames + 1, sc_strerror(rc));
         return 1;
     }
-    return 0;
+    return t.interrupted ? 128 + t.interrupted : 0;
 }
 
 /* ---- lcp ---- */
@@ -724,6 +871,12 @@ static int next_number(FILE *f, double *v, long *line, long *col, long *at_line,
 
 static int lcp_cmd(int argc, char **argv)
 {
+    if (argc == 3 && (!strcmp(argv[2], "--help") || !strcmp(argv[2], "-h")))
+        return usage_cmd("lcp");
+    if (argc == 3 && !strcmp(argv[2], "--version"))
+        return version();
+    if (argc == 3 && argv[2][0] == '-' && argv[2][1] != '\0')
+        return bad("lcp", "unknown option (a file name starting with -: ./-FILE)");
     if (argc != 3)
         return bad("lcp", "give one file (n, then M row by row, then q)");
     const char *path = argv[2];
@@ -796,6 +949,8 @@ int main(int argc, char **argv)
         return usage(stderr, 2);
     if (!strcmp(argv[1], "--help") || !strcmp(argv[1], "-h"))
         return usage(stdout, 0);
+    if (!strcmp(argv[1], "--version"))
+        return version();
     if (!strcmp(argv[1], "keygen"))
         return keygen(argc, argv);
     if (!strcmp(argv[1], "run"))

@@ -339,15 +339,12 @@ static sc_shape *load_mesh(reader *r, int k, int *rc)
         snprintf(path, sizeof path, "%s", rel);
     else
         snprintf(path, sizeof path, "%.*s/%s", WORD_MAX_CHARS, r->dir, rel);
-    errno = 0;
-    sc_shape *s = sc_shape_load(path);
-    if (!s) {
-        int e = sc_last_error(), sys = errno;
-        if (e == SC_EIO && sys)
-            *rc = fail(r, r->w[k].col, e, "%s: %s", path, strerror(sys));
-        else
-            *rc = fail(r, r->w[k].col, e, "%s: %s", path, sc_strerror(e));
-    }
+    /* the loader's message names the mesh file and, when it is malformed,
+     * its line (or a binary STL's byte offset) */
+    char why[256];
+    sc_shape *s = sc_shape_load_err(path, why, sizeof why);
+    if (!s)
+        *rc = fail(r, r->w[k].col, sc_last_error(), "%s", why);
     return s;
 }
 

@@ -1,5 +1,7 @@
 /* shape_load.c - triangle meshes from Wavefront OBJ, ASCII STL and binary
- * STL files: sc_mesh_parse() from memory, sc_shape_load() from a path.
+ * STL files: sc_mesh_parse() from memory, sc_shape_load() from a path, and
+ * sc_shape_load_err(), which also says where and why a file is malformed
+ * (the line of a text file, the byte offset of a binary STL).
  *
  * Files are hostile input. Every read is bounded by len (the buffer is not
  * NUL-terminated), every count is checked against SC_MESH_MAX_* before it
@@ -15,6 +17,8 @@
  */
 #include <errno.h>
 #include <fcntl.h>
+#include <stdarg.h>
+#include <stdio.h>
 #include <limits.h>
 #include <locale.h>
 #include <stdlib.h>
@@ -78,9 +82,50 @@ static int push_tri(mesh_buf *m, int a, int b, int c)
 
 /* ---- tokens and numbers ------------------------------------------------- */
 
+/* Where and why a file is malformed: the first error found is kept. */
+typedef struct mesh_err {
+    int set, binary;
+    long long at;                   /* line (text, from 1) or byte offset (binary) */
+    char what[128];
+} mesh_err;
+
 typedef struct cursor {
     const unsigned char *p, *end;
+    const unsigned char *start;     /* the buffer, for line numbers */
+    mesh_err *err;                  /* NULL: no detail wanted */
+    long long fwd;                  /* OBJ: the largest forward vertex index seen, */
+    const unsigned char *fwd_at;    /* and where (checked at the end of the file) */
 } cursor;
+
+/* Record the first error of a text file, at byte at (its line: LF, CRLF and
+ * a lone CR each end one); SC_EFORMAT. */
+__attribute__((format(printf, 3, 4))) static int text_error(cursor *c, const unsigned char *at,
+                                                            const char *fmt, ...)
+{
+    if (!c->err || c->err->set)
+        return SC_EFORMAT;
+    long long line = 1;
+    for (const unsigned char *q = c->start; q < at && q < c->end; q++)
+        line += *q == '\n' || (*q == '\r' && (q + 1 == c->end || q[1] != '\n'));
+    va_list ap;
+    va_start(ap, fmt);
+    vsnprintf(c->err->what, sizeof c->err->what, fmt, ap);
+    va_end(ap);
+    c->err->set = 1;
+    c->err->at = line;
+    return SC_EFORMAT;
+}
+
+/* A token as it may be quoted in a message: at most 24 bytes, anything but
+ * printable ASCII as '?' (the file's bytes reach a terminal). */
+static const char *quoted(const unsigned char *t, size_t n, char out[25])
+{
+    size_t i = 0;
+    for (; i < n && i < 24; i++)
+        out[i] = t[i] > 0x20 && t[i] < 0x7f ? (char)t[i] : '?';
+    out[i] = '\0';
+    return out;
+}
 
 static int is_blank(int c)
 {
@@ -321,16 +366,19 @@ static int obj_vertex(cursor *c, mesh_buf *m, locale_t c_loc)
     const unsigned char *t;
     size_t n;
     int k = 0;
+    const unsigned char *line = c->p;
     while (obj_token(c, &t, &n)) {
         double x;
-        if (k == 7 || parse_num(t, n, c_loc, &x) != SC_OK)
-            return SC_EFORMAT;
+        if (k == 7)
+            return text_error(c, t, "a vertex has more than 7 numbers");
+        if (parse_num(t, n, c_loc, &x) != SC_OK)
+            return text_error(c, t, "bad vertex coordinate");
         if (k < 3)
             v[k] = x;
         k++;
     }
     if (k != 3 && k != 4 && k != 6 && k != 7)
-        return SC_EFORMAT;
+        return text_error(c, line, "a vertex has %d numbers (x y z, then w, or r g b [a])", k);
     return push_vertex(m, v);
 }
 
@@ -361,10 +409,10 @@ static int drop_unused_vertices(mesh_buf *m)
 }
 
 /* One corner of a face, "a", "a/b", "a//c" or "a/b/c", to a 0-based vertex
- * index. a < 0 counts back from the last vertex read so far; a > 0 may
+ * index (*vout: a, when a relative a reaches before the first vertex). a < 0 counts back from the last vertex read so far; a > 0 may
  * point forward and is range-checked once the whole file is read. The
  * texture and normal indices are only checked for syntax. */
-static int obj_corner(const unsigned char *s, size_t n, int nverts, int *idx)
+static int obj_corner(const unsigned char *s, size_t n, int nverts, int *idx, long long *vout)
 {
     size_t a = 0;
     long long v, t;
@@ -392,8 +440,10 @@ static int obj_corner(const unsigned char *s, size_t n, int nverts, int *idx)
             return SC_EFORMAT;
         *idx = (int)(v - 1);
     } else {
-        if (-v > nverts)
+        if (-v > nverts) {
+            *vout = v;                  /* before the first vertex */
             return SC_EFORMAT;
+        }
         *idx = nverts + (int)v;
     }
     return SC_OK;
@@ -406,9 +456,18 @@ static int obj_face(cursor *c, mesh_buf *m)
     size_t n;
     int k = 0, first = 0, prev = 0;
     while (obj_token(c, &t, &n)) {
-        int idx, rc = obj_corner(t, n, m->nverts, &idx);
-        if (rc == SC_OK && k >= 2)
-            rc = push_tri(m, first, prev, idx);
+        int idx;
+        long long v = 0;
+        char q[25];
+        if (obj_corner(t, n, m->nverts, &idx, &v) != SC_OK)
+            return v < 0 ? text_error(c, t, "face index %lld: only %d vertices before it", v,
+                                      m->nverts)
+                         : text_error(c, t, "bad face corner '%s'", quoted(t, n, q));
+        if (idx >= m->nverts && idx > c->fwd) {     /* checked at the end */
+            c->fwd = idx;
+            c->fwd_at = t;
+        }
+        int rc = k >= 2 ? push_tri(m, first, prev, idx) : SC_OK;
         if (rc != SC_OK)
             return rc;
         if (k == 0)
@@ -416,7 +475,7 @@ static int obj_face(cursor *c, mesh_buf *m)
         prev = idx;
         k++;
     }
-    return k >= 3 ? SC_OK : SC_EFORMAT;
+    return k >= 3 ? SC_OK : text_error(c, c->p, "a face needs 3 corners or more, not %d", k);
 }
 
 static int obj_parse(cursor c, mesh_buf *m, locale_t c_loc)
@@ -430,17 +489,19 @@ static int obj_parse(cursor c, mesh_buf *m, locale_t c_loc)
                 rc = obj_vertex(&c, m, c_loc);
             else if (tok_is(kw, n, "f"))
                 rc = obj_face(&c, m);
-            else if (!obj_ignored(kw, n))
-                rc = SC_EFORMAT;
+            else if (!obj_ignored(kw, n)) {
+                char q[25];
+                rc = text_error(&c, kw, "unknown statement '%s'", quoted(kw, n, q));
+            }
         }
         if (rc != SC_OK)
             return rc;
         skip_line(&c);
     }
     /* forward references are legal; check every index against the total */
-    for (size_t i = 0; i < 3 * (size_t)m->ntris; i++)
-        if (m->tri[i] >= m->nverts)
-            return SC_EFORMAT;
+    if (c.fwd >= m->nverts)
+        return text_error(&c, c.fwd_at, "face index %lld: the file has %d vertices", c.fwd + 1,
+                          m->nverts);
     return drop_unused_vertices(m);
 }
 
@@ -460,11 +521,30 @@ static int stl_token(cursor *c, const unsigned char **tok, size_t *n)
     return 1;
 }
 
+/* The token where an ASCII STL parse went wrong: the file ended, or t is
+ * not what was expected (one word or a description). */
+static int stl_error(cursor *c, int have, const unsigned char *t, size_t n, const char *want)
+{
+    char q[25];
+    if (!have) {                    /* the line of the file's last word */
+        const unsigned char *at = c->end;
+        while (at > c->start && (is_blank(at[-1]) || is_eol(at[-1])))
+            at--;
+        return text_error(c, at, "the file ends where %s should be (truncated?)", want);
+    }
+    return text_error(c, t, "%s expected, not '%s'", want, quoted(t, n, q));
+}
+
 static int stl_expect(cursor *c, const char *word)
 {
-    const unsigned char *t;
-    size_t n;
-    return stl_token(c, &t, &n) && tok_is(t, n, word) ? SC_OK : SC_EFORMAT;
+    const unsigned char *t = NULL;
+    size_t n = 0;
+    char want[32];
+    int have = stl_token(c, &t, &n);
+    if (have && tok_is(t, n, word))
+        return SC_OK;
+    snprintf(want, sizeof want, "'%s'", word);
+    return stl_error(c, have, t, n, want);
 }
 
 /* The rest of "facet normal nx ny nz outer loop (vertex x y z){3,} endloop
@@ -478,21 +558,23 @@ static int stl_facet(cursor *c, mesh_buf *m, weld *w, locale_t c_loc)
         return SC_EFORMAT;
     for (int k = 0; k < 3; k++)
         if (!stl_token(c, &t, &n))
-            return SC_EFORMAT;
+            return stl_error(c, 0, t, n, "the normal");
     if (stl_expect(c, "outer") != SC_OK || stl_expect(c, "loop") != SC_OK)
         return SC_EFORMAT;
     int k = 0, first = 0, prev = 0;
     for (;;) {
-        if (!stl_token(c, &t, &n))
-            return SC_EFORMAT;
-        if (tok_is(t, n, "endloop"))
+        int have = stl_token(c, &t, &n);
+        if (have && tok_is(t, n, "endloop"))
             break;
-        if (!tok_is(t, n, "vertex"))
-            return SC_EFORMAT;
+        if (!have || !tok_is(t, n, "vertex"))
+            return stl_error(c, have, t, n, "'vertex' or 'endloop'");
         double p[3];
-        for (int j = 0; j < 3; j++)
-            if (!stl_token(c, &t, &n) || parse_num(t, n, c_loc, &p[j]) != SC_OK)
-                return SC_EFORMAT;
+        for (int j = 0; j < 3; j++) {
+            if (!stl_token(c, &t, &n))
+                return stl_error(c, 0, t, n, "a vertex coordinate");
+            if (parse_num(t, n, c_loc, &p[j]) != SC_OK)
+                return text_error(c, t, "bad vertex coordinate");
+        }
         int idx, rc = weld_vertex(w, m, p, &idx);
         if (rc == SC_OK && k >= 2)
             rc = push_tri(m, first, prev, idx);
@@ -504,7 +586,7 @@ static int stl_facet(cursor *c, mesh_buf *m, weld *w, locale_t c_loc)
         k++;
     }
     if (k < 3)
-        return SC_EFORMAT;
+        return text_error(c, t, "a facet needs 3 vertices or more, not %d", k);
     return stl_expect(c, "endfacet");
 }
 
@@ -517,14 +599,13 @@ static int stl_ascii_parse(cursor c, mesh_buf *m, weld *w, locale_t c_loc)
     for (;;) {
         skip_line(&c);                          /* the solid's name */
         for (;;) {
-            const unsigned char *t;
-            size_t n;
-            if (!stl_token(&c, &t, &n))
-                return SC_EFORMAT;
-            if (tok_is(t, n, "endsolid"))
+            const unsigned char *t = NULL;
+            size_t n = 0;
+            int have = stl_token(&c, &t, &n);
+            if (have && tok_is(t, n, "endsolid"))
                 break;
-            if (!tok_is(t, n, "facet"))
-                return SC_EFORMAT;
+            if (!have || !tok_is(t, n, "facet"))
+                return stl_error(&c, have, t, n, "'facet' or 'endsolid'");
             int rc = stl_facet(&c, m, w, c_loc);
             if (rc != SC_OK)
                 return rc;
@@ -535,7 +616,7 @@ static int stl_ascii_parse(cursor c, mesh_buf *m, weld *w, locale_t c_loc)
         if (!stl_token(&c, &t, &n))
             return SC_OK;
         if (!tok_is(t, n, "solid"))
-            return SC_EFORMAT;
+            return stl_error(&c, 1, t, n, "'solid' (or the end of the file) after 'endsolid'");
     }
 }
 
@@ -547,10 +628,21 @@ static uint32_t le32(const unsigned char *b)
 /* count facets of 50 bytes after the 84-byte header; len was checked to
  * hold exactly that many, and count against the limit before any
  * allocation is sized from it. */
-static int stl_binary_parse(const unsigned char *b, uint32_t count, mesh_buf *m, weld *w)
+static int binary_error(mesh_err *e, size_t offset, const char *what, uint32_t facet)
+{
+    if (e && !e->set) {
+        e->set = e->binary = 1;
+        e->at = (long long)offset;
+        snprintf(e->what, sizeof e->what, what, facet);
+    }
+    return SC_EFORMAT;
+}
+
+static int stl_binary_parse(const unsigned char *b, uint32_t count, mesh_buf *m, weld *w,
+                            mesh_err *e)
 {
     if (count == 0)
-        return SC_EFORMAT;
+        return binary_error(e, 80, "binary STL with no facets (a count of %u)", count);
     if (count > SC_MESH_MAX_TRIS)
         return SC_ETOOBIG;
     int rc = reserve_tris(m, (int)count);
@@ -568,7 +660,8 @@ static int stl_binary_parse(const unsigned char *b, uint32_t count, mesh_buf *m,
                 v[j] = x;
             }
             if (!sc_finite3(v))
-                return SC_EFORMAT;
+                return binary_error(e, (size_t)(p - b) + 12 * (size_t)k,
+                                    "facet %u: a vertex coordinate is not finite", f);
             rc = weld_vertex(w, m, v, &idx[k]);
             if (rc != SC_OK)
                 return rc;
@@ -590,18 +683,21 @@ static int starts_with_solid(cursor c)
     return stl_token(&c, &t, &n) && tok_is(t, n, "solid");
 }
 
-int sc_mesh_parse(const void *buf, size_t len, double **xyz, int *nverts, int **tri,
-                  int *ntris)
+static int mesh_parse(const void *buf, size_t len, double **xyz, int *nverts, int **tri,
+                      int *ntris, mesh_err *e)
 {
     if ((!buf && len) || !xyz || !nverts || !tri || !ntris)
         return SC_EINVAL;
     *xyz = NULL;
     *tri = NULL;
     *nverts = *ntris = 0;
-    if (len == 0)
-        return SC_EFORMAT;                      /* (and buf may be NULL) */
+    if (len == 0) {                             /* (and buf may be NULL) */
+        if (e && !e->set)
+            snprintf(e->what, sizeof e->what, "an empty file");
+        return SC_EFORMAT;
+    }
     const unsigned char *b = buf;
-    cursor c = { b, b + len };
+    cursor c = { .p = b, .end = b + len, .start = b, .err = e, .fwd = -1 };
     mesh_buf m = { 0 };
     weld w = { 0 };
     int rc;
@@ -610,7 +706,7 @@ int sc_mesh_parse(const void *buf, size_t len, double **xyz, int *nverts, int **
     uint32_t count = len >= STL_HEADER_BYTES ? le32(b + 80) : 0;
     if (len >= STL_HEADER_BYTES &&
         (uint64_t)count * STL_FACET_BYTES + STL_HEADER_BYTES == (uint64_t)len) {
-        rc = stl_binary_parse(b, count, &m, &w);
+        rc = stl_binary_parse(b, count, &m, &w, e);
     } else {
         /* Text: numbers go through strtod_l with the "C" locale (see
          * parse_num); glibc hands out its static C locale object here. */
@@ -628,8 +724,11 @@ int sc_mesh_parse(const void *buf, size_t len, double **xyz, int *nverts, int **
         }
     }
     free(w.slot);
-    if (rc == SC_OK && (m.nverts == 0 || m.ntris == 0))
+    if (rc == SC_OK && (m.nverts == 0 || m.ntris == 0)) {
         rc = SC_EFORMAT;                        /* nothing to collide with */
+        if (e && !e->set)
+            snprintf(e->what, sizeof e->what, "no faces (is this an OBJ or STL file?)");
+    }
     if (rc != SC_OK) {
         free(m.xyz);
         free(m.tri);
@@ -640,6 +739,12 @@ int sc_mesh_parse(const void *buf, size_t len, double **xyz, int *nverts, int **
     *tri = m.tri;
     *ntris = m.ntris;
     return SC_OK;
+}
+
+int sc_mesh_parse(const void *buf, size_t len, double **xyz, int *nverts, int **tri,
+                  int *ntris)
+{
+    return mesh_parse(buf, len, xyz, nverts, tri, ntris, NULL);
 }
 
 int sc_read_file(const char *path, size_t max, unsigned char **out, size_t *len)
@@ -701,24 +806,51 @@ int sc_read_file(const char *path, size_t max, unsigned char **out, size_t *len)
     return SC_OK;
 }
 
-SC_API sc_shape *sc_shape_load(const char *path)
+/* "path: why" into err (errlen bytes; none when err is NULL or errlen 0):
+ * "path:LINE: what" for a malformed text file, "path: byte N: what" for a
+ * malformed binary STL, else the system's or sc_strerror()'s sentence. */
+static void load_error(const char *path, int rc, int sys, const mesh_err *e, char *err,
+                       size_t errlen)
 {
+    if (!err || errlen == 0)
+        return;
+    if (rc == SC_EFORMAT && e->set && e->binary)
+        snprintf(err, errlen, "%s: byte %lld: %s", path, e->at, e->what);
+    else if (rc == SC_EFORMAT && e->set)
+        snprintf(err, errlen, "%s:%lld: %s", path, e->at, e->what);
+    else if (rc == SC_EFORMAT && e->what[0])
+        snprintf(err, errlen, "%s: %s", path, e->what);
+    else if (rc == SC_EIO && sys)
+        snprintf(err, errlen, "%s: %s", path, strerror(sys));
+    else
+        snprintf(err, errlen, "%s: %s", path, sc_strerror(rc));
+}
+
+SC_API sc_shape *sc_shape_load_err(const char *path, char *err, size_t errlen)
+{
+    if (err && errlen)
+        err[0] = '\0';
     if (!path) {
+        load_error("(null)", SC_EINVAL, 0, &(mesh_err){ 0 }, err, errlen);
         sc_set_error(SC_EINVAL);
         return NULL;
     }
     unsigned char *buf;
     size_t len;
+    mesh_err e = { 0 };
+    errno = 0;
     int rc = sc_read_file(path, LOAD_MAX_BYTES, &buf, &len);
     if (rc != SC_OK) {
+        load_error(path, rc, errno, &e, err, errlen);
         sc_set_error(rc);
         return NULL;
     }
     double *xyz;
     int *tri, nverts, ntris;
-    rc = sc_mesh_parse(buf, len, &xyz, &nverts, &tri, &ntris);
+    rc = mesh_parse(buf, len, &xyz, &nverts, &tri, &ntris, &e);
     free(buf);
     if (rc != SC_OK) {
+        load_error(path, rc, 0, &e, err, errlen);
         sc_set_error(rc);
         return NULL;
     }
@@ -726,5 +858,12 @@ SC_API sc_shape *sc_shape_load(const char *path)
     sc_shape *s = sc_shape_mesh(xyz, nverts, tri, ntris);
     free(xyz);
     free(tri);
+    if (!s)
+        load_error(path, sc_last_error(), 0, &e, err, errlen);
     return s;
+}
+
+SC_API sc_shape *sc_shape_load(const char *path)
+{
+    return sc_shape_load_err(path, NULL, 0);
 }
