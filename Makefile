@@ -189,13 +189,11 @@ $(BUILD)/examples/%: examples/%.c include/simcluster.h $(STATIC) $(WDEP)
 	$(Q)$(WFORGET)
 	$(Q)$(CC) $(PROG_CPPFLAGS) $(CFLAGS) $< -o $@ $(LDFLAGS) $(STATIC) $(LIBS)
 
-# The tools' --version: the VERSION above.
 $(BUILD)/tools/%: tools/%.c $(wildcard include/*.h) $(STATIC) Makefile $(WDEP)
 	@mkdir -p $(dir $@)
 	@$(if $(Q),echo "  TOOL    $@")
 	$(Q)$(WFORGET)
-	$(Q)$(CC) $(PROG_CPPFLAGS) -DSC_VERSION_STRING='"$(VERSION)"' $(CFLAGS) $< -o $@ $(LDFLAGS) \
-	    $(STATIC) $(LIBS) $(TOOL_LIBS_$*)
+	$(Q)$(CC) $(PROG_CPPFLAGS) $(CFLAGS) $< -o $@ $(LDFLAGS) $(STATIC) $(LIBS) $(TOOL_LIBS_$*)
 
 $(BUILD)/tests/png_check: tests/png_check.c Makefile $(WDEP)
 	@mkdir -p $(dir $@)

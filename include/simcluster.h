@@ -28,6 +28,14 @@ extern "C" {
 #define SC_VERSION_MAJOR 0
 #define SC_VERSION_MINOR 1
 #define SC_VERSION_PATCH 0
+/* The version as text, "0.1.0" (the tools' --version; tests/tools.sh
+ * checks that it is the Makefile's VERSION). */
+#ifndef SC_VERSION_STRING
+#define SC_STR_(x) #x
+#define SC_STR(x) SC_STR_(x)
+#define SC_VERSION_STRING \
+    SC_STR(SC_VERSION_MAJOR) "." SC_STR(SC_VERSION_MINOR) "." SC_STR(SC_VERSION_PATCH)
+#endif
 
 /* ---- errors ------------------------------------------------------------ */
 enum {

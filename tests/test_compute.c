@@ -3,7 +3,7 @@
  * (missing shapes are counted and named, not guessed), runs on its own
  * context, and its result merged on the master gives the bits a local run
  * gives. The unit keeps its shapes alive when the cache lets them go.
- * Packing and merging are the master's internals (sc_internal.h). */
+ * Packing and merging are the master's internals (lib/net/unit_wire.h). */
 #include <setjmp.h>
 #include <stdarg.h>
 #include <stddef.h>

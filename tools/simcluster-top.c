@@ -30,13 +30,6 @@
 #define MIN_S 0.1                  /* bounds of --wait and --interval */
 #define MAX_S 3600.0
 
-/* The version: the Makefile's VERSION, else the header's numbers. */
-#ifndef SC_VERSION_STRING
-#define SC_STR_(x) #x
-#define SC_STR(x) SC_STR_(x)
-#define SC_VERSION_STRING \
-    SC_STR(SC_VERSION_MAJOR) "." SC_STR(SC_VERSION_MINOR) "." SC_STR(SC_VERSION_PATCH)
-#endif
 
 static const char *prog = "simcluster-top";
 

@@ -31,13 +31,6 @@
 #define LOG_SYNC 0xEDA1DA01u       /* LCM event log: every event starts with it */
 #define PLANE_HALF 40              /* the floor quad: 80 m, 1 m checkers */
 
-/* The version: the Makefile's VERSION, else the header's numbers. */
-#ifndef SC_VERSION_STRING
-#define SC_STR_(x) #x
-#define SC_STR(x) SC_STR_(x)
-#define SC_VERSION_STRING \
-    SC_STR(SC_VERSION_MAJOR) "." SC_STR(SC_VERSION_MINOR) "." SC_STR(SC_VERSION_PATCH)
-#endif
 
 static const char *prog = "simcluster-view";
 static const GLfloat sky[3] = { 0.60f, 0.75f, 0.92f };

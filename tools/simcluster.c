@@ -28,13 +28,6 @@
 #define MAX_SHAPE_MSGS 256         /* run --publish: shapes sent again each second */
 #define WAIT_DAEMONS_S 10.0        /* --wait-daemons: at most this long */
 
-/* The version: the Makefile's VERSION, else the header's numbers. */
-#ifndef SC_VERSION_STRING
-#define SC_STR_(x) #x
-#define SC_STR(x) SC_STR_(x)
-#define SC_VERSION_STRING \
-    SC_STR(SC_VERSION_MAJOR) "." SC_STR(SC_VERSION_MINOR) "." SC_STR(SC_VERSION_PATCH)
-#endif
 
 static const char run_help[] =
     "run and profile options: --bodies N --seed S --frames F --until-rest\n"
