@@ -54,8 +54,20 @@ enum {
     SC_EMAXITER = -12,     /* the solver hit its pivot limit (cycling) */
     SC_ENUMERIC = -13,     /* numerical breakdown (singular pivot, NaN in state) */
     SC_EAUTH = -14,        /* a message failed authentication or was replayed */
-    SC_EPERM = -15         /* a key file is accessible by others: its mode must be 0600 */
+    SC_EPERM = -15,        /* a key file is accessible by others: its mode must be 0600 */
+    SC_ELIMIT = -16        /* finite, but outside what the engine simulates (SC_MIN_ and
+                              SC_MAX_ limits below) */
 };
+
+/* What the engine simulates: sizes, places, speeds and frames outside
+ * these are refused (SC_ELIMIT) by the call that brings them, not met
+ * later as overflow in a step. */
+#define SC_MIN_LENGTH 1e-6     /* m: the smallest shape (sphere radius, box half extent, mesh bound) */
+#define SC_MAX_LENGTH 1e6      /* m: the largest */
+#define SC_MAX_COORD 1e7       /* m: a body's distance from the origin when added */
+#define SC_MAX_SPEED 1e5       /* m/s: a body's speed when added */
+#define SC_MAX_SPIN 1e5        /* rad/s: a body's angular speed when added */
+#define SC_MAX_DT 1.0          /* s: one sc_world_step() */
 
 /* A sentence describing the error code err (never NULL). */
 SC_API const char *sc_strerror(int err);

@@ -339,6 +339,60 @@ static void test_body_shape_is_the_shape_it_was_added_with(void **state)
     sc_world_destroy(w);
 }
 
+/* Finite values the engine cannot simulate are refused by the call that
+ * brings them, with SC_ELIMIT, and leave the world as it was: a frame of
+ * 1e9 s (it returned SC_OK with the ball 4.9e18 m below the floor), a
+ * position or speed of 1e300 (accepted, then every step failed), a sphere
+ * of 1e-300 m whose mass underflowed to 0 (silently static). */
+static void test_values_the_engine_cannot_simulate_are_refused(void **state)
+{
+    (void)state;
+    sc_world *w = world_with_floor();
+    sc_shape *ball = sc_shape_sphere(0.1);
+    assert_non_null(ball);
+    int id = add_body(w, ball, 1, 0, 0, 1);
+    uint64_t h = sc_world_hash(w);
+    assert_int_equal(sc_world_step(w, 1e9), SC_ELIMIT);
+    assert_int_equal(sc_world_step(w, SC_MAX_DT * 1.001), SC_ELIMIT);
+    assert_true(sc_world_hash(w) == h);
+    sc_body_desc d = sc_body_desc_default();
+    d.shape = ball;
+    d.pos[2] = 1e300;
+    assert_int_equal(sc_body_add(w, &d), SC_ELIMIT);
+    d.pos[2] = 1;
+    d.vel[0] = 1e300;
+    assert_int_equal(sc_body_add(w, &d), SC_ELIMIT);
+    d.vel[0] = 0;
+    d.omega[1] = 2 * SC_MAX_SPIN;
+    assert_int_equal(sc_body_add(w, &d), SC_ELIMIT);
+    d.omega[1] = 0;
+    d.mass = 1e-320;    /* subnormal: no inverse that fits a double */
+    assert_int_equal(sc_body_add(w, &d), SC_ELIMIT);
+    d.mass = SC_MASS_FROM_DENSITY;
+    d.density = 1e-300;  /* 1e-300 * 4.2e-3 m^3 underflows */
+    assert_int_equal(sc_body_add(w, &d), SC_ELIMIT);
+    assert_int_equal(sc_world_body_count(w), 2);
+    /* shapes below or above the sizes simulated are refused when made */
+    assert_null(sc_shape_sphere(1e-300));
+    assert_int_equal(sc_last_error(), SC_ELIMIT);
+    assert_null(sc_shape_sphere(2 * SC_MAX_LENGTH));
+    assert_int_equal(sc_last_error(), SC_ELIMIT);
+    assert_null(sc_shape_box(1, 1, SC_MIN_LENGTH / 2));
+    assert_int_equal(sc_last_error(), SC_ELIMIT);
+    assert_non_null(sc_strerror(SC_ELIMIT));
+    assert_string_not_equal(sc_strerror(SC_ELIMIT), sc_strerror(SC_EINVAL));
+    /* the world goes on: the ball falls 0.9 m and lands (the largest frame
+     * is accepted too) */
+    for (int f = 0; f < 150; f++)
+        assert_int_equal(sc_world_step(w, 0.01), SC_OK);
+    double p[3];
+    sc_body_get_pose(w, id, p, NULL);
+    assert_true(p[2] > 0.099 && p[2] < 0.101);
+    assert_int_equal(sc_world_step(w, SC_MAX_DT), SC_OK);
+    sc_shape_release(ball);
+    sc_world_destroy(w);
+}
+
 int main(void)
 {
     const struct CMUnitTest tests[] = {
@@ -353,6 +407,7 @@ int main(void)
         cmocka_unit_test(test_both_broad_phases_give_identical_contacts),
         cmocka_unit_test(test_an_empty_world_steps),
         cmocka_unit_test(test_body_shape_is_the_shape_it_was_added_with),
+        cmocka_unit_test(test_values_the_engine_cannot_simulate_are_refused),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
 }

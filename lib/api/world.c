@@ -89,6 +89,13 @@ SC_API int sc_body_add(sc_world *w, const sc_body_desc *d)
         !sc_finite3(d->omega) || !(d->restitution >= 0 && d->restitution <= 1) ||
         !(d->friction >= 0) || !isfinite(d->friction))
         return SC_EINVAL;
+    /* finite, but beyond what a step can carry without overflow */
+    if (v3_len(d->pos) > SC_MAX_COORD || v3_len(d->vel) > SC_MAX_SPEED ||
+        v3_len(d->omega) > SC_MAX_SPIN)
+        return SC_ELIMIT;
+    if (d->shape->kind != SC_SHAPE_PLANE &&
+        (d->shape->bound_r < SC_MIN_LENGTH || d->shape->bound_r > SC_MAX_LENGTH))
+        return SC_ELIMIT;
     double mass = d->mass;
     if (mass == SC_MASS_FROM_DENSITY) {
         if (!(d->density > 0) || !isfinite(d->density))
@@ -97,6 +104,11 @@ SC_API int sc_body_add(sc_world *w, const sc_body_desc *d)
     }
     if (!(mass >= 0) || !isfinite(mass))
         return SC_EINVAL;
+    /* a mass that underflowed (a tiny shape or density) would make the body
+     * static without a word; one whose inertia cannot be inverted is
+     * caught below */
+    if (mass != 0 && !isnormal(mass))
+        return SC_ELIMIT;
     if (d->shape->kind == SC_SHAPE_PLANE && mass != 0)
         return SC_ENOTSUP;              /* an infinite half space cannot move */
     int err = sc_grow((void **)&w->st.bodies, &w->cap, w->st.nbodies + 1, sizeof *w->st.bodies,
@@ -117,9 +129,12 @@ SC_API int sc_body_add(sc_world *w, const sc_body_desc *d)
         double k = mass / d->shape->mp.volume;
         for (int i = 0; i < 9; i++)
             b->inertia[i] = k * d->shape->mp.inertia[i];
-        if (!m3_inverse(b->inv_inertia, b->inertia)) {
+        int inv_ok = m3_inverse(b->inv_inertia, b->inertia);
+        for (int i = 0; i < 9; i++)
+            inv_ok = inv_ok && isfinite(b->inv_inertia[i]);
+        if (!inv_ok) {              /* finite mass, inertia under- or overflowed */
             sc_shape_release(b->shape);
-            return SC_EINVAL;
+            return SC_ELIMIT;
         }
         b->inv_mass = 1.0 / mass;
         v3_copy(b->w, d->omega);
@@ -289,6 +304,8 @@ SC_API int sc_world_step(sc_world *w, double dt)
 {
     if (!w || !(dt > 0) || !isfinite(dt))
         return SC_EINVAL;
+    if (dt > SC_MAX_DT)
+        return SC_ELIMIT;
     /* the last frame's figures start again; totals and cluster counts stay */
     sc_stats *st = &w->stats;
     memset(st->stage_s, 0, sizeof st->stage_s);

@@ -68,6 +68,10 @@ SC_API sc_shape *sc_shape_sphere(double r)
         sc_set_error(SC_EINVAL);
         return NULL;
     }
+    if (r < SC_MIN_LENGTH || r > SC_MAX_LENGTH) {
+        sc_set_error(SC_ELIMIT);
+        return NULL;
+    }
     sc_shape *s = shape_new(SC_SHAPE_SPHERE);
     if (!s)
         return NULL;
@@ -84,6 +88,10 @@ SC_API sc_shape *sc_shape_box(double hx, double hy, double hz)
 {
     if (!(hx > 0 && hy > 0 && hz > 0) || !isfinite(hx + hy + hz)) {
         sc_set_error(SC_EINVAL);
+        return NULL;
+    }
+    if (fmin(hx, fmin(hy, hz)) < SC_MIN_LENGTH || fmax(hx, fmax(hy, hz)) > SC_MAX_LENGTH) {
+        sc_set_error(SC_ELIMIT);
         return NULL;
     }
     sc_shape *s = shape_new(SC_SHAPE_BOX);
