@@ -55,8 +55,10 @@ enum {
     SC_ENUMERIC = -13,     /* numerical breakdown (singular pivot, NaN in state) */
     SC_EAUTH = -14,        /* a message failed authentication or was replayed */
     SC_EPERM = -15,        /* a key file is accessible by others: its mode must be 0600 */
-    SC_ELIMIT = -16        /* finite, but outside what the engine simulates (SC_MIN_ and
+    SC_ELIMIT = -16,       /* finite, but outside what the engine simulates (SC_MIN_ and
                               SC_MAX_ limits below) */
+    SC_ETOOMANY = -17      /* an island has more contact rows than the exact solver takes
+                              (SC_MAX_ISLAND_ROWS): bodies overlap heavily? */
 };
 
 /* What the engine simulates: sizes, places, speeds and frames outside
@@ -68,6 +70,9 @@ enum {
 #define SC_MAX_SPEED 1e5       /* m/s: a body's speed when added */
 #define SC_MAX_SPIN 1e5        /* rad/s: a body's angular speed when added */
 #define SC_MAX_DT 1.0          /* s: one sc_world_step() */
+/* Rows of one island's contact LCP (a contact with friction is 3): its
+ * dense matrix is rows^2 doubles (512 MB here). */
+#define SC_MAX_ISLAND_ROWS 8192
 
 /* A sentence describing the error code err (never NULL). */
 SC_API const char *sc_strerror(int err);
@@ -281,6 +286,9 @@ typedef struct sc_stats {
                                  (since the world was created) */
     size_t unit_arena_bytes;  /* the same of the local threads' arenas (island
                                  solves), largest seen */
+    long initial_overlaps;    /* body pairs found overlapping deeper than twice
+                                 the contact tolerance when bodies were added
+                                 (the first frame after sc_body_add), all frames */
 } sc_stats;
 
 /* A new empty world; cfg NULL = defaults. NULL on error (sc_last_error()). */

@@ -393,6 +393,58 @@ static void test_values_the_engine_cannot_simulate_are_refused(void **state)
     sc_world_destroy(w);
 }
 
+/* Bodies placed inside each other are counted (sc_stats.initial_overlaps);
+ * a heap so dense that one island's contact LCP passes the exact solver's
+ * size gets SC_ETOOMANY, never a misleading out-of-memory (1000 coincident
+ * spheres ended in "out of memory" at 330 MB). */
+static sc_world *coincident(int n, double friction)
+{
+    sc_world *w = world_with_floor();
+    sc_shape *ball = sc_shape_sphere(0.1);
+    for (int i = 0; i < n; i++) {
+        sc_body_desc d = sc_body_desc_default();
+        d.shape = ball;
+        d.pos[2] = 0.5;
+        d.friction = friction;
+        assert_int_equal(sc_body_add(w, &d), i + 1);
+    }
+    sc_shape_release(ball);
+    return w;
+}
+
+static void test_overlapping_bodies_are_counted_and_a_huge_island_refused(void **state)
+{
+    (void)state;
+    /* 30 spheres: 435 pairs, one row each without friction: solved */
+    sc_world *w = coincident(30, 0);
+    sc_stats st;
+    assert_int_equal(sc_world_step(w, 0.01), SC_OK);
+    sc_world_stats(w, &st);
+    assert_int_equal(st.initial_overlaps, 30 * 29 / 2);
+    for (int f = 0; f < 10; f++)
+        assert_int_equal(sc_world_step(w, 0.01), SC_OK);
+    sc_world_stats(w, &st);
+    assert_int_equal(st.initial_overlaps, 30 * 29 / 2);    /* counted once */
+    sc_world_destroy(w);
+    /* 80 with friction, 3 rows a contact: more than SC_MAX_ISLAND_ROWS,
+     * refused before the matrix is made */
+    assert_true(3 * 80 * 79 / 2 > SC_MAX_ISLAND_ROWS);
+    w = coincident(80, 0.5);
+    assert_int_equal(sc_world_step(w, 0.01), SC_ETOOMANY);
+    assert_string_not_equal(sc_strerror(SC_ETOOMANY), sc_strerror(SC_ENOMEM));
+    sc_world_destroy(w);
+    /* apart, none */
+    w = world_with_floor();
+    sc_shape *ball = sc_shape_sphere(0.1);
+    add_body(w, ball, 1, 0, 0, 0.5);
+    add_body(w, ball, 1, 0.3, 0, 0.5);
+    assert_int_equal(sc_world_step(w, 0.01), SC_OK);
+    sc_world_stats(w, &st);
+    assert_int_equal(st.initial_overlaps, 0);
+    sc_shape_release(ball);
+    sc_world_destroy(w);
+}
+
 int main(void)
 {
     const struct CMUnitTest tests[] = {
@@ -408,6 +460,7 @@ int main(void)
         cmocka_unit_test(test_an_empty_world_steps),
         cmocka_unit_test(test_body_shape_is_the_shape_it_was_added_with),
         cmocka_unit_test(test_values_the_engine_cannot_simulate_are_refused),
+        cmocka_unit_test(test_overlapping_bodies_are_counted_and_a_huge_island_refused),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
 }

@@ -69,6 +69,21 @@ python3 -c 'import json,sys; json.load(open(sys.argv[1]))' "$dir/out" 2>/dev/nul
     { command -v python3 >/dev/null && { echo "FAIL: run --json is not JSON"; fail=1; }; }
 grep -q '"frames_over_budget": [0-9]*, "max_frame_s": 0\.[0-9]*' "$dir/out" ||
     { echo "FAIL: run --json: no frames_over_budget, max_frame_s"; cat "$dir/out"; fail=1; }
+# bodies placed inside each other: a warning on stderr and the count in the
+# report (27 coincident spheres: 351 pairs), not a silent run
+cat >"$dir/heap.scene" <<'EOF'
+shape floor plane 0 0 1 0
+shape ball sphere 0.1
+body floor
+body ball mass 1 pos 0 0 0.5 grid 3 3 3 0 0 0
+EOF
+check "run, bodies placed inside each other" 0 "$tool" run "$dir/heap.scene" --frames 20 --json
+one_line "run, bodies inside each other" "warning: 351 body pairs overlap"
+grep -q '"initial_overlaps": 351' "$dir/out" ||
+    { echo "FAIL: run --json: no initial_overlaps 351"; cat "$dir/out"; fail=1; }
+check "run, bodies not inside each other" 0 "$tool" run bolts --bodies 12 --frames 20
+[ -s "$dir/err" ] && { echo "FAIL: run bolts: stderr not empty"; cat "$dir/err"; fail=1; }
+grep -q "overlapping" "$dir/out" && { echo "FAIL: run bolts: overlaps reported"; fail=1; }
 check "run --wait-daemons without --cluster" 2 "$tool" run bolts --wait-daemons 1
 one_line "run --wait-daemons without --cluster" "needs --cluster"
 check "run without a scene" 2 "$tool" run

@@ -505,6 +505,7 @@ static int record_finish(recorder *r)
 
 typedef struct totals {
     long frames, units, remote, recomputed, late;
+    long overlaps;              /* body pairs overlapping where they were placed */
     long over_budget;           /* frames whose step took more than DT of wall time */
     double wall, peak_energy, max_pen, comm, max_frame;
     int at_rest;
@@ -576,6 +577,12 @@ static int simulate(const options *o, sc_world *w, totals *t, int progress, reco
         t->late += st.late_results;
         t->comm += st.comm_s;
         t->max_pen = fmax(t->max_pen, st.max_penetration);
+        if (st.initial_overlaps > t->overlaps)
+            fprintf(stderr, "%s: warning: %ld body pairs overlap by more than twice the "
+                    "contact tolerance where they were placed; they are pushed apart, not "
+                    "simulated as physics would\n", "simcluster",
+                    st.initial_overlaps - t->overlaps);
+        t->overlaps = st.initial_overlaps;
         if (e0 > 0)
             t->peak_energy = fmax(t->peak_energy, sc_world_energy(w) / e0);
         double now = now_s();
@@ -710,12 +717,12 @@ static int run_cmd(int argc, char **argv)
                "\"peak_energy_ratio\": %.6f, \"max_penetration_m\": %.6g, \"units\": %ld, "
                "\"daemons\": %d, \"remote_units\": %ld, \"recomputed_units\": %ld, "
                "\"late_results\": %ld, \"dropped_messages\": %ld, \"comm_s\": %.4f, "
-               "\"frames_over_budget\": %ld, \"max_frame_s\": %.4f, "
+               "\"frames_over_budget\": %ld, \"max_frame_s\": %.4f, \"initial_overlaps\": %ld, "
                "\"hash\": \"%016llx\", \"interrupted\": %s%s%s, \"error\": %s%s%s}\n",
                sc_world_body_count(w), seed, (int)(st.nodes - st.daemons), t.frames,
                sim, t.wall, t.wall > 0 ? sim / t.wall : 0, t.at_rest ? "true" : "false",
                t.rest_s, t.peak_energy, t.max_pen, t.units, st.daemons, t.remote, t.recomputed,
-               t.late, st.dropped_messages, t.comm, t.over_budget, t.max_frame, hash,
+               t.late, st.dropped_messages, t.comm, t.over_budget, t.max_frame, t.overlaps, hash,
                t.interrupted ? "\"" : "null", t.interrupted ? signal_name(t.interrupted) : "",
                t.interrupted ? "\"" : "", rc ? "\"" : "null",
                rc ? sc_strerror(rc) : "", rc ? "\"" : "");
@@ -731,6 +738,8 @@ static int run_cmd(int argc, char **argv)
                1e3 * t.max_frame);
         printf("  peak energy / initial %.5f, max penetration %.3f mm\n", t.peak_energy,
                1e3 * t.max_pen);
+        if (t.overlaps)
+            printf("  body pairs overlapping where placed: %ld (pushed apart)\n", t.overlaps);
         printf("  work units %ld", t.units);
         if (o.cluster)
             printf(", from daemons %ld, recomputed %ld, late %ld, dropped messages %ld",

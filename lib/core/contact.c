@@ -240,6 +240,8 @@ int sc_island_solve(sc_arena *arena, sc_body *bodies, const sc_contact *c, const
         const sc_contact *ck = &c[ci[k]];
         double mu = sqrt(bodies[ck->body_a].friction * bodies[ck->body_b].friction);
         nrows += mu > 0 ? 3 : 1;
+        if (nrows > SC_MAX_ISLAND_ROWS)
+            return SC_ETOOMANY;    /* not a misleading out-of-memory later */
     }
     size_t n = (size_t)nrows;
     /* per island, from the thread's arena: no allocation once it has

@@ -36,6 +36,7 @@ SC_API const char *sc_strerror(int err)
     case SC_ENUMERIC: return "numerical breakdown (singular pivot or NaN)";
     case SC_EAUTH: return "message failed authentication or was replayed";
     case SC_EPERM: return "key file is accessible by others: its mode must be 0600";
+    case SC_ETOOMANY: return "an island has more contact rows than the exact solver takes (bodies overlap heavily?)";
     case SC_ELIMIT: return "value is finite but outside what the engine simulates (size, position, speed, mass or frame length)";
     default: return "unknown error code";
     }

@@ -161,7 +161,21 @@ static int substeps(sc_frame *f, double dt, sc_body *saved, unsigned char *touch
     sc_arena *a = &f->scr->arena;
     sc_islands *is = &f->scr->islands;
     int n = st->nbodies;
-    int rc = st->contacts_valid ? SC_OK : sc_detect(f);
+    int rc = SC_OK;
+    if (!st->contacts_valid) {
+        /* bodies were added: pairs already deep in each other are counted
+         * (the push-out separates them, but not as physics would) */
+        rc = sc_detect(f);
+        for (int k = 0; rc == SC_OK && k < st->ncontacts; k++) {
+            const sc_contact *c = &st->contacts[k];
+            int first = k == 0 || c->body_a != c[-1].body_a || c->body_b != c[-1].body_b;
+            int deep = 0;
+            for (int j = k; j < st->ncontacts && st->contacts[j].body_a == c->body_a &&
+                            st->contacts[j].body_b == c->body_b; j++)
+                deep |= st->contacts[j].depth > 2 * f->cfg->contact_tol_m;
+            f->stats->initial_overlaps += first && deep;
+        }
+    }
     double left = dt;
     for (int sub = 0; rc == SC_OK && left > 0; sub++) {
         /* keep the start of the substep: contacts and state */

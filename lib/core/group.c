@@ -362,6 +362,7 @@ static void add_stats(sc_stats *s, const sc_stats *g)
     s->sched_s += g->sched_s;
     s->makespan_s += g->makespan_s;
     s->makespan_bound_s += g->makespan_bound_s;
+    s->initial_overlaps += g->initial_overlaps;
     if (g->arena_bytes > s->unit_arena_bytes)
         s->unit_arena_bytes = g->arena_bytes;
     if (g->unit_arena_bytes > s->unit_arena_bytes)
