@@ -170,7 +170,8 @@ fi
 check "--live with a log" 2 "$view" --live "$url" "$dir/log"
 check "--timeout without --live" 2 "$view" --timeout 1 "$dir/log"
 check "--live, bad URL" 1 "$view" --live "udpm://999.1.1.1:7669" --out "$dir"
-grep -q "cannot open LCM URL" "$dir/err" || { echo "FAIL: --live, bad URL: no error"; fail=1; }
+grep -q "cannot open udpm://999.1.1.1:7669: 999.1.1.1 is not an IPv4 multicast address" "$dir/err" ||
+    { echo "FAIL: --live, bad URL: no error"; cat "$dir/err"; fail=1; }
 
 [ "$fail" -eq 0 ] && echo "view: all checks passed"
 exit "$fail"
