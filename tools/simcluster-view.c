@@ -173,7 +173,7 @@ static int parse_args(int argc, char **argv, view_opts *o)
             break;
         case 'L':
             if (optarg[0] == '\0')
-                return bad("--live takes an LCM URL");
+                return bad("--live takes a udpm:// URL");
             o->live = optarg;
             break;
         case 't':

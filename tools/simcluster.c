@@ -235,7 +235,7 @@ static int parse_options(const char *cmd, int argc, char **argv, options *o)
             break;
         case 'P':
             if (optarg[0] == '\0')
-                return bad(cmd, "--publish takes an LCM URL");
+                return bad(cmd, "--publish takes a udpm:// URL");
             o->publish = optarg;
             break;
         case 'R':
