@@ -73,7 +73,8 @@ static size_t lc03(uint8_t *p, uint32_t seqno, uint32_t size, uint32_t off, uint
         memcpy(p + at, channel, strlen(channel) + 1);
         at += strlen(channel) + 1;
     }
-    memcpy(p + at, data, n);
+    if (n)
+        memcpy(p + at, data, n);
     return at + n;
 }
 
@@ -428,7 +429,10 @@ static void test_messages_round_trip_over_multicast(void **state)
     assert_int_equal(sc_bus_open(url, &rx, NULL, 0), SC_OK);
     assert_int_equal(sc_bus_subscribe(rx, CH, on_msg, &g), SC_OK);
     sc_bus_counters c = counters(rx);
-    assert_true(c.rcvbuf_bytes >= SC_BUS_RCVBUF_MIN);    /* root: SO_RCVBUFFORCE */
+    /* root gets it whatever net.core.rmem_max says (SO_RCVBUFFORCE) */
+    int big = c.rcvbuf_bytes >= SC_BUS_RCVBUF_MIN;
+    if (geteuid() == 0)
+        assert_true(big);
     /* sent whole before any is read: the largest must fit in the socket's
      * buffer at once (64 datagrams of 64 KiB) */
     const size_t sizes[] = { 0, 1, 1000, SC_BUS_SHORT_MAX - sizeof CH, 65500, 200000,
@@ -442,12 +446,24 @@ static void test_messages_round_trip_over_multicast(void **state)
         assert_int_equal(g.len, sizes[k]);
         assert_memory_equal(g.data, msg, sizes[k]);
     }
-    /* a burst of 1000 short messages: all of them, none dropped */
+    /* a burst of 1000 short messages: each taken or counted as dropped by
+     * the kernel, and none dropped with the full buffer. The kernel's count
+     * comes with the next datagram queued: one is sent whenever the queue
+     * is found empty. */
     for (int k = 0; k < 1000; k++)
         assert_int_equal(sc_bus_publish(tx, CH, msg, 200), SC_OK);
-    wait_for(rx, &g, 1007);
+    for (int i = 0; i < 200; i++) {
+        c = counters(rx);
+        if ((uint64_t)g.n - 7 + c.kernel >= 1000)
+            break;
+        if (sc_bus_handle(rx, 0.01) == 0)
+            assert_int_equal(sc_bus_publish(tx, "SC_SENTINEL", msg, 1), SC_OK);
+    }
     c = counters(rx);
-    assert_int_equal(sc_bus_dropped(&c), 0);
+    assert_int_equal((uint64_t)g.n - 7 + c.kernel, 1000);
+    assert_int_equal(c.malformed + c.refused + c.evicted + c.nomem, 0);
+    if (big)
+        assert_int_equal(c.kernel, 0);
     assert_int_equal(sc_bus_publish(tx, "", msg, 1), SC_EINVAL);
     char longch[SC_BUS_CHANNEL_MAX + 2];
     memset(longch, 'A', sizeof longch - 1);

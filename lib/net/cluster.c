@@ -4,9 +4,9 @@
  * daemon slot; a slot is bound to a daemon when its first heartbeat comes.
  * A remote node's submit() packs its units (unit_wire.c), seals them and
  * publishes them on the daemon's channel; wait() reads the bus (bus.c) on
- * the calling thread (results of every daemon are merged as they come: each unit
- * writes only its own outputs) until this daemon's units are in or the
- * deadline passes, and then recomputes what is missing here. A result is
+ * the calling thread (results of every daemon are merged as they come:
+ * each unit writes only its own outputs) until this daemon's units are in
+ * or the deadline passes, and then recomputes what is missing here. A result is
  * taken once, only for a unit of the current job that is still out, and
  * merged by sc_wire_result_apply() exactly as a local run would write it:
  * whoever computes what, the bits are the same.
@@ -26,7 +26,6 @@
 #include <time.h>
 #include <unistd.h>
 
-#include "bus.h"
 #include "cluster.h"
 #include "exec.h"
 #include "simcluster_net.h"
