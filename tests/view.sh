@@ -119,7 +119,9 @@ grep -q '^VIDEO_PKGS="ffmpeg"' scripts/deps.sh && grep -q "scripts/deps.sh video
     { echo "FAIL: ffmpeg is not in scripts/deps.sh video or the README"; fail=1; }
 
 # live: the viewer subscribed while a run publishes (ttl=0: this host only)
-url="udpm://239.255.76.67:7669?ttl=0"
+# a port of its own: another checkout's tests on this host must not be heard
+port=$((20000 + $(od -An -N2 -tu2 /dev/urandom | tr -d ' ') % 10000))
+url="udpm://239.255.76.67:$port?ttl=0"
 live() { # $1 = folder, then viewer options; the viewer runs in the background
     d=$1; shift
     mkdir -p "$d"
