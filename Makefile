@@ -55,6 +55,7 @@ LAYER_test_lcp := core
 LAYER_test_shape_load := core
 LAYER_test_units := api
 LAYER_test_cluster_msg := net
+LAYER_test_bus := net
 LAYER_test_unit_wire := api
 LAYER_test_compute := net
 LAYER_test_idle := core
@@ -63,6 +64,7 @@ LAYER_bench_broadphase := core
 LAYER_bench_lcp := core
 LAYER_bench_cluster := api
 LAYER_fuzz_envelope := net
+LAYER_fuzz_bus := net
 LAYER_cluster_inject := net
 LAYER_fuzz_load := core
 # Programs (tools, the daemon, examples) see only the public headers;

@@ -1,4 +1,4 @@
-/* engine.c - the daemon's engine (engine.h): the LCM loop on the thread
+/* engine.c - the daemon's engine (engine.h): the bus loop on the thread
  * that calls sc_serve_run() (envelopes opened and checked, units decoded,
  * shapes cached, heartbeats sent) and compute threads that run units and
  * send their results. Received bytes are never trusted: envelopes are
@@ -8,7 +8,6 @@
  * public API is used (simcluster_net.h: the compute node). */
 #include <errno.h>
 #include <inttypes.h>
-#include <lcm/lcm.h>
 #include <poll.h>
 #include <pthread.h>
 #include <sched.h>
@@ -64,13 +63,13 @@ typedef struct asked {
 
 struct sc_serve {
     sc_serve_config cfg;
-    lcm_t *lcm;
+    sc_bus *bus;
     int64_t id;
     char ch_unit[CHANNEL_MAX], ch_shape[CHANNEL_MAX];
     _Atomic int64_t seq;
-    sc_msg_guard guard;           /* LCM thread only */
+    sc_msg_guard guard;           /* the bus's thread only (sc_serve_run) */
     int stop_pipe[2];
-    /* shape cache (LCM thread writes; compute threads read shapes that
+    /* shape cache (the bus's thread writes; compute threads read shapes that
      * decoded units hold references to) */
     cached *cache;
     int ncache, cache_cap;
@@ -167,7 +166,7 @@ static int config_ok(const sc_serve_config *c)
            c->heartbeat_s <= 10 && c->node_id >= 0 && c->cache_bytes > 0;
 }
 
-/* Seal and publish (any thread: lcm_publish is thread-safe). */
+/* Seal and publish (any thread: sc_bus_publish is thread-safe). */
 static int send_msg(sc_serve *s, const char *channel, int kind, const uint8_t *payload,
                     size_t len)
 {
@@ -177,7 +176,7 @@ static int send_msg(sc_serve *s, const char *channel, int kind, const uint8_t *p
     int rc = sc_msg_seal(s->cfg.key, s->id, seq, kind, payload, len, &env, &elen);
     if (rc != SC_OK)
         return rc;
-    rc = lcm_publish(s->lcm, channel, env, (unsigned)elen) == 0 ? SC_OK : SC_EIO;
+    rc = sc_bus_publish(s->bus, channel, env, elen);
     free(env);
     return rc;
 }
@@ -495,14 +494,16 @@ static void take_shape(sc_serve *s, const uint8_t *p, size_t len)
     retry_parked(s);
 }
 
-/* ---- the LCM thread ---- */
+/* ---- the bus's thread (sc_serve_run) ---- */
 
-static void on_message(const lcm_recv_buf_t *rb, const char *channel, void *ctx)
+static void on_message(void *ctx, const char *channel, const uint8_t *data, size_t len,
+                       int64_t recv_us)
 {
+    (void)recv_us;
     sc_serve *s = ctx;
     sc_msg m;
     pthread_mutex_lock(&s->lock);
-    int rc = sc_msg_open(s->cfg.key, &s->guard, rb->data, rb->data_size, &m);
+    int rc = sc_msg_open(s->cfg.key, &s->guard, data, len, &m);
     s->n.dropped_format = s->guard.dropped_format;
     s->n.dropped_auth = s->guard.dropped_auth;
     s->n.dropped_replay = s->guard.dropped_replay;
@@ -653,19 +654,30 @@ int sc_serve_create(const sc_serve_config *c, sc_serve **out)
         sc_serve_destroy(s);
         return SC_ENOMEM;
     }
-    s->lcm = lcm_create(c->url);
-    if (!s->lcm) {
+    if (sc_bus_open(c->url, &s->bus, NULL, 0) != SC_OK) {
         sc_serve_destroy(s);
         return SC_EIO;
     }
-    if (!lcm_subscribe(s->lcm, s->ch_unit, on_message, s) ||
-        !lcm_subscribe(s->lcm, s->ch_shape, on_message, s)) {
+    if (sc_bus_subscribe(s->bus, s->ch_unit, on_message, s) != SC_OK ||
+        sc_bus_subscribe(s->bus, s->ch_shape, on_message, s) != SC_OK) {
         sc_serve_destroy(s);
         return SC_EIO;
     }
     measure_idle(s);
     *out = s;
     return SC_OK;
+}
+
+/* The bus's counters into ours (the bus is read on this thread only). */
+static void note_bus(sc_serve *s)
+{
+    sc_bus_counters b;
+    sc_bus_counters_get(s->bus, &b);
+    pthread_mutex_lock(&s->lock);
+    s->n.dropped_net = (long)(b.malformed + b.refused + b.evicted + b.nomem);
+    s->n.dropped_kernel = (long)b.kernel;
+    s->n.rcvbuf_bytes = b.rcvbuf_bytes;
+    pthread_mutex_unlock(&s->lock);
 }
 
 int sc_serve_run(sc_serve *s)
@@ -681,9 +693,14 @@ int sc_serve_run(sc_serve *s)
         return SC_ENOMEM;
     logf_(s, LOG_INFO, "serving on %s as node %016" PRIx64 " with %d threads%s", s->cfg.url,
           (uint64_t)s->id, s->nthreads, s->cfg.idle_priority ? " (nice 19, SCHED_IDLE)" : "");
+    note_bus(s);
+    if (s->n.rcvbuf_bytes < SC_BUS_RCVBUF_MIN)
+        logf_(s, LOG_WARNING, "receive buffer only %d KiB: a burst of datagrams may be lost "
+              "(counted as dropped_kernel); raise net.core.rmem_max or start as root",
+              s->n.rcvbuf_bytes >> 10);
     int rc = SC_OK;
     double next = wall_now();
-    int fd = lcm_get_fileno(s->lcm);
+    int fd = sc_bus_fd(s->bus);
     for (;;) {
         double now = wall_now();
         if (now >= next) {
@@ -703,10 +720,11 @@ int sc_serve_run(sc_serve *s)
         }
         if (n > 0 && pf[1].revents)
             break;
-        if (n > 0 && (pf[0].revents & POLLIN) && lcm_handle(s->lcm) != 0) {
+        if (n > 0 && (pf[0].revents & POLLIN) && sc_bus_handle(s->bus, 0) < 0) {
             rc = SC_EIO;
             break;
         }
+        note_bus(s);
     }
     pthread_mutex_lock(&s->lock);
     s->quit = 1;
@@ -752,8 +770,7 @@ void sc_serve_destroy(sc_serve *s)
 {
     if (!s)
         return;
-    if (s->lcm)
-        lcm_destroy(s->lcm);
+    sc_bus_close(s->bus);
     for (int i = 0; s->queue && i < s->qlen; i++) {
         task *t = s->queue[(s->qhead + i) % QUEUE_MAX];
         sc_remote_unit_free(t->ru);

@@ -1,6 +1,6 @@
 /*
  * engine.h - the daemon's engine (docs/DESIGN.md sections 7.3, 7.5): it
- * joins the cluster's LCM group,
+ * joins the cluster's multicast group,
  * announces itself, caches shapes by content hash (asking the master for
  * missing ones), computes the work units masters send it on its compute
  * threads, and replies with their results. The process around it
@@ -26,7 +26,7 @@
 #define SC_SERVE_MAX_THREADS 256
 
 typedef struct sc_serve_config {
-    const char *url;            /* LCM URL (SC_CLUSTER_URL) */
+    const char *url;            /* udpm:// URL (SC_CLUSTER_URL; sc_bus_open) */
     uint8_t key[SC_KEY_BYTES];  /* the cluster key; all zero = insecure */
     int threads;                /* compute threads, 1..SC_SERVE_MAX_THREADS */
     double busy_threshold;      /* owner-busy when the others' CPU use passes
@@ -53,6 +53,10 @@ typedef struct sc_serve_counters {
     long shapes;                /* shapes in the cache */
     long shape_requests;        /* requests sent */
     long dropped_format, dropped_auth, dropped_replay;  /* envelopes dropped */
+    long dropped_net;           /* datagrams and fragments the bus dropped:
+                                   malformed, refused, evicted, no memory */
+    long dropped_kernel;        /* datagrams the kernel dropped (queue full) */
+    int rcvbuf_bytes;           /* the socket's receive buffer */
     long heartbeats;            /* announces sent */
     double idle_fraction;       /* last measured */
     int owner_busy;
@@ -60,11 +64,11 @@ typedef struct sc_serve_counters {
 
 sc_serve_config sc_serve_config_default(void);
 typedef struct sc_serve sc_serve;
-/* Join the LCM group and prepare (no threads yet): SC_OK, SC_EINVAL (bad
- * config), SC_EIO (LCM URL cannot be opened), SC_ENOMEM. */
+/* Join the multicast group and prepare (no threads yet): SC_OK, SC_EINVAL
+ * (bad config), SC_EIO (the URL cannot be opened), SC_ENOMEM. */
 int sc_serve_create(const sc_serve_config *c, sc_serve **out);
 /* Start the compute threads and serve until sc_serve_stop(): SC_OK, or
- * SC_EIO when LCM fails, SC_ENOMEM. */
+ * SC_EIO when the bus fails, SC_ENOMEM. */
 int sc_serve_run(sc_serve *s);
 /* Apply a new configuration's busy_threshold, heartbeat_s and log to a
  * running daemon (SIGHUP); the other fields need a restart and are

@@ -320,10 +320,10 @@ static void log_counters(sc_serve *s)
     logf_(LOG_INFO,
           "counters: node=%016llx units=%ld results=%ld unit_errors=%ld shapes=%ld "
           "shape_requests=%ld dropped_format=%ld dropped_auth=%ld dropped_replay=%ld "
-          "heartbeats=%ld idle=%.3f owner_busy=%d",
+          "dropped_net=%ld dropped_kernel=%ld heartbeats=%ld idle=%.3f owner_busy=%d",
           (unsigned long long)c.node, c.units, c.results, c.unit_errors, c.shapes,
-          c.shape_requests, c.dropped_format, c.dropped_auth, c.dropped_replay, c.heartbeats,
-          c.idle_fraction, c.owner_busy);
+          c.shape_requests, c.dropped_format, c.dropped_auth, c.dropped_replay, c.dropped_net,
+          c.dropped_kernel, c.heartbeats, c.idle_fraction, c.owner_busy);
 }
 
 /* ---- the signal thread ------------------------------------------------- */
@@ -567,18 +567,24 @@ int main(int argc, char **argv)
                   rc == SC_EIO && errno ? ": " : "", rc == SC_EIO && errno ? strerror(errno) : "");
     }
 
-    /* Root is given up before the engine runs any code: LCM parses the URL
-     * and starts its receive thread in sc_serve_create, and setuid() in a
-     * threaded process would interrupt that thread's select(). */
+    /* The engine opens its socket before root is given up (it starts no
+     * thread until sc_serve_run), so that the kernel gives it the receive
+     * buffer it asks for whatever net.core.rmem_max says (SO_RCVBUFFORCE). */
+    rc = sc_serve_create(&d.cfg, &d.serve);
+    explicit_bzero(d.cfg.key, sizeof d.cfg.key);    /* the engine holds its copy */
+    if (rc == SC_EIO) {
+        char why[ERR_BYTES] = "cannot open this URL";
+        sc_bus *b = NULL;
+        if (sc_bus_open(s->url, &b, why, sizeof why) == SC_OK)
+            sc_bus_close(b);
+        fatal("cannot start serving on %s: %s", s->url, why);
+    }
+    if (rc != SC_OK)
+        fatal("cannot start serving on %s: %s", s->url, sc_strerror(rc));
     if (getuid() == 0 || geteuid() == 0)
         drop_root(s->user);
     else if (d.cli_mask & 1u << ROW_USER)
         logf_(LOG_DEBUG, "not started as root: --user %s not needed", s->user);
-    rc = sc_serve_create(&d.cfg, &d.serve);
-    explicit_bzero(d.cfg.key, sizeof d.cfg.key);    /* the engine holds its copy */
-    if (rc != SC_OK)
-        fatal("cannot start serving on %s: %s", s->url,
-              rc == SC_EIO ? "LCM cannot open this URL" : sc_strerror(rc));
     if (s->insecure)
         logf_(LOG_WARNING, "insecure: running with the all-zero key, anyone who can reach %s "
               "can send this daemon work and forge its results", s->url);

@@ -275,7 +275,8 @@ typedef struct sc_stats {
     long late_results;        /* results that came after the deadline or twice
                                  (ignored) */
     long dropped_messages;    /* messages dropped: malformed, failed the MAC or
-                                 replayed (all frames) */
+                                 replayed, and datagrams the transport or the
+                                 kernel dropped (sc_bus_dropped; all frames) */
     double comm_s;            /* wall seconds packing, sealing, sending and
                                  receiving, last frame */
     double remote_wait_s;     /* wall seconds waiting for daemons' results

@@ -140,6 +140,84 @@ SC_API int sc_msg_shape_decode(const void *buf, size_t len, sc_shape **out);
  * (equal content, equal hash); 0 for NULL. */
 SC_API uint64_t sc_shape_hash(const sc_shape *s);
 
+/* ---- the cluster transport ------------------------------------------------
+ * The cluster's multicast traffic, read and written without LCM's network
+ * code (docs/DESIGN.md section 7.1) but in LCM's UDP multicast wire format,
+ * so lcm-spy and lcm-logger read it: short messages as one "LC02" datagram,
+ * longer ones as "LC03" fragments. URLs as LCM's:
+ * udpm://ADDR:PORT?ttl=N&recv_buf_size=B (ADDR a multicast address; ttl
+ * 0..255, default 0; B the kernel receive buffer asked for, at least
+ * SC_BUS_RCVBUF_MIN); other LCM providers (mpudpm://, file://, memq://,
+ * tcpq://) are refused. No receive thread: sc_bus_handle() reads on the
+ * caller's thread. Fragments are reassembled within a fixed budget of
+ * memory whatever a header claims, and every datagram dropped, by this code
+ * or by the kernel, is counted. */
+#define SC_BUS_CHANNEL_MAX 63                /* channel name bytes, without the NUL */
+#define SC_BUS_SUBS_MAX 16                   /* subscriptions per bus */
+#define SC_BUS_RCVBUF_MIN (8 << 20)          /* receive buffer asked for, at least */
+#define SC_BUS_INFLIGHT 8                    /* messages reassembled at once, per bus */
+#define SC_BUS_REASM_BYTES (2 * SC_MSG_MAX_BYTES + (1u << 20))  /* their buffers, per bus */
+#define SC_BUS_REASM_PROCESS_BYTES (4 * SC_BUS_REASM_BYTES)     /* all buses of a process */
+typedef struct sc_bus sc_bus;
+/* What a bus has received and dropped since it was opened. Every datagram
+ * read is counted in datagrams and, if it is dropped, once in malformed,
+ * refused or nomem; a message given up once its fragments were in (they
+ * overlap) adds one to refused, one given up before (evicted) one to
+ * evicted; kernel counts datagrams that never reached us. */
+typedef struct sc_bus_counters {
+    uint64_t datagrams;         /* datagrams read */
+    uint64_t messages;          /* whole messages handed to a handler */
+    uint64_t ignored;           /* messages (or their fragments) on channels
+                                   this bus has no subscription for: not drops */
+    uint64_t malformed;         /* too short or truncated, unknown magic, channel
+                                   missing, unterminated or too long */
+    uint64_t refused;           /* fragments refused: a size claim over
+                                   SC_MSG_MAX_BYTES, offset, length, number or
+                                   count out of range or not matching their
+                                   message, duplicate, of a message not begun,
+                                   no room left; messages whose fragments
+                                   overlap or leave a gap */
+    uint64_t evicted;           /* messages given up part-assembled (too old, or
+                                   the room was needed): each counts once */
+    uint64_t nomem;             /* datagrams dropped as a buffer could not be had */
+    uint64_t kernel;            /* datagrams the kernel dropped, the socket's
+                                   receive queue full (SO_RXQ_OVFL) */
+    uint64_t reasm_bytes;       /* bytes held for reassembly now */
+    int rcvbuf_bytes;           /* the kernel receive buffer obtained (0: none) */
+} sc_bus_counters;
+/* Called on the thread in sc_bus_handle() for each whole message on a
+ * subscribed channel; data (len bytes) is valid during the call only;
+ * recv_us: the real-time clock, microseconds, when its last datagram came. */
+typedef void (*sc_bus_handler)(void *ctx, const char *channel, const uint8_t *data,
+                               size_t len, int64_t recv_us);
+/* Open url (see above): SC_OK with *out, SC_EINVAL (not a udpm:// URL, a
+ * bad address, port or option), SC_EIO (a socket call failed; no route
+ * to the group) or SC_ENOMEM. On error, why (may be NULL, why_len bytes)
+ * gets a sentence saying what was wrong. */
+SC_API int sc_bus_open(const char *url, sc_bus **out, char *why, size_t why_len);
+/* Close b; NULL is a no-op. */
+SC_API void sc_bus_close(sc_bus *b);
+/* Call fn(ctx, ...) for each message on exactly this channel: SC_OK,
+ * SC_EINVAL (name empty or over SC_BUS_CHANNEL_MAX bytes, subscribed
+ * already, or SC_BUS_SUBS_MAX subscriptions made). */
+SC_API int sc_bus_subscribe(sc_bus *b, const char *channel, sc_bus_handler fn, void *ctx);
+/* The receiving socket, for poll() or select() (readable: call
+ * sc_bus_handle); -1 for NULL. */
+SC_API int sc_bus_fd(const sc_bus *b);
+/* Wait up to timeout_s (0: not at all) for a datagram, then read every
+ * datagram pending (at most a few thousand a call) and hand each whole
+ * message to its handler: the number of messages handed, or SC_EIO. */
+SC_API int sc_bus_handle(sc_bus *b, double timeout_s);
+/* Send len bytes on channel, in one datagram or as fragments; any thread.
+ * SC_OK, SC_EINVAL (bad channel name), SC_ETOOBIG (more than LCM's 65535
+ * fragments), SC_EIO (the kernel refused a datagram). */
+SC_API int sc_bus_publish(sc_bus *b, const char *channel, const void *data, size_t len);
+/* The counters; call on the thread that handles b. */
+SC_API void sc_bus_counters_get(const sc_bus *b, sc_bus_counters *out);
+/* The datagrams dropped: malformed + refused + nomem + kernel, plus
+ * evicted messages. */
+SC_API uint64_t sc_bus_dropped(const sc_bus_counters *c);
+
 /* ---- frame records -------------------------------------------------------
  * What simcluster run --record writes to an LCM event log and --publish
  * sends (unsealed): one SC_FRAME_SHAPE_CHANNEL record per distinct shape

@@ -1,12 +1,14 @@
 #!/bin/sh
 # tests/cluster.sh BUILD - the cluster end to end on one machine: three
 # simclusterd daemons and a master (tests/cluster_run.c), each in a network
-# namespace of its own, talk LCM over UDP multicast across a bridge that
-# lives in a namespace of its own too (nothing reaches the host's network).
+# namespace of its own, talk (in LCM's wire format) over UDP multicast across
+# a bridge that lives in a namespace of its own too (nothing reaches the
+# host's network).
 #   a  local reference run: hash H
 #   b  3 daemons: hash H, daemons did work (remote > 0, results > 0 each)
 #   c  kill -9 a daemon a third into a run: hash H, the master exits 0
-#   e  hostile packets (tests/cluster_inject.c) on a daemon's unit channel
+#   e  hostile packets (tests/cluster_inject.c) on a daemon's unit channel,
+#      hostile LCM fragments and a burst of 1000 forged packets
 #      and on SC_ANNOUNCE: dropped and counted, the daemon lives, hash H
 #   d  a CPU hog next to one daemon: it says "owner busy" within 2 s and gets
 #      no units from 1 s after that; hash H
@@ -254,9 +256,11 @@ start_daemon 3 || { verdict "daemon 3 restarts" false; finish; }
 
 # ---- e: hostile packets ----
 N=20
-inject() { # $1 = channel, $2 = mode, $3 = count
-    ip netns exec "$nsm" "$INJECT" --url "$URL" --key "$KEY" --channel "$1" --mode "$2" \
-        --count "$3" >"$dir/inject.out" 2>&1 || cat "$dir/inject.out"
+inject() { # $1 = channel, $2 = mode, $3 = count, then cluster_inject options
+    ch=$1 mode=$2 count=$3
+    shift 3
+    ip netns exec "$nsm" "$INJECT" --url "$URL" --key "$KEY" --channel "$ch" --mode "$mode" \
+        --count "$count" "$@" >"$dir/inject.out" 2>&1 || cat "$dir/inject.out"
 }
 before=$(counters 2)
 for mode in garbage wrongkey truncated replay oversize; do inject "$(unit_channel 2)" $mode $N; done
@@ -276,14 +280,32 @@ verdict "e: garbage, truncated and oversize dropped as malformed ($df of $((3 * 
 verdict "e: wrong key dropped as unauthenticated ($da of $N)" '[ "$da" = $N ]'
 verdict "e: replays dropped ($dr of $((N - 1))), the first one failed as a unit ($de of 1)" \
     '[ "$dr" = $((N - 1)) ] && [ "$de" = 1 ]'
-for mode in garbage wrongkey truncated replay oversize; do inject SC_ANNOUNCE $mode $N; done
+# LCM 1.3.1 died of these before any MAC was checked: a second fragment at
+# offset 0xFFFFFFF0 (its 32-bit bounds check wraps), claims of 256 MB and
+# 4 GB (malloc'd as told); then 1000 forged envelopes in one burst, which
+# LCM's queue of 30 cut to about half
+before=$(counters 2)
+for mode in frag-wrap frag-huge frag-4g; do inject "$(unit_channel 2)" $mode $N --pace-us 0; done
+inject "$(unit_channel 2)" wrongkey 1000 --pace-us 0
+sleep 0.5
+after=$(counters 2)
+dn=$(delta dropped_net)
+da=$(delta dropped_auth)
+dk=$(delta dropped_kernel)
+verdict "e: hostile LCM fragments refused and counted ($dn, at least $((3 * N)))" \
+    '[ "$dn" != "?" ] && [ "$dn" -ge $((3 * N)) ]'
+verdict "e: a burst of 1000 forged packets all counted ($da of 1000, kernel drops $dk)" \
+    '[ "$da" = 1000 ] && [ "$dk" = 0 ]'
+for mode in garbage wrongkey truncated replay oversize frag-wrap frag-huge frag-4g; do
+    inject SC_ANNOUNCE $mode $N
+done
 alive=1
 for i in 1 2 3; do kill -0 "$(dpid $i)" 2>/dev/null || alive=0; done
 verdict "e: every daemon alive after the hostile packets" '[ $alive -eq 1 ]'
 # a master run while hostile announces keep coming
 (
     while :; do
-        for mode in garbage wrongkey truncated replay oversize; do
+        for mode in garbage wrongkey truncated replay oversize frag-wrap frag-huge; do
             inject SC_ANNOUNCE $mode 5
         done
     done

@@ -1,10 +1,11 @@
-/* cluster_inject.c - hostile traffic for the cluster tests (tests/cluster.sh):
- * publishes raw bytes with plain LCM on one channel, as an attacker on the
- * network could, so that a test can check that simclusterd (or a master)
- * drops and counts them and carries on.
+/* cluster_inject.c - hostile traffic for the cluster tests (tests/cluster.sh,
+ * daemon.sh, top.sh): publishes raw bytes on one channel, as an attacker on
+ * the network could, so that a test can check that simclusterd (or a
+ * master, or simcluster-top) drops and counts them and carries on.
  *   usage: cluster_inject --url URL --key FILE --channel CH
- *                         --mode garbage|wrongkey|truncated|replay|oversize
- *                         [--count N (20)] [--node ID]
+ *                         --mode garbage|wrongkey|truncated|replay|oversize|
+ *                                frag-wrap|frag-huge|frag-4g
+ *                         [--count N (20)] [--node ID] [--pace-us US (2000)]
  * Modes, and the receiver's counter each packet should raise:
  *   garbage    random bytes, 1..4000 of them              dropped_format
  *   wrongkey   a well-formed SC_MSG_UNIT envelope sealed
@@ -17,34 +18,48 @@
  *              rest are replays                            dropped_replay
  *   oversize   a sealed envelope whose len field claims
  *              more bytes than the packet holds            dropped_format
- * Every packet of a run comes from one sender id (--node, else random).
+ * and, as raw LC03 datagrams (LCM's fragments) that no envelope check
+ * sees, the transport's counter (dropped_net; sc_bus_counters.refused):
+ *   frag-wrap  two datagrams: a first fragment of a 100000-byte message
+ *              on CH, then its second at offset 0xFFFFFFF0 (LCM 1.3.1
+ *              checks offset + size in 32 bits, wraps and writes far
+ *              past its buffer)                            refused, and the
+ *              half message evicted later
+ *   frag-huge  a first fragment on CH claiming a 256 MB message (LCM
+ *              mallocs what it is told)                    refused
+ *   frag-4g    the same claiming 0xFFFFFFFF bytes           refused
+ * Every packet of a run comes from one sender id (--node, else random);
+ * --pace-us 0 sends the packets in one burst.
  * Prints one line "sent N packets (MODE) to CH as node ID"; exit 0, 1 on
  * an error, 2 on a usage error. */
 #include <errno.h>
 #include <getopt.h>
-#include <lcm/lcm.h>
 #include <sodium.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
 #include <time.h>
 
+#include "bus.h"
 #include "simcluster_net.h"
 #include "simcluster.h"
 
 #define ENV_LEN_AT (8 + 2 + 8 + 8 + 2)  /* fingerprint, version, node, seq, kind */
 #define GARBAGE_MAX 4000
-#define PACE_NS 2000000L                /* between packets: never overrun a receiver */
+#define PACE_US 2000L                   /* between packets, by default */
+#define WRAP_SIZE 100000u               /* frag-wrap's message */
 
-enum { GARBAGE, WRONGKEY, TRUNCATED, REPLAY, OVERSIZE, NMODES };
-static const char *const mode_names[NMODES] = { "garbage", "wrongkey", "truncated", "replay",
-                                                "oversize" };
+enum { GARBAGE, WRONGKEY, TRUNCATED, REPLAY, OVERSIZE, FRAG_WRAP, FRAG_HUGE, FRAG_4G, NMODES };
+static const char *const mode_names[NMODES] = { "garbage",   "wrongkey",  "truncated",
+                                                "replay",    "oversize",  "frag-wrap",
+                                                "frag-huge", "frag-4g" };
 
 static int usage(FILE *f, int status)
 {
     fprintf(f, "usage: cluster_inject --url URL --key FILE --channel CH\n"
-               "                      --mode garbage|wrongkey|truncated|replay|oversize\n"
-               "                      [--count N (20)] [--node ID]\n");
+               "                      --mode garbage|wrongkey|truncated|replay|oversize|\n"
+               "                             frag-wrap|frag-huge|frag-4g\n"
+               "                      [--count N (20)] [--node ID] [--pace-us US (2000)]\n");
     return status;
 }
 
@@ -74,17 +89,60 @@ static void put_be32(uint8_t *p, uint32_t v)
     p[3] = (uint8_t)v;
 }
 
+/* An LC03 datagram: header, then (fragment 0) the channel and its NUL,
+ * then fill bytes of data; its length. */
+static size_t lc03(uint8_t *p, uint32_t seqno, uint32_t size, uint32_t off, uint16_t no,
+                   uint16_t nfrag, const char *channel, size_t fill)
+{
+    put_be32(p, SC_BUS_MAGIC_LONG);
+    put_be32(p + 4, seqno);
+    put_be32(p + 8, size);
+    put_be32(p + 12, off);
+    p[16] = (uint8_t)(no >> 8);
+    p[17] = (uint8_t)no;
+    p[18] = (uint8_t)(nfrag >> 8);
+    p[19] = (uint8_t)nfrag;
+    size_t at = SC_BUS_LONG_HDR;
+    if (channel) {
+        size_t cl = strlen(channel) + 1;
+        memcpy(p + at, channel, cl);
+        at += cl;
+    }
+    memset(p + at, 0xA5, fill);
+    return at + fill;
+}
+
+/* One attack of a frag-* mode, as message seqno (distinct per attack). */
+static int send_fragments(sc_bus *bus, int mode, const char *channel, uint32_t seqno)
+{
+    static uint8_t d[2048];
+    seqno += 0x5C000000u;               /* far from what real senders use */
+    size_t n;
+    int rc;
+    if (mode == FRAG_WRAP) {
+        n = lc03(d, seqno, WRAP_SIZE, 0, 0, 2, channel, 1000);
+        if ((rc = sc_bus_send_raw(bus, d, n)) != SC_OK)
+            return rc;
+        n = lc03(d, seqno, WRAP_SIZE, 0xFFFFFFF0u, 1, 2, NULL, 1000);
+        return sc_bus_send_raw(bus, d, n);
+    }
+    uint32_t claim = mode == FRAG_HUGE ? 256u << 20 : 0xFFFFFFFFu;
+    n = lc03(d, seqno, claim, 0, 0, 65535, channel, 1000);
+    return sc_bus_send_raw(bus, d, n);
+}
+
 int main(int argc, char **argv)
 {
     static const struct option opts[] = {
         { "url", required_argument, NULL, 'u' },   { "key", required_argument, NULL, 'k' },
         { "channel", required_argument, NULL, 'c' }, { "mode", required_argument, NULL, 'm' },
         { "count", required_argument, NULL, 'n' }, { "node", required_argument, NULL, 'N' },
+        { "pace-us", required_argument, NULL, 'p' },
         { "help", no_argument, NULL, 'h' },        { NULL, 0, NULL, 0 }
     };
     const char *url = NULL, *keyfile = NULL, *channel = NULL;
     int mode = -1, c;
-    long count = 20;
+    long count = 20, pace_us = PACE_US;
     long long node = 0;
     char *end;
     while ((c = getopt_long(argc, argv, "", opts, NULL)) != -1) {
@@ -111,6 +169,12 @@ int main(int argc, char **argv)
             if (errno || *end || end == optarg || node <= 0)
                 return usage(stderr, 2);
             break;
+        case 'p':
+            errno = 0;
+            pace_us = strtol(optarg, &end, 10);
+            if (errno || *end || end == optarg || pace_us < 0 || pace_us > 1000000)
+                return usage(stderr, 2);
+            break;
         case 'h': return usage(stdout, 0);
         default: return usage(stderr, 2);
         }
@@ -130,9 +194,10 @@ int main(int argc, char **argv)
     if (node == 0)
         node = 1 + (long long)(randombytes_random() & 0x7fffffff) * 0x10000 +
                randombytes_uniform(0x10000);
-    lcm_t *lcm = lcm_create(url);
-    if (!lcm) {
-        fprintf(stderr, "cluster_inject: cannot open LCM URL %s\n", url);
+    char why[256];
+    sc_bus *bus = NULL;
+    if (sc_bus_open(url, &bus, why, sizeof why) != SC_OK) {
+        fprintf(stderr, "cluster_inject: cannot open %s: %s\n", url, why);
         return 1;
     }
 
@@ -141,7 +206,7 @@ int main(int argc, char **argv)
     size_t n = 0;
     if (mode == REPLAY && (rc = unit_envelope(key, node, 1, &env, &n)) != SC_OK)
         goto fail;
-    const struct timespec pace = { 0, PACE_NS };
+    const struct timespec pace = { pace_us / 1000000, pace_us % 1000000 * 1000 };
     for (long i = 0; i < count; i++) {
         size_t len = 0;
         switch (mode) {
@@ -177,28 +242,35 @@ int main(int argc, char **argv)
         }
         case REPLAY:
             break;
+        default:
+            break;
         }
-        int pub = mode == REPLAY ? lcm_publish(lcm, channel, env, (unsigned)n)
-                                 : lcm_publish(lcm, channel, buf, (unsigned)len);
+        int pub;
+        if (mode >= FRAG_WRAP)
+            pub = send_fragments(bus, mode, channel, (uint32_t)i);
+        else
+            pub = mode == REPLAY ? sc_bus_publish(bus, channel, env, n)
+                                 : sc_bus_publish(bus, channel, buf, len);
         free(buf);
         buf = NULL;
-        if (pub != 0) {
-            fprintf(stderr, "cluster_inject: lcm_publish on %s failed\n", channel);
+        if (pub != SC_OK) {
+            fprintf(stderr, "cluster_inject: sending on %s failed\n", channel);
             free(env);
-            lcm_destroy(lcm);
+            sc_bus_close(bus);
             return 1;
         }
-        nanosleep(&pace, NULL);
+        if (pace_us)
+            nanosleep(&pace, NULL);
     }
     printf("sent %ld packets (%s) to %s as node %016llx\n", count, mode_names[mode], channel,
            (unsigned long long)node);
     free(env);
-    lcm_destroy(lcm);
+    sc_bus_close(bus);
     return 0;
 fail:
     fprintf(stderr, "cluster_inject: %s\n", sc_strerror(rc));
     free(buf);
     free(env);
-    lcm_destroy(lcm);
+    sc_bus_close(bus);
     return 1;
 }

@@ -94,8 +94,11 @@ check "run, unknown option" 2 "$tool" run bolts --frobnicate
 [ "$(wc -l <"$dir/err")" -eq 1 ] || { echo "FAIL: run: error is not one line"; fail=1; }
 check "run, --key without --cluster" 2 "$tool" run bolts --key "$dir/k"
 check "run, unopenable cluster URL" 1 "$tool" run bolts --cluster "udpm://999.1.1.1:7667"
-grep -q "^simcluster: run: --cluster udpm://999.1.1.1:7667: LCM cannot open this URL$" "$dir/err" ||
+grep -q "^simcluster: run: --cluster udpm://999.1.1.1:7667: 999.1.1.1 is not an IPv4 multicast address$" "$dir/err" ||
     { echo "FAIL: run, unopenable cluster URL: the URL is not named"; cat "$dir/err"; fail=1; }
+# only udpm:// (the cluster's own transport), other LCM providers refused by name
+check "run, mpudpm:// URL" 1 "$tool" run bolts --cluster "mpudpm://239.255.76.67:7667"
+one_line "run, mpudpm:// URL" "^simcluster: run: --cluster mpudpm://239.255.76.67:7667: only LCM's udpm://.* URLs are supported (not this provider)$"
 # which of key file and URL could not be opened, named
 curl="udpm://239.255.76.67:7667?ttl=0"
 check "run, missing key file" 1 "$tool" run bolts --frames 1 --cluster "$curl" --key "$dir/nokey"
@@ -132,6 +135,7 @@ check "run --realtime" 0 "$tool" run bolts --bodies 3 --frames 20 --realtime --j
 awk -F'"wall_s": ' '{ split($2, a, ","); exit !(a[1] >= 0.195) }' "$dir/out" ||
     { echo "FAIL: --realtime ran faster than simulated time"; cat "$dir/out"; fail=1; }
 check "run --publish, bad URL" 1 "$tool" run bolts --bodies 3 --frames 2 --publish "udpm://999.1.1.1:7668"
+one_line "run --publish, bad URL" "^simcluster: run: --publish udpm://999.1.1.1:7668: 999.1.1.1 is not an IPv4 multicast address$"
 check "profile --publish" 2 "$tool" profile spheres --publish "udpm://239.255.76.67:7668?ttl=0"
 
 # run --render: every frame drawn by simcluster-view, the report alone on stdout

@@ -8,7 +8,6 @@
 #include <errno.h>
 #include <getopt.h>
 #include <inttypes.h>
-#include <lcm/lcm.h>
 #include <math.h>
 #include <poll.h>
 #include <signal.h>
@@ -47,6 +46,7 @@ typedef struct node {
 typedef struct top {
     uint8_t key[SC_KEY_BYTES];
     sc_msg_guard guard;            /* counts the dropped messages */
+    sc_bus *bus;                   /* counts the dropped datagrams */
     node nodes[MAX_NODES];
     int n;
     long ignored;                  /* heartbeats of new nodes while the table was full */
@@ -89,7 +89,7 @@ static int usage(FILE *f, int status)
 {
     fprintf(f,
             "usage: simcluster-top [options]   the cluster's daemons, from their heartbeats\n"
-            "      --url URL       LCM URL of the cluster (default " SC_CLUSTER_URL ")\n"
+            "      --url URL       udpm:// URL of the cluster (default " SC_CLUSTER_URL ")\n"
             "      --key FILE      cluster key file (simcluster keygen FILE)\n"
             "      --insecure      use the all-zero key (daemons started with --insecure)\n"
             "      --once          listen for --wait seconds, print one table and exit\n"
@@ -215,15 +215,18 @@ static void heard(top *t, const sc_msg_announce *a, double now)
     d->seen_s = now;
 }
 
-/* LCM's callback: open the envelope with the guard (which counts what it
- * drops), then take what is on SC_ANNOUNCE as masters do (lib/net/cluster.c):
- * an announce_t of this protocol version from the node that sealed it. */
-static void on_message(const lcm_recv_buf_t *rb, const char *channel, void *ctx)
+/* The bus's callback: open the envelope with the guard (which counts what
+ * it drops), then take what is on SC_ANNOUNCE as masters do
+ * (lib/net/cluster.c): an announce_t of this protocol version from the
+ * node that sealed it. */
+static void on_message(void *ctx, const char *channel, const uint8_t *data, size_t len,
+                       int64_t recv_us)
 {
     (void)channel;
+    (void)recv_us;
     top *t = ctx;
     sc_msg m;
-    if (sc_msg_open(t->key, &t->guard, rb->data, rb->data_size, &m) != SC_OK)
+    if (sc_msg_open(t->key, &t->guard, data, len, &m) != SC_OK)
         return;
     sc_msg_announce a;
     if (m.kind != SC_MSG_ANNOUNCE || sc_msg_announce_decode(m.payload, m.len, &a) != SC_OK ||
@@ -304,10 +307,14 @@ static void print_table(FILE *f, const top *t, double now)
     if (silent)
         fprintf(f, " (%ld silent)", silent);
     char r[32];
-    fprintf(f, ", %ld busy, %ld %s, %s units/s; dropped %ld format, %ld auth, %ld replay",
+    sc_bus_counters bc;
+    sc_bus_counters_get(t->bus, &bc);
+    fprintf(f, ", %ld busy, %ld %s, %s units/s; dropped %ld format, %ld auth, %ld replay, "
+            "%llu net, %llu kernel",
             busy, cores, plural(cores, "core", "cores"), rate_text(rate, r, sizeof r),
-            t->guard.dropped_format,
-            t->guard.dropped_auth, t->guard.dropped_replay);
+            t->guard.dropped_format, t->guard.dropped_auth, t->guard.dropped_replay,
+            (unsigned long long)(sc_bus_dropped(&bc) - bc.kernel),
+            (unsigned long long)bc.kernel);
     if (t->ignored)
         fprintf(f, "; %ld %s of new nodes ignored (table full: %d)", t->ignored,
                 plural(t->ignored, "heartbeat", "heartbeats"), MAX_NODES);
@@ -369,56 +376,31 @@ static void print_json(FILE *f, const top *t, double now, const char *url)
         cores += d->cores;
         rate += d->rate > 0 ? d->rate : 0;
     }
+    sc_bus_counters bc;
+    sc_bus_counters_get(t->bus, &bc);
     fprintf(f, "], \"daemons_total\": %d, \"silent\": %ld, \"busy\": %ld, \"cores\": %ld, "
             "\"units_per_s\": %.6g, \"dropped\": {\"format\": %ld, \"auth\": %ld, "
-            "\"replay\": %ld}, \"ignored_heartbeats\": %ld}\n",
+            "\"replay\": %ld, \"net\": %llu, \"kernel\": %llu}, \"ignored_heartbeats\": %ld}\n",
             t->n, silent, busy, cores, rate, t->guard.dropped_format, t->guard.dropped_auth,
-            t->guard.dropped_replay, t->ignored);
+            t->guard.dropped_replay, (unsigned long long)(sc_bus_dropped(&bc) - bc.kernel),
+            (unsigned long long)bc.kernel, t->ignored);
 }
 
 /* ---- listening ---------------------------------------------------------- */
 
-/* Open url and subscribe to the heartbeats: the handle, or NULL with why
- * filled. LCM says why a URL fails on standard error; that line is caught
- * into why so the error stays one line (what LCM says on success, such as
- * a warning about the receive buffer, is passed on unchanged). */
-static lcm_t *listen_on(const char *url, top *t, char *why, size_t n)
+/* Open url and subscribe to the heartbeats: the bus, or NULL with why
+ * filled (one line). */
+static sc_bus *listen_on(const char *url, top *t, char *why, size_t n)
 {
-    fflush(stderr);
-    FILE *cap = tmpfile();
-    int saved = cap ? dup(STDERR_FILENO) : -1;
-    if (saved >= 0 && dup2(fileno(cap), STDERR_FILENO) < 0) {
-        close(saved);
-        saved = -1;
+    sc_bus *b = NULL;
+    if (sc_bus_open(url, &b, why, n) != SC_OK)
+        return NULL;
+    if (sc_bus_subscribe(b, "SC_ANNOUNCE", on_message, t) != SC_OK) {
+        snprintf(why, n, "cannot subscribe to SC_ANNOUNCE");
+        sc_bus_close(b);
+        return NULL;
     }
-    lcm_t *l = lcm_create(url);
-    int ok = l && lcm_subscribe(l, "SC_ANNOUNCE", on_message, t) && lcm_get_fileno(l) >= 0;
-    fflush(stderr);
-    if (saved >= 0) {
-        dup2(saved, STDERR_FILENO);
-        close(saved);
-    }
-    snprintf(why, n, "LCM cannot open this URL");
-    char line[512];
-    if (cap) {
-        rewind(cap);
-        for (int first = 1; fgets(line, sizeof line, cap); first = 0) {
-            if (ok) {
-                fputs(line, stderr);
-            } else if (first) {
-                line[strcspn(line, "\r\n")] = '\0';
-                const char *p = strncmp(line, "Error: ", 7) ? line : line + 7;
-                if (*p)
-                    snprintf(why, n, "%s", p);
-            }
-        }
-        fclose(cap);
-    }
-    if (!ok && l) {
-        lcm_destroy(l);
-        l = NULL;
-    }
-    return l;
+    return b;
 }
 
 int main(int argc, char **argv)
@@ -444,9 +426,9 @@ int main(int argc, char **argv)
         }
     }
 
-    /* SIGINT and SIGTERM only set stop_flag. They are blocked before LCM
-     * starts its receive thread (which inherits the mask) and let through
-     * only inside ppoll(), so a signal always wakes the loop at once. */
+    /* SIGINT and SIGTERM only set stop_flag. They are blocked, and let
+     * through only inside ppoll(), so a signal always wakes the loop at
+     * once. */
     sigset_t block, open_mask;
     sigemptyset(&block);
     sigaddset(&block, SIGINT);
@@ -462,12 +444,12 @@ int main(int argc, char **argv)
     sigaction(SIGTERM, &sa, NULL);
 
     char why[512];
-    lcm_t *l = listen_on(o.url, &t, why, sizeof why);
+    sc_bus *l = t.bus = listen_on(o.url, &t, why, sizeof why);
     if (!l) {
         fprintf(stderr, "%s: cannot listen on %s: %s\n", prog, o.url, why);
         return 1;
     }
-    int fd = lcm_get_fileno(l), tty = !o.once && !o.json && isatty(STDOUT_FILENO), shown = 0;
+    int fd = sc_bus_fd(l), tty = !o.once && !o.json && isatty(STDOUT_FILENO), shown = 0;
     double period = o.once ? o.wait_s : o.interval_s, next = now_s() + period;
     rc = 0;
     while (!stop_flag) {
@@ -500,13 +482,13 @@ int main(int argc, char **argv)
             break;
         }
         if (r > 0 && (pf.revents & (POLLERR | POLLHUP | POLLNVAL) ||
-                      ((pf.revents & POLLIN) && lcm_handle(l) != 0))) {
+                      ((pf.revents & POLLIN) && sc_bus_handle(l, 0) < 0))) {
             fprintf(stderr, "%s: receiving from %s failed\n", prog, o.url);
             rc = 1;
             break;
         }
     }
-    lcm_destroy(l);
+    sc_bus_close(l);
     explicit_bzero(t.key, sizeof t.key);
     return rc;
 }

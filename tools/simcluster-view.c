@@ -17,7 +17,6 @@
 #include <time.h>
 #include <unistd.h>
 
-#include <lcm/lcm.h>
 
 #include <GL/osmesa.h>
 #include <GL/gl.h>
@@ -167,7 +166,7 @@ static int parse_args(int argc, char **argv, view_opts *o)
             break;
         case 'L':
             if (optarg[0] == '\0')
-                return bad("--live takes an LCM URL");
+                return bad("--live takes a udpm:// URL");
             o->live = optarg;
             break;
         case 't':
@@ -571,13 +570,14 @@ static double now_s(void)
 
 /* Shapes are checked and compiled as they come (each once); of the states
  * only the newest is kept: a viewer slower than the run skips frames. */
-static void on_live(const lcm_recv_buf_t *rb, const char *chan, void *user)
+static void on_live(void *user, const char *chan, const uint8_t *data, size_t n,
+                    int64_t recv_us)
 {
+    (void)recv_us;
     live *L = user;
-    size_t n = rb->data_size;
     L->v->event++;
     if (!strcmp(chan, SC_FRAME_SHAPE_CHANNEL)) {
-        L->bad += add_shape(L->v, rb->data, n) != 0;
+        L->bad += add_shape(L->v, data, n) != 0;
         return;
     }
     if (n > SC_MSG_MAX_PAYLOAD) {
@@ -593,7 +593,7 @@ static void on_live(const lcm_recv_buf_t *rb, const char *chan, void *user)
         L->state = p;
         L->cap = n;
     }
-    memcpy(L->state, rb->data, n);
+    memcpy(L->state, data, n);
     L->len = n;
     L->fresh = 1;
     L->states++;
@@ -611,21 +611,19 @@ static int run_live(viewer *v)
 {
     if (open_output(v))
         return -1;
-    lcm_t *l = lcm_create(v->o.live);
-    if (!l) {
-        fprintf(stderr, "%s: --live: cannot open LCM URL %s\n", prog, v->o.live);
+    sc_bus *l = NULL;
+    char why[256];
+    if (sc_bus_open(v->o.live, &l, why, sizeof why) != SC_OK) {
+        fprintf(stderr, "%s: --live: cannot open %s: %s\n", prog, v->o.live, why);
         return -1;
     }
     live L = { .v = v };
-    lcm_subscription_t *sh = lcm_subscribe(l, SC_FRAME_SHAPE_CHANNEL, on_live, &L);
-    lcm_subscription_t *st = lcm_subscribe(l, SC_FRAME_STATE_CHANNEL, on_live, &L);
-    if (!sh || !st) {
+    if (sc_bus_subscribe(l, SC_FRAME_SHAPE_CHANNEL, on_live, &L) != SC_OK ||
+        sc_bus_subscribe(l, SC_FRAME_STATE_CHANNEL, on_live, &L) != SC_OK) {
         fprintf(stderr, "%s: --live: cannot subscribe on %s\n", prog, v->o.live);
-        lcm_destroy(l);
+        sc_bus_close(l);
         return -1;
     }
-    lcm_subscription_set_queue_capacity(sh, 256);
-    lcm_subscription_set_queue_capacity(st, 4);   /* newest frames, little lag */
     struct sigaction sa = { .sa_handler = on_stop };
     sigemptyset(&sa.sa_mask);
     sigaction(SIGINT, &sa, NULL);
@@ -635,13 +633,12 @@ static int run_live(viewer *v)
     double heard = now_s();
     int rc = 0, done = 0;
     while (!stop_live && !done && rc == 0) {
-        if (lcm_handle_timeout(l, 100) < 0) {
+        /* all that is pending is taken: the newest state is drawn */
+        if (sc_bus_handle(l, 0.1) < 0) {
             fprintf(stderr, "%s: --live: %s: receive failed\n", prog, v->o.live);
             rc = -1;
             break;
         }
-        while (lcm_handle_timeout(l, 0) > 0)
-            ;                      /* take all that is queued: draw the newest */
         if (!L.fresh) {
             if (v->o.timeout > 0 && now_s() - heard > v->o.timeout)
                 break;
@@ -666,7 +663,9 @@ static int run_live(viewer *v)
         done = m.frame >= v->o.last;
         sc_frame_record_free(&m);
     }
-    lcm_destroy(l);
+    sc_bus_counters bc;
+    sc_bus_counters_get(l, &bc);
+    sc_bus_close(l);
     free(L.state);
     fprintf(stderr, "%s: %s: %d frames drawn of %ld received", prog, v->o.live,
             v->frames_out, L.states);
@@ -674,6 +673,9 @@ static int run_live(viewer *v)
         fprintf(stderr, ", %ld before their shapes came", waiting);
     if (L.bad)
         fprintf(stderr, ", %ld malformed messages dropped", L.bad);
+    if (sc_bus_dropped(&bc))
+        fprintf(stderr, ", %llu datagrams dropped",
+                (unsigned long long)sc_bus_dropped(&bc));
     fprintf(stderr, "\n");
     return rc == 0 && v->frames_out ? 0 : -1;
 }

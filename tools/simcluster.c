@@ -18,7 +18,6 @@
 #include <unistd.h>
 
 #include <lcm/eventlog.h>
-#include <lcm/lcm.h>
 
 #include "simcluster.h"
 #include "simcluster_net.h"
@@ -36,7 +35,7 @@ static const char run_help[] =
 static const char run_only_help[] =
     "run only: --record LOG (an LCM log of every frame, for simcluster-view)\n"
     "  --render DIR (every frame as DIR/frame_NNNNN.png, by simcluster-view)\n"
-    "  --publish URL (frames live on LCM, for simcluster-view --live)\n"
+    "  --publish URL (frames live on a udpm:// URL, for simcluster-view --live)\n"
     "  --realtime (no faster than simulated time)\n";
 
 static int usage(FILE *f, int status)
@@ -229,7 +228,7 @@ static int parse_options(const char *cmd, int argc, char **argv, options *o)
             break;
         case 'P':
             if (optarg[0] == '\0')
-                return bad(cmd, "--publish takes an LCM URL");
+                return bad(cmd, "--publish takes a udpm:// URL");
             o->publish = optarg;
             break;
         case 'R':
@@ -314,9 +313,12 @@ static void cluster_error(const char *cmd, const options *o, int err)
             return;
         }
     }
+    char why[256] = "cannot open this URL";
+    sc_bus *b = NULL;
+    if (err == SC_EIO && sc_bus_open(o->cluster, &b, why, sizeof why) == SC_OK)
+        sc_bus_close(b);
     if (err == SC_EIO)
-        fprintf(stderr, "simcluster: %s: --cluster %s: LCM cannot open this URL\n", cmd,
-                o->cluster);
+        fprintf(stderr, "simcluster: %s: --cluster %s: %s\n", cmd, o->cluster, why);
     else
         fprintf(stderr, "simcluster: %s: %s (cluster %s%s%s)\n", cmd, sc_strerror(err),
                 o->cluster, o->key ? ", key " : "", o->key ? o->key : "");
@@ -375,7 +377,7 @@ static int awake(const sc_world *w)
 typedef struct recorder {
     lcm_eventlog_t *log;    /* --record, else NULL */
     const char *path;
-    lcm_t *lcm;             /* --publish, else NULL */
+    sc_bus *bus;            /* --publish, else NULL */
     uint8_t *shape_msg[MAX_SHAPE_MSGS];   /* for publishing again each second */
     size_t shape_len[MAX_SHAPE_MSGS];
     int nshape_msgs;
@@ -388,7 +390,7 @@ typedef struct recorder {
 static int record_event(recorder *r, const char *channel, int64_t t_us, const void *data,
                         size_t len)
 {
-    if (r->lcm && lcm_publish(r->lcm, channel, data, (unsigned)len) != 0)
+    if (r->bus && sc_bus_publish(r->bus, channel, data, len) != SC_OK)
         r->publish_failed++;        /* a live view loses a frame; not an error */
     if (!r->log)
         return 0;
@@ -407,8 +409,7 @@ static void record_close(recorder *r)
 {
     if (r->log)
         lcm_eventlog_destroy(r->log);
-    if (r->lcm)
-        lcm_destroy(r->lcm);
+    sc_bus_close(r->bus);
     for (int i = 0; i < r->nshape_msgs; i++)
         free(r->shape_msg[i]);
     sc_frame_record_free(&r->m);
@@ -425,8 +426,9 @@ static int record_open(recorder *r, const char *path, const char *url, const sc_
         fprintf(stderr, "simcluster: run: %s: %s\n", path, strerror(errno));
         return 1;
     }
-    if (url && !(r->lcm = lcm_create(url))) {
-        fprintf(stderr, "simcluster: run: --publish: cannot open LCM URL %s\n", url);
+    char why[256];
+    if (url && sc_bus_open(url, &r->bus, why, sizeof why) != SC_OK) {
+        fprintf(stderr, "simcluster: run: --publish %s: %s\n", url, why);
         return 1;
     }
     r->shapes_sent = now_s();
@@ -450,7 +452,7 @@ static int record_open(recorder *r, const char *path, const char *url, const sc_
             return 1;
         }
         rc = record_event(r, SC_FRAME_SHAPE_CHANNEL, 0, bytes, len);
-        if (r->lcm && r->nshape_msgs < MAX_SHAPE_MSGS) {
+        if (r->bus && r->nshape_msgs < MAX_SHAPE_MSGS) {
             r->shape_msg[r->nshape_msgs] = bytes;
             r->shape_len[r->nshape_msgs++] = len;
         } else {
@@ -468,11 +470,11 @@ static int record_open(recorder *r, const char *path, const char *url, const sc_
 static int record_frame(recorder *r, const sc_world *w, long f)
 {
     /* a viewer that starts late learns the shapes within a second */
-    if (r->lcm && now_s() - r->shapes_sent >= 1.0) {
+    if (r->bus && now_s() - r->shapes_sent >= 1.0) {
         r->shapes_sent = now_s();
         for (int i = 0; i < r->nshape_msgs; i++)
-            if (lcm_publish(r->lcm, SC_FRAME_SHAPE_CHANNEL, r->shape_msg[i],
-                            (unsigned)r->shape_len[i]) != 0)
+            if (sc_bus_publish(r->bus, SC_FRAME_SHAPE_CHANNEL, r->shape_msg[i],
+                               r->shape_len[i]) != SC_OK)
                 r->publish_failed++;
     }
     uint8_t *buf = NULL;

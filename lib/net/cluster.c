@@ -3,10 +3,10 @@
  * The world's node list ends with SC_MAX_DAEMONS remote nodes, one per
  * daemon slot; a slot is bound to a daemon when its first heartbeat comes.
  * A remote node's submit() packs its units (unit_wire.c), seals them and
- * publishes them on the daemon's channel; wait() pumps LCM on the calling
- * thread (results of every daemon are merged as they come: each unit
- * writes only its own outputs) until this daemon's units are in or the
- * deadline passes, and then recomputes what is missing here. A result is
+ * publishes them on the daemon's channel; wait() reads the bus (bus.c) on
+ * the calling thread (results of every daemon are merged as they come:
+ * each unit writes only its own outputs) until this daemon's units are in
+ * or the deadline passes, and then recomputes what is missing here. A result is
  * taken once, only for a unit of the current job that is still out, and
  * merged by sc_wire_result_apply() exactly as a local run would write it:
  * whoever computes what, the bits are the same.
@@ -19,7 +19,6 @@
  */
 #include <inttypes.h>
 #include <math.h>
-#include <lcm/lcm.h>
 #include <poll.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -55,7 +54,7 @@ typedef struct daemon_slot {
     double overhead;            /* s per job beyond its threads' compute time */
     /* the current job */
     int sent, done;
-    int64_t submit_us, last_us;  /* real-time clock (LCM's receive stamps) */
+    int64_t submit_us, last_us;  /* real-time clock (the bus's receive stamps) */
     double t_submit;
     double compute_s;
 } daemon_slot;
@@ -67,8 +66,7 @@ typedef struct remote_node {
 } remote_node;
 
 struct sc_cluster {
-    lcm_t *lcm;
-    int fd;
+    sc_bus *bus;
     uint8_t key[SC_KEY_BYTES];
     int64_t id, seq;
     sc_msg_guard guard;
@@ -93,7 +91,7 @@ struct sc_cluster {
     uint8_t *batch;             /* units for one daemon, encoded back to back */
     size_t batch_len, batch_cap;
     long late;
-    int64_t recv_us;            /* the message being handled: when LCM got it */
+    int64_t recv_us;            /* the message being handled: when it came */
 };
 
 static int64_t realtime_us(void)
@@ -201,18 +199,19 @@ static void on_shape_request(sc_cluster *c, const sc_msg *m)
     if (sc_msg_shape_encode(s, &p, &len) != SC_OK)
         return;
     if (sc_msg_seal(c->key, c->id, c->seq++, SC_MSG_SHAPE, p, len, &env, &elen) == SC_OK) {
-        lcm_publish(c->lcm, c->d[k].shape_channel, env, (unsigned)elen);
+        sc_bus_publish(c->bus, c->d[k].shape_channel, env, elen);
         free(env);
     }
     free(p);
 }
 
-static void on_message(const lcm_recv_buf_t *rb, const char *channel, void *ctx)
+static void on_message(void *ctx, const char *channel, const uint8_t *data, size_t len,
+                       int64_t recv_us)
 {
     sc_cluster *c = ctx;
     sc_msg m;
-    c->recv_us = rb->recv_utime;
-    if (sc_msg_open(c->key, &c->guard, rb->data, rb->data_size, &m) != SC_OK)
+    c->recv_us = recv_us;
+    if (sc_msg_open(c->key, &c->guard, data, len, &m) != SC_OK)
         return;
     int announce = !strcmp(channel, "SC_ANNOUNCE");
     if (announce && m.kind == SC_MSG_ANNOUNCE)
@@ -226,21 +225,18 @@ static void on_message(const lcm_recv_buf_t *rb, const char *channel, void *ctx)
     sc_msg_free(&m);
 }
 
-/* Handle what has come, waiting up to timeout_s for the first message. */
+/* Handle what has come, waiting up to timeout_s for the first datagram;
+ * one pass over what is pending (the callers loop), so that a flood of
+ * datagrams cannot hold a frame past its deadline. */
 static void pump(sc_cluster *c, double timeout_s)
 {
     int ms = timeout_s > 0 ? (int)(timeout_s * 1000) + 1 : 0;
-    for (;;) {
-        struct pollfd pf = { c->fd, POLLIN, 0 };
-        if (poll(&pf, 1, ms) <= 0 || !(pf.revents & POLLIN))
-            break;
-        double t0 = sc_wall_now();
-        int rc = lcm_handle(c->lcm);
-        c->stats->comm_s += sc_wall_now() - t0;
-        if (rc != 0)
-            break;
-        ms = 0;
-    }
+    struct pollfd pf = { sc_bus_fd(c->bus), POLLIN, 0 };
+    if (poll(&pf, 1, ms) <= 0 || !(pf.revents & POLLIN))
+        return;
+    double t0 = sc_wall_now();
+    sc_bus_handle(c->bus, 0);
+    c->stats->comm_s += sc_wall_now() - t0;
 }
 
 /* ---- the remote node ---- */
@@ -282,7 +278,7 @@ static int flush(sc_cluster *c, daemon_slot *d)
     c->batch_len = 0;
     if (rc != SC_OK)
         return rc;
-    rc = lcm_publish(c->lcm, d->channel, env, (unsigned)elen) == 0 ? SC_OK : SC_EIO;
+    rc = sc_bus_publish(c->bus, d->channel, env, elen);
     free(env);
     return rc;
 }
@@ -455,18 +451,16 @@ int sc_cluster_create(sc_exec_nodes *x, sc_stats *stats, const sc_frame_state *s
     if (getrandom(&id, sizeof id, 0) != sizeof id)
         id = (uint64_t)getpid() * 0x9e3779b97f4a7c15ULL ^ (uint64_t)time(NULL);
     c->id = (int64_t)(id >> 1) | 1;
-    c->lcm = lcm_create(url);
-    if (!c->lcm) {
+    if (sc_bus_open(url, &c->bus, NULL, 0) != SC_OK) {
         free(c);
         return SC_EIO;
     }
-    c->fd = lcm_get_fileno(c->lcm);
     char ch[CHANNEL_MAX];
-    int ok = lcm_subscribe(c->lcm, "SC_ANNOUNCE", on_message, c) != NULL;
+    int ok = sc_bus_subscribe(c->bus, "SC_ANNOUNCE", on_message, c) == SC_OK;
     snprintf(ch, sizeof ch, "SC_RESULT_%016" PRIx64, (uint64_t)c->id);
-    ok = ok && lcm_subscribe(c->lcm, ch, on_message, c) != NULL;
+    ok = ok && sc_bus_subscribe(c->bus, ch, on_message, c) == SC_OK;
     snprintf(ch, sizeof ch, "SC_SHAPEREQ_%016" PRIx64, (uint64_t)c->id);
-    ok = ok && lcm_subscribe(c->lcm, ch, on_message, c) != NULL;
+    ok = ok && sc_bus_subscribe(c->bus, ch, on_message, c) == SC_OK;
     if (!ok) {
         sc_cluster_destroy(c);
         return SC_EIO;
@@ -484,8 +478,7 @@ void sc_cluster_destroy(sc_cluster *c)
 {
     if (!c)
         return;
-    if (c->lcm)
-        lcm_destroy(c->lcm);
+    sc_bus_close(c->bus);
     sc_np_destroy(c->np);
     free(c->out);
     free(c->buf);
@@ -511,8 +504,12 @@ void sc_cluster_frame(sc_cluster *c)
     }
     c->stats->nodes = c->first_node + c->stats->daemons;
     c->available = c->stats->daemons;
-    c->stats->dropped_messages =
-        c->guard.dropped_format + c->guard.dropped_auth + c->guard.dropped_replay;
+    /* what the bus dropped (datagrams, fragments, the kernel's overflows)
+     * and the envelopes that did not open */
+    sc_bus_counters bc;
+    sc_bus_counters_get(c->bus, &bc);
+    c->stats->dropped_messages = c->guard.dropped_format + c->guard.dropped_auth +
+                                 c->guard.dropped_replay + (long)sc_bus_dropped(&bc);
 }
 
 static int prov_available(void *ctx)
@@ -571,12 +568,14 @@ typedef struct listener {
 } listener;
 
 /* An authenticated heartbeat, checked as a world checks it (on_announce). */
-static void on_heartbeat(const lcm_recv_buf_t *rb, const char *channel, void *ctx)
+static void on_heartbeat(void *ctx, const char *channel, const uint8_t *data, size_t len,
+                         int64_t recv_us)
 {
     (void)channel;
+    (void)recv_us;
     listener *l = ctx;
     sc_msg m;
-    if (sc_msg_open(l->key, &l->guard, rb->data, rb->data_size, &m) != SC_OK)
+    if (sc_msg_open(l->key, &l->guard, data, len, &m) != SC_OK)
         return;
     sc_msg_announce a;
     if (m.kind == SC_MSG_ANNOUNCE && sc_msg_announce_decode(m.payload, m.len, &a) == SC_OK &&
@@ -615,24 +614,22 @@ SC_API int sc_cluster_wait(const sc_world_config *cfg, int k, double timeout_s)
     if (!l)
         return sc_set_error(SC_ENOMEM);
     int rc = cfg->key_file ? sc_key_load(cfg->key_file, l->key) : SC_OK;
-    lcm_t *lcm = rc == SC_OK ? lcm_create(cfg->cluster) : NULL;
-    if (rc == SC_OK && (!lcm || !lcm_subscribe(lcm, "SC_ANNOUNCE", on_heartbeat, l)))
+    sc_bus *bus = NULL;
+    if (rc == SC_OK && (sc_bus_open(cfg->cluster, &bus, NULL, 0) != SC_OK ||
+                        sc_bus_subscribe(bus, "SC_ANNOUNCE", on_heartbeat, l) != SC_OK))
         rc = SC_EIO;
     /* handle what comes until k are heard or the time is up (at least once) */
     double t0 = sc_wall_now(), left = timeout_s;
     int n = 0;
     while (rc == SC_OK) {
-        struct pollfd pf = { lcm_get_fileno(lcm), POLLIN, 0 };
-        int ms = k > 0 ? (int)(fmin(left, 0.05) * 1000) : 0;
-        if (poll(&pf, 1, ms) > 0 && (pf.revents & POLLIN) && lcm_handle(lcm) != 0)
+        if (sc_bus_handle(bus, k > 0 ? fmin(left, 0.05) : 0) < 0)
             rc = SC_EIO;
         n = available(l);
         left = timeout_s - (sc_wall_now() - t0);
         if (n >= k || left <= 0)
             break;
     }
-    if (lcm)
-        lcm_destroy(lcm);
+    sc_bus_close(bus);
     free(l);
     return rc == SC_OK ? n : sc_set_error(rc);
 }

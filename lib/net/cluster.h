@@ -7,7 +7,7 @@
 
 typedef struct sc_cluster sc_cluster;
 
-/* Join url (LCM) with the key in key_file (NULL: the all-zero insecure
+/* Join url (a udpm:// URL, bus.c) with the key in key_file (NULL: the all-zero insecure
  * key) as a provider of SC_MAX_DAEMONS remote nodes, added to the
  * executor x (which has room for them). stats gets the cluster's figures;
  * st is read to answer daemons' requests for shapes. SC_OK, SC_EIO (url
