@@ -210,6 +210,27 @@ fi
 check "profile" 0 "$tool" profile spheres --frames 50
 grep -q "Dantzig" "$dir/out" && grep -q "41.48" "$dir/out" || { echo "FAIL: profile rows"; fail=1; }
 
+# profile --chart: where the time goes as a PNG (gnuplot); without gnuplot
+# on the PATH a one-line error that says how to get it
+check "run --chart" 2 "$tool" run spheres --chart "$dir/c.png"
+one_line "run --chart" "is an option of profile"
+check "profile --chart, no gnuplot" 1 env PATH=/nonexistent "$atool" profile spheres --frames 20 \
+    --chart "$dir/c.png"
+one_line "profile --chart, no gnuplot" "needs gnuplot (sh scripts/deps.sh bench"
+if command -v gnuplot >/dev/null 2>&1; then
+    check "profile --chart" 0 "$tool" profile spheres --frames 50 --chart "$dir/c.png"
+    # a PNG of 900 x 480: the signature, then IHDR's width and height
+    sig=$(od -An -tx1 -N8 "$dir/c.png" | tr -d ' \n')
+    wh=$(od -An -tu1 -j16 -N8 "$dir/c.png" | tr -s ' ' | sed 's/^ //')
+    [ "$sig" = 89504e470d0a1a0a ] && [ "$wh" = "0 0 3 132 0 0 1 224" ] ||
+        { echo "FAIL: profile --chart: not a 900x480 PNG ($sig; $wh)"; fail=1; }
+    check "profile --chart into a missing folder" 1 "$tool" profile spheres --frames 5 \
+        --chart "$dir/no/c.png"
+    one_line "profile --chart, missing folder" "no/c.png: No such file or directory"
+else
+    echo "tools: gnuplot not installed: profile --chart checked without it only"
+fi
+
 # lcp: a known solution, and errors that name the line and column
 printf '# 2x2\n2\n2 1\n1 2\n-1 -1\n' >"$dir/lcp"
 check "lcp" 0 "$tool" lcp "$dir/lcp"

@@ -31,7 +31,8 @@
 static const char run_help[] =
     "run and profile options: --bodies N --seed S --frames F --until-rest\n"
     "  --workers W --groups --cluster URL --key FILE --deadline S --json\n"
-    "  --wait-daemons K (before the first frame, at most 10 s)\n";
+    "  --wait-daemons K (before the first frame, at most 10 s)\n"
+    "profile only: --chart PNG (CPU by stage beside the paper's, by gnuplot)\n";
 static const char run_only_help[] =
     "run only: --record LOG (an LCM log of every frame, for simcluster-view)\n"
     "  --render DIR (every frame as DIR/frame_NNNNN.png, by simcluster-view)\n"
@@ -123,7 +124,7 @@ typedef struct options {
     sc_scene *file;         /* a scene file, else NULL: the built-in scene */
     long bodies, seed, frames, workers, wait_daemons;
     int until_rest, groups, json, realtime, bodies_set, seed_set;
-    const char *cluster, *key, *record, *render, *publish;
+    const char *cluster, *key, *record, *render, *publish, *chart;
     double deadline;
 } options;
 
@@ -151,6 +152,7 @@ static int parse_options(const char *cmd, int argc, char **argv, options *o)
         { "record", required_argument, 0, 'o' },   { "render", required_argument, 0, 'p' },
         { "publish", required_argument, 0, 'P' },  { "realtime", no_argument, 0, 'R' },
         { "wait-daemons", required_argument, 0, 'W' },
+        { "chart", required_argument, 0, 'C' },
         { "help", no_argument, 0, 'h' },           { "version", no_argument, 0, 'V' },
         { 0, 0, 0, 0 }
     };
@@ -168,6 +170,8 @@ static int parse_options(const char *cmd, int argc, char **argv, options *o)
             snprintf(what, sizeof what, "--%s is an option of run", longs[li].name);
             return bad(cmd, what);
         }
+        if (c == 'C' && strcmp(cmd, "profile"))
+            return bad(cmd, "--chart is an option of profile");
         switch (c) {
         case 'h':
             return usage_cmd(cmd);
@@ -233,6 +237,11 @@ static int parse_options(const char *cmd, int argc, char **argv, options *o)
             break;
         case 'R':
             o->realtime = 1;
+            break;
+        case 'C':
+            if (optarg[0] == '\0')
+                return bad(cmd, "--chart takes a PNG file name");
+            o->chart = optarg;
             break;
         default: {
             snprintf(what, sizeof what, "unknown option or missing value: %s", argv[optind - 1]);
@@ -765,6 +774,63 @@ static int run_cmd(int argc, char **argv)
     return t.interrupted ? 128 + t.interrupted : 0;    /* as a shell reports it */
 }
 
+/* Where the time goes, as a PNG (profile --chart): our share of CPU per
+ * stage beside the paper's Table 1, drawn by gnuplot. 0, or 1 after an
+ * error message. */
+typedef struct stage_row {
+    const char *name, *key;
+    int stage;
+    double paper;   /* %, -1: the paper has no row */
+} stage_row;
+
+static int chart(const char *path, const char *scene, long frames, const stage_row *rows,
+                 int nrows, const sc_stats *st, double total)
+{
+    if (system("command -v gnuplot >/dev/null 2>&1") != 0) {
+        fprintf(stderr, "simcluster: profile: --chart needs gnuplot "
+                        "(sh scripts/deps.sh bench installs it)\n");
+        return 1;
+    }
+    /* the file is made here first: a bad path is our error, not gnuplot's */
+    FILE *out = fopen(path, "wb");
+    if (!out) {
+        fprintf(stderr, "simcluster: profile: --chart %s: %s\n", path, strerror(errno));
+        return 1;
+    }
+    fclose(out);
+    FILE *g = popen("gnuplot", "w");
+    if (!g) {
+        fprintf(stderr, "simcluster: profile: --chart: cannot run gnuplot: %s\n",
+                strerror(errno));
+        return 1;
+    }
+    fprintf(g, "set terminal pngcairo size 900,480 font ',10'\nset output '");
+    for (const char *c = path; *c; c++)      /* gnuplot's single quotes: '' */
+        fputs(*c == '\'' ? "''" : (char[]){ *c, 0 }, g);
+    fprintf(g, "'\n$d << EOD\n");
+    for (int i = 0; i < nrows; i++) {
+        double s = st->stage_total_s[rows[i].stage];
+        fprintf(g, "\"%s\" %.4f %.4f\n", rows[i].name, total > 0 ? 100 * s / total : 0,
+                rows[i].paper < 0 ? 0 : rows[i].paper);
+    }
+    fprintf(g, "EOD\nset title \"CPU by stage: ");
+    for (const char *c = scene; *c; c++)
+        if (*c != '"' && *c != '\\' && (unsigned char)*c >= 0x20)
+            fputc(*c, g);
+    fprintf(g, ", %ld frames (%.3f s CPU) beside the paper's Table 1\"\n"
+               "set style data histograms\nset style histogram clustered gap 1\n"
+               "set style fill solid 0.8 border -1\nset ylabel \"share of CPU (%%)\"\n"
+               "set yrange [0:*]\nset grid ytics\nset xtics nomirror rotate by -15\n"
+               "plot $d using 2:xtic(1) title \"simcluster\", '' using 3 title \"paper (Table 1)\"\n",
+            frames, total);
+    int rc = pclose(g);
+    if (rc != 0) {
+        fprintf(stderr, "simcluster: profile: --chart: gnuplot failed (status %d)\n", rc);
+        return 1;
+    }
+    return 0;
+}
+
 static int profile_cmd(int argc, char **argv)
 {
     options o;
@@ -784,7 +850,7 @@ static int profile_cmd(int argc, char **argv)
     sc_stats st;
     sc_world_stats(w, &st);
     /* the paper's Table 1 rows (27 spheres); time of impact is ours */
-    static const struct { const char *name, *key; int stage; double paper; } rows[] = {
+    static const stage_row rows[] = {
         { "polygon-level detection", "narrowphase", SC_STAGE_NARROWPHASE, 41.48 },
         { "Dantzig (LCP)", "lcp", SC_STAGE_LCP, 37.35 },
         { "contact graph", "islands", SC_STAGE_ISLANDS, 16.27 },
@@ -824,6 +890,9 @@ static int profile_cmd(int argc, char **argv)
         fprintf(stderr, "simcluster: profile: step %ld: %s\n", t.frames + 1, sc_strerror(rc));
         return 1;
     }
+    if (o.chart && chart(o.chart, o.scene, t.frames, rows, (int)(sizeof rows / sizeof *rows),
+                         &st, total))
+        return 1;
     return t.interrupted ? 128 + t.interrupted : 0;
 }
 
