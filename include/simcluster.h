@@ -249,8 +249,17 @@ typedef struct sc_stats {
     long recomputed_units;    /* units sent but recomputed locally (deadline) */
     long late_results;        /* results that came after the deadline or twice
                                  (ignored) */
-    long dropped_messages;    /* messages dropped: malformed, failed the MAC or
-                                 replayed (all frames) */
+    long dropped_messages;    /* messages dropped: malformed, failed the MAC,
+                                 replayed, stale or misaddressed (all frames) */
+    long dropped_stale;       /* of them: from an older start (epoch) of a daemon
+                                 than its newest heard (all frames) */
+    long dropped_misaddressed;/* of them: addressed to another start of this
+                                 master (all frames) */
+    int daemons_unverified;   /* daemons heard that have not answered this
+                                 master's challenge (not in daemons), now */
+    long duplicate_nodes;     /* daemon ids heard from two running daemons (two
+                                 live epochs; each pair once, all frames) */
+    int64_t duplicate_node;   /* the last such id, 0 if none */
     double comm_s;            /* wall seconds packing, sealing, sending and
                                  receiving, last frame */
     double remote_wait_s;     /* wall seconds waiting for daemons' results

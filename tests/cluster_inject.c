@@ -32,7 +32,8 @@
 #include "simcluster_net.h"
 #include "simcluster.h"
 
-#define ENV_LEN_AT (8 + 2 + 8 + 8 + 2)  /* fingerprint, version, node, seq, kind */
+#define ENV_LEN_AT (8 + 2 + 8 + 8 + 8 + 8 + 2)  /* fingerprint, version, node, epoch, seq,
+                                                   to_epoch, kind */
 #define GARBAGE_MAX 4000
 #define PACE_NS 2000000L                /* between packets: never overrun a receiver */
 
@@ -61,7 +62,7 @@ static int unit_envelope(const uint8_t *key, int64_t node, int64_t seq, uint8_t 
     int rc = sc_msg_work_encode(SC_MSG_UNIT, &u, &pl, &pn);
     if (rc != SC_OK)
         return rc;
-    rc = sc_msg_seal(key, node, seq, SC_MSG_UNIT, pl, pn, env, n);
+    rc = sc_msg_seal(key, node, 1, seq, 0, SC_MSG_UNIT, pl, pn, env, n);
     free(pl);
     return rc;
 }

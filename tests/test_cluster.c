@@ -278,14 +278,17 @@ static void test_hostile_messages_are_dropped(void **state)
     }
     uint8_t other[SC_KEY_BYTES] = { 1 }, *env;
     size_t elen;
-    assert_int_equal(sc_msg_seal(other, 77, 1, SC_MSG_UNIT, junk, 40, &env, &elen), SC_OK);
+    assert_int_equal(sc_msg_seal(other, 77, 1, 1, 0, SC_MSG_UNIT, junk, 40, &env, &elen), SC_OK);
     lcm_publish(l, ch, env, (unsigned)elen);            /* wrong key */
     free(env);
     uint8_t *p;
     size_t plen;
     sc_msg_work wk = { 1, 0, junk, 100, 0 };
     assert_int_equal(sc_msg_work_encode(SC_MSG_UNIT, &wk, &p, &plen), SC_OK);
-    assert_int_equal(sc_msg_seal(key, 77, 5, SC_MSG_UNIT, p, plen, &env, &elen), SC_OK);
+    sc_serve_counters n;
+    sc_serve_counters_get(d.s, &n);     /* units name the daemon's epoch */
+    assert_int_equal(sc_msg_seal(key, 77, 1, 5, n.epoch, SC_MSG_UNIT, p, plen, &env, &elen),
+                     SC_OK);
     for (int i = 0; i < 3; i++) {
         lcm_publish(l, ch, env, (unsigned)elen);        /* once, then replays */
         usleep(2000);
@@ -293,7 +296,6 @@ static void test_hostile_messages_are_dropped(void **state)
     lcm_publish(l, ch, env, (unsigned)elen / 2);        /* truncated */
     free(env);
     free(p);
-    sc_serve_counters n;
     for (int i = 0; i < 500; i++) {
         usleep(10000);
         sc_serve_counters_get(d.s, &n);

@@ -311,10 +311,10 @@ static void print_table(FILE *f, const top *t, double now)
     if (silent)
         fprintf(f, " (%ld silent)", silent);
     char r[32];
-    fprintf(f, ", %ld busy, %ld %s, %s units/s; dropped %ld format, %ld auth, %ld replay",
-            busy, cores, plural(cores, "core", "cores"), rate_text(rate, r, sizeof r),
-            t->guard.dropped_format,
-            t->guard.dropped_auth, t->guard.dropped_replay);
+    fprintf(f, ", %ld busy, %ld %s, %s units/s; dropped %ld format, %ld auth, %ld replay, "
+            "%ld stale", busy, cores, plural(cores, "core", "cores"), rate_text(rate, r, sizeof r),
+            t->guard.dropped_format, t->guard.dropped_auth, t->guard.dropped_replay,
+            t->guard.dropped_stale);
     if (t->ignored)
         fprintf(f, "; %ld %s of new nodes ignored (table full: %d)", t->ignored,
                 plural(t->ignored, "heartbeat", "heartbeats"), MAX_NODES);
@@ -378,9 +378,9 @@ static void print_json(FILE *f, const top *t, double now, const char *url)
     }
     fprintf(f, "], \"daemons_total\": %d, \"silent\": %ld, \"busy\": %ld, \"cores\": %ld, "
             "\"units_per_s\": %.6g, \"dropped\": {\"format\": %ld, \"auth\": %ld, "
-            "\"replay\": %ld}, \"ignored_heartbeats\": %ld}\n",
+            "\"replay\": %ld, \"stale\": %ld}, \"ignored_heartbeats\": %ld}\n",
             t->n, silent, busy, cores, rate, t->guard.dropped_format, t->guard.dropped_auth,
-            t->guard.dropped_replay, t->ignored);
+            t->guard.dropped_replay, t->guard.dropped_stale, t->ignored);
 }
 
 /* ---- listening ---------------------------------------------------------- */
