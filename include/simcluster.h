@@ -308,8 +308,9 @@ SC_API int sc_world_contacts(const sc_world *w, sc_contact *out, int max);
 /* Wait, at most timeout_s seconds, until k daemons that are not owner-busy
  * answer on cfg's cluster (cfg->cluster, cfg->key_file): returns how many
  * were heard (>= k, or fewer when the time ran out) or a negative code.
- * It listens to the daemons' heartbeats itself (no world is created); a
- * world created afterwards hears them within its first frames. */
+ * It listens to the daemons' heartbeats itself and counts those that
+ * answer its challenge, as a world does (no world is created); a world
+ * created afterwards hears them within its first frames. */
 SC_API int sc_cluster_wait(const sc_world_config *cfg, int k, double timeout_s);
 
 /* ---- the paper's scenes ---- */
