@@ -35,15 +35,16 @@
 #define CHANNEL_MAX 48
 #define BATCH_BYTES (256u << 10)  /* results sent together, at most */
 #define SHAPE_FIXED_BYTES 256     /* a cached shape's size besides its mesh */
+#define RIVALS_MAX 8              /* other daemons' epochs with our id, logged once */
 
 typedef struct task {
-    int64_t master, frame;
+    int64_t master, master_epoch, frame;
     int unit;
     sc_remote_unit *ru;
 } task;
 
 typedef struct parked {           /* a unit whose shapes are on their way */
-    int64_t master, frame;
+    int64_t master, master_epoch, frame;
     int unit;
     uint8_t *wire;
     size_t len;
@@ -64,7 +65,9 @@ typedef struct asked {
 struct sc_serve {
     sc_serve_config cfg;
     sc_bus *bus;
-    int64_t id;
+    int64_t id, epoch;            /* this daemon and this start of it */
+    int64_t rivals[RIVALS_MAX];   /* epochs of other daemons with our id (bus thread) */
+    int nrivals, rival_next;
     char ch_unit[CHANNEL_MAX], ch_shape[CHANNEL_MAX];
     _Atomic int64_t seq;
     sc_msg_guard guard;           /* the bus's thread only (sc_serve_run) */
@@ -166,14 +169,16 @@ static int config_ok(const sc_serve_config *c)
            c->heartbeat_s <= 10 && c->node_id >= 0 && c->cache_bytes > 0;
 }
 
-/* Seal and publish (any thread: sc_bus_publish is thread-safe). */
-static int send_msg(sc_serve *s, const char *channel, int kind, const uint8_t *payload,
-                    size_t len)
+/* Seal and publish, addressed to the receiver's epoch to_epoch (0: to
+ * anyone). Any thread: sc_bus_publish is thread-safe. */
+static int send_msg(sc_serve *s, const char *channel, int64_t to_epoch, int kind,
+                    const uint8_t *payload, size_t len)
 {
     uint8_t *env;
     size_t elen;
     int64_t seq = atomic_fetch_add(&s->seq, 1);
-    int rc = sc_msg_seal(s->cfg.key, s->id, seq, kind, payload, len, &env, &elen);
+    int rc = sc_msg_seal(s->cfg.key, s->id, s->epoch, seq, to_epoch, kind, payload, len, &env,
+                         &elen);
     if (rc != SC_OK)
         return rc;
     rc = sc_bus_publish(s->bus, channel, env, elen);
@@ -195,7 +200,7 @@ static void set_idle_priority(sc_serve *s)
 
 /* Results waiting to go to one master as one message (per thread). */
 typedef struct outbox {
-    int64_t master;
+    int64_t master, master_epoch;
     uint8_t *buf;
     size_t len, cap;
     int count;
@@ -207,7 +212,7 @@ static void flush(sc_serve *s, outbox *o)
         return;
     char ch[CHANNEL_MAX];
     snprintf(ch, sizeof ch, "SC_RESULT_%016" PRIx64, (uint64_t)o->master);
-    int rc = send_msg(s, ch, SC_MSG_RESULT, o->buf, o->len);
+    int rc = send_msg(s, ch, o->master_epoch, SC_MSG_RESULT, o->buf, o->len);
     pthread_mutex_lock(&s->lock);
     if (rc == SC_OK)
         s->n.results += o->count;
@@ -253,9 +258,11 @@ static void run_task(sc_serve *s, sc_compute *cc, task *t, outbox *o)
                           sec > 2000 ? INT32_MAX : (int)(sec * 1e6) };
         rc = sc_msg_work_encode(SC_MSG_RESULT, &w, &payload, &plen);
     }
-    if (rc == SC_OK && (o->master != t->master || o->len + plen > BATCH_BYTES))
+    if (rc == SC_OK && (o->master != t->master || o->master_epoch != t->master_epoch ||
+                        o->len + plen > BATCH_BYTES))
         flush(s, o);
     o->master = t->master;
+    o->master_epoch = t->master_epoch;
     if (rc == SC_OK)
         rc = outbox_add(o, payload, plen);
     free(payload);
@@ -276,7 +283,7 @@ static void *compute(void *arg)
     if (s->cfg.idle_priority)
         set_idle_priority(s);
     sc_compute *cc = sc_compute_create();     /* a private ODE copy if one can be had */
-    outbox o = { 0, NULL, 0, 0, 0 };
+    outbox o = { 0, 0, NULL, 0, 0, 0 };
     for (;;) {
         pthread_mutex_lock(&s->lock);
         if (!s->qlen && o.count) {
@@ -337,7 +344,7 @@ static const sc_shape *lookup(void *ctx, uint64_t hash)
     return NULL;
 }
 
-static void request_shape(sc_serve *s, int64_t master, uint64_t hash)
+static void request_shape(sc_serve *s, int64_t master, int64_t master_epoch, uint64_t hash)
 {
     double now = wall_now();
     int i;
@@ -358,7 +365,7 @@ static void request_shape(sc_serve *s, int64_t master, uint64_t hash)
         return;
     char ch[CHANNEL_MAX];
     snprintf(ch, sizeof ch, "SC_SHAPEREQ_%016" PRIx64, (uint64_t)master);
-    if (send_msg(s, ch, SC_MSG_SHAPE_REQUEST, p, len) == SC_OK) {
+    if (send_msg(s, ch, master_epoch, SC_MSG_SHAPE_REQUEST, p, len) == SC_OK) {
         pthread_mutex_lock(&s->lock);
         s->n.shape_requests++;
         pthread_mutex_unlock(&s->lock);
@@ -367,8 +374,8 @@ static void request_shape(sc_serve *s, int64_t master, uint64_t hash)
 }
 
 /* Decode a unit and queue it, or park it until its shapes come. Takes wire. */
-static void take_unit(sc_serve *s, int64_t master, int64_t frame, int unit, uint8_t *wire,
-                      size_t len, double since)
+static void take_unit(sc_serve *s, int64_t master, int64_t master_epoch, int64_t frame,
+                      int unit, uint8_t *wire, size_t len, double since)
 {
     lookup_ctx *l = calloc(1, sizeof *l);
     task *tp = calloc(1, sizeof *tp);
@@ -379,6 +386,7 @@ static void take_unit(sc_serve *s, int64_t master, int64_t frame, int unit, uint
     int rc = l ? SC_OK : SC_ENOMEM;
     if (l) {
         tp->master = master;
+        tp->master_epoch = master_epoch;
         tp->frame = frame;
         tp->unit = unit;
         l->s = s;
@@ -388,13 +396,13 @@ static void take_unit(sc_serve *s, int64_t master, int64_t frame, int unit, uint
         sc_remote_unit_free(tp->ru);
         free(tp);
         for (int i = 0; i < l->nmissing; i++)
-            request_shape(s, master, l->missing[i]);
+            request_shape(s, master, master_epoch, l->missing[i]);
         free(l);
         if (s->nparked == PARKED_MAX) {
             free(wire);
             return;
         }
-        s->parked[s->nparked++] = (parked){ master, frame, unit, wire, len,
+        s->parked[s->nparked++] = (parked){ master, master_epoch, frame, unit, wire, len,
                                            since > 0 ? since : wall_now() };
         return;
     }
@@ -434,8 +442,8 @@ static void retry_parked(sc_serve *s)
             free(old[i].wire);
             continue;
         }
-        take_unit(s, old[i].master, old[i].frame, old[i].unit, old[i].wire, old[i].len,
-                  old[i].since);
+        take_unit(s, old[i].master, old[i].master_epoch, old[i].frame, old[i].unit, old[i].wire,
+                  old[i].len, old[i].since);
     }
     free(old);
 }
@@ -496,6 +504,69 @@ static void take_shape(sc_serve *s, const uint8_t *p, size_t len)
 
 /* ---- the bus's thread (sc_serve_run) ---- */
 
+/* A master's challenge (addressed to this epoch: the guard checked): the
+ * answer carries its nonce and this epoch, addressed to the master's. */
+static void answer(sc_serve *s, const sc_msg *m)
+{
+    uint8_t nonce[SC_MSG_NONCE_BYTES];
+    int64_t epoch;
+    if (sc_msg_challenge_decode(m->payload, m->len, nonce, &epoch) != SC_OK ||
+        epoch != s->epoch) {
+        count_format(s);
+        return;
+    }
+    uint8_t *p;
+    size_t len;
+    if (sc_msg_challenge_encode(nonce, s->epoch, &p, &len) != SC_OK)
+        return;
+    char ch[CHANNEL_MAX];
+    snprintf(ch, sizeof ch, "SC_RESULT_%016" PRIx64, (uint64_t)m->node);
+    if (send_msg(s, ch, m->epoch, SC_MSG_ANSWER, p, len) == SC_OK) {
+        pthread_mutex_lock(&s->lock);
+        s->n.challenges++;
+        pthread_mutex_unlock(&s->lock);
+    }
+    free(p);
+}
+
+/* Heartbeats: only looked at (no guard: they are not acted on), for
+ * another daemon with this id. One with a newer epoch started after this
+ * one; one with an older epoch is running still if its heartbeat was sent
+ * after this start began (its clock stamp): a replay of a dead start's
+ * heartbeats is neither. Each such epoch is logged once. */
+static void on_announce(void *ctx, const char *channel, const uint8_t *data, size_t len,
+                        int64_t recv_us)
+{
+    (void)channel;
+    (void)recv_us;
+    sc_serve *s = ctx;
+    sc_msg m;
+    sc_msg_announce a;
+    if (sc_msg_verify(s->cfg.key, data, len, &m) != SC_OK)
+        return;
+    if (m.kind == SC_MSG_ANNOUNCE && m.node == s->id && m.epoch != s->epoch &&
+        sc_msg_announce_decode(m.payload, m.len, &a) == SC_OK && a.node == m.node &&
+        (m.epoch > s->epoch || a.time_us / 1000 > SC_MSG_EPOCH_MS(s->epoch))) {
+        int i = 0;
+        while (i < s->nrivals && s->rivals[i] != m.epoch)
+            i++;
+        if (i == s->nrivals) {
+            s->rivals[s->rival_next] = m.epoch;     /* over the oldest when full */
+            s->rival_next = (s->rival_next + 1) % RIVALS_MAX;
+            if (s->nrivals < RIVALS_MAX)
+                s->nrivals++;
+            pthread_mutex_lock(&s->lock);
+            s->n.duplicates++;
+            pthread_mutex_unlock(&s->lock);
+            logf_(s, LOG_WARNING,
+                  "node id %016" PRIx64 " is also used by a daemon on %s (epoch %016" PRIx64
+                  ", ours %016" PRIx64 "): masters give work to the newer start only",
+                  (uint64_t)s->id, a.host, (uint64_t)m.epoch, (uint64_t)s->epoch);
+        }
+    }
+    sc_msg_free(&m);
+}
+
 static void on_message(void *ctx, const char *channel, const uint8_t *data, size_t len,
                        int64_t recv_us)
 {
@@ -507,6 +578,8 @@ static void on_message(void *ctx, const char *channel, const uint8_t *data, size
     s->n.dropped_format = s->guard.dropped_format;
     s->n.dropped_auth = s->guard.dropped_auth;
     s->n.dropped_replay = s->guard.dropped_replay;
+    s->n.dropped_stale = s->guard.dropped_stale;
+    s->n.dropped_misaddressed = s->guard.dropped_misaddressed;
     pthread_mutex_unlock(&s->lock);
     if (rc != SC_OK) {
         logf_(s, LOG_DEBUG, "message on %s dropped: %s", channel, sc_strerror(rc));
@@ -524,8 +597,10 @@ static void on_message(void *ctx, const char *channel, const uint8_t *data, size
             pthread_mutex_lock(&s->lock);
             s->n.units++;
             pthread_mutex_unlock(&s->lock);
-            take_unit(s, m.node, w.frame, w.unit, w.wire, w.len, 0);   /* takes w.wire */
+            take_unit(s, m.node, m.epoch, w.frame, w.unit, w.wire, w.len, 0); /* takes w.wire */
         }
+    } else if (is_unit && m.kind == SC_MSG_CHALLENGE) {
+        answer(s, &m);
     } else if (!is_unit && m.kind == SC_MSG_SHAPE) {
         take_shape(s, m.payload, m.len);
     } else {
@@ -610,7 +685,7 @@ static void heartbeat(sc_serve *s)
     uint8_t *p;
     size_t len;
     if (sc_msg_announce_encode(&a, &p, &len) == SC_OK) {
-        if (send_msg(s, "SC_ANNOUNCE", SC_MSG_ANNOUNCE, p, len) == SC_OK) {
+        if (send_msg(s, "SC_ANNOUNCE", 0, SC_MSG_ANNOUNCE, p, len) == SC_OK) {
             pthread_mutex_lock(&s->lock);
             s->n.heartbeats++;
             pthread_mutex_unlock(&s->lock);
@@ -640,6 +715,9 @@ int sc_serve_create(const sc_serve_config *c, sc_serve **out)
         s->id = (int64_t)(r >> 1);
     }
     s->n.node = s->id;
+    s->epoch = sc_msg_epoch_new();
+    s->n.epoch = s->epoch;
+    s->guard.epoch = s->epoch;    /* units, shapes and challenges name this start */
     snprintf(s->ch_unit, sizeof s->ch_unit, "SC_UNIT_%016" PRIx64, (uint64_t)s->id);
     snprintf(s->ch_shape, sizeof s->ch_shape, "SC_SHAPE_%016" PRIx64, (uint64_t)s->id);
     if (sched_getaffinity(0, sizeof s->cpus, &s->cpus) != 0) {
@@ -659,7 +737,8 @@ int sc_serve_create(const sc_serve_config *c, sc_serve **out)
         return SC_EIO;
     }
     if (sc_bus_subscribe(s->bus, s->ch_unit, on_message, s) != SC_OK ||
-        sc_bus_subscribe(s->bus, s->ch_shape, on_message, s) != SC_OK) {
+        sc_bus_subscribe(s->bus, s->ch_shape, on_message, s) != SC_OK ||
+        sc_bus_subscribe(s->bus, "SC_ANNOUNCE", on_announce, s) != SC_OK) {
         sc_serve_destroy(s);
         return SC_EIO;
     }
@@ -691,8 +770,9 @@ int sc_serve_run(sc_serve *s)
     }
     if (s->nthreads == 0)
         return SC_ENOMEM;
-    logf_(s, LOG_INFO, "serving on %s as node %016" PRIx64 " with %d threads%s", s->cfg.url,
-          (uint64_t)s->id, s->nthreads, s->cfg.idle_priority ? " (nice 19, SCHED_IDLE)" : "");
+    logf_(s, LOG_INFO, "serving on %s as node %016" PRIx64 " (epoch %016" PRIx64
+          ") with %d threads%s", s->cfg.url, (uint64_t)s->id, (uint64_t)s->epoch, s->nthreads,
+          s->cfg.idle_priority ? " (nice 19, SCHED_IDLE)" : "");
     note_bus(s);
     if (s->n.rcvbuf_bytes < SC_BUS_RCVBUF_MIN)
         logf_(s, LOG_WARNING, "receive buffer only %d KiB: a burst of datagrams may be lost "

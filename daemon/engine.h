@@ -7,13 +7,16 @@
  * (configuration, logging, signals, privileges) is daemon/simclusterd.c.
  *
  * Channels (every message a sealed envelope, simcluster_net.h):
- *   SC_ANNOUNCE          daemons' heartbeats (announce_t)
+ *   SC_ANNOUNCE          daemons' heartbeats (announce_t); the daemon
+ *                        listens for its own id under another epoch
  *   SC_UNIT_<node>       units for daemon <node> (unit_t; frame = the
- *                        master's job serial)
- *   SC_RESULT_<node>     results for master <node> (result_t)
+ *                        master's job serial), masters' challenges
+ *   SC_RESULT_<node>     results for master <node> (result_t), answers
  *   SC_SHAPEREQ_<node>   shape requests to master <node> (shape_request_t)
  *   SC_SHAPE_<node>      shapes for daemon <node> (shape_t)
- * <node> is the id in 16 lower-case hex digits.
+ * <node> is the id in 16 lower-case hex digits. Each start has a new
+ * epoch (sc_msg_epoch_new): what a master sends names it, and what the
+ * daemon sends a master names the master's.
  */
 #ifndef SCD_ENGINE_H
 #define SCD_ENGINE_H
@@ -47,6 +50,7 @@ typedef struct sc_serve_config {
 
 typedef struct sc_serve_counters {
     int64_t node;               /* this daemon's id */
+    int64_t epoch;              /* this start's epoch */
     long units;                 /* units received and decoded */
     long results;               /* results sent */
     long unit_errors;           /* units that failed to decode or run */
@@ -57,6 +61,10 @@ typedef struct sc_serve_counters {
                                    malformed, refused, evicted, no memory */
     long dropped_kernel;        /* datagrams the kernel dropped (queue full) */
     int rcvbuf_bytes;           /* the socket's receive buffer */
+    long dropped_stale;         /* from an older epoch of a master than its newest */
+    long dropped_misaddressed;  /* addressed to another epoch (start) of this daemon */
+    long challenges;            /* masters' challenges answered */
+    long duplicates;            /* other daemons heard with this id (each epoch once) */
     long heartbeats;            /* announces sent */
     double idle_fraction;       /* last measured */
     int owner_busy;

@@ -318,12 +318,16 @@ static void log_counters(sc_serve *s)
     sc_serve_counters c;
     sc_serve_counters_get(s, &c);
     logf_(LOG_INFO,
-          "counters: node=%016llx units=%ld results=%ld unit_errors=%ld shapes=%ld "
-          "shape_requests=%ld dropped_format=%ld dropped_auth=%ld dropped_replay=%ld "
-          "dropped_net=%ld dropped_kernel=%ld heartbeats=%ld idle=%.3f owner_busy=%d",
-          (unsigned long long)c.node, c.units, c.results, c.unit_errors, c.shapes,
-          c.shape_requests, c.dropped_format, c.dropped_auth, c.dropped_replay, c.dropped_net,
-          c.dropped_kernel, c.heartbeats, c.idle_fraction, c.owner_busy);
+          "counters: node=%016llx epoch=%016llx units=%ld results=%ld unit_errors=%ld "
+          "shapes=%ld shape_requests=%ld dropped_format=%ld dropped_auth=%ld "
+          "dropped_replay=%ld dropped_stale=%ld dropped_misaddressed=%ld dropped_net=%ld "
+          "dropped_kernel=%ld challenges=%ld duplicates=%ld heartbeats=%ld idle=%.3f "
+          "owner_busy=%d",
+          (unsigned long long)c.node, (unsigned long long)c.epoch, c.units, c.results,
+          c.unit_errors, c.shapes, c.shape_requests, c.dropped_format, c.dropped_auth,
+          c.dropped_replay, c.dropped_stale, c.dropped_misaddressed, c.dropped_net,
+          c.dropped_kernel, c.challenges, c.duplicates, c.heartbeats, c.idle_fraction,
+          c.owner_busy);
 }
 
 /* ---- the signal thread ------------------------------------------------- */

@@ -274,9 +274,19 @@ typedef struct sc_stats {
     long recomputed_units;    /* units sent but recomputed locally (deadline) */
     long late_results;        /* results that came after the deadline or twice
                                  (ignored) */
-    long dropped_messages;    /* messages dropped: malformed, failed the MAC or
-                                 replayed, and datagrams the transport or the
-                                 kernel dropped (sc_bus_dropped; all frames) */
+    long dropped_messages;    /* messages dropped: malformed, failed the MAC,
+                                 replayed, stale or misaddressed, and datagrams
+                                 the transport or the kernel dropped
+                                 (sc_bus_dropped; all frames) */
+    long dropped_stale;       /* of them: from an older start (epoch) of a daemon
+                                 than its newest heard (all frames) */
+    long dropped_misaddressed;/* of them: addressed to another start of this
+                                 master (all frames) */
+    int daemons_unverified;   /* daemons heard that have not answered this
+                                 master's challenge (not in daemons), now */
+    long duplicate_nodes;     /* daemon ids heard from two running daemons (two
+                                 live epochs; each pair once, all frames) */
+    int64_t duplicate_node;   /* the last such id, 0 if none */
     double comm_s;            /* wall seconds packing, sealing, sending and
                                  receiving, last frame */
     double remote_wait_s;     /* wall seconds waiting for daemons' results
@@ -328,8 +338,9 @@ SC_API int sc_world_contacts(const sc_world *w, sc_contact *out, int max);
 /* Wait, at most timeout_s seconds, until k daemons that are not owner-busy
  * answer on cfg's cluster (cfg->cluster, cfg->key_file): returns how many
  * were heard (>= k, or fewer when the time ran out) or a negative code.
- * It listens to the daemons' heartbeats itself (no world is created); a
- * world created afterwards hears them within its first frames. */
+ * It listens to the daemons' heartbeats itself and counts those that
+ * answer its challenge, as a world does (no world is created); a world
+ * created afterwards hears them within its first frames. */
 SC_API int sc_cluster_wait(const sc_world_config *cfg, int k, double timeout_s);
 
 /* ---- the paper's scenes ---- */

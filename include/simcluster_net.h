@@ -32,18 +32,27 @@ SC_API int sc_key_load(const char *path, uint8_t key[SC_KEY_BYTES]);
 
 /* ---- sealed messages --------------------------------------------------------
  * Every message between masters and daemons is an envelope: HMAC-SHA-512/256
- * under the shared key over all its bytes, and a per-sender sequence number
- * checked against replay. Channels: SC_ANNOUNCE (heartbeats),
- * SC_UNIT_<node>, SC_RESULT_<node>, SC_SHAPEREQ_<node>, SC_SHAPE_<node>,
+ * under the shared key over all its bytes, the sender's id and epoch (one
+ * per process start), a sequence number per sender and epoch checked
+ * against replay, and the epoch of the receiver it is addressed to.
+ * Channels: SC_ANNOUNCE (heartbeats), SC_UNIT_<node> (units, challenges),
+ * SC_RESULT_<node> (results, answers), SC_SHAPEREQ_<node>, SC_SHAPE_<node>,
  * <node> the receiver's id in 16 lower-case hex digits. */
-#define SC_MSG_VERSION 3        /* 2: HMAC-SHA-512/256, batches; 3: announce units */
+#define SC_MSG_VERSION 4        /* 2: HMAC-SHA-512/256, batches; 3: announce units;
+                                   4: epochs, addressed messages, challenges */
 #define SC_MSG_MAX_BYTES (8u << 20)        /* a whole envelope, at most */
-#define SC_MSG_OVERHEAD 64u                 /* envelope bytes besides the payload */
+#define SC_MSG_OVERHEAD 80u                 /* envelope bytes besides the payload */
 #define SC_MSG_MAX_PAYLOAD (SC_MSG_MAX_BYTES - SC_MSG_OVERHEAD)
 #define SC_MSG_MAX_WIRE (SC_MSG_MAX_PAYLOAD - 28u)  /* unit_t / result_t bytes */
 #define SC_MSG_HOST_MAX 256                 /* host name bytes, with the NUL */
 #define SC_MSG_SENDERS 64                   /* senders a replay guard follows */
 #define SC_MSG_WINDOW 64                    /* seqs behind the highest still accepted */
+#define SC_MSG_NONCE_BYTES 16               /* a challenge's nonce */
+/* An epoch is the start time (CLOCK_REALTIME, ms since 1970) shifted left
+ * by SC_MSG_EPOCH_RANDOM_BITS, with random low bits: later starts have
+ * larger epochs (while the clock is not set back). */
+#define SC_MSG_EPOCH_RANDOM_BITS 20
+#define SC_MSG_EPOCH_MS(e) ((int64_t)(e) >> SC_MSG_EPOCH_RANDOM_BITS)
 
 /* What an envelope's payload is. */
 enum {
@@ -51,41 +60,73 @@ enum {
     SC_MSG_SHAPE_REQUEST = 2,   /* a shape's content hash */
     SC_MSG_SHAPE = 3,           /* a shape */
     SC_MSG_UNIT = 4,            /* sc_msg_work: units */
-    SC_MSG_RESULT = 5           /* sc_msg_work: results */
+    SC_MSG_RESULT = 5,          /* sc_msg_work: results */
+    SC_MSG_CHALLENGE = 6,       /* a master's nonce for a daemon (sc_msg_challenge_*) */
+    SC_MSG_ANSWER = 7           /* the daemon's answer: the nonce and its epoch */
 };
 
 /* An opened message; payload is a malloc'd copy (sc_msg_free). */
 typedef struct sc_msg {
-    int64_t node, seq;
+    int64_t node, epoch, seq;
+    int64_t to_epoch;           /* 0 for announces */
     int kind;
     uint8_t *payload;
     size_t len;
 } sc_msg;
 
-/* Per sender: the highest seq accepted and which of the SC_MSG_WINDOW
- * before it were (bit i: top - i). When all slots are taken the sender
- * heard from least recently is forgotten. Zero-initialise; one thread. */
+/* Per sender: its newest epoch, the highest seq accepted in it and which
+ * of the SC_MSG_WINDOW before it were (bit i: top - i). A message of an
+ * older epoch is refused (dropped_stale); one of a newer epoch replaces
+ * the sender's state at once. When all slots are taken the sender heard
+ * from least recently is forgotten. epoch: the receiver's own; when not 0,
+ * every message but an announce must be addressed to it (to_epoch, else
+ * dropped_misaddressed) and announces must not be addressed. Zero-
+ * initialise (then set epoch); one thread. */
 typedef struct sc_msg_guard {
     struct {
-        int64_t node;
+        int64_t node, epoch;
         uint64_t top, seen, used;   /* used: 0 free, else last-accept stamp */
     } slot[SC_MSG_SENDERS];
     uint64_t clock;
+    int64_t epoch;
     long dropped_format, dropped_auth, dropped_replay, accepted;
+    long dropped_stale;             /* from an older epoch of a sender than its newest */
+    long dropped_misaddressed;      /* addressed to another epoch than g->epoch */
+    long new_epochs;                /* senders seen again under a newer epoch */
 } sc_msg_guard;
 
-/* Seal payload (len bytes, kind SC_MSG_*) from node as its message seq:
+/* A new epoch for this process start (> 0; see SC_MSG_EPOCH_RANDOM_BITS). */
+SC_API int64_t sc_msg_epoch_new(void);
+/* Seal payload (len bytes, kind SC_MSG_*) from node in its epoch as its
+ * message seq, addressed to the receiver's epoch to_epoch (0: to anyone):
  * *out (malloc'd, *outlen bytes) is the envelope. SC_OK, SC_EINVAL (bad
- * kind, seq < 0, len too big) or SC_ENOMEM. */
-SC_API int sc_msg_seal(const uint8_t key[SC_KEY_BYTES], int64_t node, int64_t seq, int kind,
-                       const void *payload, size_t len, uint8_t **out, size_t *outlen);
+ * kind, epoch <= 0, seq or to_epoch < 0, len too big) or SC_ENOMEM. */
+SC_API int sc_msg_seal(const uint8_t key[SC_KEY_BYTES], int64_t node, int64_t epoch,
+                       int64_t seq, int64_t to_epoch, int kind, const void *payload,
+                       size_t len, uint8_t **out, size_t *outlen);
 /* Check and open a received envelope: SC_OK with *out filled, SC_EFORMAT
  * (malformed, truncated, oversized, unknown version or kind) or SC_EAUTH
- * (bad MAC, replayed or older than the window), counted in g; SC_ENOMEM. */
+ * (bad MAC, misaddressed, from an older epoch, replayed or older than the
+ * window), counted in g; SC_ENOMEM. */
 SC_API int sc_msg_open(const uint8_t key[SC_KEY_BYTES], sc_msg_guard *g, const void *buf,
                        size_t len, sc_msg *out);
+/* Check an envelope's size, MAC, version and kind and open it without a
+ * replay guard or counters (a message only looked at, such as another
+ * daemon's heartbeat): SC_OK, SC_EFORMAT, SC_EAUTH or SC_ENOMEM. */
+SC_API int sc_msg_verify(const uint8_t key[SC_KEY_BYTES], const void *buf, size_t len,
+                         sc_msg *out);
+/* Forget what g knows of node (its epoch and seqs): its next message is
+ * taken as its first. For a sender long gone (a master frees its slot). */
+SC_API void sc_msg_guard_forget(sc_msg_guard *g, int64_t node);
 /* Free an opened message's payload (m may be NULL). */
 SC_API void sc_msg_free(sc_msg *m);
+
+/* A challenge's or answer's payload: nonce and the daemon's epoch (> 0).
+ * SC_OK, SC_EINVAL, SC_ENOMEM; decode: SC_OK or SC_EFORMAT. */
+SC_API int sc_msg_challenge_encode(const uint8_t nonce[SC_MSG_NONCE_BYTES], int64_t epoch,
+                                   uint8_t **out, size_t *len);
+SC_API int sc_msg_challenge_decode(const void *buf, size_t len,
+                                   uint8_t nonce[SC_MSG_NONCE_BYTES], int64_t *epoch);
 
 /* A daemon's heartbeat. */
 typedef struct sc_msg_announce {

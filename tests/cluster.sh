@@ -10,9 +10,17 @@
 #   e  hostile packets (tests/cluster_inject.c) on a daemon's unit channel,
 #      hostile LCM fragments and a burst of 1000 forged packets
 #      and on SC_ANNOUNCE: dropped and counted, the daemon lives, hash H
+#   f  kill -9 a daemon mid-run and start it again with the same --node-id:
+#      it computes again within 1 s of its start (a new epoch), hash Hf
+#   g  a daemon's unit traffic and the heartbeats captured, the daemon
+#      restarted with its id: the units replayed to it are refused as
+#      misaddressed and counted, nothing computed; the old heartbeats
+#      replayed during a run are refused as stale, no duplicate, hash H
+#   h  a second daemon with daemon 1's id: both daemons log it, the master
+#      counts and names it, hash H
 #   d  a CPU hog next to one daemon: it says "owner busy" within 2 s and gets
 #      no units from 1 s after that; hash H
-# (e runs before d so that no daemon is still owner-busy from d's hog.)
+# (e, f, g, h run before d so that no daemon is still owner-busy from d's hog.)
 # Needs root and `ip netns`, else it says SKIPPED and exits 0. Prints a
 # PASS or FAIL line per check and ends with "cluster: N passed, M failed".
 #
@@ -45,6 +53,7 @@ done
 # last long enough to kill a daemon or hog a CPU in the middle of them.
 BODIES=30           # a, b, c, e: 1.5 s, units all the way (at rest at ~3.4 s)
 FRAMES=150
+F_FRAMES=300        # f: 3 s
 D_BODIES=60         # d: 5 s, units all the way (at rest at ~4.7 s)
 D_FRAMES=500
 SEED=7
@@ -90,6 +99,7 @@ finish() {
 }
 now() { date +%s.%N; }
 elapsed() { awk -v a="$1" -v b="$(now)" 'BEGIN { printf "%.1f", b - a }'; }
+elapsed_ms() { awk -v a="$1" -v b="$(now)" 'BEGIN { printf "%d", 1000 * (b - a) }'; }
 
 # ---- network: a bridge in its own namespace, a veth to each host ----
 plumb() {
@@ -215,8 +225,11 @@ H=$(hash_of "$dir/a.out")
 "$RUN" --bodies $D_BODIES --seed $SEED --frames $D_FRAMES >"$dir/a2.out" 2>&1
 rc2=$?
 H2=$(hash_of "$dir/a2.out")
-verdict "a: local reference runs (hash $H; for d: $H2)" \
-    '[ $rc -eq 0 ] && [ $rc2 -eq 0 ] && [ -n "$H" ] && [ -n "$H2" ]'
+"$RUN" --bodies $BODIES --seed $SEED --frames $F_FRAMES >"$dir/a3.out" 2>&1
+rc3=$?
+Hf=$(hash_of "$dir/a3.out")
+verdict "a: local reference runs (hash $H; for d: $H2; for f: $Hf)" \
+    '[ $rc -eq 0 ] && [ $rc2 -eq 0 ] && [ $rc3 -eq 0 ] && [ -n "$H" ] && [ -n "$H2" ] && [ -n "$Hf" ]'
 
 # ---- b: three daemons ----
 for i in 1 2 3; do
@@ -263,7 +276,10 @@ inject() { # $1 = channel, $2 = mode, $3 = count, then cluster_inject options
         --count "$count" "$@" >"$dir/inject.out" 2>&1 || cat "$dir/inject.out"
 }
 before=$(counters 2)
-for mode in garbage wrongkey truncated replay oversize; do inject "$(unit_channel 2)" $mode $N; done
+# addressed to daemon 2's epoch (its counters say it), as a master would
+for mode in garbage wrongkey truncated replay oversize; do
+    inject "$(unit_channel 2)" $mode $N --to-epoch "0x$(field "$before" epoch)"
+done
 sleep 0.3
 after=$(counters 2)
 delta() { # $1 = counter name: its increase from $before to $after, or "?"
@@ -324,6 +340,103 @@ verdict "e: a run under attack, same hash (${h:-none}), exit $rc" 'run_ok $rc "$
 verdict "e: the daemons still computed units (remote ${remote:-?})" '[ "${remote:-0}" -gt 0 ]'
 verdict "e: the master dropped the hostile announces (dropped ${dropped:-?})" \
     '[ "${dropped:-0}" -gt 0 ]'
+
+# ---- f: a daemon killed and started again with the same id mid-run ----
+master_bg "$dir/f.out" --bodies $BODIES --frames $F_FRAMES --wait-daemons 3 --trace
+first_frame "$dir/f.out"
+sleep 0.5
+alive=0
+kill -0 $mpid 2>/dev/null && alive=1
+kill -9 "$(dpid 2)"
+wait "$(dpid 2)" 2>/dev/null
+at=$(grep '^frame ' "$dir/f.out" | tail -n 1 | cut -d' ' -f2)
+start_daemon 2 || { verdict "daemon 2 restarts" false; finish; }
+t=$(now)
+k=0
+while r=$(field "$(counters 2)" results) && [ "${r:-0}" -eq 0 ] && [ $k -lt 100 ]; do
+    sleep 0.02
+    k=$((k + 1))
+done
+took=$(elapsed_ms "$t")
+wait $mpid
+rc=$?
+h=$(hash_of "$dir/f.out")
+echo "    f: daemon 2 killed after frame ${at:-?} of $F_FRAMES, computing again $took ms after" \
+    "its restart; $(summary "$dir/f.out")"
+verdict "f: the master was running when the daemon restarted" '[ $alive -eq 1 ]'
+verdict "f: the restarted daemon computes within 1 s ($took ms, results=${r:-?})" \
+    '[ "${r:-0}" -gt 0 ] && [ "$took" -lt 1000 ]'
+verdict "f: same hash across the restart (${h:-none}; local $Hf), exit $rc" \
+    '[ $rc -eq 0 ] && [ "$h" = "$Hf" ]'
+
+# ---- g: traffic captured before a restart, replayed after it ----
+capture() { # $1 = channel, $2 = file: in the background for 2 s, pid in $cpid
+    ip netns exec "$nsm" "$INJECT" --url "$URL" --channel "$1" --mode capture --file "$2" \
+        --seconds 2 >"$2.out" 2>&1 &
+    cpid=$!
+    pids="$pids $cpid"
+}
+capture "$(unit_channel 1)" "$dir/units.cap"
+c1=$cpid
+capture SC_ANNOUNCE "$dir/announce.cap"
+c2=$cpid
+sleep 0.2
+master "$dir/g1.out" --bodies $BODIES --frames 100 --wait-daemons 3
+wait $c1 $c2
+ncap=$(sed -n 's/^captured \([0-9]*\).*/\1/p' "$dir/units.cap.out")
+stop_daemon 1
+start_daemon 1 || { verdict "daemon 1 restarts" false; finish; }
+before=$(counters 1)
+ip netns exec "$nsm" "$INJECT" --url "$URL" --channel "$(unit_channel 1)" --mode resend \
+    --file "$dir/units.cap" >"$dir/resend.out" 2>&1
+sleep 0.3
+after=$(counters 1)
+dm=$(delta dropped_misaddressed)
+du=$(delta units)
+echo "    g: $(cat "$dir/resend.out") (captured ${ncap:-?} while a master ran)"
+verdict "g: units captured before the restart refused after it ($dm misaddressed of ${ncap:-?}, $du units)" \
+    '[ "${ncap:-0}" -gt 0 ] && [ "$dm" = "$ncap" ] && [ "$du" = 0 ]'
+(
+    while :; do
+        ip netns exec "$nsm" "$INJECT" --url "$URL" --channel SC_ANNOUNCE --mode resend \
+            --file "$dir/announce.cap"
+    done
+) >/dev/null 2>&1 &
+ipid=$!
+pids="$pids $ipid"
+master "$dir/g2.out" --bodies $BODIES --frames $FRAMES --wait-daemons 3
+rc=$?
+kill $ipid 2>/dev/null
+wait $ipid 2>/dev/null
+h=$(hash_of "$dir/g2.out")
+stale=$(total "$dir/g2.out" stale)
+dups=$(total "$dir/g2.out" duplicates)
+echo "    g: a run with old heartbeats replayed: $(summary "$dir/g2.out")"
+verdict "g: replayed heartbeats of the old start refused as stale (stale ${stale:-?}), no duplicate (${dups:-?})" \
+    '[ "${stale:-0}" -gt 0 ] && [ "$dups" = 0 ]'
+verdict "g: same hash with old heartbeats replayed (${h:-none}), exit $rc" 'run_ok $rc "$h"'
+
+# ---- h: a second daemon with daemon 1's id ----
+touch "$dir/dup.log"
+ip netns exec "$ns3" taskset -c "$cpu3" "$DAEMON" --url "$URL" --key "$KEY" --threads 1 \
+    --heartbeat 0.1 --node-id "$(node 1)" >"$dir/dup.log" 2>&1 &
+duppid=$!
+pids="$pids $duppid"
+k=0
+while ! grep -q serving "$dir/dup.log" && [ $k -lt 100 ]; do sleep 0.05; k=$((k + 1)); done
+master "$dir/h.out" --bodies $BODIES --frames $FRAMES --wait-daemons 3
+rc=$?
+h=$(hash_of "$dir/h.out")
+dups=$(total "$dir/h.out" duplicates)
+named=$(sed -n 's/^duplicate node id //p' "$dir/h.out")
+echo "    h: $(summary "$dir/h.out")"
+verdict "h: the master counts the duplicate id (${dups:-?}, ${named:-none})" \
+    '[ "${dups:-0}" -ge 1 ] && [ "$named" = "$(printf %016x "$(node 1)")" ]'
+verdict "h: both daemons log the duplicate id" \
+    'grep -q "is also used by" "$dir/d1.log" && grep -q "is also used by" "$dir/dup.log"'
+verdict "h: same hash with a duplicate id (${h:-none}), exit $rc" 'run_ok $rc "$h"'
+kill -TERM $duppid
+wait $duppid 2>/dev/null
 
 # ---- d: the owner of daemon 1's CPU gets busy ----
 if [ "$ncpu" -ge 2 ]; then

@@ -6,6 +6,10 @@
  *                         --mode garbage|wrongkey|truncated|replay|oversize|
  *                                frag-wrap|frag-huge|frag-4g
  *                         [--count N (20)] [--node ID] [--pace-us US (2000)]
+ *                         [--to-epoch E]
+ *          cluster_inject --url URL --channel CH --mode capture --file F
+ *                         [--count N] [--seconds S (5)]
+ *          cluster_inject --url URL --channel CH --mode resend --file F
  * Modes, and the receiver's counter each packet should raise:
  *   garbage    random bytes, 1..4000 of them              dropped_format
  *   wrongkey   a well-formed SC_MSG_UNIT envelope sealed
@@ -28,10 +32,16 @@
  *   frag-huge  a first fragment on CH claiming a 256 MB message (LCM
  *              mallocs what it is told)                    refused
  *   frag-4g    the same claiming 0xFFFFFFFF bytes           refused
- * Every packet of a run comes from one sender id (--node, else random);
+ * Every packet of a run comes from one sender id (--node, else random),
+ * addressed to the receiver's epoch --to-epoch (a daemon's counters line
+ * says it; else 0: every message but an announce is then misaddressed);
  * --pace-us 0 sends the packets in one burst.
- * Prints one line "sent N packets (MODE) to CH as node ID"; exit 0, 1 on
- * an error, 2 on a usage error. */
+ * Prints one line "sent N packets (MODE) to CH as node ID".
+ *   capture    records what is published on CH (at most N messages or S
+ *              seconds) to F, as an eavesdropper could; prints "captured N"
+ *   resend     publishes the messages in F on CH again, paced, as they
+ *              were: a replay of captured traffic; prints "resent N"
+ * Exit 0, 1 on an error, 2 on a usage error. */
 #include <errno.h>
 #include <getopt.h>
 #include <sodium.h>
@@ -44,22 +54,29 @@
 #include "simcluster_net.h"
 #include "simcluster.h"
 
-#define ENV_LEN_AT (8 + 2 + 8 + 8 + 2)  /* fingerprint, version, node, seq, kind */
+#define ENV_LEN_AT (8 + 2 + 8 + 8 + 8 + 8 + 2)  /* fingerprint, version, node, epoch, seq,
+                                                   to_epoch, kind */
 #define GARBAGE_MAX 4000
 #define PACE_US 2000L                   /* between packets, by default */
 #define WRAP_SIZE 100000u               /* frag-wrap's message */
 
-enum { GARBAGE, WRONGKEY, TRUNCATED, REPLAY, OVERSIZE, FRAG_WRAP, FRAG_HUGE, FRAG_4G, NMODES };
-static const char *const mode_names[NMODES] = { "garbage",   "wrongkey",  "truncated",
-                                                "replay",    "oversize",  "frag-wrap",
-                                                "frag-huge", "frag-4g" };
+enum { GARBAGE, WRONGKEY, TRUNCATED, REPLAY, OVERSIZE, FRAG_WRAP, FRAG_HUGE, FRAG_4G, CAPTURE,
+       RESEND, NMODES };
+static const char *const mode_names[NMODES] = { "garbage",   "wrongkey",  "truncated", "replay",
+                                                "oversize",  "frag-wrap", "frag-huge", "frag-4g",
+                                                "capture",   "resend" };
+static long long to_epoch;          /* the receiver's epoch the envelopes name */
 
 static int usage(FILE *f, int status)
 {
     fprintf(f, "usage: cluster_inject --url URL --key FILE --channel CH\n"
                "                      --mode garbage|wrongkey|truncated|replay|oversize|\n"
                "                             frag-wrap|frag-huge|frag-4g\n"
-               "                      [--count N (20)] [--node ID] [--pace-us US (2000)]\n");
+               "                      [--count N (20)] [--node ID] [--pace-us US (2000)]\n"
+               "                      [--to-epoch E]\n"
+               "       cluster_inject --url URL --channel CH --mode capture --file F\n"
+               "                      [--count N] [--seconds S (5)]\n"
+               "       cluster_inject --url URL --channel CH --mode resend --file F\n");
     return status;
 }
 
@@ -76,7 +93,7 @@ static int unit_envelope(const uint8_t *key, int64_t node, int64_t seq, uint8_t 
     int rc = sc_msg_work_encode(SC_MSG_UNIT, &u, &pl, &pn);
     if (rc != SC_OK)
         return rc;
-    rc = sc_msg_seal(key, node, seq, SC_MSG_UNIT, pl, pn, env, n);
+    rc = sc_msg_seal(key, node, 1, seq, to_epoch, SC_MSG_UNIT, pl, pn, env, n);
     free(pl);
     return rc;
 }
@@ -131,6 +148,73 @@ static int send_fragments(sc_bus *bus, int mode, const char *channel, uint32_t s
     return sc_bus_send_raw(bus, d, n);
 }
 
+/* capture: each message on the channel as a 4-byte big-endian length and
+ * its bytes. */
+typedef struct recorder {
+    FILE *f;
+    long n, max;
+} recorder;
+
+static void on_capture(void *ctx, const char *channel, const uint8_t *data, size_t len,
+                       int64_t recv_us)
+{
+    (void)channel;
+    (void)recv_us;
+    recorder *r = ctx;
+    uint8_t head[4];
+    if (r->n >= r->max)
+        return;
+    put_be32(head, (uint32_t)len);
+    if (fwrite(head, 1, 4, r->f) == 4 && fwrite(data, 1, len, r->f) == len)
+        r->n++;
+}
+
+static int capture(sc_bus *bus, const char *channel, const char *path, long max, double secs)
+{
+    recorder r = { fopen(path, "wb"), 0, max };
+    if (!r.f || sc_bus_subscribe(bus, channel, on_capture, &r) != SC_OK) {
+        fprintf(stderr, "cluster_inject: capture: %s: %s\n", path, strerror(errno));
+        if (r.f)
+            fclose(r.f);
+        return 1;
+    }
+    struct timespec t0, t;
+    clock_gettime(CLOCK_MONOTONIC, &t0);
+    do {
+        sc_bus_handle(bus, 0.02);
+        clock_gettime(CLOCK_MONOTONIC, &t);
+    } while (r.n < r.max &&
+             (double)(t.tv_sec - t0.tv_sec) + 1e-9 * (double)(t.tv_nsec - t0.tv_nsec) < secs);
+    int bad = fclose(r.f) != 0;
+    printf("captured %ld on %s\n", r.n, channel);
+    return bad;
+}
+
+static int resend(sc_bus *bus, const char *channel, const char *path)
+{
+    FILE *f = fopen(path, "rb");
+    if (!f) {
+        fprintf(stderr, "cluster_inject: resend: %s: %s\n", path, strerror(errno));
+        return 1;
+    }
+    uint8_t head[4], *buf = NULL;
+    long n = 0;
+    int bad = 0;
+    const struct timespec pace = { 0, PACE_US * 1000 };
+    while (!bad && fread(head, 1, 4, f) == 4) {
+        size_t len = (size_t)head[0] << 24 | (size_t)head[1] << 16 | (size_t)head[2] << 8 | head[3];
+        bad = len > SC_MSG_MAX_BYTES || !(buf = malloc(len ? len : 1)) ||
+              fread(buf, 1, len, f) != len || sc_bus_publish(bus, channel, buf, len) != SC_OK;
+        free(buf);
+        buf = NULL;
+        n += !bad;
+        nanosleep(&pace, NULL);
+    }
+    fclose(f);
+    printf("resent %ld on %s\n", n, channel);
+    return bad;
+}
+
 int main(int argc, char **argv)
 {
     static const struct option opts[] = {
@@ -138,11 +222,15 @@ int main(int argc, char **argv)
         { "channel", required_argument, NULL, 'c' }, { "mode", required_argument, NULL, 'm' },
         { "count", required_argument, NULL, 'n' }, { "node", required_argument, NULL, 'N' },
         { "pace-us", required_argument, NULL, 'p' },
-        { "help", no_argument, NULL, 'h' },        { NULL, 0, NULL, 0 }
+        { "to-epoch", required_argument, NULL, 'e' }, { "file", required_argument, NULL, 'f' },
+        { "seconds", required_argument, NULL, 's' }, { "help", no_argument, NULL, 'h' },
+        { NULL, 0, NULL, 0 }
     };
-    const char *url = NULL, *keyfile = NULL, *channel = NULL;
+    const char *url = NULL, *keyfile = NULL, *channel = NULL, *file = NULL;
+    double seconds = 5;
     int mode = -1, c;
     long count = 20, pace_us = PACE_US;
+    int count_set = 0;
     long long node = 0;
     char *end;
     while ((c = getopt_long(argc, argv, "", opts, NULL)) != -1) {
@@ -160,6 +248,7 @@ int main(int argc, char **argv)
         case 'n':
             errno = 0;
             count = strtol(optarg, &end, 10);
+            count_set = 1;
             if (errno || *end || end == optarg || count < 1 || count > 1000000)
                 return usage(stderr, 2);
             break;
@@ -175,12 +264,37 @@ int main(int argc, char **argv)
             if (errno || *end || end == optarg || pace_us < 0 || pace_us > 1000000)
                 return usage(stderr, 2);
             break;
+        case 'e':
+            errno = 0;
+            to_epoch = strtoll(optarg, &end, 0);
+            if (errno || *end || end == optarg || to_epoch < 0)
+                return usage(stderr, 2);
+            break;
+        case 'f': file = optarg; break;
+        case 's':
+            seconds = strtod(optarg, &end);
+            if (*end || end == optarg || !(seconds > 0 && seconds <= 3600))
+                return usage(stderr, 2);
+            break;
         case 'h': return usage(stdout, 0);
         default: return usage(stderr, 2);
         }
     }
-    if (optind != argc || !url || !keyfile || !channel || mode < 0)
+    int raw = mode == CAPTURE || mode == RESEND;
+    if (optind != argc || !url || (!keyfile && !raw) || !channel || mode < 0 || (raw && !file))
         return usage(stderr, 2);
+    if (raw) {
+        char why[256];
+        sc_bus *b = NULL;
+        if (sc_bus_open(url, &b, why, sizeof why) != SC_OK) {
+            fprintf(stderr, "cluster_inject: cannot open %s: %s\n", url, why);
+            return 1;
+        }
+        int bad = mode == CAPTURE ? capture(b, channel, file, count_set ? count : 1000000, seconds)
+                                  : resend(b, channel, file);
+        sc_bus_close(b);
+        return bad;
+    }
     if (sodium_init() < 0) {
         fprintf(stderr, "cluster_inject: libsodium does not start\n");
         return 1;
@@ -240,13 +354,11 @@ int main(int argc, char **argv)
             put_be32(buf + ENV_LEN_AT, claim);
             break;
         }
-        case REPLAY:
-            break;
-        default:
+        default:                        /* REPLAY, FRAG_*; CAPTURE and RESEND returned */
             break;
         }
         int pub;
-        if (mode >= FRAG_WRAP)
+        if (mode >= FRAG_WRAP && mode <= FRAG_4G)
             pub = send_fragments(bus, mode, channel, (uint32_t)i);
         else
             pub = mode == REPLAY ? sc_bus_publish(bus, channel, env, n)

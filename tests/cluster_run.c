@@ -13,7 +13,8 @@
  *   frame F wall S daemons D busy B remote R recomputed C late L
  * then
  *   hash HHHHHHHHHHHHHHHH
- *   remote R recomputed C late L dropped D
+ *   remote R recomputed C late L dropped D stale S misaddressed M duplicates U
+ *   duplicate node id ID        (only when two running daemons share one)
  *   wall S frames F
  * Exit status: 0, 1 when the world cannot be made or a step fails (or the
  * daemons asked for by --wait-daemons do not show up), 2 on a usage error. */
@@ -173,8 +174,11 @@ int main(int argc, char **argv)
     double wall = now_s() - t0;
     sc_world_stats(w, &st);
     printf("hash %016llx\n", (unsigned long long)sc_world_hash(w));
-    printf("remote %ld recomputed %ld late %ld dropped %ld\n", remote, recomputed, late,
-           st.dropped_messages);
+    printf("remote %ld recomputed %ld late %ld dropped %ld stale %ld misaddressed %ld "
+           "duplicates %ld\n", remote, recomputed, late, st.dropped_messages, st.dropped_stale,
+           st.dropped_misaddressed, st.duplicate_nodes);
+    if (st.duplicate_nodes)
+        printf("duplicate node id %016llx\n", (unsigned long long)st.duplicate_node);
     printf("wall %.3f frames %ld\n", wall, f);
     sc_world_destroy(w);
     return rc == SC_OK ? 0 : 1;

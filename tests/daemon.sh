@@ -68,7 +68,7 @@ chmod 644 "$dir/d.conf"
 "$bin" -c "$dir/d.conf" --key "$dir/k" --url "$url" --threads 1 2>"$dir/log" &
 pid=$!
 if wait_log "serving"; then
-    grep -q "serving on $url as node 0000000000001234 with 1 threads" "$dir/log" ||
+    grep -q "serving on $url as node 0000000000001234 (epoch [0-9a-f]\{16\}) with 1 threads" "$dir/log" ||
         { echo "FAIL: the serving line"; cat "$dir/log"; fail=1; }
     if [ "$(id -u)" -eq 0 ]; then
         ids=$(awk '/^(Uid|Gid):/ { print $2, $3, $4, $5 }' "/proc/$pid/status")
@@ -78,9 +78,9 @@ if wait_log "serving"; then
     fi
     kill -USR1 "$pid"
     if wait_log "counters:"; then
-        for n in node units results unit_errors shapes shape_requests dropped_format \
-                 dropped_auth dropped_replay dropped_net dropped_kernel heartbeats idle \
-                 owner_busy; do
+        for n in node epoch units results unit_errors shapes shape_requests dropped_format \
+                 dropped_auth dropped_replay dropped_stale dropped_misaddressed dropped_net \
+                 dropped_kernel challenges duplicates heartbeats idle owner_busy; do
             grep "counters:" "$dir/log" | grep -q " $n=" || { echo "FAIL: counters lack $n"; fail=1; }
         done
     fi

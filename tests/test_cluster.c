@@ -1,7 +1,10 @@
 /* test_cluster.c - daemons (the serve engine, on threads of this process)
  * as nodes of a world over LCM on this host only (ttl=0): the same bits as
  * a local run when daemons work, stop mid-run or never answer; results
- * really come from them; hostile messages are dropped and counted. The
+ * really come from them; hostile messages are dropped and counted; a
+ * daemon restarted with its id is used again at once, a dead one's
+ * replayed heartbeats never count, and units captured before a restart
+ * are refused after it. The
  * multi-host version with real simclusterd processes in network
  * namespaces is tests/cluster.sh. (Internal API: lib/net/unit_wire.h, lib/api/world.h.) */
 #include <pthread.h>
@@ -274,20 +277,24 @@ static void test_hostile_messages_are_dropped(void **state)
         sc_bus_publish(l, ch, junk, (size_t)(i * 7));   /* garbage */
     uint8_t other[SC_KEY_BYTES] = { 1 }, *env;
     size_t elen;
-    assert_int_equal(sc_msg_seal(other, 77, 1, SC_MSG_UNIT, junk, 40, &env, &elen), SC_OK);
+    assert_int_equal(sc_msg_seal(other, 77, 1, 1, 0, SC_MSG_UNIT, junk, 40, &env, &elen), SC_OK);
     sc_bus_publish(l, ch, env, elen);                   /* wrong key */
     free(env);
     uint8_t *p;
     size_t plen;
     sc_msg_work wk = { 1, 0, junk, 100, 0 };
     assert_int_equal(sc_msg_work_encode(SC_MSG_UNIT, &wk, &p, &plen), SC_OK);
-    assert_int_equal(sc_msg_seal(key, 77, 5, SC_MSG_UNIT, p, plen, &env, &elen), SC_OK);
-    for (int i = 0; i < 3; i++)
+    sc_serve_counters n;
+    sc_serve_counters_get(d.s, &n);     /* units name the daemon's epoch */
+    assert_int_equal(sc_msg_seal(key, 77, 1, 5, n.epoch, SC_MSG_UNIT, p, plen, &env, &elen),
+                     SC_OK);
+    for (int i = 0; i < 3; i++) {
         sc_bus_publish(l, ch, env, elen);               /* once, then replays */
+        usleep(2000);
+    }
     sc_bus_publish(l, ch, env, elen / 2);               /* truncated */
     free(env);
     free(p);
-    sc_serve_counters n;
     for (int i = 0; i < 500; i++) {
         usleep(10000);
         sc_serve_counters_get(d.s, &n);
@@ -310,6 +317,179 @@ static void test_hostile_messages_are_dropped(void **state)
     stop_daemon(&d, NULL);
 }
 
+static double mono_s(void)
+{
+    struct timespec ts;
+    clock_gettime(CLOCK_MONOTONIC, &ts);
+    return (double)ts.tv_sec + 1e-9 * (double)ts.tv_nsec;
+}
+
+/* Sealed messages seen on one channel (a passive listener's copy). */
+typedef struct capture {
+    uint8_t *msg[32];
+    size_t len[32];
+    int n;
+} capture;
+
+static void on_capture(void *ctx, const char *channel, const uint8_t *data, size_t len,
+                       int64_t recv_us)
+{
+    (void)channel;
+    (void)recv_us;
+    capture *c = ctx;
+    if (c->n < 32 && (c->msg[c->n] = malloc(len ? len : 1)) != NULL) {
+        if (len)
+            memcpy(c->msg[c->n], data, len);
+        c->len[c->n++] = len;
+    }
+}
+
+/* Handle l's messages for s seconds. */
+static void pump_for(sc_bus *l, double s)
+{
+    double end = mono_s() + s;
+    while (mono_s() < end)
+        sc_bus_handle(l, 0.01);
+}
+
+/* Publish what c holds on channel, paced, and free it. */
+static void replay(sc_bus *l, const char *channel, capture *c)
+{
+    for (int i = 0; i < c->n; i++) {
+        sc_bus_publish(l, channel, c->msg[i], c->len[i]);
+        free(c->msg[i]);
+        usleep(3000);
+    }
+}
+
+/* A daemon killed and started again with the same id (a new epoch) is
+ * challenged on its first announce and used again at once, not when its
+ * new sequence numbers pass the old ones; the bits stay those of a local
+ * run. */
+static void test_a_daemon_restarted_with_its_id_is_used_again_at_once(void **state)
+{
+    (void)state;
+    uint64_t h0 = local_hash();
+    daemon_thread d;
+    start_daemon(&d, 0x6001, 1);
+    sc_world *w = make_world(1, key_path);
+    wait_daemons(w, 1);
+    sc_stats st;
+    long before = 0, after = 0;
+    for (int f = 0; f < FRAMES / 3; f++) {
+        assert_int_equal(sc_world_step(w, 0.01), SC_OK);
+        sc_world_stats(w, &st);
+        before += st.remote_units;
+    }
+    stop_daemon(&d, NULL);
+    start_daemon(&d, 0x6001, 1);
+    /* until the new start's first result has been merged: units sent to
+     * the old epoch meanwhile are refused by the new one and recomputed */
+    double t0 = mono_s(), used = -1;
+    sc_serve_counters n;
+    for (int f = FRAMES / 3; f < FRAMES; f++) {
+        assert_int_equal(sc_world_step(w, 0.01), SC_OK);
+        sc_world_stats(w, &st);
+        after += st.remote_units;
+        sc_serve_counters_get(d.s, &n);
+        if (used < 0 && st.remote_units > 0 && n.results > 0)
+            used = mono_s() - t0;
+    }
+    stop_daemon(&d, &n);
+    printf("  used again %.3f s after the restart; remote units %ld before, %ld after "
+           "(results %ld), challenges answered %ld, misaddressed %ld\n", used, before, after,
+           n.results, n.challenges, n.dropped_misaddressed);
+    assert_true(used >= 0 && used < 1);
+    assert_true(before > 0 && after > 0 && n.results > 0);
+    assert_int_equal(n.challenges >= 1, 1);
+    assert_true(sc_world_hash(w) == h0);
+    sc_world_destroy(w);
+}
+
+/* A dead daemon's heartbeats, captured and replayed to a new master, are
+ * challenged; nobody answers, so it never counts and gets no work. */
+static void test_a_dead_daemons_replayed_announces_never_count(void **state)
+{
+    (void)state;
+    uint64_t h0 = local_hash();
+    sc_bus *l = NULL;
+    assert_int_equal(sc_bus_open(url, &l, NULL, 0), SC_OK);
+    capture cap = { .n = 0 };
+    assert_int_equal(sc_bus_subscribe(l, "SC_ANNOUNCE", on_capture, &cap), SC_OK);
+    daemon_thread d;
+    start_daemon(&d, 0x7001, 1);
+    pump_for(l, 0.4);
+    stop_daemon(&d, NULL);
+    pump_for(l, 0.05);
+    assert_true(cap.n >= 3);
+    int n = cap.n;
+    sc_world *w = make_world(1, key_path);
+    sc_stats st;
+    int unverified = 0;
+    for (int i = 0; i < n; i++) {
+        sc_bus_publish(l, "SC_ANNOUNCE", cap.msg[i], cap.len[i]);
+        free(cap.msg[i]);
+        usleep(20000);
+        sc_cluster_frame(w->cluster);
+        sc_world_stats(w, &st);
+        assert_int_equal(st.daemons, 0);
+        unverified |= st.daemons_unverified == 1;
+    }
+    cap.n = 0;
+    sc_stats sum;
+    uint64_t h = run(w, NULL, -1, &sum);
+    printf("  %d announces replayed: heard unverified %d, daemons %d, remote units %ld\n", n,
+           unverified, sum.daemons, sum.remote_units);
+    assert_true(unverified);
+    assert_int_equal(sum.remote_units, 0);
+    assert_true(h == h0);
+    sc_world_destroy(w);
+    sc_bus_close(l);
+}
+
+/* Units (and challenges) a master sent one start of a daemon, captured
+ * and replayed to the next start with the same id: addressed to the old
+ * epoch, refused and counted, nothing computed. */
+static void test_units_captured_before_a_restart_are_refused_after_it(void **state)
+{
+    (void)state;
+    const char *ch = "SC_UNIT_0000000000008001";
+    sc_bus *l = NULL;
+    assert_int_equal(sc_bus_open(url, &l, NULL, 0), SC_OK);
+    capture cap = { .n = 0 };
+    assert_int_equal(sc_bus_subscribe(l, ch, on_capture, &cap), SC_OK);
+    daemon_thread d;
+    start_daemon(&d, 0x8001, 1);
+    sc_world *w = make_world(1, key_path);
+    wait_daemons(w, 1);
+    for (int f = 0; f < 30; f++)
+        assert_int_equal(sc_world_step(w, 0.01), SC_OK);
+    sc_world_destroy(w);
+    pump_for(l, 0.1);
+    sc_serve_counters n;
+    stop_daemon(&d, &n);
+    assert_true(n.units > 0);
+    assert_true(cap.n >= 3);
+    int sent = cap.n;
+    start_daemon(&d, 0x8001, 1);
+    usleep(50000);
+    replay(l, ch, &cap);
+    for (int i = 0; i < 100; i++) {
+        usleep(10000);
+        sc_serve_counters_get(d.s, &n);
+        if (n.dropped_misaddressed >= sent)
+            break;
+    }
+    stop_daemon(&d, &n);
+    printf("  %d captured messages replayed: misaddressed %ld, units %ld, results %ld\n", sent,
+           n.dropped_misaddressed, n.units, n.results);
+    assert_true(n.dropped_misaddressed >= sent - 2);  /* UDP may lose one or two */
+    assert_int_equal(n.units, 0);
+    assert_int_equal(n.results, 0);
+    assert_int_equal(n.dropped_replay + n.dropped_stale, 0);
+    sc_bus_close(l);
+}
+
 int main(void)
 {
     srand((unsigned)time(NULL) ^ (unsigned)getpid());
@@ -328,6 +508,9 @@ int main(void)
         cmocka_unit_test(test_wrong_key_daemon_is_never_used),
         cmocka_unit_test(test_cluster_wait_counts_daemons),
         cmocka_unit_test(test_hostile_messages_are_dropped),
+        cmocka_unit_test(test_a_daemon_restarted_with_its_id_is_used_again_at_once),
+        cmocka_unit_test(test_a_dead_daemons_replayed_announces_never_count),
+        cmocka_unit_test(test_units_captured_before_a_restart_are_refused_after_it),
     };
     int rc = cmocka_run_group_tests(tests, NULL, NULL);
     unlink(key_path);

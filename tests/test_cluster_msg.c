@@ -1,7 +1,8 @@
 /* test_cluster_msg.c - sealed cluster messages (lib/net/cluster_msg.c): what is
  * sealed opens to the same node, seq, kind and payload; a changed bit, a
- * wrong key, a truncation, a lying length field or a replay is refused with
- * the documented code and counted; payloads and key files round-trip and
+ * wrong key, a truncation, a lying length field, a replay, an older epoch
+ * of a sender or a message addressed to another epoch is refused with the
+ * documented code and counted; a newer epoch starts afresh; payloads and key files round-trip and
  * bad ones are refused. (simcluster_net.h.) */
 #include <setjmp.h>
 #include <stdarg.h>
@@ -11,6 +12,7 @@
 #include <stdlib.h>
 #include <string.h>
 #include <sys/stat.h>
+#include <time.h>
 #include <unistd.h>
 #include <cmocka.h>
 
@@ -35,7 +37,7 @@ static uint8_t *sealed_announce(int64_t seq, size_t *n)
     uint8_t *pl, *env;
     size_t pn;
     assert_int_equal(sc_msg_announce_encode(&a, &pl, &pn), SC_OK);
-    assert_int_equal(sc_msg_seal(key, 42, seq, SC_MSG_ANNOUNCE, pl, pn, &env, n), SC_OK);
+    assert_int_equal(sc_msg_seal(key, 42, 1, seq, 0, SC_MSG_ANNOUNCE, pl, pn, &env, n), SC_OK);
     free(pl);
     return env;
 }
@@ -90,7 +92,7 @@ static void test_unit_and_result_round_trip_and_are_told_apart(void **state)
         uint8_t *pl, *env;
         size_t pn, n;
         assert_int_equal(sc_msg_work_encode(kind, &w, &pl, &pn), SC_OK);
-        assert_int_equal(sc_msg_seal(key, 3, 1, kind, pl, pn, &env, &n), SC_OK);
+        assert_int_equal(sc_msg_seal(key, 3, 1, 1, 0, kind, pl, pn, &env, &n), SC_OK);
         sc_msg_guard g = { 0 };
         sc_msg m;
         assert_int_equal(sc_msg_open(key, &g, env, n, &m), SC_OK);
@@ -154,7 +156,7 @@ static int open_seq(sc_msg_guard *g, int64_t node, int64_t seq)
     uint8_t *pl, *env;
     size_t pn, n;
     assert_int_equal(sc_msg_announce_encode(&a, &pl, &pn), SC_OK);
-    assert_int_equal(sc_msg_seal(key, node, seq, SC_MSG_ANNOUNCE, pl, pn, &env, &n), SC_OK);
+    assert_int_equal(sc_msg_seal(key, node, 1, seq, 0, SC_MSG_ANNOUNCE, pl, pn, &env, &n), SC_OK);
     sc_msg m;
     int rc = sc_msg_open(key, g, env, n, &m);
     sc_msg_free(&m);
@@ -239,7 +241,7 @@ static void test_lying_length_fields_are_format_errors(void **state)
     for (size_t i = 0; i < sizeof lies / sizeof lies[0]; i++) {
         uint8_t *bad = malloc(n);
         memcpy(bad, env, n);
-        put_be32(bad + 28, lies[i]);            /* envelope_t.len */
+        put_be32(bad + 44, lies[i]);            /* envelope_t.len */
         assert_int_equal(sc_msg_open(key, &g, bad, n, &m), SC_EFORMAT);
         free(bad);
     }
@@ -247,7 +249,7 @@ static void test_lying_length_fields_are_format_errors(void **state)
     /* more than SC_MSG_MAX_BYTES, whatever it says */
     size_t big = SC_MSG_MAX_BYTES + 1;
     uint8_t *huge = calloc(big, 1);
-    put_be32(huge + 28, (uint32_t)(big - SC_MSG_OVERHEAD));
+    put_be32(huge + 44, (uint32_t)(big - SC_MSG_OVERHEAD));
     assert_int_equal(sc_msg_open(key, &g, huge, big, &m), SC_EFORMAT);
     free(huge);
     /* payload lengths: the announce's host string, the unit's wire bytes */
@@ -334,13 +336,159 @@ static void test_seal_refuses_bad_arguments(void **state)
     (void)state;
     uint8_t pl[16] = { 0 }, *env;
     size_t n;
-    assert_int_equal(sc_msg_seal(key, 1, 1, 0, pl, sizeof pl, &env, &n), SC_EINVAL);
-    assert_int_equal(sc_msg_seal(key, 1, 1, 99, pl, sizeof pl, &env, &n), SC_EINVAL);
-    assert_int_equal(sc_msg_seal(key, 1, -1, SC_MSG_UNIT, pl, sizeof pl, &env, &n), SC_EINVAL);
-    assert_int_equal(sc_msg_seal(key, 1, 1, SC_MSG_UNIT, pl, 4, &env, &n), SC_EINVAL);
-    assert_int_equal(sc_msg_seal(key, 1, 1, SC_MSG_UNIT, pl, SC_MSG_MAX_PAYLOAD + 1, &env, &n),
+    assert_int_equal(sc_msg_seal(key, 1, 1, 1, 0, 0, pl, sizeof pl, &env, &n), SC_EINVAL);
+    assert_int_equal(sc_msg_seal(key, 1, 1, 1, 0, 99, pl, sizeof pl, &env, &n), SC_EINVAL);
+    assert_int_equal(sc_msg_seal(key, 1, 1, -1, 0, SC_MSG_UNIT, pl, sizeof pl, &env, &n), SC_EINVAL);
+    assert_int_equal(sc_msg_seal(key, 1, 1, 1, 0, SC_MSG_UNIT, pl, 4, &env, &n), SC_EINVAL);
+    assert_int_equal(sc_msg_seal(key, 1, 1, 1, 0, SC_MSG_UNIT, pl, SC_MSG_MAX_PAYLOAD + 1, &env, &n),
                      SC_EINVAL);
-    assert_int_equal(sc_msg_seal(NULL, 1, 1, SC_MSG_UNIT, pl, sizeof pl, &env, &n), SC_EINVAL);
+    assert_int_equal(sc_msg_seal(NULL, 1, 1, 1, 0, SC_MSG_UNIT, pl, sizeof pl, &env, &n), SC_EINVAL);
+    assert_int_equal(sc_msg_seal(key, 1, 0, 1, 0, SC_MSG_UNIT, pl, sizeof pl, &env, &n), SC_EINVAL);
+    assert_int_equal(sc_msg_seal(key, 1, -5, 1, 0, SC_MSG_UNIT, pl, sizeof pl, &env, &n), SC_EINVAL);
+    assert_int_equal(sc_msg_seal(key, 1, 1, 1, -1, SC_MSG_UNIT, pl, sizeof pl, &env, &n), SC_EINVAL);
+}
+
+/* Seal kind (an announce's or a 24-byte payload) from node in epoch as
+ * seq, addressed to to_epoch, and open it with g. */
+static int open_at(sc_msg_guard *g, int64_t node, int64_t epoch, int64_t seq, int64_t to_epoch,
+                   int kind)
+{
+    sc_msg_announce a = sample_announce();
+    uint8_t *pl, *env, raw[24] = "a challenge-sized thing";
+    size_t pn, n;
+    assert_int_equal(sc_msg_announce_encode(&a, &pl, &pn), SC_OK);
+    int ann = kind == SC_MSG_ANNOUNCE;
+    assert_int_equal(sc_msg_seal(key, node, epoch, seq, to_epoch, kind, ann ? pl : raw,
+                                 ann ? pn : sizeof raw, &env, &n), SC_OK);
+    sc_msg m;
+    int rc = sc_msg_open(key, g, env, n, &m);
+    if (rc == SC_OK) {
+        assert_int_equal(m.epoch, epoch);
+        assert_int_equal(m.to_epoch, to_epoch);
+    } else {
+        assert_null(m.payload);
+    }
+    sc_msg_free(&m);
+    free(env);
+    free(pl);
+    return rc;
+}
+
+/* A restart: the new epoch is taken at seq 0 and clears the window; the
+ * old epoch is refused from then on, whatever its seq. */
+static void test_an_older_epoch_is_refused_and_a_newer_one_starts_afresh(void **state)
+{
+    (void)state;
+    sc_msg_guard g = { 0 };
+    const int A = SC_MSG_ANNOUNCE;
+    assert_int_equal(open_at(&g, 5, 100, 500, 0, A), SC_OK);
+    assert_int_equal(open_at(&g, 5, 100, 500, 0, A), SC_EAUTH);     /* a replay */
+    assert_int_equal(open_at(&g, 5, 99, 1000, 0, A), SC_EAUTH);     /* an older start */
+    assert_int_equal(g.dropped_stale, 1);
+    assert_int_equal(g.dropped_replay, 1);
+    assert_int_equal(open_at(&g, 5, 101, 0, 0, A), SC_OK);          /* restarted: seq 0 */
+    assert_int_equal(g.new_epochs, 1);
+    assert_int_equal(open_at(&g, 5, 101, 0, 0, A), SC_EAUTH);       /* replays in it too */
+    assert_int_equal(open_at(&g, 5, 100, 501, 0, A), SC_EAUTH);     /* the old start, later */
+    assert_int_equal(open_at(&g, 5, 100, 500, 0, A), SC_EAUTH);
+    assert_int_equal(open_at(&g, 5, 101, 1, 0, A), SC_OK);
+    assert_int_equal(open_at(&g, 6, 1, 0, 0, A), SC_OK);            /* others: their own */
+    assert_int_equal(open_at(&g, 5, 101, 2, 0, A), SC_OK);
+    assert_int_equal(g.accepted, 5);
+    assert_int_equal(g.dropped_stale, 3);
+    assert_int_equal(g.dropped_replay, 2);
+    assert_int_equal(g.dropped_format + g.dropped_auth + g.dropped_misaddressed, 0);
+    /* a sender forgotten on purpose (gone long enough) may come back with
+     * a smaller epoch (its clock was set back) */
+    sc_msg_guard_forget(&g, 5);
+    assert_int_equal(open_at(&g, 5, 50, 0, 0, A), SC_OK);
+    assert_int_equal(open_at(&g, 6, 1, 1, 0, A), SC_OK);            /* the others kept */
+    assert_int_equal(open_at(&g, 6, 1, 0, 0, A), SC_EAUTH);
+}
+
+/* A receiver with an epoch takes only what is addressed to it (announces:
+ * to nobody), and a refused message teaches its guard nothing. */
+static void test_messages_for_another_epoch_are_refused(void **state)
+{
+    (void)state;
+    sc_msg_guard g = { .epoch = 777 };
+    assert_int_equal(open_at(&g, 9, 10, 1, 776, SC_MSG_UNIT), SC_EAUTH);   /* the last start */
+    assert_int_equal(open_at(&g, 9, 10, 2, 0, SC_MSG_UNIT), SC_EAUTH);
+    assert_int_equal(open_at(&g, 9, 10, 3, 777, SC_MSG_ANNOUNCE), SC_EAUTH);
+    assert_int_equal(g.dropped_misaddressed, 3);
+    assert_int_equal(g.accepted, 0);
+    assert_int_equal(open_at(&g, 9, 10, 1, 777, SC_MSG_UNIT), SC_OK);      /* seq 1 unseen */
+    assert_int_equal(open_at(&g, 9, 10, 2, 777, SC_MSG_CHALLENGE), SC_OK);
+    assert_int_equal(open_at(&g, 9, 10, 3, 0, SC_MSG_ANNOUNCE), SC_OK);
+    assert_int_equal(open_at(&g, 9, 10, 1, 777, SC_MSG_UNIT), SC_EAUTH);   /* now a replay */
+    assert_int_equal(g.dropped_replay, 1);
+    assert_int_equal(g.dropped_misaddressed, 3);
+    assert_int_equal(g.accepted, 3);
+    sc_msg_guard any = { 0 };       /* no epoch: addresses are not checked */
+    assert_int_equal(open_at(&any, 9, 10, 1, 776, SC_MSG_UNIT), SC_OK);
+}
+
+/* Epochs grow with the clock; sc_msg_verify opens without counting. */
+static void test_epochs_are_ordered_by_start_time(void **state)
+{
+    (void)state;
+    int64_t e1 = sc_msg_epoch_new();
+    usleep(3000);
+    int64_t e2 = sc_msg_epoch_new();
+    assert_true(e1 > 0 && e2 > e1);
+    struct timespec ts;
+    clock_gettime(CLOCK_REALTIME, &ts);
+    int64_t ms = (int64_t)ts.tv_sec * 1000 + ts.tv_nsec / 1000000;
+    assert_true(SC_MSG_EPOCH_MS(e2) <= ms && SC_MSG_EPOCH_MS(e2) > ms - 1000);
+    uint8_t *pl, *env;
+    size_t pn, n;
+    sc_msg_announce a = sample_announce();
+    assert_int_equal(sc_msg_announce_encode(&a, &pl, &pn), SC_OK);
+    assert_int_equal(sc_msg_seal(key, 4, e2, 0, 0, SC_MSG_ANNOUNCE, pl, pn, &env, &n), SC_OK);
+    sc_msg m;
+    for (int i = 0; i < 2; i++) {       /* no guard: twice is fine */
+        assert_int_equal(sc_msg_verify(key, env, n, &m), SC_OK);
+        assert_int_equal(m.epoch, e2);
+        assert_int_equal(m.node, 4);
+        sc_msg_free(&m);
+    }
+    env[n - 1] ^= 1;
+    assert_int_equal(sc_msg_verify(key, env, n, &m), SC_EAUTH);
+    assert_int_equal(sc_msg_verify(key, env, n - 1, &m), SC_EFORMAT);
+    free(env);
+    free(pl);
+}
+
+static void test_challenges_round_trip_and_bad_ones_are_refused(void **state)
+{
+    (void)state;
+    uint8_t nonce[SC_MSG_NONCE_BYTES], got[SC_MSG_NONCE_BYTES], *p;
+    for (int i = 0; i < SC_MSG_NONCE_BYTES; i++)
+        nonce[i] = (uint8_t)(i * 29 + 3);
+    size_t n;
+    int64_t e = 0;
+    assert_int_equal(sc_msg_challenge_encode(nonce, 0x123456789, &p, &n), SC_OK);
+    assert_int_equal(sc_msg_challenge_decode(p, n, got, &e), SC_OK);
+    assert_memory_equal(got, nonce, sizeof nonce);
+    assert_true(e == 0x123456789);
+    assert_int_equal(sc_msg_challenge_decode(p, n - 1, got, &e), SC_EFORMAT);
+    p[n - 1] = 0;
+    p[n - 2] = 0;
+    p[n - 3] = 0;
+    p[n - 4] = 0;
+    p[n - 5] = 0;                       /* epoch 0 */
+    assert_int_equal(sc_msg_challenge_decode(p, n, got, &e), SC_EFORMAT);
+    assert_int_equal(sc_msg_challenge_encode(nonce, 0, &p, &n), SC_EINVAL);
+    free(p);
+    /* a challenge is not a shape request, an announce or a unit */
+    assert_int_equal(sc_msg_challenge_encode(nonce, 5, &p, &n), SC_OK);
+    uint64_t h;
+    sc_msg_announce a;
+    sc_msg_work w;
+    assert_int_equal(sc_msg_shape_request_decode(p, n, &h), SC_EFORMAT);
+    assert_int_equal(sc_msg_announce_decode(p, n, &a), SC_EFORMAT);
+    assert_int_equal(sc_msg_work_decode(SC_MSG_UNIT, p, n, &w), SC_EFORMAT);
+    free(p);
 }
 
 static void write_file(const char *path, const char *text, mode_t mode)
@@ -458,6 +606,10 @@ int main(void)
         cmocka_unit_test(test_a_wrong_key_is_an_auth_failure),
         cmocka_unit_test(test_replays_are_refused_within_and_behind_the_window),
         cmocka_unit_test(test_the_stalest_sender_is_forgotten_when_the_table_is_full),
+        cmocka_unit_test(test_an_older_epoch_is_refused_and_a_newer_one_starts_afresh),
+        cmocka_unit_test(test_messages_for_another_epoch_are_refused),
+        cmocka_unit_test(test_epochs_are_ordered_by_start_time),
+        cmocka_unit_test(test_challenges_round_trip_and_bad_ones_are_refused),
         cmocka_unit_test(test_every_truncation_and_extension_is_a_format_error),
         cmocka_unit_test(test_lying_length_fields_are_format_errors),
         cmocka_unit_test(test_announce_values_are_validated_both_ways),

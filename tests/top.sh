@@ -94,7 +94,7 @@ if wait_log "serving"; then
     fi
     head -n 1 "$dir/out" | grep -q "^node  *host  *cores  *units/s/core  *idle%  *busy  *units/s  *seen-s-ago$" ||
         { echo "FAIL: --once: header"; cat "$dir/out"; fail=1; }
-    tail -n 1 "$dir/out" | grep -q "^1 daemon, [01] busy, 1 core, .*; dropped 0 format, 0 auth, 0 replay, 0 net, 0 kernel$" ||
+    tail -n 1 "$dir/out" | grep -q "^1 daemon, [01] busy, 1 core, .*; dropped 0 format, 0 auth, 0 replay, 0 stale, 0 net, 0 kernel$" ||
         { echo "FAIL: --once: footer"; cat "$dir/out"; fail=1; }
     [ "$(wc -l <"$dir/out")" -eq 3 ] || { echo "FAIL: --once: not 3 lines"; cat "$dir/out"; fail=1; }
     grep -q "$(printf '\033')" "$dir/out" && { echo "FAIL: --once: escape codes"; fail=1; }
@@ -113,8 +113,8 @@ assert d["node"] == "0000000000001234" and d["host"] == sys.argv[2] and d["cores
 assert d["busy"] in (True, False) and d["silent"] is False, d
 assert d["units_per_s"] == 0 and 0 <= d["seen_s_ago"] < 1, d     # no unit was sent
 assert d["units_per_s_per_core"] > 0 and 0 <= d["idle_percent"] <= 100, d
-assert t["cores"] == 1 and t["dropped"] == {"format": 0, "auth": 0, "replay": 0, "net": 0,
-                                           "kernel": 0}, t
+assert t["cores"] == 1 and t["dropped"] == {"format": 0, "auth": 0, "replay": 0, "stale": 0,
+                                           "net": 0, "kernel": 0}, t
 EOF
     "$top" --json --url "$url" --key "$dir/k" --interval 0.2 >"$dir/live" 2>"$dir/err" &
     live=$!
@@ -130,7 +130,7 @@ for l in lines:
     # another key: every heartbeat fails the MAC check
     check "--once, wrong key" 0 "$top" --once --wait 1 --url "$url" --key "$dir/other"
     grep -Eq '^[0-9a-f]{16} ' "$dir/out" && { echo "FAIL: wrong key: a row"; cat "$dir/out"; fail=1; }
-    auth=$(sed -n 's/^0 daemons, .*; dropped 0 format, \([0-9]*\) auth, 0 replay, 0 net, 0 kernel$/\1/p' "$dir/out")
+    auth=$(sed -n 's/^0 daemons, .*; dropped 0 format, \([0-9]*\) auth, 0 replay, 0 stale, 0 net, 0 kernel$/\1/p' "$dir/out")
     [ "${auth:-0}" -gt 0 ] || { echo "FAIL: wrong key: no dropped auth count"; cat "$dir/out"; fail=1; }
 
     # live, not on a terminal: a table per interval, blank lines between
@@ -156,7 +156,7 @@ for l in lines:
         done
         sleep 0.6
         if kill -0 "$live" 2>/dev/null; then
-            net=$(tail -n 1 "$dir/live" | sed -n 's/.* replay, \([0-9]*\) net, .*/\1/p')
+            net=$(tail -n 1 "$dir/live" | sed -n 's/.* stale, \([0-9]*\) net, .*/\1/p')
             [ "${net:-0}" -ge 30 ] ||
                 { echo "FAIL: fragment attacks: ${net:-no} net drops, expected >= 30"; tail -n 1 "$dir/live"; fail=1; }
             echo "    simcluster-top: fragment attacks: ${net:-?} net drops, alive"

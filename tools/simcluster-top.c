@@ -310,10 +310,10 @@ static void print_table(FILE *f, const top *t, double now)
     sc_bus_counters bc;
     sc_bus_counters_get(t->bus, &bc);
     fprintf(f, ", %ld busy, %ld %s, %s units/s; dropped %ld format, %ld auth, %ld replay, "
-            "%llu net, %llu kernel",
+            "%ld stale, %llu net, %llu kernel",
             busy, cores, plural(cores, "core", "cores"), rate_text(rate, r, sizeof r),
             t->guard.dropped_format, t->guard.dropped_auth, t->guard.dropped_replay,
-            (unsigned long long)(sc_bus_dropped(&bc) - bc.kernel),
+            t->guard.dropped_stale, (unsigned long long)(sc_bus_dropped(&bc) - bc.kernel),
             (unsigned long long)bc.kernel);
     if (t->ignored)
         fprintf(f, "; %ld %s of new nodes ignored (table full: %d)", t->ignored,
@@ -380,10 +380,12 @@ static void print_json(FILE *f, const top *t, double now, const char *url)
     sc_bus_counters_get(t->bus, &bc);
     fprintf(f, "], \"daemons_total\": %d, \"silent\": %ld, \"busy\": %ld, \"cores\": %ld, "
             "\"units_per_s\": %.6g, \"dropped\": {\"format\": %ld, \"auth\": %ld, "
-            "\"replay\": %ld, \"net\": %llu, \"kernel\": %llu}, \"ignored_heartbeats\": %ld}\n",
+            "\"replay\": %ld, \"stale\": %ld, \"net\": %llu, \"kernel\": %llu}, "
+            "\"ignored_heartbeats\": %ld}\n",
             t->n, silent, busy, cores, rate, t->guard.dropped_format, t->guard.dropped_auth,
-            t->guard.dropped_replay, (unsigned long long)(sc_bus_dropped(&bc) - bc.kernel),
-            (unsigned long long)bc.kernel, t->ignored);
+            t->guard.dropped_replay, t->guard.dropped_stale,
+            (unsigned long long)(sc_bus_dropped(&bc) - bc.kernel), (unsigned long long)bc.kernel,
+            t->ignored);
 }
 
 /* ---- listening ---------------------------------------------------------- */

@@ -522,6 +522,7 @@ typedef struct totals {
     int at_rest;
     double rest_s;
     int interrupted;            /* the signal that stopped the run, else 0 */
+    long duplicates;            /* duplicate daemon ids reported so far */
 } totals;
 
 /* SIGINT and SIGTERM during run and profile: the handler only notes the
@@ -587,6 +588,13 @@ static int simulate(const options *o, sc_world *w, totals *t, int progress, reco
         t->recomputed += st.recomputed_units;
         t->late += st.late_results;
         t->comm += st.comm_s;
+        if (st.duplicate_nodes > t->duplicates) {
+            /* two running daemons with one id: said once per pair */
+            t->duplicates = st.duplicate_nodes;
+            fprintf(stderr, "%ssimcluster: run: daemon node id %016llx is used by two running "
+                    "daemons; only the one started last gets work\n", progress ? "\n" : "",
+                    (unsigned long long)st.duplicate_node);
+        }
         t->max_pen = fmax(t->max_pen, st.max_penetration);
         if (st.initial_overlaps > t->overlaps)
             fprintf(stderr, "%s: warning: %ld body pairs overlap by more than twice the "
@@ -727,13 +735,15 @@ static int run_cmd(int argc, char **argv)
                "\"realtime_factor\": %.4f, \"at_rest\": %s, \"rest_s\": %.2f, "
                "\"peak_energy_ratio\": %.6f, \"max_penetration_m\": %.6g, \"units\": %ld, "
                "\"daemons\": %d, \"remote_units\": %ld, \"recomputed_units\": %ld, "
-               "\"late_results\": %ld, \"dropped_messages\": %ld, \"comm_s\": %.4f, "
+               "\"late_results\": %ld, \"dropped_messages\": %ld, \"dropped_stale\": %ld, "
+               "\"dropped_misaddressed\": %ld, \"duplicate_nodes\": %ld, \"comm_s\": %.4f, "
                "\"frames_over_budget\": %ld, \"max_frame_s\": %.4f, \"initial_overlaps\": %ld, "
                "\"hash\": \"%016llx\", \"interrupted\": %s%s%s, \"error\": %s%s%s}\n",
                sc_world_body_count(w), seed, (int)(st.nodes - st.daemons), t.frames,
                sim, t.wall, t.wall > 0 ? sim / t.wall : 0, t.at_rest ? "true" : "false",
                t.rest_s, t.peak_energy, t.max_pen, t.units, st.daemons, t.remote, t.recomputed,
-               t.late, st.dropped_messages, t.comm, t.over_budget, t.max_frame, t.overlaps, hash,
+               t.late, st.dropped_messages, st.dropped_stale, st.dropped_misaddressed,
+               st.duplicate_nodes, t.comm, t.over_budget, t.max_frame, t.overlaps, hash,
                t.interrupted ? "\"" : "null", t.interrupted ? signal_name(t.interrupted) : "",
                t.interrupted ? "\"" : "", rc ? "\"" : "null",
                rc ? sc_strerror(rc) : "", rc ? "\"" : "");
@@ -755,6 +765,9 @@ static int run_cmd(int argc, char **argv)
         if (o.cluster)
             printf(", from daemons %ld, recomputed %ld, late %ld, dropped messages %ld",
                    t.remote, t.recomputed, t.late, st.dropped_messages);
+        if (o.cluster && (st.dropped_stale || st.dropped_misaddressed || st.duplicate_nodes))
+            printf("\n  of them stale %ld, misaddressed %ld; duplicate daemon ids %ld",
+                   st.dropped_stale, st.dropped_misaddressed, st.duplicate_nodes);
         printf("\n  state hash %016llx\n", hash);
         if (t.interrupted)
             printf("  interrupted by %s after frame %ld\n", signal_name(t.interrupted),

@@ -11,9 +11,19 @@
  * merged by sc_wire_result_apply() exactly as a local run would write it:
  * whoever computes what, the bits are the same.
  *
+ * A slot follows one start (epoch) of a daemon: the first announce of a
+ * new (node, epoch) sends the daemon a random challenge, and the daemon
+ * counts (scheduling, sc_stats.daemons) only once its sealed answer with
+ * that nonce has come back, so replayed announces of a dead daemon never
+ * count. A newer epoch of a node takes over its slot at once (a restart
+ * with the same id); messages of the older one are refused by the guard,
+ * and an older epoch still heard after the newer began is another daemon
+ * with the same id (counted in sc_stats.duplicate_nodes; the newest gets
+ * the work). Everything sent to a daemon names its epoch (to_epoch).
+ *
  * The scheduler sees a daemon's capacity (cluster.h's capacity op): its
- * idle fraction, or 0 while it is owner-busy, silent for SILENT_S, or has
- * missed a deadline since its last heartbeat. Its speed is learned from
+ * idle fraction, or 0 while it is unverified, owner-busy, silent for
+ * SILENT_S, or has missed a deadline since its last heartbeat. Its speed is learned from
  * its results' thread times spread over its threads, its latency from the
  * rest of each job's round trip.
  */
@@ -47,7 +57,10 @@ enum { OUT_NONE, OUT_SENT, OUT_DONE, OUT_LOCAL };
 
 typedef struct daemon_slot {
     int used;
-    int64_t id;
+    int64_t id, epoch;          /* the daemon and the start of it this slot follows */
+    int verified;               /* it answered our challenge for this epoch */
+    uint8_t nonce[SC_MSG_NONCE_BYTES];  /* drawn once per (id, epoch) */
+    int64_t rival;              /* an older live epoch of this id, counted once */
     char channel[CHANNEL_MAX], shape_channel[CHANNEL_MAX];
     sc_msg_announce a;
     double heard, missed_at;
@@ -68,8 +81,10 @@ typedef struct remote_node {
 struct sc_cluster {
     sc_bus *bus;
     uint8_t key[SC_KEY_BYTES];
-    int64_t id, seq;
+    int64_t id, epoch, seq;     /* this master: random id, epoch of this start */
     sc_msg_guard guard;
+    long duplicates;            /* sc_stats.duplicate_nodes */
+    int64_t duplicate;
     sc_sched *sched;            /* the executor's scheduler */
     sc_stats *stats;            /* the owner's figures */
     const sc_frame_state *st;   /* the owner's bodies (shapes asked for) */
@@ -101,6 +116,44 @@ static int64_t realtime_us(void)
     return (int64_t)ts.tv_sec * 1000000 + ts.tv_nsec / 1000;
 }
 
+/* ---- challenges (shared with sc_cluster_wait's listener) ---- */
+
+/* Send daemon (id, epoch) the challenge nonce (drawn when it is all zero)
+ * on its unit channel, addressed to that epoch. */
+static void challenge(sc_bus *bus, const uint8_t *key, int64_t self, int64_t self_epoch,
+                      int64_t *seq, int64_t id, int64_t epoch,
+                      uint8_t nonce[SC_MSG_NONCE_BYTES])
+{
+    static const uint8_t zero[SC_MSG_NONCE_BYTES];
+    if (!memcmp(nonce, zero, sizeof zero) &&
+        getrandom(nonce, SC_MSG_NONCE_BYTES, 0) != SC_MSG_NONCE_BYTES)
+        return;                 /* no randomness: ask again at the next announce */
+    uint8_t *p, *env;
+    size_t len, elen;
+    if (sc_msg_challenge_encode(nonce, epoch, &p, &len) != SC_OK)
+        return;
+    char ch[CHANNEL_MAX];
+    snprintf(ch, sizeof ch, "SC_UNIT_%016" PRIx64, (uint64_t)id);
+    if (sc_msg_seal(key, self, self_epoch, (*seq)++, epoch, SC_MSG_CHALLENGE, p, len, &env,
+                    &elen) == SC_OK) {
+        sc_bus_publish(bus, ch, env, elen);
+        free(env);
+    }
+    free(p);
+}
+
+/* An answer from (m->node, m->epoch) to the challenge whose nonce is
+ * nonce: 1 if it is that answer. */
+static int answers(const sc_msg *m, int64_t id, int64_t epoch,
+                   const uint8_t nonce[SC_MSG_NONCE_BYTES])
+{
+    uint8_t got[SC_MSG_NONCE_BYTES];
+    int64_t e;
+    return m->node == id && m->epoch == epoch &&
+           sc_msg_challenge_decode(m->payload, m->len, got, &e) == SC_OK && e == epoch &&
+           !memcmp(got, nonce, sizeof got);
+}
+
 /* ---- receiving ---- */
 
 static void on_announce(sc_cluster *c, const sc_msg *m)
@@ -118,23 +171,69 @@ static void on_announce(sc_cluster *c, const sc_msg *m)
         if (!c->d[k].used && free_slot < 0)
             free_slot = k;
     }
-    if (k == SC_MAX_DAEMONS) {
-        if (free_slot < 0)
-            return;             /* more daemons than slots: the first ones serve */
-        k = free_slot;
+    if (k == SC_MAX_DAEMONS && free_slot < 0)
+        return;                 /* more daemons than slots: the first ones serve */
+    if (k == SC_MAX_DAEMONS || c->d[k].epoch < m->epoch) {
+        /* a new daemon, or a new start of one (the guard refuses older
+         * epochs): nothing learned about the last one holds */
+        if (k == SC_MAX_DAEMONS)
+            k = free_slot;
         daemon_slot *d = &c->d[k];
+        int64_t rival = d->used ? d->rival : 0;
         memset(d, 0, sizeof *d);
         d->used = 1;
         d->id = a.node;
+        d->epoch = m->epoch;
+        d->rival = rival;
         snprintf(d->channel, sizeof d->channel, "SC_UNIT_%016" PRIx64, (uint64_t)a.node);
         snprintf(d->shape_channel, sizeof d->shape_channel, "SC_SHAPE_%016" PRIx64,
                  (uint64_t)a.node);
-        /* a new daemon in this slot: nothing learned about the last one holds */
         sc_sched_node *nd = &c->sched->nodes[c->first_node + k];
         memset(nd, 0, sizeof *nd);
     }
-    c->d[k].a = a;
-    c->d[k].heard = sc_wall_now();
+    daemon_slot *d = &c->d[k];
+    d->a = a;
+    d->heard = sc_wall_now();
+    if (!d->verified)           /* again at each announce until it answers */
+        challenge(c->bus, c->key, c->id, c->epoch, &c->seq, d->id, d->epoch, d->nonce);
+}
+
+static void on_answer(sc_cluster *c, const sc_msg *m)
+{
+    for (int k = 0; k < SC_MAX_DAEMONS; k++) {
+        daemon_slot *d = &c->d[k];
+        if (d->used && answers(m, d->id, d->epoch, d->nonce)) {
+            d->verified = 1;
+            d->heard = sc_wall_now();
+            return;
+        }
+    }
+    c->guard.dropped_format++;  /* not a challenge of ours that is open */
+}
+
+/* An announce the guard refused as stale (an older epoch of a node than
+ * the newest heard): if it was sent after the newest epoch began (by the
+ * sender's clock, which also made the epochs), it is not a replay of a
+ * dead start but another daemon running with the same id: counted once
+ * per pair of epochs. The newer keeps the slot and gets the work. */
+static void stale_announce(sc_cluster *c, const void *buf, size_t len)
+{
+    sc_msg m;
+    sc_msg_announce a;
+    if (sc_msg_verify(c->key, buf, len, &m) != SC_OK)
+        return;
+    int live = m.kind == SC_MSG_ANNOUNCE &&
+               sc_msg_announce_decode(m.payload, m.len, &a) == SC_OK && a.node == m.node;
+    for (int k = 0; live && k < SC_MAX_DAEMONS; k++) {
+        daemon_slot *d = &c->d[k];
+        if (d->used && d->id == m.node && m.epoch < d->epoch && d->rival != m.epoch &&
+            a.time_us / 1000 > SC_MSG_EPOCH_MS(d->epoch)) {
+            d->rival = m.epoch;
+            c->duplicates++;
+            c->duplicate = m.node;
+        }
+    }
+    sc_msg_free(&m);
 }
 
 static void take_result(sc_cluster *c, sc_msg_work *r)
@@ -186,7 +285,7 @@ static void on_shape_request(sc_cluster *c, const sc_msg *m)
     }
     int k;
     for (k = 0; k < SC_MAX_DAEMONS; k++)
-        if (c->d[k].used && c->d[k].id == m->node)
+        if (c->d[k].used && c->d[k].id == m->node && c->d[k].epoch == m->epoch)
             break;
     const sc_shape *s = NULL;
     for (int i = 0; i < c->st->nbodies && !s; i++)
@@ -198,7 +297,8 @@ static void on_shape_request(sc_cluster *c, const sc_msg *m)
     size_t len, elen;
     if (sc_msg_shape_encode(s, &p, &len) != SC_OK)
         return;
-    if (sc_msg_seal(c->key, c->id, c->seq++, SC_MSG_SHAPE, p, len, &env, &elen) == SC_OK) {
+    if (sc_msg_seal(c->key, c->id, c->epoch, c->seq++, c->d[k].epoch, SC_MSG_SHAPE, p, len, &env,
+                    &elen) == SC_OK) {
         sc_bus_publish(c->bus, c->d[k].shape_channel, env, elen);
         free(env);
     }
@@ -211,15 +311,21 @@ static void on_message(void *ctx, const char *channel, const uint8_t *data, size
     sc_cluster *c = ctx;
     sc_msg m;
     c->recv_us = recv_us;
-    if (sc_msg_open(c->key, &c->guard, data, len, &m) != SC_OK)
-        return;
     int announce = !strcmp(channel, "SC_ANNOUNCE");
+    long stale = c->guard.dropped_stale;
+    if (sc_msg_open(c->key, &c->guard, data, len, &m) != SC_OK) {
+        if (announce && c->guard.dropped_stale > stale)
+            stale_announce(c, data, len);
+        return;
+    }
     if (announce && m.kind == SC_MSG_ANNOUNCE)
         on_announce(c, &m);
     else if (!announce && m.kind == SC_MSG_RESULT)
         on_result(c, &m);
     else if (!announce && m.kind == SC_MSG_SHAPE_REQUEST)
         on_shape_request(c, &m);
+    else if (!announce && m.kind == SC_MSG_ANSWER)
+        on_answer(c, &m);
     else
         c->guard.dropped_format++;
     sc_msg_free(&m);
@@ -245,7 +351,7 @@ static double capacity(const sc_node *n, int kind)
 {
     const remote_node *r = (const remote_node *)n;
     const daemon_slot *d = &r->c->d[r->slot];
-    if (kind == SC_UNIT_GROUP || !d->used || sc_wall_now() - d->heard > SILENT_S)
+    if (kind == SC_UNIT_GROUP || !d->used || !d->verified || sc_wall_now() - d->heard > SILENT_S)
         return 0;
     if (r->c->force)
         return 1;
@@ -273,8 +379,8 @@ static int flush(sc_cluster *c, daemon_slot *d)
         return SC_OK;
     uint8_t *env;
     size_t elen;
-    int rc = sc_msg_seal(c->key, c->id, c->seq++, SC_MSG_UNIT, c->batch, c->batch_len, &env,
-                         &elen);
+    int rc = sc_msg_seal(c->key, c->id, c->epoch, c->seq++, d->epoch, SC_MSG_UNIT, c->batch,
+                         c->batch_len, &env, &elen);
     c->batch_len = 0;
     if (rc != SC_OK)
         return rc;
@@ -451,6 +557,8 @@ int sc_cluster_create(sc_exec_nodes *x, sc_stats *stats, const sc_frame_state *s
     if (getrandom(&id, sizeof id, 0) != sizeof id)
         id = (uint64_t)getpid() * 0x9e3779b97f4a7c15ULL ^ (uint64_t)time(NULL);
     c->id = (int64_t)(id >> 1) | 1;
+    c->epoch = sc_msg_epoch_new();
+    c->guard.epoch = c->epoch;  /* results, requests and answers name this start */
     if (sc_bus_open(url, &c->bus, NULL, 0) != SC_OK) {
         free(c);
         return SC_EIO;
@@ -490,14 +598,20 @@ void sc_cluster_frame(sc_cluster *c)
 {
     pump(c, 0);
     double now = sc_wall_now();
-    c->stats->daemons = c->stats->daemons_busy = 0;
+    c->stats->daemons = c->stats->daemons_busy = c->stats->daemons_unverified = 0;
     for (int k = 0; k < SC_MAX_DAEMONS; k++) {
         daemon_slot *d = &c->d[k];
-        if (d->used && now - d->heard > FORGET_S)
+        if (d->used && now - d->heard > FORGET_S) {
+            /* gone: a later start of it is welcome even if its clock went
+             * back (an older epoch than the one the guard remembers) */
             d->used = 0;
+            sc_msg_guard_forget(&c->guard, d->id);
+        }
         if (!d->used || now - d->heard > SILENT_S)
             continue;
-        if (d->a.owner_busy)
+        if (!d->verified)
+            c->stats->daemons_unverified++;
+        else if (d->a.owner_busy)
             c->stats->daemons_busy++;
         else
             c->stats->daemons++;
@@ -508,8 +622,14 @@ void sc_cluster_frame(sc_cluster *c)
      * and the envelopes that did not open */
     sc_bus_counters bc;
     sc_bus_counters_get(c->bus, &bc);
-    c->stats->dropped_messages = c->guard.dropped_format + c->guard.dropped_auth +
-                                 c->guard.dropped_replay + (long)sc_bus_dropped(&bc);
+    const sc_msg_guard *g = &c->guard;
+    c->stats->dropped_messages = g->dropped_format + g->dropped_auth + g->dropped_replay +
+                                 g->dropped_stale + g->dropped_misaddressed +
+                                 (long)sc_bus_dropped(&bc);
+    c->stats->dropped_stale = g->dropped_stale;
+    c->stats->dropped_misaddressed = g->dropped_misaddressed;
+    c->stats->duplicate_nodes = c->duplicates;
+    c->stats->duplicate_node = c->duplicate;
 }
 
 static int prov_available(void *ctx)
@@ -554,52 +674,71 @@ static void prov_end(void *ctx)
     ((sc_cluster *)ctx)->job = NULL;
 }
 
-/* ---- sc_cluster_wait: heartbeats only ---- */
+/* ---- sc_cluster_wait: heartbeats and challenges ---- */
 
 typedef struct listener {
     uint8_t key[SC_KEY_BYTES];
+    sc_bus *bus;
+    int64_t id, epoch, seq;     /* challenges come from this listener */
     sc_msg_guard guard;
     struct {
-        int64_t id;
-        int busy;
+        int64_t id, epoch;
+        int busy, verified;
+        uint8_t nonce[SC_MSG_NONCE_BYTES];
         double heard;
     } d[SC_MAX_DAEMONS];
     int n;
 } listener;
 
-/* An authenticated heartbeat, checked as a world checks it (on_announce). */
+/* An authenticated heartbeat, checked as a world checks it (on_announce),
+ * or an answer to this listener's challenge: a daemon counts once it has
+ * answered, as in a world. */
 static void on_heartbeat(void *ctx, const char *channel, const uint8_t *data, size_t len,
                          int64_t recv_us)
 {
-    (void)channel;
     (void)recv_us;
     listener *l = ctx;
     sc_msg m;
     if (sc_msg_open(l->key, &l->guard, data, len, &m) != SC_OK)
         return;
+    int announce = !strcmp(channel, "SC_ANNOUNCE");
     sc_msg_announce a;
-    if (m.kind == SC_MSG_ANNOUNCE && sc_msg_announce_decode(m.payload, m.len, &a) == SC_OK &&
-        a.node == m.node && a.version == SC_MSG_VERSION) {
+    if (announce && m.kind == SC_MSG_ANNOUNCE &&
+        sc_msg_announce_decode(m.payload, m.len, &a) == SC_OK && a.node == m.node &&
+        a.version == SC_MSG_VERSION) {
         int k = 0;
         while (k < l->n && l->d[k].id != a.node)
             k++;
         if (k == l->n && l->n < SC_MAX_DAEMONS)
             l->d[l->n++].id = a.node;
+        if (k < l->n && l->d[k].epoch < m.epoch) {
+            memset(&l->d[k], 0, sizeof l->d[k]);    /* a new start of it */
+            l->d[k].id = a.node;
+            l->d[k].epoch = m.epoch;
+        }
         if (k < l->n) {
             l->d[k].busy = a.owner_busy;
             l->d[k].heard = sc_wall_now();
+            if (!l->d[k].verified)
+                challenge(l->bus, l->key, l->id, l->epoch, &l->seq, a.node, m.epoch,
+                          l->d[k].nonce);
         }
+    } else if (!announce && m.kind == SC_MSG_ANSWER) {
+        for (int k = 0; k < l->n; k++)
+            if (answers(&m, l->d[k].id, l->d[k].epoch, l->d[k].nonce))
+                l->d[k].verified = 1;
     }
     sc_msg_free(&m);
 }
 
-/* Daemons heard within SILENT_S that are not owner-busy (sc_stats.daemons). */
+/* Daemons heard within SILENT_S that answered and are not owner-busy
+ * (sc_stats.daemons). */
 static int available(const listener *l)
 {
     double now = sc_wall_now();
     int n = 0;
     for (int k = 0; k < l->n; k++)
-        n += !l->d[k].busy && now - l->d[k].heard <= SILENT_S;
+        n += l->d[k].verified && !l->d[k].busy && now - l->d[k].heard <= SILENT_S;
     return n;
 }
 
@@ -614,10 +753,20 @@ SC_API int sc_cluster_wait(const sc_world_config *cfg, int k, double timeout_s)
     if (!l)
         return sc_set_error(SC_ENOMEM);
     int rc = cfg->key_file ? sc_key_load(cfg->key_file, l->key) : SC_OK;
+    uint64_t id = 0;
+    if (getrandom(&id, sizeof id, 0) != sizeof id)
+        id = (uint64_t)getpid() * 0x9e3779b97f4a7c15ULL ^ (uint64_t)time(NULL);
+    l->id = (int64_t)(id >> 1) | 1;
+    l->epoch = sc_msg_epoch_new();
+    l->guard.epoch = l->epoch;
     sc_bus *bus = NULL;
+    char ch[CHANNEL_MAX];
+    snprintf(ch, sizeof ch, "SC_RESULT_%016" PRIx64, (uint64_t)l->id);
     if (rc == SC_OK && (sc_bus_open(cfg->cluster, &bus, NULL, 0) != SC_OK ||
-                        sc_bus_subscribe(bus, "SC_ANNOUNCE", on_heartbeat, l) != SC_OK))
+                        sc_bus_subscribe(bus, "SC_ANNOUNCE", on_heartbeat, l) != SC_OK ||
+                        sc_bus_subscribe(bus, ch, on_heartbeat, l) != SC_OK))
         rc = SC_EIO;
+    l->bus = bus;               /* challenges go out on it */
     /* handle what comes until k are heard or the time is up (at least once) */
     double t0 = sc_wall_now(), left = timeout_s;
     int n = 0;

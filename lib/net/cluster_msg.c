@@ -2,8 +2,8 @@
  * (docs/DESIGN.md section 7.2; formats in proto/simcluster.lcm).
  *
  * A sealed message is the LCM encoding of an envelope_t (big-endian, as LCM
- * is: type fingerprint u64, version i16, node i64, seq i64, kind i16, len
- * i32, payload[len], mac[32]). mac is HMAC-SHA-512/256 under the cluster key of
+ * is: type fingerprint u64, version i16, node i64, epoch i64, seq i64,
+ * to_epoch i64, kind i16, len i32, payload[len], mac[32]). mac is HMAC-SHA-512/256 under the cluster key of
  * every byte before it, fingerprint included, so a receiver checks it on
  * the bytes as received, before it decodes or allocates anything.
  * HMAC-SHA-512/256 (libsodium's crypto_auth) rather than HMAC-SHA256: the
@@ -23,11 +23,13 @@
 #include <sodium.h>
 #include <stdlib.h>
 #include <sys/stat.h>
+#include <time.h>
 #include <unistd.h>
 
 #include "simcluster_net.h"
 #include "unit_wire.h"
 #include "sclcm_announce_t.h"
+#include "sclcm_challenge_t.h"
 #include "sclcm_envelope_t.h"
 #include "sclcm_result_t.h"
 #include "sclcm_shape_request_t.h"
@@ -36,11 +38,12 @@
 
 #define FP_BYTES 8                      /* LCM type fingerprint */
 #define MAC_BYTES crypto_auth_hmacsha512256_BYTES
-#define ENV_LEN_AT (FP_BYTES + 2 + 8 + 8 + 2)
+#define ENV_LEN_AT (FP_BYTES + 2 + 8 + 8 + 8 + 8 + 2)
 #define ENV_HEAD (ENV_LEN_AT + 4)
 #define WORK_HEAD (FP_BYTES + 8 + 4 + 4)
 #define RESULT_TAIL 4                   /* result_t: compute_us after the bytes */
 #define SREQ_BYTES (FP_BYTES + 8)
+#define CHAL_BYTES (FP_BYTES + SC_MSG_NONCE_BYTES + 8)
 #define SHAPE_NC_AT (FP_BYTES + 8)
 #define SHAPE_TAIL (1 + 8 + 3 * 8 + 4 * 8)  /* kind, radius, half, plane */
 #define ANN_HOSTLEN_AT (FP_BYTES + 8)     /* then the bytes, NUL included */
@@ -60,16 +63,34 @@ static int64_t be32(const uint8_t *p)
 
 static int known_kind(int64_t kind)
 {
-    return kind >= SC_MSG_ANNOUNCE && kind <= SC_MSG_RESULT;
+    return kind >= SC_MSG_ANNOUNCE && kind <= SC_MSG_ANSWER;
 }
 
 /* ---- envelopes ---- */
 
-int sc_msg_seal(const uint8_t key[SC_KEY_BYTES], int64_t node, int64_t seq, int kind,
-                const void *payload, size_t len, uint8_t **out, size_t *outlen)
+/* The epoch of a start: its CLOCK_REALTIME milliseconds above random low
+ * bits, so that a later start of a node is a larger number and "older"
+ * means something to a receiver. Time is what orders them: a clock set
+ * back across a restart gives a smaller epoch, which receivers that still
+ * remember the node refuse until they forget it (docs/DESIGN.md 7.2). */
+int64_t sc_msg_epoch_new(void)
 {
-    if (!key || !payload || !out || !outlen || !known_kind(kind) || seq < 0 ||
-        len < FP_BYTES || len > SC_MSG_MAX_PAYLOAD)
+    struct timespec ts;
+    clock_gettime(CLOCK_REALTIME, &ts);
+    int64_t ms = (int64_t)ts.tv_sec * 1000 + ts.tv_nsec / 1000000;
+    if (ms < 1)
+        ms = 1;                         /* a clock before 1970: still > 0 */
+    uint32_t r = sodium_init() >= 0 ? randombytes_random() : (uint32_t)ts.tv_nsec;
+    ms &= ((int64_t)1 << (63 - SC_MSG_EPOCH_RANDOM_BITS)) - 1;
+    return ms << SC_MSG_EPOCH_RANDOM_BITS | (int64_t)(r & ((1u << SC_MSG_EPOCH_RANDOM_BITS) - 1));
+}
+
+int sc_msg_seal(const uint8_t key[SC_KEY_BYTES], int64_t node, int64_t epoch, int64_t seq,
+                int64_t to_epoch, int kind, const void *payload, size_t len, uint8_t **out,
+                size_t *outlen)
+{
+    if (!key || !payload || !out || !outlen || !known_kind(kind) || epoch <= 0 || seq < 0 ||
+        to_epoch < 0 || len < FP_BYTES || len > SC_MSG_MAX_PAYLOAD)
         return SC_EINVAL;               /* a payload is an LCM encoding: >= 8 bytes */
     *out = NULL;
     *outlen = 0;
@@ -79,8 +100,9 @@ int sc_msg_seal(const uint8_t key[SC_KEY_BYTES], int64_t node, int64_t seq, int 
     uint8_t *buf = malloc(n);
     if (!buf)
         return SC_ENOMEM;
-    sclcm_envelope_t e = { .version = SC_MSG_VERSION, .node = node, .seq = seq,
-                           .kind = (int16_t)kind, .len = (int32_t)len,
+    sclcm_envelope_t e = { .version = SC_MSG_VERSION, .node = node, .epoch = epoch,
+                           .seq = seq, .to_epoch = to_epoch, .kind = (int16_t)kind,
+                           .len = (int32_t)len,
                            .payload = (uint8_t *)payload };
     int w = sclcm_envelope_t_encode(buf, 0, (int)n, &e);
     SC_ASSERT(w == (int)n);
@@ -91,8 +113,11 @@ int sc_msg_seal(const uint8_t key[SC_KEY_BYTES], int64_t node, int64_t seq, int 
     return SC_OK;
 }
 
-/* Record seq from node unless it was seen or is older than the window. */
-static int guard_accept(sc_msg_guard *g, int64_t node, uint64_t seq)
+enum { GUARD_OK, GUARD_REPLAY, GUARD_STALE };
+
+/* Record (epoch, seq) from node unless its epoch is older than the newest
+ * seen, or the seq was seen or is older than the window. */
+static int guard_accept(sc_msg_guard *g, int64_t node, int64_t epoch, uint64_t seq)
 {
     int found = -1, victim = 0;
     for (int i = 0; i < SC_MSG_SENDERS && found < 0; i++) {
@@ -101,13 +126,20 @@ static int guard_accept(sc_msg_guard *g, int64_t node, uint64_t seq)
         else if (g->slot[i].used < g->slot[victim].used)
             victim = i;                 /* a free slot (0) or the stalest */
     }
+    if (found >= 0 && epoch < g->slot[found].epoch)
+        return GUARD_STALE;
     g->clock++;
-    if (found < 0) {                    /* new (or forgotten) sender: its first seq */
-        g->slot[victim].node = node;
-        g->slot[victim].top = seq;
-        g->slot[victim].seen = 1;
-        g->slot[victim].used = g->clock;
-        return 1;
+    if (found < 0 || epoch > g->slot[found].epoch) {
+        /* a new (or forgotten) sender, or a new start of one: its first seq */
+        int i = found < 0 ? victim : found;
+        if (found >= 0)
+            g->new_epochs++;
+        g->slot[i].node = node;
+        g->slot[i].epoch = epoch;
+        g->slot[i].top = seq;
+        g->slot[i].seen = 1;
+        g->slot[i].used = g->clock;
+        return GUARD_OK;
     }
     uint64_t top = g->slot[found].top, seen = g->slot[found].seen;
     if (seq > top) {
@@ -117,13 +149,55 @@ static int guard_accept(sc_msg_guard *g, int64_t node, uint64_t seq)
     } else {
         uint64_t d = top - seq;
         if (d >= SC_MSG_WINDOW || (seen >> d & 1))
-            return 0;
+            return GUARD_REPLAY;
         seen |= (uint64_t)1 << d;
     }
     g->slot[found].top = top;
     g->slot[found].seen = seen;
     g->slot[found].used = g->clock;
-    return 1;
+    return GUARD_OK;
+}
+
+void sc_msg_guard_forget(sc_msg_guard *g, int64_t node)
+{
+    for (int i = 0; g && i < SC_MSG_SENDERS; i++)
+        if (g->slot[i].used && g->slot[i].node == node)
+            memset(&g->slot[i], 0, sizeof g->slot[i]);
+}
+
+int sc_msg_verify(const uint8_t key[SC_KEY_BYTES], const void *buf, size_t len, sc_msg *out)
+{
+    if (!key || !out)
+        return SC_EINVAL;
+    memset(out, 0, sizeof *out);
+    const uint8_t *p = buf;
+    if (!p || len < SC_MSG_OVERHEAD + FP_BYTES || len > SC_MSG_MAX_BYTES ||
+        be32(p + ENV_LEN_AT) != (int64_t)(len - SC_MSG_OVERHEAD))
+        return SC_EFORMAT;
+    if (sodium_init() < 0)
+        return SC_ENOMEM;
+    if (crypto_auth_hmacsha512256_verify(p + len - MAC_BYTES, p, len - MAC_BYTES, key) != 0)
+        return SC_EAUTH;
+    sclcm_envelope_t e;
+    memset(&e, 0, sizeof e);
+    int rc = SC_EFORMAT;
+    if (sclcm_envelope_t_decode(p, 0, (int)len, &e) == (int)len && e.version == SC_MSG_VERSION &&
+        known_kind(e.kind) && e.epoch > 0 && e.seq >= 0 && e.to_epoch >= 0 && e.payload) {
+        rc = SC_ENOMEM;
+        out->payload = malloc((size_t)e.len);
+        if (out->payload) {
+            memcpy(out->payload, e.payload, (size_t)e.len);
+            out->node = e.node;
+            out->epoch = e.epoch;
+            out->seq = e.seq;
+            out->to_epoch = e.to_epoch;
+            out->kind = e.kind;
+            out->len = (size_t)e.len;
+            rc = SC_OK;
+        }
+    }
+    sclcm_envelope_t_decode_cleanup(&e);
+    return rc;
 }
 
 int sc_msg_open(const uint8_t key[SC_KEY_BYTES], sc_msg_guard *g, const void *buf, size_t len,
@@ -131,46 +205,34 @@ int sc_msg_open(const uint8_t key[SC_KEY_BYTES], sc_msg_guard *g, const void *bu
 {
     if (!key || !g || !out)
         return SC_EINVAL;
-    memset(out, 0, sizeof *out);
-    const uint8_t *p = buf;
-    if (!p || len < SC_MSG_OVERHEAD + FP_BYTES || len > SC_MSG_MAX_BYTES ||
-        be32(p + ENV_LEN_AT) != (int64_t)(len - SC_MSG_OVERHEAD)) {
+    int rc = sc_msg_verify(key, buf, len, out);
+    if (rc == SC_EFORMAT)
         g->dropped_format++;
-        return SC_EFORMAT;
-    }
-    if (sodium_init() < 0)
-        return SC_ENOMEM;
-    if (crypto_auth_hmacsha512256_verify(p + len - MAC_BYTES, p, len - MAC_BYTES, key) != 0) {
+    else if (rc == SC_EAUTH)
         g->dropped_auth++;
+    if (rc != SC_OK)
+        return rc;
+    /* addressed to this start of the receiver (captured traffic replayed
+     * to a later start is not), before the guard learns anything from it */
+    if (g->epoch && (out->kind == SC_MSG_ANNOUNCE ? out->to_epoch != 0
+                                                  : out->to_epoch != g->epoch)) {
+        g->dropped_misaddressed++;
+        sc_msg_free(out);
+        memset(out, 0, sizeof *out);
         return SC_EAUTH;
     }
-    sclcm_envelope_t e;
-    memset(&e, 0, sizeof e);
-    int rc = SC_EFORMAT;
-    if (sclcm_envelope_t_decode(p, 0, (int)len, &e) == (int)len && e.version == SC_MSG_VERSION &&
-        known_kind(e.kind) && e.seq >= 0 && e.payload) {
-        rc = SC_ENOMEM;
-        out->payload = malloc((size_t)e.len);
-        if (out->payload) {
-            memcpy(out->payload, e.payload, (size_t)e.len);
-            rc = guard_accept(g, e.node, (uint64_t)e.seq) ? SC_OK : SC_EAUTH;
-        }
-    }
-    if (rc == SC_OK) {
-        out->node = e.node;
-        out->seq = e.seq;
-        out->kind = e.kind;
-        out->len = (size_t)e.len;
-        g->accepted++;
-    } else {
-        sc_msg_free(out);
-        if (rc == SC_EFORMAT)
-            g->dropped_format++;
-        else if (rc == SC_EAUTH)
+    int r = guard_accept(g, out->node, out->epoch, (uint64_t)out->seq);
+    if (r != GUARD_OK) {
+        if (r == GUARD_STALE)
+            g->dropped_stale++;
+        else
             g->dropped_replay++;
+        sc_msg_free(out);
+        memset(out, 0, sizeof *out);
+        return SC_EAUTH;
     }
-    sclcm_envelope_t_decode_cleanup(&e);
-    return rc;
+    g->accepted++;
+    return SC_OK;
 }
 
 void sc_msg_free(sc_msg *m)
@@ -351,6 +413,37 @@ int sc_msg_shape_request_decode(const void *buf, size_t len, uint64_t *hash)
         sclcm_shape_request_t_decode(buf, 0, (int)len, &m) != (int)len)
         return SC_EFORMAT;
     *hash = (uint64_t)m.hash;
+    return SC_OK;
+}
+
+/* ---- challenges ---- */
+
+int sc_msg_challenge_encode(const uint8_t nonce[SC_MSG_NONCE_BYTES], int64_t epoch,
+                            uint8_t **out, size_t *len)
+{
+    if (!nonce || !out || !len || epoch <= 0)
+        return SC_EINVAL;
+    *out = malloc(CHAL_BYTES);
+    if (!*out)
+        return SC_ENOMEM;
+    sclcm_challenge_t m = { .epoch = epoch };
+    memcpy(m.nonce, nonce, SC_MSG_NONCE_BYTES);
+    int n = sclcm_challenge_t_encode(*out, 0, CHAL_BYTES, &m);
+    SC_ASSERT(n == CHAL_BYTES);
+    (void)n;
+    *len = CHAL_BYTES;
+    return SC_OK;
+}
+
+int sc_msg_challenge_decode(const void *buf, size_t len, uint8_t nonce[SC_MSG_NONCE_BYTES],
+                            int64_t *epoch)
+{
+    sclcm_challenge_t m;
+    if (!buf || !nonce || !epoch || len != CHAL_BYTES ||
+        sclcm_challenge_t_decode(buf, 0, (int)len, &m) != (int)len || m.epoch <= 0)
+        return SC_EFORMAT;
+    memcpy(nonce, m.nonce, SC_MSG_NONCE_BYTES);
+    *epoch = m.epoch;
     return SC_OK;
 }
 

@@ -2,7 +2,7 @@
  * (lib/cluster_msg.c). Any bytes go to sc_msg_open under a fixed key (the
  * seeds in tests/fuzz/corpus/envelope/ are sealed with it, so mutations get
  * past the MAC only there) and, as a payload, to the announce, unit,
- * result, shape request and shape decoders (a shape is rebuilt and its
+ * result, challenge, shape request and shape decoders (a shape is rebuilt and its
  * hash checked); what opens or decodes must be consistent. The bytes are
  * also sealed and opened again, which must give them back. Built like
  * fuzz_load.c; make check replays the corpus. */
@@ -47,6 +47,11 @@ static void check_payload(const uint8_t *data, size_t size)
             sc_msg_work_free(&w);
         }
     }
+    uint8_t nonce[SC_MSG_NONCE_BYTES];
+    int64_t epoch;
+    rc = sc_msg_challenge_decode(data, size, nonce, &epoch);
+    if (rc == SC_OK ? epoch <= 0 : rc != SC_EFORMAT)
+        abort();
     uint64_t hash;
     rc = sc_msg_shape_request_decode(data, size, &hash);
     if (rc != SC_OK && rc != SC_EFORMAT)
@@ -65,7 +70,8 @@ int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size)
     sc_msg m;
     int rc = sc_msg_open(key, &g, data, size, &m);
     if (rc == SC_OK) {
-        if (m.kind < SC_MSG_ANNOUNCE || m.kind > SC_MSG_RESULT || m.seq < 0 || !m.payload ||
+        if (m.kind < SC_MSG_ANNOUNCE || m.kind > SC_MSG_ANSWER || m.epoch <= 0 || m.seq < 0 ||
+            m.to_epoch < 0 || !m.payload ||
             m.len + SC_MSG_OVERHEAD != size || g.accepted != 1)
             abort();
         check_payload(m.payload, m.len);
@@ -75,7 +81,8 @@ int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size)
             g.dropped_replay != 1)
             abort();
     } else if ((rc != SC_EFORMAT && rc != SC_EAUTH) || m.payload ||
-               g.dropped_format + g.dropped_auth + g.dropped_replay != 1) {
+               g.dropped_format + g.dropped_auth + g.dropped_replay + g.dropped_stale +
+                       g.dropped_misaddressed != 1) {
         abort();
     }
     sc_msg_free(&m);
@@ -83,7 +90,7 @@ int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size)
     /* sealing any payload of a valid size and opening it gives it back */
     uint8_t *env;
     size_t n;
-    if (size >= 8 && sc_msg_seal(key, 9, 1, SC_MSG_SHAPE, data, size, &env, &n) == SC_OK) {
+    if (size >= 8 && sc_msg_seal(key, 9, 1, 1, 0, SC_MSG_SHAPE, data, size, &env, &n) == SC_OK) {
         sc_msg_guard h = { 0 };
         if (sc_msg_open(key, &h, env, n, &m) != SC_OK || m.len != size ||
             memcmp(m.payload, data, size) != 0)
