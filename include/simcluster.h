@@ -278,6 +278,8 @@ typedef struct sc_stats {
                                  replayed, stale or misaddressed, and datagrams
                                  the transport or the kernel dropped
                                  (sc_bus_dropped; all frames) */
+    long dropped_auth;        /* of them: failed the MAC (another cluster key, or
+                                 forged; all frames) */
     long dropped_stale;       /* of them: from an older start (epoch) of a daemon
                                  than its newest heard (all frames) */
     long dropped_misaddressed;/* of them: addressed to another start of this

@@ -259,6 +259,21 @@ SC_API void sc_bus_counters_get(const sc_bus *b, sc_bus_counters *out);
  * evicted messages. */
 SC_API uint64_t sc_bus_dropped(const sc_bus_counters *c);
 
+/* ---- listening to the cluster ------------------------------------------- */
+/* What sc_cluster_listen() heard. */
+typedef struct sc_cluster_heard {
+    int daemons;        /* answered the challenge, heard within 1 s, not owner-busy */
+    int busy;           /* the same, owner-busy */
+    int unverified;     /* heard within 1 s, not (yet) answered the challenge */
+    long auth_failed;   /* messages that failed the MAC: another key, or forged */
+    long dropped;       /* every message and datagram dropped, those included */
+} sc_cluster_heard;
+/* sc_cluster_wait() that also says what it heard (out may be NULL): with
+ * too few daemons, auth_failed > 0 points at a key that differs from the
+ * daemons'. The count of daemons, or a negative code. */
+SC_API int sc_cluster_listen(const sc_world_config *cfg, int k, double timeout_s,
+                             sc_cluster_heard *out);
+
 /* ---- frame records -------------------------------------------------------
  * What simcluster run --record writes to an LCM event log and --publish
  * sends (unsealed): one SC_FRAME_SHAPE_CHANNEL record per distinct shape

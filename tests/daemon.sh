@@ -84,6 +84,19 @@ if wait_log "serving"; then
             grep "counters:" "$dir/log" | grep -q " $n=" || { echo "FAIL: counters lack $n"; fail=1; }
         done
     fi
+    # a master with another key hears the daemon's heartbeats fail the MAC:
+    # --wait-daemons says so, and a run without it warns once and counts
+    "$tool" keygen "$dir/other.key" >/dev/null
+    check "run --wait-daemons, another key" 1 "$tool" run bolts --bodies 5 --frames 5 \
+        --cluster "$url" --key "$dir/other.key" --wait-daemons 1
+    one_line "run --wait-daemons, another key" "0 daemons after 10 s, 1 wanted; [0-9]* messages failed authentication: do the daemons use this key (--key)?"
+    check "run, another key" 0 "$tool" run bolts --bodies 5 --frames 100 --realtime \
+        --cluster "$url" --key "$dir/other.key" --json
+    one_line "run, another key" "warning: cluster messages fail authentication"
+    grep -q '"dropped_auth": [1-9]' "$dir/out" ||
+        { echo "FAIL: run, another key: no dropped_auth in the JSON"; cat "$dir/out"; fail=1; }
+    check "run --wait-daemons, this key" 0 "$tool" run bolts --bodies 5 --frames 5 \
+        --cluster "$url" --key "$dir/k" --wait-daemons 1
     sed -e 's/^busy_threshold = 0.5/busy_threshold = 0.75/' -e 's/^node_id = 4660/node_id = 4661/' \
         "$dir/d.conf" >"$dir/d2.conf" && cat "$dir/d2.conf" >"$dir/d.conf"
     kill -HUP "$pid"

@@ -293,12 +293,26 @@ static void json_string(const char *s)
  * them too. 1 when they came, else 0 with the reason printed. */
 static int wait_daemons(const sc_world_config *cfg, int k, const char *cmd)
 {
-    int n = sc_cluster_wait(cfg, k, WAIT_DAEMONS_S);
-    if (n < 0)
+    sc_cluster_heard h;
+    int n = sc_cluster_listen(cfg, k, WAIT_DAEMONS_S, &h);
+    if (n < 0) {
         fprintf(stderr, "simcluster: %s: --wait-daemons: %s\n", cmd, sc_strerror(n));
-    else if (n < k)
-        fprintf(stderr, "simcluster: %s: %d daemon%s after %.0f s, %d wanted\n", cmd, n,
-                n == 1 ? "" : "s", WAIT_DAEMONS_S, k);
+    } else if (n < k) {
+        /* say why, when it can be seen: another key, busy owners, no answer */
+        char why[200] = "";
+        if (h.auth_failed > 0)
+            snprintf(why, sizeof why, "; %ld messages failed authentication: do the daemons "
+                     "use this key (--key)?", h.auth_failed);
+        else if (h.busy > 0)
+            snprintf(why, sizeof why, "; %d more heard whose owner is busy", h.busy);
+        else if (h.unverified > 0)
+            snprintf(why, sizeof why, "; %d more heard that did not answer the challenge",
+                     h.unverified);
+        else
+            snprintf(why, sizeof why, "; none heard on %s", cfg->cluster);
+        fprintf(stderr, "simcluster: %s: %d daemon%s after %.0f s, %d wanted%s\n", cmd, n,
+                n == 1 ? "" : "s", WAIT_DAEMONS_S, k, why);
+    }
     return n >= k;
 }
 
@@ -517,6 +531,7 @@ static int record_finish(recorder *r)
 typedef struct totals {
     long frames, units, remote, recomputed, late;
     long overlaps;              /* body pairs overlapping where they were placed */
+    int auth_warned;            /* the warning about another key was given */
     long over_budget;           /* frames whose step took more than DT of wall time */
     double wall, peak_energy, max_pen, comm, max_frame;
     int at_rest;
@@ -602,6 +617,13 @@ static int simulate(const options *o, sc_world *w, totals *t, int progress, reco
                     "simulated as physics would\n", "simcluster",
                     st.initial_overlaps - t->overlaps);
         t->overlaps = st.initial_overlaps;
+        if (st.dropped_auth > 0 && !t->auth_warned) {
+            /* another key on the group: say it, once (daemons with it get no work) */
+            fprintf(stderr, "simcluster: warning: cluster messages fail authentication (%ld so "
+                    "far): daemons with another key are not used; do they use this key "
+                    "(--key)?\n", st.dropped_auth);
+            t->auth_warned = 1;
+        }
         if (e0 > 0)
             t->peak_energy = fmax(t->peak_energy, sc_world_energy(w) / e0);
         double now = now_s();
@@ -735,14 +757,16 @@ static int run_cmd(int argc, char **argv)
                "\"realtime_factor\": %.4f, \"at_rest\": %s, \"rest_s\": %.2f, "
                "\"peak_energy_ratio\": %.6f, \"max_penetration_m\": %.6g, \"units\": %ld, "
                "\"daemons\": %d, \"remote_units\": %ld, \"recomputed_units\": %ld, "
-               "\"late_results\": %ld, \"dropped_messages\": %ld, \"dropped_stale\": %ld, "
+               "\"late_results\": %ld, \"dropped_messages\": %ld, \"dropped_auth\": %ld, "
+               "\"dropped_stale\": %ld, "
                "\"dropped_misaddressed\": %ld, \"duplicate_nodes\": %ld, \"comm_s\": %.4f, "
                "\"frames_over_budget\": %ld, \"max_frame_s\": %.4f, \"initial_overlaps\": %ld, "
                "\"hash\": \"%016llx\", \"interrupted\": %s%s%s, \"error\": %s%s%s}\n",
                sc_world_body_count(w), seed, (int)(st.nodes - st.daemons), t.frames,
                sim, t.wall, t.wall > 0 ? sim / t.wall : 0, t.at_rest ? "true" : "false",
                t.rest_s, t.peak_energy, t.max_pen, t.units, st.daemons, t.remote, t.recomputed,
-               t.late, st.dropped_messages, st.dropped_stale, st.dropped_misaddressed,
+               t.late, st.dropped_messages, st.dropped_auth, st.dropped_stale,
+               st.dropped_misaddressed,
                st.duplicate_nodes, t.comm, t.over_budget, t.max_frame, t.overlaps, hash,
                t.interrupted ? "\"" : "null", t.interrupted ? signal_name(t.interrupted) : "",
                t.interrupted ? "\"" : "", rc ? "\"" : "null",
@@ -765,9 +789,12 @@ static int run_cmd(int argc, char **argv)
         if (o.cluster)
             printf(", from daemons %ld, recomputed %ld, late %ld, dropped messages %ld",
                    t.remote, t.recomputed, t.late, st.dropped_messages);
-        if (o.cluster && (st.dropped_stale || st.dropped_misaddressed || st.duplicate_nodes))
-            printf("\n  of them stale %ld, misaddressed %ld; duplicate daemon ids %ld",
-                   st.dropped_stale, st.dropped_misaddressed, st.duplicate_nodes);
+        if (o.cluster && (st.dropped_auth || st.dropped_stale || st.dropped_misaddressed ||
+                          st.duplicate_nodes))
+            printf("\n  of them failed authentication %ld, stale %ld, misaddressed %ld; "
+                   "duplicate daemon ids %ld",
+                   st.dropped_auth, st.dropped_stale, st.dropped_misaddressed,
+                   st.duplicate_nodes);
         printf("\n  state hash %016llx\n", hash);
         if (t.interrupted)
             printf("  interrupted by %s after frame %ld\n", signal_name(t.interrupted),

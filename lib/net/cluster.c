@@ -188,8 +188,13 @@ static void on_announce(sc_cluster *c, const sc_msg *m)
         snprintf(d->channel, sizeof d->channel, "SC_UNIT_%016" PRIx64, (uint64_t)a.node);
         snprintf(d->shape_channel, sizeof d->shape_channel, "SC_SHAPE_%016" PRIx64,
                  (uint64_t)a.node);
+        /* what was learned goes; the current job's figures stay (a job may
+         * be in flight to this slot) */
         sc_sched_node *nd = &c->sched->nodes[c->first_node + k];
-        memset(nd, 0, sizeof *nd);
+        memset(nd->speed, 0, sizeof nd->speed);
+        memset(nd->measured, 0, sizeof nd->measured);
+        memset(nd->idle, 0, sizeof nd->idle);
+        memset(nd->model, 0, sizeof nd->model);
     }
     daemon_slot *d = &c->d[k];
     d->a = a;
@@ -467,6 +472,16 @@ static void recompute(sc_cluster *c, daemon_slot *d, int k)
         d->missed_at = sc_wall_now();
 }
 
+/* Units of the current job sent to slot k and neither back nor
+ * recomputed. */
+static int outstanding(const sc_cluster *c, int k)
+{
+    int n = 0;
+    for (int i = 0; i < c->job->nunits; i++)
+        n += c->out[i] == OUT_SENT && c->job->units[i].node == c->first_node + k;
+    return n;
+}
+
 static int remote_wait(sc_node *n, double *cpu_s)
 {
     remote_node *r = (remote_node *)n;
@@ -486,9 +501,12 @@ static int remote_wait(sc_node *n, double *cpu_s)
     if (d->t_submit + fmin(2 * predicted, cap) > deadline)
         deadline = d->t_submit + fmin(2 * predicted, cap);
     double t_wait = sc_wall_now();
-    while (d->done < d->sent && (now = sc_wall_now()) < deadline)
+    /* what is still out is read from the units, not from d's counts: a
+     * restart of the daemon heard meanwhile resets its slot (a new epoch),
+     * and units it was sent must still come back or be recomputed here */
+    while (outstanding(c, r->slot) > 0 && (now = sc_wall_now()) < deadline)
         pump(c, deadline - now);
-    if (d->done < d->sent)
+    if (outstanding(c, r->slot) > 0)
         recompute(c, d, r->slot);
     else if (d->sent > 0) {
         /* from the send to the last result's arrival, less the work */
@@ -626,6 +644,7 @@ void sc_cluster_frame(sc_cluster *c)
     c->stats->dropped_messages = g->dropped_format + g->dropped_auth + g->dropped_replay +
                                  g->dropped_stale + g->dropped_misaddressed +
                                  (long)sc_bus_dropped(&bc);
+    c->stats->dropped_auth = g->dropped_auth;
     c->stats->dropped_stale = g->dropped_stale;
     c->stats->dropped_misaddressed = g->dropped_misaddressed;
     c->stats->duplicate_nodes = c->duplicates;
@@ -742,8 +761,11 @@ static int available(const listener *l)
     return n;
 }
 
-SC_API int sc_cluster_wait(const sc_world_config *cfg, int k, double timeout_s)
+SC_API int sc_cluster_listen(const sc_world_config *cfg, int k, double timeout_s,
+                             sc_cluster_heard *out)
 {
+    if (out)
+        memset(out, 0, sizeof *out);
     if (!cfg || !cfg->cluster || k < 0 || k > SC_MAX_DAEMONS || !(timeout_s >= 0) ||
         !isfinite(timeout_s))
         return sc_set_error(SC_EINVAL);
@@ -778,7 +800,31 @@ SC_API int sc_cluster_wait(const sc_world_config *cfg, int k, double timeout_s)
         if (n >= k || left <= 0)
             break;
     }
+    if (out && rc == SC_OK) {
+        /* what was heard, and what did not open: another key shows here */
+        double now = sc_wall_now();
+        for (int j = 0; j < l->n; j++) {
+            if (now - l->d[j].heard > SILENT_S)
+                continue;
+            if (!l->d[j].verified)
+                out->unverified++;
+            else if (l->d[j].busy)
+                out->busy++;
+        }
+        out->daemons = n;
+        out->auth_failed = l->guard.dropped_auth;
+        sc_bus_counters bc;
+        sc_bus_counters_get(bus, &bc);
+        out->dropped = l->guard.dropped_format + l->guard.dropped_auth + l->guard.dropped_replay +
+                       l->guard.dropped_stale + l->guard.dropped_misaddressed +
+                       (long)sc_bus_dropped(&bc);
+    }
     sc_bus_close(bus);
     free(l);
     return rc == SC_OK ? n : sc_set_error(rc);
+}
+
+SC_API int sc_cluster_wait(const sc_world_config *cfg, int k, double timeout_s)
+{
+    return sc_cluster_listen(cfg, k, timeout_s, NULL);
 }
