@@ -178,6 +178,31 @@ w "ours over the peer; \"n/a\" and the notes after them say why a ratio is missi
 w "A run cut by the wall budget is \"not at rest within the cap\"."
 # shellcheck disable=SC2086 # the arguments are words
 run b_drop "$B/bench/bench_drop" $drop_args
+# the same as a picture: real-time factor against N, ours beside ODE's
+# (gnuplot, as figs34.sh; bench/peers.png next to the results file)
+if command -v gnuplot >/dev/null 2>&1; then
+    for e in quick step sc1 scN; do
+        awk -v e="$e" '$2 == e && $7 != "-" && $7 > 0 { print $1, $7 }' "$tmp/b_drop" >"$tmp/rt_$e"
+    done
+    if gnuplot -e "set terminal pngcairo size 900,520 font ',10' noenhanced;
+        set output '$outdir/peers.png';
+        set title 'bolts and nuts dropped: real-time factor against bodies (bench_drop)';
+        set logscale xy; set xlabel 'bodies'; set ylabel 'simulated s / wall s';
+        set grid; set key top right;
+        plot '$tmp/rt_scN' using 1:2 with linespoints lw 2 title 'simcluster, $ncpu threads',
+             '$tmp/rt_sc1' using 1:2 with linespoints lw 2 title 'simcluster, 1 thread',
+             '$tmp/rt_quick' using 1:2 with linespoints title 'ODE dWorldQuickStep',
+             '$tmp/rt_step' using 1:2 with linespoints title 'ODE dWorldStep',
+             1 with lines dt 2 lc 'black' title 'real time'" 2>"$tmp/gp.err"; then
+        w ""
+        w "![real-time factor against N, ours beside ODE](peers.png)"
+    else
+        say "gnuplot failed for peers.png: $(head -n 1 "$tmp/gp.err")"
+    fi
+else
+    w ""
+    w "(no gnuplot: no peers.png; \`sh scripts/deps.sh bench\` installs it)"
+fi
 # the 200-body targets, from the sc1 and scN rows (columns: N engine thr
 # runs wall sim RT Epeak/E0 maxpen rest vmax end...)
 # row200 ENG: bench_drop's 200-body row of ENG if it has figures; else

@@ -844,7 +844,7 @@ static int chart(const char *path, const char *scene, long frames, const stage_r
                 strerror(errno));
         return 1;
     }
-    fprintf(g, "set terminal pngcairo size 900,480 font ',10'\nset output '");
+    fprintf(g, "set terminal pngcairo size 900,480 font ',10' noenhanced\nset output '");
     for (const char *c = path; *c; c++)      /* gnuplot's single quotes: '' */
         fputs(*c == '\'' ? "''" : (char[]){ *c, 0 }, g);
     fprintf(g, "'\n$d << EOD\n");
