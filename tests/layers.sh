@@ -9,9 +9,13 @@ cd "$(dirname "$0")/.." || exit 1
 tmp=$(mktemp -d)
 trap 'rm -rf "$tmp"' EXIT
 rank() { case $1 in core/*) echo 1 ;; exec/*) echo 2 ;; net/*) echo 3 ;; api/*) echo 4 ;; *) echo 9 ;; esac; }
-for o in "$build"/lib/*/*.o; do
-    f=${o#"$build"/lib/}
-    f=${f%.o}
+# the objects of the sources there are now (a build folder may keep the
+# objects of files since moved away)
+for src in lib/*/*.c; do
+    o=$build/${src%.c}.o
+    [ -f "$o" ] || { echo "FAIL: no object $o (build first)"; exit 1; }
+    f=${src#lib/}
+    f=${f%.c}
     nm --defined-only -g "$o" | awk -v f="$f" 'NF == 3 { print $3, f }' >>"$tmp/defs"
     nm -u "$o" | awk -v f="$f" '{ print $2, f }' >>"$tmp/uses"
 done
