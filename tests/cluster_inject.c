@@ -51,6 +51,7 @@
 #include <time.h>
 
 #include "bus.h"
+#include "lc03.h"
 #include "simcluster_net.h"
 #include "simcluster.h"
 
@@ -98,33 +99,12 @@ static int unit_envelope(const uint8_t *key, int64_t node, int64_t seq, uint8_t 
     return rc;
 }
 
-static void put_be32(uint8_t *p, uint32_t v)
-{
-    p[0] = (uint8_t)(v >> 24);
-    p[1] = (uint8_t)(v >> 16);
-    p[2] = (uint8_t)(v >> 8);
-    p[3] = (uint8_t)v;
-}
-
 /* An LC03 datagram: header, then (fragment 0) the channel and its NUL,
  * then fill bytes of data; its length. */
 static size_t lc03(uint8_t *p, uint32_t seqno, uint32_t size, uint32_t off, uint16_t no,
                    uint16_t nfrag, const char *channel, size_t fill)
 {
-    put_be32(p, SC_BUS_MAGIC_LONG);
-    put_be32(p + 4, seqno);
-    put_be32(p + 8, size);
-    put_be32(p + 12, off);
-    p[16] = (uint8_t)(no >> 8);
-    p[17] = (uint8_t)no;
-    p[18] = (uint8_t)(nfrag >> 8);
-    p[19] = (uint8_t)nfrag;
-    size_t at = SC_BUS_LONG_HDR;
-    if (channel) {
-        size_t cl = strlen(channel) + 1;
-        memcpy(p + at, channel, cl);
-        at += cl;
-    }
+    size_t at = lc03_head(p, seqno, size, off, no, nfrag, channel);
     memset(p + at, 0xA5, fill);
     return at + fill;
 }

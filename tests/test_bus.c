@@ -19,6 +19,7 @@
 #include <lcm/lcm.h>
 
 #include "bus.h"
+#include "lc03.h"
 
 #define CH "SC_UNIT_0000000000004001"
 #define ADDR 0x7f000001u
@@ -48,31 +49,11 @@ static void on_msg(void *ctx, const char *channel, const uint8_t *data, size_t l
     g->len = len;
 }
 
-static void put32(uint8_t *p, uint32_t v)
-{
-    p[0] = (uint8_t)(v >> 24);
-    p[1] = (uint8_t)(v >> 16);
-    p[2] = (uint8_t)(v >> 8);
-    p[3] = (uint8_t)v;
-}
-
 /* An LC03 datagram into p: its length. */
 static size_t lc03(uint8_t *p, uint32_t seqno, uint32_t size, uint32_t off, uint16_t no,
                    uint16_t nfrag, const char *channel, const uint8_t *data, size_t n)
 {
-    put32(p, SC_BUS_MAGIC_LONG);
-    put32(p + 4, seqno);
-    put32(p + 8, size);
-    put32(p + 12, off);
-    p[16] = (uint8_t)(no >> 8);
-    p[17] = (uint8_t)no;
-    p[18] = (uint8_t)(nfrag >> 8);
-    p[19] = (uint8_t)nfrag;
-    size_t at = SC_BUS_LONG_HDR;
-    if (channel) {
-        memcpy(p + at, channel, strlen(channel) + 1);
-        at += strlen(channel) + 1;
-    }
+    size_t at = lc03_head(p, seqno, size, off, no, nfrag, channel);
     if (n)
         memcpy(p + at, data, n);
     return at + n;
