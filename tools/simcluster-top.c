@@ -270,6 +270,28 @@ static const char *plural(long n, const char *one, const char *many)
     return n == 1 ? one : many;
 }
 
+/* The footer's totals over the rows heard within SILENT_S. */
+typedef struct totals {
+    long silent, busy, cores;
+    double rate;
+} totals;
+
+static totals sum_rows(const node *const *rows, int n, double now)
+{
+    totals s = { 0, 0, 0, 0 };
+    for (int i = 0; i < n; i++) {
+        const node *d = rows[i];
+        if (now - d->seen_s > SILENT_S) {
+            s.silent++;
+            continue;
+        }
+        s.busy += d->busy;
+        s.cores += d->cores;
+        s.rate += d->rate > 0 ? d->rate : 0;
+    }
+    return s;
+}
+
 /* The table at time now: a header, a row per node, a footer of totals. */
 static void print_table(FILE *f, const top *t, double now)
 {
@@ -283,8 +305,6 @@ static void print_table(FILE *f, const top *t, double now)
     qsort(rows, (size_t)t->n, sizeof rows[0], by_host);
     fprintf(f, "%-16s  %-*s  %5s  %12s  %5s  %4s  %9s  %10s\n", "node", hw, "host", "cores",
             "units/s/core", "idle%", "busy", "units/s", "seen-s-ago");
-    long silent = 0, busy = 0, cores = 0;
-    double rate = 0;
     for (int i = 0; i < t->n; i++) {
         const node *d = rows[i];
         double age = now - d->seen_s;
@@ -295,25 +315,20 @@ static void print_table(FILE *f, const top *t, double now)
                 (uint64_t)d->id, hw, host, d->cores, rate_text(d->speed, sp, sizeof sp),
                 100 * d->idle, d->busy ? "yes" : "no",
                 rate_text(quiet ? -1 : d->rate, r, sizeof r), age, quiet ? " silent" : "");
-        if (quiet) {
-            silent++;
-            continue;
-        }
-        busy += d->busy;
-        cores += d->cores;
-        rate += d->rate > 0 ? d->rate : 0;
     }
+    totals sum = sum_rows(rows, t->n, now);
     fprintf(f, "%d %s", t->n, plural(t->n, "daemon", "daemons"));
-    if (silent)
-        fprintf(f, " (%ld silent)", silent);
+    if (sum.silent)
+        fprintf(f, " (%ld silent)", sum.silent);
     char r[32];
     sc_bus_counters bc;
     sc_bus_counters_get(t->bus, &bc);
     fprintf(f, ", %ld busy, %ld %s, %s units/s; dropped %ld format, %ld auth, %ld replay, "
             "%ld stale, %llu net, %llu kernel",
-            busy, cores, plural(cores, "core", "cores"), rate_text(rate, r, sizeof r),
-            t->guard.dropped_format, t->guard.dropped_auth, t->guard.dropped_replay,
-            t->guard.dropped_stale, (unsigned long long)(sc_bus_dropped(&bc) - bc.kernel),
+            sum.busy, sum.cores, plural(sum.cores, "core", "cores"),
+            rate_text(sum.rate, r, sizeof r), t->guard.dropped_format, t->guard.dropped_auth,
+            t->guard.dropped_replay, t->guard.dropped_stale,
+            (unsigned long long)(sc_bus_dropped(&bc) - bc.kernel),
             (unsigned long long)bc.kernel);
     if (t->ignored)
         fprintf(f, "; %ld %s of new nodes ignored (table full: %d)", t->ignored,
@@ -349,8 +364,6 @@ static void print_json(FILE *f, const top *t, double now, const char *url)
     fputs("{\"url\": ", f);
     json_text(f, url);
     fputs(", \"daemons\": [", f);
-    long silent = 0, busy = 0, cores = 0;
-    double rate = 0;
     for (int i = 0; i < t->n; i++) {
         const node *d = rows[i];
         double age = now - d->seen_s;
@@ -368,22 +381,16 @@ static void print_json(FILE *f, const top *t, double now, const char *url)
         else
             fprintf(f, "%.6g", d->rate);
         fprintf(f, ", \"seen_s_ago\": %.3f, \"silent\": %s}", age, quiet ? "true" : "false");
-        if (quiet) {
-            silent++;
-            continue;
-        }
-        busy += d->busy;
-        cores += d->cores;
-        rate += d->rate > 0 ? d->rate : 0;
     }
+    totals sum = sum_rows(rows, t->n, now);
     sc_bus_counters bc;
     sc_bus_counters_get(t->bus, &bc);
     fprintf(f, "], \"daemons_total\": %d, \"silent\": %ld, \"busy\": %ld, \"cores\": %ld, "
             "\"units_per_s\": %.6g, \"dropped\": {\"format\": %ld, \"auth\": %ld, "
             "\"replay\": %ld, \"stale\": %ld, \"net\": %llu, \"kernel\": %llu}, "
             "\"ignored_heartbeats\": %ld}\n",
-            t->n, silent, busy, cores, rate, t->guard.dropped_format, t->guard.dropped_auth,
-            t->guard.dropped_replay, t->guard.dropped_stale,
+            t->n, sum.silent, sum.busy, sum.cores, sum.rate, t->guard.dropped_format,
+            t->guard.dropped_auth, t->guard.dropped_replay, t->guard.dropped_stale,
             (unsigned long long)(sc_bus_dropped(&bc) - bc.kernel), (unsigned long long)bc.kernel,
             t->ignored);
 }
