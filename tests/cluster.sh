@@ -205,6 +205,18 @@ master_bg() { # the same in the background, timeout's pid in $mpid (a function
     mpid=$!
     pids="$pids $mpid"
 }
+master_while() { # $1 = a function run again and again in the background
+    loop=$1    # while the master runs with the rest; the master's exit status
+    shift
+    ( while :; do "$loop"; done ) >/dev/null 2>&1 &
+    ipid=$!
+    pids="$pids $ipid"
+    master "$@"
+    mrc=$?
+    kill $ipid 2>/dev/null
+    wait $ipid 2>/dev/null
+    return $mrc
+}
 hash_of() { sed -n 's/^hash //p' "$1"; }
 total() { # $1 = cluster_run output, $2 = a name on its "remote ..." line: the number after it
     awk -v k="$2" '$1 == "remote" { for (i = 1; i < NF; i++) if ($i == k) print $(i + 1) }' "$1"
@@ -319,19 +331,13 @@ alive=1
 for i in 1 2 3; do kill -0 "$(dpid $i)" 2>/dev/null || alive=0; done
 verdict "e: every daemon alive after the hostile packets" '[ $alive -eq 1 ]'
 # a master run while hostile announces keep coming
-(
-    while :; do
-        for mode in garbage wrongkey truncated replay oversize frag-wrap frag-huge; do
-            inject SC_ANNOUNCE $mode 5
-        done
+hostile_announces() {
+    for mode in garbage wrongkey truncated replay oversize frag-wrap frag-huge; do
+        inject SC_ANNOUNCE $mode 5
     done
-) >/dev/null 2>&1 &
-ipid=$!
-pids="$pids $ipid"
-master "$dir/e.out" --bodies $BODIES --frames $FRAMES --wait-daemons 3
+}
+master_while hostile_announces "$dir/e.out" --bodies $BODIES --frames $FRAMES --wait-daemons 3
 rc=$?
-kill $ipid 2>/dev/null
-wait $ipid 2>/dev/null
 h=$(hash_of "$dir/e.out")
 echo "    e: $(summary "$dir/e.out")"
 remote=$(total "$dir/e.out" remote)
@@ -396,18 +402,12 @@ du=$(delta units)
 echo "    g: $(cat "$dir/resend.out") (captured ${ncap:-?} while a master ran)"
 verdict "g: units captured before the restart refused after it ($dm misaddressed of ${ncap:-?}, $du units)" \
     '[ "${ncap:-0}" -gt 0 ] && [ "$dm" = "$ncap" ] && [ "$du" = 0 ]'
-(
-    while :; do
-        ip netns exec "$nsm" "$INJECT" --url "$URL" --channel SC_ANNOUNCE --mode resend \
-            --file "$dir/announce.cap"
-    done
-) >/dev/null 2>&1 &
-ipid=$!
-pids="$pids $ipid"
-master "$dir/g2.out" --bodies $BODIES --frames $FRAMES --wait-daemons 3
+replay_announces() {
+    ip netns exec "$nsm" "$INJECT" --url "$URL" --channel SC_ANNOUNCE --mode resend \
+        --file "$dir/announce.cap"
+}
+master_while replay_announces "$dir/g2.out" --bodies $BODIES --frames $FRAMES --wait-daemons 3
 rc=$?
-kill $ipid 2>/dev/null
-wait $ipid 2>/dev/null
 h=$(hash_of "$dir/g2.out")
 stale=$(total "$dir/g2.out" stale)
 dups=$(total "$dir/g2.out" duplicates)

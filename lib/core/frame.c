@@ -166,14 +166,14 @@ static int substeps(sc_frame *f, double dt, sc_body *saved, unsigned char *touch
         /* bodies were added: pairs already deep in each other are counted
          * (the push-out separates them, but not as physics would) */
         rc = sc_detect(f);
+        int la = -1, lb = -1;    /* the last pair counted (contacts sorted by pair) */
         for (int k = 0; rc == SC_OK && k < st->ncontacts; k++) {
             const sc_contact *c = &st->contacts[k];
-            int first = k == 0 || c->body_a != c[-1].body_a || c->body_b != c[-1].body_b;
-            int deep = 0;
-            for (int j = k; j < st->ncontacts && st->contacts[j].body_a == c->body_a &&
-                            st->contacts[j].body_b == c->body_b; j++)
-                deep |= st->contacts[j].depth > 2 * f->cfg->contact_tol_m;
-            f->stats->initial_overlaps += first && deep;
+            if (c->depth > 2 * f->cfg->contact_tol_m && (c->body_a != la || c->body_b != lb)) {
+                f->stats->initial_overlaps++;
+                la = c->body_a;
+                lb = c->body_b;
+            }
         }
     }
     double left = dt;
