@@ -350,6 +350,10 @@ SC_API int sc_cluster_wait(const sc_world_config *cfg, int k, double timeout_s);
 SC_API int sc_scene_spheres_box(sc_world *w);
 /* Add a floor and n (1..100000) bolts/nuts at random free poses from seed to w; SC_OK or a code. */
 SC_API int sc_scene_bolts_nuts(sc_world *w, int n, uint64_t seed);
+/* The parts bin: n bolts and nuts on a grid one part length apart, four
+ * layers deep, random orientations (from seed), inside four walls on a
+ * floor: the dense pile. */
+SC_API int sc_scene_bin(sc_world *w, int n, uint64_t seed);
 
 /* ---- scene files (format: simcluster.conf(5), SCENE FILES) ---- */
 typedef struct sc_scene sc_scene;

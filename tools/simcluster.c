@@ -42,7 +42,7 @@ static const char run_only_help[] =
 static int usage(FILE *f, int status)
 {
     fprintf(f,
-            "usage: simcluster run SCENE [options]     simulate bolts, spheres or a scene file\n"
+            "usage: simcluster run SCENE [options]     simulate bolts, bin, spheres or a scene file\n"
             "       simcluster profile SCENE [options] CPU time per stage (Table 1)\n"
             "       simcluster lcp FILE                solve an LCP given as text\n"
             "       simcluster keygen FILE             write a new cluster key (mode 0600)\n"
@@ -56,10 +56,10 @@ static int usage_cmd(const char *cmd)
 {
     if (!strcmp(cmd, "run") || !strcmp(cmd, "profile")) {
         printf("usage: simcluster %s SCENE [options]   %s\n%s%s", cmd,
-               !strcmp(cmd, "run") ? "simulate bolts, spheres or a scene file"
+               !strcmp(cmd, "run") ? "simulate bolts, bin, spheres or a scene file"
                                    : "CPU time per stage (the paper's Table 1)",
                run_help, !strcmp(cmd, "run") ? run_only_help : "");
-        printf("scenes: bolts, spheres or a scene file (simcluster.conf(5))\n");
+        printf("scenes: bolts (a sparse drop), bin (a dense pile), spheres or a scene file (simcluster.conf(5))\n");
     } else if (!strcmp(cmd, "lcp")) {
         printf("usage: simcluster lcp FILE   solve the LCP w = Mz + q, z >= 0, w >= 0, z.w = 0\n"
                "  FILE (- for standard input): n, then M row by row, then q; # comments\n");
@@ -250,15 +250,16 @@ static int parse_options(const char *cmd, int argc, char **argv, options *o)
         }
     }
     if (optind != argc - 1)
-        return bad(cmd, "give one scene: bolts, spheres or a scene file");
+        return bad(cmd, "give one scene: bolts, bin, spheres or a scene file");
     o->scene = argv[optind];
     if (o->key && !o->cluster)
         return bad(cmd, "--key needs --cluster");
     if (o->wait_daemons && !o->cluster)
         return bad(cmd, "--wait-daemons needs --cluster");
-    int builtin = !strcmp(o->scene, "bolts") || !strcmp(o->scene, "spheres");
+    int builtin = !strcmp(o->scene, "bolts") || !strcmp(o->scene, "bin") ||
+                  !strcmp(o->scene, "spheres");
     if (!builtin && (o->bodies_set || o->seed_set))
-        return bad(cmd, "--bodies and --seed are for the built-in bolts scene; a scene file "
+        return bad(cmd, "--bodies and --seed are for the built-in bolts and bin scenes; a scene file "
                         "places its own bodies");
     if (builtin)
         return -1;
@@ -368,6 +369,7 @@ static sc_world *make_world(const options *o, const char *cmd)
     }
     int rc = o->file                     ? sc_scene_build(o->file, w)
              : !strcmp(o->scene, "bolts") ? sc_scene_bolts_nuts(w, (int)o->bodies, (uint64_t)o->seed)
+             : !strcmp(o->scene, "bin")   ? sc_scene_bin(w, (int)o->bodies, (uint64_t)o->seed)
                                           : sc_scene_spheres_box(w);
     if (rc < 0) {
         fprintf(stderr, "simcluster: %s: scene: %s\n", cmd, sc_strerror(rc));
@@ -747,7 +749,7 @@ static int run_cmd(int argc, char **argv)
     double sim = t.frames * DT;
     unsigned long long hash = (unsigned long long)sc_world_hash(w);
     char seed[24] = "null";         /* scene files have no seed */
-    if (!strcmp(o.scene, "bolts"))
+    if (!strcmp(o.scene, "bolts") || !strcmp(o.scene, "bin"))
         snprintf(seed, sizeof seed, "%ld", o.seed);
     if (o.json) {
         printf("{\"scene\": ");

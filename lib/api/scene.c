@@ -289,3 +289,60 @@ SC_API int sc_scene_bolts_nuts(sc_world *w, int n, uint64_t seed)
     sc_shape_release(nut);
     return rc;
 }
+
+/* ---- the parts bin: the dense pile (docs/DESIGN.md section 11) ---- */
+
+#define BIN_LAYERS 4
+#define BIN_GAP 1.02              /* grid pitch, in bounding diameters */
+
+/* n bolts and nuts (body i: bolt if i is even) on a square grid one part
+ * length apart, BIN_LAYERS layers deep, random orientations, inside four
+ * walls that fit the grid: they fall a few centimetres onto each other and
+ * the floor and pile up, every part touching several others. The pitch is
+ * a little over one bounding diameter, so no two start in contact. */
+SC_API int sc_scene_bin(sc_world *w, int n, uint64_t seed)
+{
+    if (!w || n < 1 || n > BN_MAX)
+        return SC_EINVAL;
+    sc_shape *bolt = sc_shape_bolt();
+    sc_shape *nut = bolt ? sc_shape_nut() : NULL;
+    if (!bolt || !nut) {
+        int err = sc_last_error();
+        sc_shape_release(bolt);
+        return err;
+    }
+    double rmax = fmax(sc_shape_bounding_radius(bolt), sc_shape_bounding_radius(nut));
+    double pitch = BIN_GAP * 2 * rmax;
+    int per_layer = (n + BIN_LAYERS - 1) / BIN_LAYERS;
+    int k = (int)ceil(sqrt((double)per_layer) - 1e-9);
+    double half = 0.5 * k * pitch;
+    /* floor, then the walls x = +-half, y = +-half (solid outside) */
+    const double planes[5][4] = {
+        { 0, 0, 1, 0 }, { 1, 0, 0, -half }, { -1, 0, 0, -half },
+        { 0, 1, 0, -half }, { 0, -1, 0, -half },
+    };
+    int rc = SC_OK;
+    for (int i = 0; i < 5 && rc == SC_OK; i++)
+        rc = add_static(w, sc_shape_plane(planes[i][0], planes[i][1], planes[i][2], planes[i][3]),
+                        BN_RESTITUTION, BN_FRICTION);
+    sc_body_desc d = sc_body_desc_default();
+    d.mass = SC_MASS_FROM_DENSITY;
+    d.density = STEEL_DENSITY;
+    d.restitution = BN_RESTITUTION;
+    d.friction = BN_FRICTION;
+    uint64_t rng = seed;
+    for (int i = 0; i < n && rc == SC_OK; i++) {
+        int layer = i / per_layer, j = i % per_layer;
+        d.shape = i % 2 == 0 ? bolt : nut;
+        d.pos[0] = -half + (j % k + 0.5) * pitch;
+        d.pos[1] = -half + (j / k + 0.5) * pitch;
+        d.pos[2] = rmax * BIN_GAP + layer * pitch;
+        random_quat(&rng, d.quat);
+        int id = sc_body_add(w, &d);
+        if (id < 0)
+            rc = id;
+    }
+    sc_shape_release(bolt);
+    sc_shape_release(nut);
+    return rc;
+}
