@@ -70,9 +70,12 @@ enum {
 #define SC_MAX_SPEED 1e5       /* m/s: a body's speed when added */
 #define SC_MAX_SPIN 1e5        /* rad/s: a body's angular speed when added */
 #define SC_MAX_DT 1.0          /* s: one sc_world_step() */
-/* Rows of one island's contact LCP (a contact with friction is 3): its
- * dense matrix is rows^2 doubles (512 MB here). */
+/* Rows of one exact island LCP (a contact with friction is 3): its dense
+ * matrix is rows^2 doubles (512 MB here); a larger island is split into
+ * blocks (sc_world_config.island_split). */
 #define SC_MAX_ISLAND_ROWS 8192
+/* The default sc_world_config.island_split. */
+#define SC_ISLAND_SPLIT_DEFAULT 16
 
 /* A sentence describing the error code err (never NULL). */
 SC_API const char *sc_strerror(int err);
@@ -155,6 +158,8 @@ typedef struct sc_contact {
     double pos[3];         /* world point, m */
     double normal[3];      /* unit, from a to b */
     double depth;          /* penetration, m (>= 0) */
+    double impulse[3];     /* impulse on b at this point in the last contact
+                              solve, N s, world frame (0 from sc_collide) */
 } sc_contact;
 
 /* Most contact points kept per pair after reduction. */
@@ -203,6 +208,12 @@ typedef struct sc_world_config {
                                  back-ups, one work unit per group (faster;
                                  see simcluster(3)); default 0: the paper's
                                  world-wide back-up */
+    int island_split;         /* islands of more contacts than this are split
+                                 into blocks of whole pairs, each an exact
+                                 Dantzig solve, iterated by block Gauss-Seidel
+                                 from last frame's impulses (piles); 0: every
+                                 island one exact LCP (the paper's method);
+                                 default 16 */
     int internal_cookie;      /* set by sc_world_config_default(); do not touch */
 } sc_world_config;
 /* The default configuration. */
@@ -249,6 +260,24 @@ typedef struct sc_stats {
     int lcp_fallbacks;        /* islands whose coupled friction LCP failed (pivot
                                  limit or breakdown) and were solved staggered:
                                  normals, then friction with fixed bounds */
+    /* the contact solver (docs/DESIGN.md section 11), last frame; every
+       fallback is counted, none is an error */
+    int lcp_solves;           /* island solves (islands x substeps) */
+    int lcp_split;            /* of them, solved as blocks (block Gauss-Seidel) */
+    long lcp_blocks;          /* block solves (blocks x sweeps) */
+    int lcp_sweeps_max;       /* most outer sweeps of one split solve */
+    int lcp_unconverged;      /* split solves that stopped at the sweep limit */
+    int lcp_regularised;      /* exact solves that needed a raised diagonal */
+    int lcp_split_fallbacks;  /* exact islands whose staggered solve failed too:
+                                 solved as blocks instead */
+    long lcp_block_fallbacks; /* block solves that failed: projected
+                                 Gauss-Seidel on that block instead */
+    int lcp_nan_islands;      /* islands with non-finite data: no impulse */
+    double lcp_residual;      /* largest complementarity error of an exact
+                                 solve (w_i z_i etc., m/s), last frame */
+    double lcp_outer_residual;/* largest outer residual of a split solve, m/s */
+    int substeps;             /* substeps of the frame (1 + time-of-impact
+                                 back-ups) */
     double max_penetration;   /* deepest contact, m, last frame */
     long collider_warnings;   /* ODE collider messages (e.g. contact buffer
                                  overflow), last frame; never printed */

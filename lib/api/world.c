@@ -21,7 +21,8 @@ SC_API sc_world *sc_world_create(const sc_world_config *cfg)
     if (!sc_finite3(c.gravity) || c.workers < 0 || c.workers > SC_MAX_WORKERS || !(c.contact_tol_m > 0) ||
         !isfinite(c.contact_tol_m) || !(c.cluster_deadline_s >= 0) ||
         !isfinite(c.cluster_deadline_s) || (c.key_file && !c.cluster) || c.broadphase < SC_BROADPHASE_AUTO ||
-        c.broadphase > SC_BROADPHASE_SAP || (c.motion_groups != 0 && c.motion_groups != 1)) {
+        c.broadphase > SC_BROADPHASE_SAP || (c.motion_groups != 0 && c.motion_groups != 1) ||
+        c.island_split < 0) {
         sc_set_error(SC_EINVAL);
         return NULL;
     }
@@ -36,6 +37,7 @@ SC_API sc_world *sc_world_create(const sc_world_config *cfg)
     memcpy(w->fcfg.gravity, c.gravity, sizeof w->fcfg.gravity);
     w->fcfg.contact_tol_m = c.contact_tol_m;
     w->fcfg.broadphase = c.broadphase;
+    w->fcfg.island_split = c.island_split;
     /* nodes: this thread (node 0) and workers - 1 worker threads */
     int nodes = c.workers;
     if (nodes == 0) {
@@ -309,8 +311,7 @@ SC_API int sc_world_step(sc_world *w, double dt)
     /* the last frame's figures start again; totals and cluster counts stay */
     sc_stats *st = &w->stats;
     memset(st->stage_s, 0, sizeof st->stage_s);
-    st->lcp_pivots = 0;
-    st->lcp_fallbacks = 0;
+    sc_stats_clear_solver(st);
     st->collider_warnings = 0;
     st->units = 0;
     st->sched_s = 0;

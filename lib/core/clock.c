@@ -1,5 +1,7 @@
 /* clock.c - the clocks the stages time themselves with, and a body's
- * shape pose (the stages' shared helpers, below every stage). */
+ * shape pose and the frame's figures (the stages' shared helpers, below
+ * every stage). */
+#include <math.h>
 #include <string.h>
 #include <time.h>
 
@@ -35,4 +37,60 @@ void sc_stage_add(sc_stats *st, int stage, double t0)
     double dt = sc_cpu_now() - t0;
     st->stage_s[stage] += dt;
     st->stage_total_s[stage] += dt;
+}
+
+void sc_stats_add_solve(sc_stats *st, const sc_solve_info *info)
+{
+    st->lcp_solves++;
+    st->lcp_pivots += info->pivots;
+    st->lcp_fallbacks += info->failures;
+    st->lcp_split += info->split;
+    st->lcp_blocks += info->blocks;
+    if (info->sweeps_max > st->lcp_sweeps_max)
+        st->lcp_sweeps_max = info->sweeps_max;
+    st->lcp_unconverged += info->unconverged;
+    st->lcp_regularised += info->regularised;
+    st->lcp_split_fallbacks += info->split_fallbacks;
+    st->lcp_block_fallbacks += info->block_fallbacks;
+    st->lcp_nan_islands += info->nan_islands;
+    st->lcp_residual = fmax(st->lcp_residual, info->residual_exact);
+    st->lcp_outer_residual = fmax(st->lcp_outer_residual, info->residual_split);
+}
+
+void sc_stats_add_solver(sc_stats *s, const sc_stats *g)
+{
+    s->lcp_solves += g->lcp_solves;
+    s->lcp_pivots += g->lcp_pivots;
+    s->lcp_fallbacks += g->lcp_fallbacks;
+    s->lcp_split += g->lcp_split;
+    s->lcp_blocks += g->lcp_blocks;
+    if (g->lcp_sweeps_max > s->lcp_sweeps_max)
+        s->lcp_sweeps_max = g->lcp_sweeps_max;
+    s->lcp_unconverged += g->lcp_unconverged;
+    s->lcp_regularised += g->lcp_regularised;
+    s->lcp_split_fallbacks += g->lcp_split_fallbacks;
+    s->lcp_block_fallbacks += g->lcp_block_fallbacks;
+    s->lcp_nan_islands += g->lcp_nan_islands;
+    s->lcp_residual = fmax(s->lcp_residual, g->lcp_residual);
+    s->lcp_outer_residual = fmax(s->lcp_outer_residual, g->lcp_outer_residual);
+    if (g->substeps > s->substeps)
+        s->substeps = g->substeps;
+}
+
+void sc_stats_clear_solver(sc_stats *st)
+{
+    st->lcp_solves = 0;
+    st->lcp_pivots = 0;
+    st->lcp_fallbacks = 0;
+    st->lcp_split = 0;
+    st->lcp_blocks = 0;
+    st->lcp_sweeps_max = 0;
+    st->lcp_unconverged = 0;
+    st->lcp_regularised = 0;
+    st->lcp_split_fallbacks = 0;
+    st->lcp_block_fallbacks = 0;
+    st->lcp_nan_islands = 0;
+    st->lcp_residual = 0;
+    st->lcp_outer_residual = 0;
+    st->substeps = 0;
 }

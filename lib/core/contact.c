@@ -1,4 +1,5 @@
-/* contact.c - contact impulses for one island (the paper's step 7).
+/* contact.c - contact impulses for one island (the paper's step 7;
+ * docs/DESIGN.md sections 3 and 11).
  *
  * Baraff's velocity-level formulation: for contact i with pre-impact normal
  * speed v_i (negative when approaching) the impulses p solve
@@ -8,6 +9,14 @@
  * faster than bounce_speed) or 0 for a resting contact (the paper's contact
  * state). Coulomb friction adds two tangent rows per contact bounded by
  * +-mu p_n (a boxed LCP, findex as in ODE). Both go to our Dantzig solver.
+ *
+ * Small islands (up to split_contacts contacts) are one exact LCP. Larger
+ * ones, a pile, are split into blocks of whole pairs, each block an exact
+ * Dantzig solve, iterated by block Gauss-Seidel from last solve's impulses
+ * (warm start) until the outer residual is below tol. The same block
+ * iteration is the last fallback of an exact island, and a block whose
+ * Dantzig solve fails takes projected Gauss-Seidel: no island fails for
+ * numerical reasons, and every fallback is counted (sc_solve_info).
  *
  * Resting contacts keep a small penetration; deeper ones are pushed out by
  * a second, normal-only LCP on pseudo velocities (split impulse): positions
@@ -22,6 +31,7 @@
 
 typedef struct row {
     int a, b;                 /* body indices (static or asleep: W = 0) */
+    int la, lb;               /* their slots in the island's local velocities */
     double ja[6], jb[6];      /* Jacobian: linear, angular */
     double wa[6], wb[6];      /* W J^T per body */
 } row;
@@ -54,6 +64,7 @@ static void make_row(row *rw, const sc_body *bodies, const sc_contact *c, const 
     v3_sub(rb, c->pos, B->x);
     rw->a = c->body_a;
     rw->b = c->body_b;
+    rw->la = rw->lb = -1;
     row_body(A, ra, d, -1.0, rw->ja, rw->wa);
     row_body(B, rb, d, +1.0, rw->jb, rw->wb);
 }
@@ -75,6 +86,32 @@ static double row_speed(const row *rw, const sc_body *bodies, int pre)
     return dot6(rw->ja, ua) + dot6(rw->jb, ub);
 }
 
+/* J u for a row on the island's local velocities (6 per slot). */
+static double local_speed(const row *rw, const double *u)
+{
+    return dot6(rw->ja, &u[6 * rw->la]) + dot6(rw->jb, &u[6 * rw->lb]);
+}
+
+static void local_apply(const row *rw, double dz, double *u)
+{
+    double *ua = &u[6 * rw->la], *ub = &u[6 * rw->lb];
+    for (int k = 0; k < 6; k++) {
+        ua[k] += rw->wa[k] * dz;
+        ub[k] += rw->wb[k] * dz;
+    }
+}
+
+/* A_rs = J_r W J_s^T */
+static double a_entry(const row *r, const row *s)
+{
+    double v = 0;
+    if (r->a == s->a) v += dot6(r->ja, s->wa);
+    if (r->a == s->b) v += dot6(r->ja, s->wb);
+    if (r->b == s->a) v += dot6(r->jb, s->wa);
+    if (r->b == s->b) v += dot6(r->jb, s->wb);
+    return v;
+}
+
 /* A = J W J^T over the given rows (dense, symmetric), plus a compliance
  * of 1e-6 of its largest diagonal entry on the diagonal: several contacts
  * on one face make A singular and the split of the load among them
@@ -87,15 +124,8 @@ static void build_a(const row *rows, const int *sel, int n, double *A)
 {
     for (int i = 0; i < n; i++) {
         const row *r = &rows[sel ? sel[i] : i];
-        for (int k = i; k < n; k++) {
-            const row *s = &rows[sel ? sel[k] : k];
-            double v = 0;
-            if (r->a == s->a) v += dot6(r->ja, s->wa);
-            if (r->a == s->b) v += dot6(r->ja, s->wb);
-            if (r->b == s->a) v += dot6(r->jb, s->wa);
-            if (r->b == s->b) v += dot6(r->jb, s->wb);
-            A[i * n + k] = A[k * n + i] = v;
-        }
+        for (int k = i; k < n; k++)
+            A[i * n + k] = A[k * n + i] = a_entry(r, &rows[sel ? sel[k] : k]);
     }
     double dmax = 0;
     for (int i = 0; i < n; i++)
@@ -104,17 +134,42 @@ static void build_a(const row *rows, const int *sel, int n, double *A)
         A[i * n + i] += COMPLIANCE * dmax;
 }
 
+/* Exact islands of more contacts than this start from last frame's
+ * impulses. */
+#define WARM_MIN_CONTACTS 4
+
+enum {
+    SOLVE_WARM = 1,           /* z holds a guess to start from */
+    SOLVE_FAIL = 2,           /* a test's injected fault: fail without a solve */
+};
+
+static int lcp_call(sc_arena *a, int n, double *A, const double *q, const double *lo,
+                    const double *hi, const int *findex, const double *mu, double *z,
+                    double *w, sc_lcp_info *li, int warm)
+{
+    if (warm)
+        return lo ? sc_lcp_boxed_warm_in(a, n, A, q, lo, hi, findex, mu, z, w, li)
+                  : sc_lcp_dantzig_warm_in(a, n, A, q, z, w, li);
+    return lo ? sc_lcp_boxed_in(a, n, A, q, lo, hi, findex, mu, z, w, li)
+              : sc_lcp_dantzig_in(a, n, A, q, z, w, li);
+}
+
 /* Solve, and on failure retry once with the diagonal raised by 1e-9 of its
- * largest entry (redundant contacts make A singular); counted, never hidden. */
+ * largest entry (redundant contacts make A singular); counted, never hidden.
+ * flags: SOLVE_*. */
 static int solve(sc_arena *a, int n, double *A, const double *q, const double *lo,
                  const double *hi, const int *findex, const double *mu, double *z, double *w,
-                 sc_solve_info *info)
+                 sc_solve_info *info, int flags)
 {
+    if (flags & SOLVE_FAIL)
+        return SC_EMAXITER;
+    int warm = (flags & SOLVE_WARM) != 0;
     sc_lcp_info li = { 0 };
-    int rc = lo ? sc_lcp_boxed_in(a, n, A, q, lo, hi, findex, mu, z, w, &li)
-                : sc_lcp_dantzig_in(a, n, A, q, z, w, &li);
+    int rc = lcp_call(a, n, A, q, lo, hi, findex, mu, z, w, &li, warm);
     info->pivots += li.pivots;
     info->lemke += li.lemke;
+    if (rc == SC_OK)
+        info->residual_exact = fmax(info->residual_exact, li.residual);
     if (rc == SC_OK || rc == SC_EINVAL || rc == SC_ENOMEM)
         return rc;
     double dmax = 0;
@@ -122,12 +177,26 @@ static int solve(sc_arena *a, int n, double *A, const double *q, const double *l
         dmax = fmax(dmax, A[i * n + i]);
     for (int i = 0; i < n; i++)
         A[i * n + i] += 1e-9 * dmax + 1e-300;
-    rc = lo ? sc_lcp_boxed_in(a, n, A, q, lo, hi, findex, mu, z, w, &li)
-            : sc_lcp_dantzig_in(a, n, A, q, z, w, &li);
+    rc = lcp_call(a, n, A, q, lo, hi, findex, mu, z, w, &li, 0);
     info->pivots += li.pivots;
-    if (rc == SC_OK)
+    if (rc == SC_OK) {
         info->regularised++;
+        info->residual_exact = fmax(info->residual_exact, li.residual);
+    }
     return rc;
+}
+
+/* Move a movable body by h times a pseudo velocity (6: linear, angular). */
+static void move_body(sc_body *b, const double u[6], double h)
+{
+    v3_madd(b->x, b->x, u, h);
+    double dw[3];
+    v3_scale(dw, u + 3, h);
+    double wq[4] = { 0, dw[0], dw[1], dw[2] }, dq[4];
+    q_mul(dq, wq, b->q);
+    for (int i = 0; i < 4; i++)
+        b->q[i] += 0.5 * dq[i];
+    q_normalize(b->q);
 }
 
 static void apply(const row *rw, double z, sc_body *bodies, int pseudo, double h)
@@ -142,28 +211,20 @@ static void apply(const row *rw, double z, sc_body *bodies, int pseudo, double h
             v3_madd(b->v, b->v, wj[k], z);
             v3_madd(b->w, b->w, wj[k] + 3, z);
         } else {
-            /* move by h times the pseudo velocity */
-            v3_madd(b->x, b->x, wj[k], z * h);
-            double dw[3];
-            v3_scale(dw, wj[k] + 3, z * h);
-            double wq[4] = { 0, dw[0], dw[1], dw[2] }, dq[4];
-            q_mul(dq, wq, b->q);
-            for (int i = 0; i < 4; i++)
-                b->q[i] += 0.5 * dq[i];
-            q_normalize(b->q);
+            double u[6];
+            for (int i = 0; i < 6; i++)
+                u[i] = wj[k][i] * z;
+            move_body(b, u, h);
         }
     }
 }
 
-/* Tangent directions: t1 along the sliding velocity when the contact
- * slides, so that the friction pyramid's edge opposes the motion exactly
- * (as ODE's fdir1); otherwise a fixed rule, the axis least aligned with n. */
 /* The staggered fallback (see sc_island_solve): rows[nsel[k]] are the
  * normals; scratch holds 6 n doubles, the first n the rows' q; sel room
- * for n ints. */
+ * for n ints. The impulses applied are left in zrow (scratch + 5 n). */
 static int staggered(sc_arena *arena, const row *rows, int nrows, const int *nsel, int nn,
                      const int *findex, const double *mu, sc_body *bodies, double *A,
-                     double *scratch, int *sel, sc_solve_info *info)
+                     double *scratch, int *sel, sc_solve_info *info, int fail)
 {
     size_t n = (size_t)nrows;
     double *q = scratch, *lo = scratch + n, *hi = scratch + 2 * n, *z = scratch + 3 * n,
@@ -171,7 +232,7 @@ static int staggered(sc_arena *arena, const row *rows, int nrows, const int *nse
     build_a(rows, nsel, nn, A);
     for (int k = 0; k < nn; k++)
         q[k] = q[nsel[k]];       /* the normals' q, restitution included; nsel[k] >= k */
-    int rc = solve(arena, nn, A, q, NULL, NULL, NULL, NULL, z, w, info);
+    int rc = solve(arena, nn, A, q, NULL, NULL, NULL, NULL, z, w, info, fail ? SOLVE_FAIL : 0);
     if (rc != SC_OK)
         return rc;
     for (int i = 0; i < nrows; i++)
@@ -181,13 +242,12 @@ static int staggered(sc_arena *arena, const row *rows, int nrows, const int *nse
         apply(&rows[nsel[k]], z[k], bodies, 0, 0);
     }
     /* tangents, bounds fixed by the normal impulses just applied */
-    int nt = nrows - nn;
-    if (nt == 0)
-        return SC_OK;
-    nt = 0;
+    int nt = 0;
     for (int i = 0; i < nrows; i++)
         if (findex[i] >= 0)
             sel[nt++] = i;
+    if (nt == 0)
+        return SC_OK;
     build_a(rows, sel, nt, A);
     for (int k = 0; k < nt; k++) {
         int r = sel[k];
@@ -195,13 +255,18 @@ static int staggered(sc_arena *arena, const row *rows, int nrows, const int *nse
         hi[k] = mu[r] * zrow[findex[r]];
         lo[k] = -hi[k];
     }
-    rc = solve(arena, nt, A, q, lo, hi, NULL, NULL, z, w, info);
+    rc = solve(arena, nt, A, q, lo, hi, NULL, NULL, z, w, info, 0);
     if (rc == SC_OK)
-        for (int k = 0; k < nt; k++)
+        for (int k = 0; k < nt; k++) {
+            zrow[sel[k]] = z[k];
             apply(&rows[sel[k]], z[k], bodies, 0, 0);
+        }
     return rc;
 }
 
+/* Tangent directions: t1 along the sliding velocity when the contact
+ * slides, so that the friction pyramid's edge opposes the motion exactly
+ * (as ODE's fdir1); otherwise a fixed rule, the axis least aligned with n. */
 static void tangents(const sc_body *bodies, const sc_contact *c, double t1[3], double t2[3])
 {
     const double *n = c->normal;
@@ -229,7 +294,365 @@ static void tangents(const sc_body *bodies, const sc_contact *c, double t1[3], d
     v3_cross(t2, n, t1);
 }
 
-int sc_island_solve(sc_arena *arena, sc_body *bodies, const sc_contact *c, const int *ci, int nc,
+/* ---- block Gauss-Seidel (split islands) ------------------------------ */
+
+/* An island's rows as blocks: block k is rows [bstart[k], bstart[k + 1]),
+ * whole contacts of whole pairs, its matrix (compliance included) at
+ * amat + aoff[k]. */
+typedef struct blocks {
+    int count;
+    int *bstart;
+    size_t *aoff;
+    double *amat;
+    double *diag;             /* A_rr of every row */
+} blocks;
+
+/* The problem the blocks iterate on: w = J u + off, bounds lo/hi or, for
+ * friction rows (findex >= 0), +-mu z[findex]; u the local velocities. */
+typedef struct gs_problem {
+    const row *rows;
+    int nrows;
+    const double *off, *lo, *hi, *mu;
+    const int *findex;        /* island row indices, -1 none; NULL: none */
+} gs_problem;
+
+static void row_bounds(const gs_problem *pb, const double *z, int r, double *lo, double *hi)
+{
+    if (pb->findex && pb->findex[r] >= 0) {
+        *hi = pb->mu[r] * z[pb->findex[r]];
+        *lo = -*hi;
+    } else {
+        *lo = pb->lo[r];
+        *hi = pb->hi[r];
+    }
+}
+
+/* Split rows at pair boundaries into blocks of about per contacts; rows
+ * of one contact are consecutive, cstart[k] the first row of contact k. */
+static int blocks_build(sc_arena *a, const row *rows, int nrows, const int *cstart, int nc,
+                        int per, blocks *bl)
+{
+    memset(bl, 0, sizeof *bl);
+    bl->bstart = sc_arena_alloc(a, (size_t)(nc + 1) * sizeof *bl->bstart);
+    bl->aoff = bl->bstart ? sc_arena_alloc(a, (size_t)(nc + 1) * sizeof *bl->aoff) : NULL;
+    bl->diag = bl->aoff ? sc_arena_alloc(a, (size_t)nrows * sizeof *bl->diag) : NULL;
+    if (!bl->diag)
+        return SC_ENOMEM;
+    int nb = 0, inblock = 0;
+    size_t total = 0;
+    bl->bstart[0] = 0;
+    for (int k = 0; k < nc; k++) {
+        int r = cstart[k];
+        int new_pair = k == 0 || rows[r].a != rows[cstart[k - 1]].a ||
+                       rows[r].b != rows[cstart[k - 1]].b;
+        if (k > 0 && new_pair && inblock >= per) {
+            int len = r - bl->bstart[nb];
+            bl->aoff[nb] = total;
+            total += (size_t)len * (size_t)len;
+            bl->bstart[++nb] = r;
+            inblock = 0;
+        }
+        inblock++;
+    }
+    int len = nrows - bl->bstart[nb];
+    bl->aoff[nb] = total;
+    total += (size_t)len * (size_t)len;
+    bl->bstart[++nb] = nrows;
+    bl->count = nb;
+    bl->amat = sc_arena_alloc(a, total * sizeof *bl->amat);
+    if (!bl->amat)
+        return SC_ENOMEM;
+    for (int k = 0; k < nb; k++) {
+        int r0 = bl->bstart[k], m = bl->bstart[k + 1] - r0;
+        double *A = bl->amat + bl->aoff[k];
+        build_a(rows + r0, NULL, m, A);
+        for (int i = 0; i < m; i++)
+            bl->diag[r0 + i] = A[i * m + i];
+    }
+    return SC_OK;
+}
+
+static void blocks_free(sc_arena *a, blocks *bl)
+{
+    sc_arena_free(a, bl->amat);
+    sc_arena_free(a, bl->diag);
+    sc_arena_free(a, bl->aoff);
+    sc_arena_free(a, bl->bstart);
+}
+
+/* Projected Gauss-Seidel on one block (the fallback when its Dantzig solve
+ * fails): z clamped row by row into its bounds, always finite. */
+#define PGS_ITER 30
+
+static void block_pgs(const gs_problem *pb, const blocks *bl, int k, double *z, double *u)
+{
+    int r0 = bl->bstart[k], r1 = bl->bstart[k + 1];
+    for (int it = 0; it < PGS_ITER; it++)
+        for (int r = r0; r < r1; r++) {
+            double d = bl->diag[r];
+            if (!(d > 0))
+                continue;
+            double lo, hi;
+            row_bounds(pb, z, r, &lo, &hi);
+            double w = local_speed(&pb->rows[r], u) + pb->off[r];
+            double zn = fmin(fmax(z[r] - w / d, lo), hi);
+            local_apply(&pb->rows[r], zn - z[r], u);
+            z[r] = zn;
+        }
+}
+
+/* One block solved exactly with the others held: its LCP is
+ * w_b = A_bb z_b + (J_b u + off_b - A_bb z_b_old). */
+static int block_solve(sc_arena *a, const gs_problem *pb, const blocks *bl, int k, double *z,
+                       double *u, sc_solve_info *info, int fail)
+{
+    int r0 = bl->bstart[k], m = bl->bstart[k + 1] - r0;
+    size_t mm = (size_t)m;
+    double *A = sc_arena_alloc(a, mm * mm * sizeof *A);
+    double *buf = A ? sc_arena_alloc(a, 6 * mm * sizeof *buf) : NULL;
+    int *fx = buf ? sc_arena_alloc(a, mm * sizeof *fx) : NULL;
+    if (!fx) {
+        sc_arena_free(a, buf);
+        sc_arena_free(a, A);
+        return SC_ENOMEM;
+    }
+    double *q = buf, *lo = buf + m, *hi = buf + 2 * m, *mu = buf + 3 * m, *zb = buf + 4 * m,
+           *w = buf + 5 * m;
+    const double *Ab = bl->amat + bl->aoff[k];
+    memcpy(A, Ab, mm * mm * sizeof *A);
+    int friction = 0, finite = 1;
+    for (int i = 0; i < m; i++) {
+        int r = r0 + i;
+        double s = local_speed(&pb->rows[r], u) + pb->off[r];
+        for (int j = 0; j < m; j++)
+            s -= Ab[i * m + j] * z[r0 + j];
+        q[i] = s;
+        finite &= isfinite(s);
+        fx[i] = pb->findex && pb->findex[r] >= 0 ? pb->findex[r] - r0 : -1;
+        friction |= fx[i] >= 0;
+        mu[i] = fx[i] >= 0 ? pb->mu[r] : 0;
+        lo[i] = fx[i] >= 0 ? -INFINITY : pb->lo[r];
+        hi[i] = fx[i] >= 0 ? INFINITY : pb->hi[r];
+    }
+    int rc = SC_OK;
+    if (!finite) {
+        info->nan_islands++;      /* leave the block as it was */
+    } else {
+        info->blocks++;
+        sc_solve_info bi = { 0 };
+        for (int i = 0; i < m; i++)
+            zb[i] = z[r0 + i];    /* the last iterate: a warm start */
+        rc = solve(a, m, A, q, lo, hi, friction ? fx : NULL, mu, zb, w, &bi,
+                   SOLVE_WARM | (fail ? SOLVE_FAIL : 0));
+        info->pivots += bi.pivots;
+        info->lemke += bi.lemke;
+        info->regularised += bi.regularised;
+        if (rc == SC_OK) {
+            for (int i = 0; i < m; i++) {
+                local_apply(&pb->rows[r0 + i], zb[i] - z[r0 + i], u);
+                z[r0 + i] = zb[i];
+            }
+        } else if (rc != SC_ENOMEM && rc != SC_EINVAL) {
+            info->block_fallbacks++;
+            block_pgs(pb, bl, k, z, u);
+            rc = SC_OK;
+        }
+    }
+    sc_arena_free(a, fx);
+    sc_arena_free(a, buf);
+    sc_arena_free(a, A);
+    return rc;
+}
+
+/* The outer residual in m/s: for every row, how far z is from the answer
+ * of that row alone given the others (the natural residual
+ * |z - clamp(z - w / A_rr, lo, hi)|, times A_rr). */
+static double residual(const gs_problem *pb, const blocks *bl, const double *z, const double *u)
+{
+    double res = 0;
+    for (int r = 0; r < pb->nrows; r++) {
+        double d = bl->diag[r];
+        if (!(d > 0))
+            continue;
+        double lo, hi;
+        row_bounds(pb, z, r, &lo, &hi);
+        double w = local_speed(&pb->rows[r], u) + pb->off[r];
+        res = fmax(res, fabs(z[r] - fmin(fmax(z[r] - w / d, lo), hi)) * d);
+    }
+    return res;
+}
+
+/* Block Gauss-Seidel, sweeps alternating forwards and backwards (the
+ * symmetric order converges faster on chains and stacks), from z (warm
+ * start, already in u) until the residual is at most tol or max_sweeps. */
+static int block_gs(sc_arena *a, const gs_problem *pb, const blocks *bl, double *z, double *u,
+                    const sc_contact_params *p, double tol, sc_solve_info *info)
+{
+    int sweeps = 0, rc = SC_OK;
+    double res = residual(pb, bl, z, u);
+    int fail = (p->inject & SC_INJECT_BLOCK) != 0;
+    while (res > tol && sweeps < p->max_sweeps && rc == SC_OK) {
+        for (int i = 0; i < bl->count && rc == SC_OK; i++) {
+            int k = sweeps % 2 == 0 ? i : bl->count - 1 - i;
+            rc = block_solve(a, pb, bl, k, z, u, info, fail);
+        }
+        sweeps++;
+        res = residual(pb, bl, z, u);
+    }
+    if (rc != SC_OK)
+        return rc;
+    if (!isfinite(res))
+        res = INFINITY;
+    info->sweeps_max = sweeps > info->sweeps_max ? sweeps : info->sweeps_max;
+    info->unconverged += res > tol;
+    info->residual_split = fmax(info->residual_split, res);
+    return SC_OK;
+}
+
+static int cmp_int(const void *x, const void *y)
+{
+    int a = *(const int *)x, b = *(const int *)y;
+    return (a > b) - (a < b);
+}
+
+/* Local velocity slots: every body of the rows gets one (immovable ones
+ * too: with W = 0 they keep their velocity). *body_out lists the slots'
+ * bodies (sorted); returns the slot count or SC_ENOMEM. */
+static int slots_build(sc_arena *a, row *rows, int nrows, int **body_out)
+{
+    int *body = sc_arena_alloc(a, (size_t)(2 * nrows) * sizeof *body);
+    if (!body)
+        return SC_ENOMEM;
+    int m = 0;
+    for (int r = 0; r < nrows; r++) {
+        body[m++] = rows[r].a;
+        body[m++] = rows[r].b;
+    }
+    qsort(body, (size_t)m, sizeof *body, cmp_int);
+    int u = 0;
+    for (int i = 0; i < m; i++)
+        if (u == 0 || body[u - 1] != body[i])
+            body[u++] = body[i];
+    for (int r = 0; r < nrows; r++) {
+        rows[r].la = (int)((int *)bsearch(&rows[r].a, body, (size_t)u, sizeof *body, cmp_int) - body);
+        rows[r].lb = (int)((int *)bsearch(&rows[r].b, body, (size_t)u, sizeof *body, cmp_int) - body);
+    }
+    *body_out = body;
+    return u;
+}
+
+/* Rows solved by blocks: local velocities from the bodies (pseudo: from
+ * 0), warm start z applied, block Gauss-Seidel, then velocities written
+ * back (pseudo: bodies moved by h times them). cstart[k] is the first row
+ * of contact k. */
+static int solve_split(sc_arena *a, row *rows, int nrows, const int *cstart, int nc,
+                       const gs_problem *pb_in, double *z, sc_body *bodies, int pseudo, double h,
+                       const sc_contact_params *p, double tol, sc_solve_info *info)
+{
+    int *body = NULL;
+    int m = slots_build(a, rows, nrows, &body);
+    if (m < 0)
+        return m;
+    double *u = sc_arena_alloc(a, (size_t)m * 6 * sizeof *u);
+    blocks bl = { 0 };
+    int rc = u ? blocks_build(a, rows, nrows, cstart, nc, p->block_contacts > 0 ? p->block_contacts : 1, &bl)
+               : SC_ENOMEM;
+    if (rc == SC_OK) {
+        for (int i = 0; i < m; i++) {
+            const sc_body *b = &bodies[body[i]];
+            if (pseudo) {
+                memset(&u[6 * i], 0, 6 * sizeof *u);
+            } else {
+                memcpy(&u[6 * i], b->v, 3 * sizeof *u);
+                memcpy(&u[6 * i + 3], b->w, 3 * sizeof *u);
+            }
+        }
+        for (int r = 0; r < nrows; r++)
+            if (z[r] != 0)
+                local_apply(&rows[r], z[r], u);
+        gs_problem pb = *pb_in;
+        pb.rows = rows;
+        pb.nrows = nrows;
+        rc = block_gs(a, &pb, &bl, z, u, p, tol, info);
+    }
+    if (rc == SC_OK)
+        for (int i = 0; i < m; i++) {
+            sc_body *b = &bodies[body[i]];
+            if (!movable(b))
+                continue;
+            if (pseudo) {
+                move_body(b, &u[6 * i], h);
+            } else {
+                memcpy(b->v, &u[6 * i], 3 * sizeof *u);
+                memcpy(b->w, &u[6 * i + 3], 3 * sizeof *u);
+            }
+        }
+    if (bl.bstart)
+        blocks_free(a, &bl);
+    sc_arena_free(a, u);
+    sc_arena_free(a, body);
+    return rc;
+}
+
+/* Islands past this many rows are refused (SC_ETOOMANY): split or not,
+ * their rows alone take more memory than a frame should. */
+#define SPLIT_MAX_ROWS (1 << 20)
+
+/* The push-out of deep contacts: a normal-only LCP on pseudo velocities
+ * (target: remove baumgarte of the depth past slop in h), exact for small
+ * islands, by blocks for split ones or when the exact solve fails. */
+static int push_out(sc_arena *a, const row *rows, const int *nsel, int nn, const sc_contact *c,
+                    const int *ci, sc_body *bodies, double h, const sc_contact_params *p,
+                    int split, sc_solve_info *info)
+{
+    size_t n = (size_t)nn;
+    double *buf = sc_arena_alloc(a, 5 * n * sizeof *buf);
+    int *cs = buf ? sc_arena_alloc(a, n * sizeof *cs) : NULL;
+    row *nr = cs ? sc_arena_alloc(a, n * sizeof *nr) : NULL;
+    if (!nr) {
+        sc_arena_free(a, cs);
+        sc_arena_free(a, buf);
+        return SC_ENOMEM;
+    }
+    double *q = buf, *z = buf + n, *w = buf + 2 * n, *lo = buf + 3 * n, *hi = buf + 4 * n;
+    double qmax = 0;
+    for (int k = 0; k < nn; k++) {
+        q[k] = -p->baumgarte * fmax(c[ci[k]].depth - p->slop, 0.0) / h;
+        qmax = fmax(qmax, -q[k]);
+        nr[k] = rows[nsel[k]];
+        cs[k] = k;
+        lo[k] = 0;
+        hi[k] = INFINITY;
+        z[k] = 0;
+    }
+    int rc = SC_ETOOMANY;
+    if (!split) {
+        double *A = sc_arena_alloc(a, n * n * sizeof *A);
+        rc = A ? SC_OK : SC_ENOMEM;
+        if (A) {
+            build_a(nr, NULL, nn, A);
+            rc = solve(a, nn, A, q, NULL, NULL, NULL, NULL, z, w, info, 0);
+            sc_arena_free(a, A);
+        }
+        if (rc == SC_OK)
+            for (int k = 0; k < nn; k++)
+                apply(&nr[k], z[k], bodies, 1, h);
+        else if (rc != SC_ENOMEM)
+            for (int k = 0; k < nn; k++)
+                z[k] = 0;
+    }
+    if (rc != SC_OK && rc != SC_ENOMEM) {
+        gs_problem pb = { .off = q, .lo = lo, .hi = hi };
+        rc = solve_split(a, nr, nn, cs, nn, &pb, z, bodies, 1, h, p, fmax(p->tol, 1e-3 * qmax),
+                         info);
+    }
+    sc_arena_free(a, nr);
+    sc_arena_free(a, cs);
+    sc_arena_free(a, buf);
+    return rc;
+}
+
+int sc_island_solve(sc_arena *arena, sc_body *bodies, sc_contact *c, const int *ci, int nc,
                     double h, const sc_contact_params *p, sc_solve_info *info)
 {
     if (nc == 0)
@@ -240,32 +663,34 @@ int sc_island_solve(sc_arena *arena, sc_body *bodies, const sc_contact *c, const
         const sc_contact *ck = &c[ci[k]];
         double mu = sqrt(bodies[ck->body_a].friction * bodies[ck->body_b].friction);
         nrows += mu > 0 ? 3 : 1;
-        if (nrows > SC_MAX_ISLAND_ROWS)
+        if (nrows > SPLIT_MAX_ROWS)
             return SC_ETOOMANY;    /* not a misleading out-of-memory later */
     }
+    /* one exact LCP up to split_contacts (and SC_MAX_ISLAND_ROWS), else blocks */
+    int split = (p->split_contacts > 0 && nc > p->split_contacts) || nrows > SC_MAX_ISLAND_ROWS;
     size_t n = (size_t)nrows;
     /* per island, from the thread's arena: no allocation once it has
      * grown to the largest island */
-    if (n > SIZE_MAX / sizeof(double) / n)
-        return SC_ETOOBIG;
     row *rows = sc_arena_alloc(arena, n * sizeof *rows);
-    double *A = rows ? sc_arena_alloc(arena, n * n * sizeof *A) : NULL;
-    double *buf = A ? sc_arena_alloc(arena, n * 6 * sizeof *buf) : NULL;
+    double *A = rows && !split ? sc_arena_alloc(arena, n * n * sizeof *A) : NULL;
+    double *buf = rows && (A || split) ? sc_arena_alloc(arena, n * 7 * sizeof *buf) : NULL;
     int *findex = buf ? sc_arena_alloc(arena, n * sizeof *findex) : NULL;
     int *nsel = findex ? sc_arena_alloc(arena, n * sizeof *nsel) : NULL;
     int *sel = nsel ? sc_arena_alloc(arena, n * sizeof *sel) : NULL;
+    int *cstart = sel ? sc_arena_alloc(arena, (size_t)nc * sizeof *cstart) : NULL;
     int rc = SC_ENOMEM;
-    if (!sel)
+    if (!cstart)
         goto out;
     double *q = buf, *lo = buf + n, *hi = buf + 2 * n, *mu = buf + 3 * n, *z = buf + 4 * n,
-           *w = buf + 5 * n;
-    int r = 0, nn = 0, friction = 0;
+           *w = buf + 5 * n, *off = buf + 6 * n;
+    int r = 0, nn = 0, friction = 0, finite = 1;
     for (int k = 0; k < nc; k++) {
-        const sc_contact *ck = &c[ci[k]];
+        sc_contact *ck = &c[ci[k]];
         const sc_body *A_ = &bodies[ck->body_a], *B_ = &bodies[ck->body_b];
         double e = fmax(A_->restitution, B_->restitution);
         double m = sqrt(A_->friction * B_->friction);
         int rn = r;
+        cstart[k] = r;
         make_row(&rows[r], bodies, ck, ck->normal);
         double vpre = row_speed(&rows[r], bodies, 1);
         int collide = vpre < -p->bounce_speed;
@@ -279,11 +704,15 @@ int sc_island_solve(sc_arena *arena, sc_body *bodies, const sc_contact *c, const
         /* a collision is an impulse at the start of the substep, before the
          * external forces act: target J u' = -e v_pre + (J u* - J u0), so
          * w = A p + (1 + e) v_pre. A resting contact absorbs the forces. */
-        q[r] = collide ? (1 + e) * vpre : row_speed(&rows[r], bodies, 0);
+        double speed = row_speed(&rows[r], bodies, 0);
+        q[r] = collide ? (1 + e) * vpre : speed;
+        off[r] = q[r] - speed;
         lo[r] = 0;
         hi[r] = INFINITY;
         findex[r] = -1;
         mu[r] = 0;
+        /* warm start: last solve's impulse on this contact, projected */
+        z[r] = fmax(v3_dot(ck->impulse, ck->normal), 0.0);
         nsel[nn++] = r;
         r++;
         if (m > 0) {
@@ -291,48 +720,101 @@ int sc_island_solve(sc_arena *arena, sc_body *bodies, const sc_contact *c, const
             tangents(bodies, ck, t[0], t[1]);
             for (int j = 0; j < 2; j++, r++) {
                 make_row(&rows[r], bodies, ck, t[j]);
-                q[r] = row_speed(&rows[r], bodies, 0);
+                speed = row_speed(&rows[r], bodies, 0);
+                q[r] = speed;
+                off[r] = 0;
                 lo[r] = -INFINITY;
                 hi[r] = INFINITY;
                 findex[r] = rn;
                 mu[r] = m;
+                double b = m * z[rn];
+                z[r] = fmin(fmax(v3_dot(ck->impulse, t[j]), -b), b);
             }
             friction = 1;
         }
     }
-    build_a(rows, NULL, nrows, A);
-    rc = solve(arena, nrows, A, q, lo, hi, friction ? findex : NULL, mu, z, w, info);
-    if (rc != SC_OK && friction && rc != SC_ENOMEM && rc != SC_EINVAL) {
-        /* The friction fixed point can fail (pivot limit, ill-conditioned
-         * near-duplicate rows). Then stagger: normals alone (a PSD LCP the
-         * pivoting solves), then the tangents as a boxed LCP with the bounds
-         * fixed at +-mu p_n. Exact for each half, the coupling of friction
-         * back into the normals is lost for this substep: counted in
-         * sc_stats.lcp_fallbacks, never silent. */
-        info->failures++;
-        rc = staggered(arena, rows, nrows, nsel, nn, findex, mu, bodies, A, buf, sel, info);
-    } else if (rc == SC_OK) {
+    if (p->inject & SC_INJECT_NAN)
+        q[0] = NAN;
+    for (int i = 0; i < nrows; i++)
+        finite &= isfinite(q[i]) && isfinite(z[i]);
+    if (!finite) {
+        /* bodies with non-finite speeds or poses: no impulse rather than a
+         * NaN spread over the island; counted */
+        info->nan_islands++;
         for (int i = 0; i < nrows; i++)
-            apply(&rows[i], z[i], bodies, 0, h);
+            z[i] = 0;
+        rc = SC_OK;
+        goto impulses;
     }
-    if (rc != SC_OK)
-        goto out;
+    if (!split) {
+        build_a(rows, NULL, nrows, A);
+        /* small islands start cold: a few pivots, and the answer does not
+         * depend on the last frame's (the same bits as before warm starts) */
+        rc = solve(arena, nrows, A, q, lo, hi, friction ? findex : NULL, mu, z, w, info,
+                   (nc > WARM_MIN_CONTACTS ? SOLVE_WARM : 0) |
+                       (p->inject & SC_INJECT_COUPLED ? SOLVE_FAIL : 0));
+        if (rc == SC_OK) {
+            for (int i = 0; i < nrows; i++)
+                apply(&rows[i], z[i], bodies, 0, h);
+        } else if (rc != SC_ENOMEM && rc != SC_EINVAL) {
+            int fail_st = (p->inject & SC_INJECT_STAGGERED) != 0;
+            for (int i = 0; i < nrows; i++)
+                z[i] = 0;
+            if (friction) {
+                /* The friction fixed point can fail (pivot limit,
+                 * ill-conditioned near-duplicate rows). Then stagger:
+                 * normals alone (a PSD LCP the pivoting solves), then the
+                 * tangents as a boxed LCP with the bounds fixed at +-mu p_n.
+                 * Exact for each half, the coupling of friction back into
+                 * the normals is lost for this substep: counted in
+                 * sc_stats.lcp_fallbacks, never silent. */
+                info->failures++;
+                double *sbuf = sc_arena_alloc(arena, 6 * n * sizeof *sbuf);
+                rc = SC_ENOMEM;
+                if (sbuf) {
+                    memcpy(sbuf, q, n * sizeof *q);
+                    memset(sbuf + 5 * n, 0, n * sizeof *sbuf);
+                    rc = staggered(arena, rows, nrows, nsel, nn, findex, mu, bodies, A, sbuf,
+                                   sel, info, fail_st);
+                    memcpy(z, sbuf + 5 * n, n * sizeof *z);   /* what it applied */
+                    sc_arena_free(arena, sbuf);
+                }
+            }
+            if (rc != SC_OK && rc != SC_ENOMEM) {
+                /* last resort: blocks, from what was applied (in z) */
+                info->split_fallbacks++;
+                split = 1;
+            }
+        }
+        if (rc != SC_OK && !split)
+            goto out;
+    }
+    if (split) {
+        info->split++;
+        gs_problem pb = { .off = off, .lo = lo, .hi = hi, .mu = mu,
+                          .findex = friction ? findex : NULL };
+        rc = solve_split(arena, rows, nrows, cstart, nc, &pb, z, bodies, 0, h, p, p->tol, info);
+        if (rc != SC_OK)
+            goto out;
+    }
 
     /* split impulse: push deep contacts out by pseudo velocities */
     int deep = 0;
     for (int k = 0; k < nc; k++)
         deep |= c[ci[k]].depth > p->slop;
-    if (!deep)
-        goto out;
-    build_a(rows, nsel, nn, A);
-    for (int k = 0; k < nn; k++)
-        q[k] = -p->baumgarte * fmax(c[ci[k]].depth - p->slop, 0.0) / h;
-    rc = solve(arena, nn, A, q, NULL, NULL, NULL, NULL, z, w, info);
-    if (rc != SC_OK)
-        goto out;
-    for (int k = 0; k < nn; k++)
-        apply(&rows[nsel[k]], z[k], bodies, 1, h);
+    if (deep)
+        rc = push_out(arena, rows, nsel, nn, c, ci, bodies, h, p, split, info);
+impulses:
+    /* the impulses, for the next solve's warm start (and the caller) */
+    for (int k = 0; k < nc; k++) {
+        sc_contact *ck = &c[ci[k]];
+        int r0 = cstart[k], r1 = k + 1 < nc ? cstart[k + 1] : nrows;
+        v3_scale(ck->impulse, ck->normal, z[r0]);
+        for (int j = r0 + 1; j < r1; j++)
+            v3_madd(ck->impulse, ck->impulse, rows[j].jb, z[j]);
+    }
 out:
+    sc_arena_free(arena, cstart);
     sc_arena_free(arena, sel);
     sc_arena_free(arena, nsel);
     sc_arena_free(arena, findex);

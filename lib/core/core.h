@@ -105,21 +105,47 @@ typedef struct sc_body {
                                        in this frame, 0: none this frame */
 } sc_body;
 
-/* Contact model constants (Baraff's velocity-level LCP, the paper's states). */
+/* Contact model constants (Baraff's velocity-level LCP, the paper's states)
+ * and the solver's settings (docs/DESIGN.md section 11). */
 typedef struct sc_contact_params {
     double bounce_speed;            /* m/s: approach faster = collision (restitution),
                                        slower = resting contact (e = 0) */
     double slop;                    /* m of penetration left alone */
     double baumgarte;               /* fraction of the rest removed per substep */
+    int split_contacts;             /* islands with more contacts are split into
+                                       blocks (block Gauss-Seidel); 0: never */
+    int block_contacts;             /* contacts per block (whole pairs) */
+    double tol;                     /* outer residual to reach, m/s */
+    int max_sweeps;                 /* outer sweeps at most */
+    int inject;                     /* tests only: SC_INJECT_* faults */
 } sc_contact_params;
+
+/* Faults a test can inject (sc_contact_params.inject), one per fallback. */
+enum {
+    SC_INJECT_COUPLED = 1,          /* the coupled friction LCP fails */
+    SC_INJECT_STAGGERED = 2,        /* the staggered solve fails too */
+    SC_INJECT_BLOCK = 4,            /* every block's Dantzig solve fails */
+    SC_INJECT_NAN = 8,              /* a NaN appears in the island's data */
+};
 
 typedef struct sc_solve_info {
     long pivots;
-    int failures;                   /* friction LCPs that failed even regularised
-                                       (the island was solved without friction) */
+    int failures;                   /* coupled friction LCPs that failed even
+                                       regularised (solved staggered) */
     int regularised;                /* LCPs solved only after regularisation */
     int lemke;                      /* solved by the Lemke fallback */
     int collisions;                 /* contacts resolved with restitution */
+    int split;                      /* islands solved by blocks */
+    int split_fallbacks;            /* of them, exact islands whose staggered
+                                       solve failed too */
+    int blocks;                     /* block solves (blocks x sweeps) */
+    int block_fallbacks;            /* block solves that failed: projected
+                                       Gauss-Seidel on the block instead */
+    int nan_islands;                /* islands with non-finite data: no impulse */
+    int sweeps_max;                 /* most outer sweeps of one split island */
+    int unconverged;                /* split islands that stopped at max_sweeps */
+    double residual_exact;          /* largest LCP residual of an exact island, m/s */
+    double residual_split;          /* largest outer residual of a split island, m/s */
 } sc_solve_info;
 
 /* Contact impulses for one island (the paper's step 7): the velocity LCP
@@ -127,9 +153,11 @@ typedef struct sc_solve_info {
  * position correction that moves bodies out of deep penetration without
  * touching velocities. bodies[*].v/w hold u* (gravity applied), v0/w0 the
  * velocities before it, iw the world inverse inertia. ci lists the
- * island's contact indices into c. Updates v, w (and x, q by h * pseudo
- * velocity). */
-int sc_island_solve(sc_arena *a, sc_body *bodies, const sc_contact *c, const int *ci, int nc,
+ * island's contact indices into c; their impulse fields hold the warm
+ * start (last solve's impulses, matched) and get this solve's. Updates v,
+ * w (and x, q by h * pseudo velocity). Fails only for bad arguments or
+ * memory: numerical trouble takes a counted fallback (info). */
+int sc_island_solve(sc_arena *a, sc_body *bodies, sc_contact *c, const int *ci, int nc,
                     double h, const sc_contact_params *p, sc_solve_info *info);
 
 /* ---- narrow phase (narrowphase.c, manifold.c) ---- */

@@ -14,6 +14,7 @@ SC_API sc_world_config sc_world_config_default(void)
     v3_set(c.gravity, 0, 0, -9.81);
     c.broadphase = SC_BROADPHASE_AUTO;
     c.contact_tol_m = 1e-3;
+    c.island_split = SC_ISLAND_SPLIT_DEFAULT;
     c.internal_cookie = SC_CONFIG_COOKIE;
     return c;
 }

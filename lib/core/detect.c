@@ -111,6 +111,40 @@ int sc_contacts_have_pair(const sc_contact *c, int n, int a, int b)
     return 0;
 }
 
+/* Warm starts (docs/DESIGN.md section 11): each new contact takes the
+ * impulse of the nearest old contact of the same pair not yet taken, when
+ * it lies within a tenth of the smaller body's bounding radius (a resting
+ * contact moves far less in a frame; a new one is farther). Both lists
+ * are sorted by pair. */
+static void match_impulses(const sc_frame_state *st, const sc_contact *old, int nold,
+                           unsigned char *taken)
+{
+    int j0 = 0;
+    for (int k = 0; k < st->ncontacts; k++) {
+        sc_contact *c = &st->contacts[k];
+        while (j0 < nold && (old[j0].body_a < c->body_a ||
+                             (old[j0].body_a == c->body_a && old[j0].body_b < c->body_b)))
+            j0++;
+        double ra = st->bodies[c->body_a].shape->bound_r, rb = st->bodies[c->body_b].shape->bound_r;
+        double r = 0.1 * fmin(ra, rb);
+        int best = -1;
+        double bd = r * r;
+        for (int j = j0; j < nold && old[j].body_a == c->body_a && old[j].body_b == c->body_b; j++) {
+            double d[3];
+            v3_sub(d, old[j].pos, c->pos);
+            double dd = v3_dot(d, d);
+            if (!taken[j] && dd <= bd) {
+                bd = dd;
+                best = j;
+            }
+        }
+        if (best >= 0) {
+            taken[best] = 1;
+            v3_copy(c->impulse, old[best].impulse);
+        }
+    }
+}
+
 /* Step 4, exact: every pair through the narrow phase as work units on the
  * executor, merged in pair order, so the contact list is canonical. */
 static int narrowphase(sc_frame *f, int npairs)
@@ -140,6 +174,23 @@ static int narrowphase(sc_frame *f, int npairs)
         p->touching = sc_contacts_have_pair(st->contacts, st->ncontacts, p->body_a, p->body_b);
         ncontact[i] = 0;
     }
+    /* the old contacts that carry an impulse, for the warm start */
+    int nold = 0;
+    for (int k = 0; k < st->ncontacts; k++)
+        nold += st->contacts[k].impulse[0] != 0 || st->contacts[k].impulse[1] != 0 ||
+                st->contacts[k].impulse[2] != 0;
+    sc_contact *old = rc == SC_OK && nold ? sc_arena_alloc(a, (size_t)nold * sizeof *old) : NULL;
+    unsigned char *taken = old ? sc_arena_alloc(a, (size_t)nold) : NULL;
+    if (nold && rc == SC_OK && !taken)
+        rc = SC_ENOMEM;
+    if (taken) {
+        memset(taken, 0, (size_t)nold);
+        nold = 0;
+        for (int k = 0; k < st->ncontacts; k++)
+            if (st->contacts[k].impulse[0] != 0 || st->contacts[k].impulse[1] != 0 ||
+                st->contacts[k].impulse[2] != 0)
+                old[nold++] = st->contacts[k];
+    }
     sc_job job = {
         .kind = SC_UNIT_COLLIDE,
         .pairs = up,
@@ -164,6 +215,10 @@ static int narrowphase(sc_frame *f, int npairs)
             maxpen = fmax(maxpen, c[k].depth);
         }
     }
+    if (rc == SC_OK && taken)
+        match_impulses(st, old, nold, taken);
+    sc_arena_free(a, taken);
+    sc_arena_free(a, old);
     sc_arena_free(a, uc);
     sc_arena_free(a, ncontact);
     sc_arena_free(a, up);

@@ -12,12 +12,24 @@
 
 #define MAX_SUBSTEPS 16       /* time-of-impact back-ups per frame */
 #define TOI_AIM 0.9           /* back up to this share of the tolerance */
+/* split islands: contacts per block, outer residual (m/s), sweeps */
+#define SPLIT_BLOCK_CONTACTS 4
+#define SPLIT_TOL 1e-3
+#define SPLIT_MAX_SWEEPS 50
 
-static const sc_contact_params contact_params = {
-    .bounce_speed = 0.1,      /* the paper's threshold speed */
-    .slop = 0.5e-3,
-    .baumgarte = 0.2,
-};
+/* The contact model and solver settings (docs/DESIGN.md section 11). */
+static sc_contact_params contact_params(const sc_frame_config *cfg)
+{
+    return (sc_contact_params){
+        .bounce_speed = 0.1,      /* the paper's threshold speed */
+        .slop = 0.5e-3,
+        .baumgarte = 0.2,
+        .split_contacts = cfg->island_split,
+        .block_contacts = SPLIT_BLOCK_CONTACTS,
+        .tol = SPLIT_TOL,
+        .max_sweeps = SPLIT_MAX_SWEEPS,
+    };
+}
 
 /* ---- scratch ---------------------------------------------------------- */
 
@@ -64,13 +76,14 @@ static int substep(sc_frame *f, double h, sc_islands *is, unsigned char *touched
     }
     /* step 7: one work unit per island (islands share no movable body) */
     t0 = sc_cpu_now();
+    sc_contact_params params = contact_params(f->cfg);
     sc_job job = {
         .kind = SC_UNIT_ISLAND,
         .bodies = st->bodies,
         .c = st->contacts,
         .islands = is,
         .h = h,
-        .params = &contact_params,
+        .params = &params,
     };
     rc = f->ex->run(f->ex, &job, SC_STAGE_LCP, f->stats);
     sc_stage_add(f->stats, SC_STAGE_LCP, t0);
@@ -205,6 +218,7 @@ static int substeps(sc_frame *f, double dt, sc_body *saved, unsigned char *touch
                 rc = sc_detect(f);
         }
         sc_arena_free(a, c0);
+        f->stats->substeps++;
         left -= h;
         if (left < 1e-9 * dt)
             left = 0;

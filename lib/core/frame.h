@@ -66,7 +66,7 @@ typedef struct sc_job {
     /* ISLAND: bodies are updated in place (islands share no movable body;
      * static and sleeping ones are only read) */
     sc_body *bodies;
-    const sc_contact *c;
+    sc_contact *c;
     const sc_islands *islands;
     double h;
     const sc_contact_params *params;
@@ -105,6 +105,7 @@ typedef struct sc_frame_config {
     double gravity[3];
     double contact_tol_m;
     int broadphase;                 /* SC_BROADPHASE_* */
+    int island_split;               /* sc_world_config.island_split */
 } sc_frame_config;
 
 /* What a frame reads and writes: the bodies (states in, new states out)
@@ -161,6 +162,12 @@ typedef struct sc_frame {
 
 /* Adding the CPU time since t0 to a Table 1 row of f's figures. */
 void sc_stage_add(sc_stats *st, int stage, double t0);
+/* One island solve's figures into the frame's (sc_stats.lcp_*). */
+void sc_stats_add_solve(sc_stats *st, const sc_solve_info *info);
+/* The solver figures of s2 (a motion group's frame) into s. */
+void sc_stats_add_solver(sc_stats *s, const sc_stats *s2);
+/* Clearing the solver figures for a new frame. */
+void sc_stats_clear_solver(sc_stats *st);
 /* Step 4: pairs and contacts of the current state into f->st->contacts. */
 int sc_detect(sc_frame *f);
 /* Step 3: u* = u + h (g + F/m) (keeping u in v0/w0); positions after the

@@ -354,8 +354,7 @@ static void add_stats(sc_stats *s, const sc_stats *g)
     }
     s->pairs += g->pairs;
     s->islands += g->islands;
-    s->lcp_pivots += g->lcp_pivots;
-    s->lcp_fallbacks += g->lcp_fallbacks;
+    sc_stats_add_solver(s, g);
     s->max_penetration = fmax(s->max_penetration, g->max_penetration);
     s->collider_warnings += g->collider_warnings;
     s->units += g->units;

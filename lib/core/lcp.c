@@ -515,6 +515,21 @@ static int pivot_all(lcp *s)
     return finish(s);
 }
 
+/* The end of a warm pass: repair what the start broke, then drive the
+ * unseen indices as in a first pass. */
+static int warm_finish(lcp *s)
+{
+    const int n = s->n;
+    int rc = finish(s);
+    for (int d = 0; d < n && rc == SC_OK; d++) {
+        if (s->st[d] != ST_UNSEEN)
+            continue;
+        s->w[d] = s->q[d] + row_dot(s->M, s->z, n, d);
+        rc = drive(s, d);
+    }
+    return rc == SC_OK ? finish(s) : rc;
+}
+
 /* A pass that starts from the sets of the previous one (friction rounds,
  * where only some bounds moved, prevlo/prevhi being the old ones): C is
  * rebuilt by bordering in its old order (O(m^2) each, O(m^3) once per
@@ -557,14 +572,45 @@ static int pivot_warm(lcp *s, const double *prevlo, const double *prevhi)
             s->st[i] = hi ? ST_HI : ST_LO;
         }
     }
-    int rc = finish(s);
-    for (int d = 0; d < n && rc == SC_OK; d++) {
-        if (s->st[d] != ST_UNSEEN)
-            continue;
-        s->w[d] = s->q[d] + row_dot(s->M, s->z, n, d);
-        rc = drive(s, d);
+    return warm_finish(s);
+}
+
+/* A pass that starts from a guess (s->z, shifted; the last frame's
+ * impulses, or a block's last iterate): indices strictly inside their
+ * box join C (bordered in index order, when the pivot allows), those at a
+ * bound start there, those at 0 are unseen; then as pivot_warm(). A
+ * guess is only a start: finish() repairs it and verify() checks the
+ * answer as after a cold pass. */
+static int pivot_guess(lcp *s)
+{
+    const int n = s->n;
+    s->f.m = 0;
+    s->f.bordered = -1;
+    s->max_pivots = s->pivots + LCP_MAX_PIVOTS(n);
+    for (int i = 0; i < n; i++) {
+        double z = s->z[i];
+        s->mark[i] = -1;
+        if (!(z != 0) || !isfinite(z)) {
+            s->z[i] = 0;
+            s->st[i] = ST_UNSEEN;
+        } else if (z <= s->lo[i]) {
+            s->z[i] = s->lo[i];
+            s->st[i] = ST_LO;
+        } else if (z >= s->hi[i]) {
+            s->z[i] = s->hi[i];
+            s->st[i] = ST_HI;
+        } else {
+            double scale, piv = sc_ldu_border(&s->f, s->M, i, &scale);
+            if (significant(s, piv, scale)) {
+                sc_ldu_commit(&s->f);
+                s->st[i] = ST_C;
+            } else {
+                s->z[i] = 0;
+                s->st[i] = ST_UNSEEN;
+            }
+        }
     }
-    return rc == SC_OK ? finish(s) : rc;
+    return warm_finish(s);
 }
 
 /* ---- verification -------------------------------------------------------- */
@@ -668,12 +714,14 @@ static int work_init(sc_arena *arena, work *wk, int n, const double *M, int fric
 /* Solve for fixed bounds lo <= hi: shift z by c = clamp(0, lo, hi) so that
  * z = 0 is inside every box (the start point of the method), pivot, shift
  * back into z, check against the original data. */
+enum { START_COLD, START_SETS, START_GUESS };
+
 static int solve_fixed(work *wk, const double *q, const double *lo, const double *hi,
-                       int warm, double *z, double *w, double *residual)
+                       int start, double *z, double *w, double *residual)
 {
     lcp *s = &wk->s;
     const int n = s->n;
-    int shifted = 0;
+    int shifted = 0, warm = start == START_SETS;
     if (warm) {
         memcpy(wk->plo, wk->blo, (size_t)n * sizeof(double));
         memcpy(wk->phi, wk->bhi, (size_t)n * sizeof(double));
@@ -689,12 +737,25 @@ static int solve_fixed(work *wk, const double *q, const double *lo, const double
     s->q = wk->qs;
     s->lo = wk->blo;
     s->hi = wk->bhi;
-    int rc = warm ? pivot_warm(s, wk->plo, wk->phi) : pivot_all(s);
-    if (warm && rc != SC_OK && rc != SC_ENOMEM)
+    int guess = 0;
+    if (start == START_GUESS)
+        for (int i = 0; i < n; i++) {
+            s->z[i] = z[i] - wk->shift[i];
+            guess |= s->z[i] != 0;
+        }
+    int rc = warm ? pivot_warm(s, wk->plo, wk->phi) : guess ? pivot_guess(s) : pivot_all(s);
+    if ((warm || guess) && rc != SC_OK && rc != SC_ENOMEM)
         rc = pivot_all(s);   /* the warm start lost its way: start afresh */
     for (int i = 0; i < n; i++)
         z[i] = fmin(fmax(s->z[i] + wk->shift[i], lo[i]), hi[i]);
     int ok = verify(n, s->M, q, lo, hi, z, w, s->eps_n, residual);
+    if (guess && rc == SC_OK && !ok) {
+        /* a guessed start that ends just outside the tolerance: afresh */
+        rc = pivot_all(s);
+        for (int i = 0; i < n; i++)
+            z[i] = fmin(fmax(s->z[i] + wk->shift[i], lo[i]), hi[i]);
+        ok = verify(n, s->M, q, lo, hi, z, w, s->eps_n, residual);
+    }
     if (rc == SC_OK && !ok)
         rc = SC_ENUMERIC;
     return rc;
@@ -711,8 +772,8 @@ static void report(sc_lcp_info *info, const work *wk, double residual)
 
 /* ---- standard LCP -------------------------------------------------------- */
 
-int sc_lcp_dantzig_in(sc_arena *arena, int n, const double *M, const double *q, double *z,
-                      double *w, sc_lcp_info *info)
+static int dantzig(sc_arena *arena, int n, const double *M, const double *q, int start,
+                   double *z, double *w, sc_lcp_info *info)
 {
     if (info) {
         info->pivots = 0;
@@ -735,7 +796,7 @@ int sc_lcp_dantzig_in(sc_arena *arena, int n, const double *M, const double *q, 
         wk.hi[i] = INFINITY;
     }
     double residual;
-    rc = solve_fixed(&wk, q, wk.lo, wk.hi, 0, z, w, &residual);
+    rc = solve_fixed(&wk, q, wk.lo, wk.hi, start, z, w, &residual);
     if (rc == SC_ENOSOLUTION || rc == SC_ENUMERIC || rc == SC_EMAXITER) {
         /* a singular principal block the principal form cannot pass:
          * Lemke's method can (see lcp_lemke.c) */
@@ -750,6 +811,18 @@ int sc_lcp_dantzig_in(sc_arena *arena, int n, const double *M, const double *q, 
         info->lemke = lemke;    /* never silent: callers can count it */
     sc_arena_free(arena, wk.mem);
     return rc;
+}
+
+int sc_lcp_dantzig_in(sc_arena *arena, int n, const double *M, const double *q, double *z,
+                      double *w, sc_lcp_info *info)
+{
+    return dantzig(arena, n, M, q, START_COLD, z, w, info);
+}
+
+int sc_lcp_dantzig_warm_in(sc_arena *arena, int n, const double *M, const double *q,
+                           double *z, double *w, sc_lcp_info *info)
+{
+    return dantzig(arena, n, M, q, START_GUESS, z, w, info);
 }
 
 int sc_lcp_dantzig(int n, const double *M, const double *q, double *z, double *w,
@@ -883,15 +956,20 @@ static int friction_polish(work *wk, const double *q, const int *findex,
  * with that round's sets; SC_OK as soon as one satisfies the bounds it
  * implies, SC_EMAXITER after LCP_FRICTION_ROUNDS. */
 static int solve_friction(work *wk, const double *q, const double *lo, const double *hi,
-                          const int *findex, const double *mu, double *z, double *w,
-                          double *residual)
+                          const int *findex, const double *mu, int start, double *z,
+                          double *w, double *residual)
 {
     const int n = wk->s.n;
     double *zprev = wk->zprev;
-    memset(zprev, 0, (size_t)n * sizeof(double));
+    /* round 0: the bounds of the guess (a warm start), else frictionless */
+    if (start == START_GUESS)
+        memcpy(zprev, z, (size_t)n * sizeof(double));
+    else
+        memset(zprev, 0, (size_t)n * sizeof(double));
     for (int round = 0; round < LCP_FRICTION_ROUNDS; round++) {
         friction_bounds(n, lo, hi, findex, mu, zprev, wk->lo, wk->hi);
-        int rc = solve_fixed(wk, q, wk->lo, wk->hi, round > 0, z, w, residual);
+        int rc = solve_fixed(wk, q, wk->lo, wk->hi, round > 0 ? START_SETS : start, z, w,
+                             residual);
         if (rc != SC_OK)
             return rc;
         memcpy(zprev, z, (size_t)n * sizeof(double));
@@ -908,9 +986,9 @@ static int solve_friction(work *wk, const double *q, const double *lo, const dou
     return SC_EMAXITER;
 }
 
-int sc_lcp_boxed_in(sc_arena *arena, int n, const double *M, const double *q,
-                    const double *lo, const double *hi, const int *findex, const double *mu,
-                    double *z, double *w, sc_lcp_info *info)
+static int boxed(sc_arena *arena, int n, const double *M, const double *q, const double *lo,
+                 const double *hi, const int *findex, const double *mu, int start, double *z,
+                 double *w, sc_lcp_info *info)
 {
     if (info) {
         info->pivots = 0;
@@ -932,12 +1010,26 @@ int sc_lcp_boxed_in(sc_arena *arena, int n, const double *M, const double *q,
         return rc;
     double residual;
     if (friction)
-        rc = solve_friction(&wk, q, lo, hi, findex, mu, z, w, &residual);
+        rc = solve_friction(&wk, q, lo, hi, findex, mu, start, z, w, &residual);
     else
-        rc = solve_fixed(&wk, q, lo, hi, 0, z, w, &residual);
+        rc = solve_fixed(&wk, q, lo, hi, start, z, w, &residual);
     report(info, &wk, residual);
     sc_arena_free(arena, wk.mem);
     return rc;
+}
+
+int sc_lcp_boxed_in(sc_arena *arena, int n, const double *M, const double *q,
+                    const double *lo, const double *hi, const int *findex, const double *mu,
+                    double *z, double *w, sc_lcp_info *info)
+{
+    return boxed(arena, n, M, q, lo, hi, findex, mu, START_COLD, z, w, info);
+}
+
+int sc_lcp_boxed_warm_in(sc_arena *arena, int n, const double *M, const double *q,
+                         const double *lo, const double *hi, const int *findex,
+                         const double *mu, double *z, double *w, sc_lcp_info *info)
+{
+    return boxed(arena, n, M, q, lo, hi, findex, mu, START_GUESS, z, w, info);
 }
 
 int sc_lcp_boxed(int n, const double *M, const double *q, const double *lo,

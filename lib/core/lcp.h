@@ -35,6 +35,17 @@ int sc_lcp_boxed_in(sc_arena *a, int n, const double *M, const double *q, const 
                     const double *hi, const int *findex, const double *mu, double *z,
                     double *w, sc_lcp_info *info);
 
+/* The same, started from z as a guess (warm start: last frame's impulses
+ * or a block's last iterate): z in [lo, hi] strictly inside joins the
+ * clamped set, at a bound starts there, 0 is driven as in a cold pass.
+ * The answer is verified as a cold one; a start that fails is retried
+ * cold. With friction, the first round's bounds come from the guess. */
+int sc_lcp_dantzig_warm_in(sc_arena *a, int n, const double *M, const double *q, double *z,
+                           double *w, sc_lcp_info *info);
+int sc_lcp_boxed_warm_in(sc_arena *a, int n, const double *M, const double *q,
+                         const double *lo, const double *hi, const int *findex,
+                         const double *mu, double *z, double *w, sc_lcp_info *info);
+
 /* L D U factorisation of the clamped block M_CC of an n x n row-major M,
  * updated as indices enter (sc_ldu_border + sc_ldu_commit) and leave
  * (sc_ldu_remove), O(m^2) each (lcp_factor.c). U = L^T when sym. */

@@ -43,10 +43,8 @@ static int serial_run(sc_exec *ex, sc_job *job, int stage, sc_stats *st)
     job->nunits = 0;
     st->collider_warnings += one.messages;
     st->units++;
-    if (job->kind == SC_UNIT_ISLAND) {
-        st->lcp_pivots += one.info.pivots;
-        st->lcp_fallbacks += one.info.failures;
-    }
+    if (job->kind == SC_UNIT_ISLAND)
+        sc_stats_add_solve(st, &one.info);
     if (one.arena_high > st->unit_arena_bytes)
         st->unit_arena_bytes = one.arena_high;
     return one.rc;

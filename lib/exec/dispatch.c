@@ -169,10 +169,8 @@ static int nodes_run(sc_exec *ex, sc_job *job, int stage, sc_stats *st)
     for (int i = 0; i < job->nunits; i++) {
         const sc_unit *u = &job->units[i];
         st->collider_warnings += u->messages;
-        if (job->kind == SC_UNIT_ISLAND) {
-            st->lcp_pivots += u->info.pivots;
-            st->lcp_fallbacks += u->info.failures;
-        }
+        if (job->kind == SC_UNIT_ISLAND)
+            sc_stats_add_solve(st, &u->info);
         if (u->arena_high > st->unit_arena_bytes)
             st->unit_arena_bytes = u->arena_high;
         if (u->rc != SC_OK && rc == SC_OK)
