@@ -314,6 +314,7 @@ typedef struct gs_problem {
     int nrows;
     const double *off, *lo, *hi, *mu;
     const int *findex;        /* island row indices, -1 none; NULL: none */
+    int cold;                 /* no warm starts (sc_contact_params.cold) */
 } gs_problem;
 
 static void row_bounds(const gs_problem *pb, const double *z, int r, double *lo, double *hi)
@@ -443,7 +444,7 @@ static int block_solve(sc_arena *a, const gs_problem *pb, const blocks *bl, int 
         for (int i = 0; i < m; i++)
             zb[i] = z[r0 + i];    /* the last iterate: a warm start */
         rc = solve(a, m, A, q, lo, hi, friction ? fx : NULL, mu, zb, w, &bi,
-                   SOLVE_WARM | (fail ? SOLVE_FAIL : 0));
+                   (pb->cold ? 0 : SOLVE_WARM) | (fail ? SOLVE_FAIL : 0));
         info->pivots += bi.pivots;
         info->lemke += bi.lemke;
         info->regularised += bi.regularised;
@@ -642,7 +643,7 @@ static int push_out(sc_arena *a, const row *rows, const int *nsel, int nn, const
                 z[k] = 0;
     }
     if (rc != SC_OK && rc != SC_ENOMEM) {
-        gs_problem pb = { .off = q, .lo = lo, .hi = hi };
+        gs_problem pb = { .off = q, .lo = lo, .hi = hi, .cold = p->cold };
         rc = solve_split(a, nr, nn, cs, nn, &pb, z, bodies, 1, h, p, fmax(p->tol, 1e-3 * qmax),
                          info);
     }
@@ -751,7 +752,7 @@ int sc_island_solve(sc_arena *arena, sc_body *bodies, sc_contact *c, const int *
         /* small islands start cold: a few pivots, and the answer does not
          * depend on the last frame's (the same bits as before warm starts) */
         rc = solve(arena, nrows, A, q, lo, hi, friction ? findex : NULL, mu, z, w, info,
-                   (nc > WARM_MIN_CONTACTS ? SOLVE_WARM : 0) |
+                   (nc > WARM_MIN_CONTACTS && !p->cold ? SOLVE_WARM : 0) |
                        (p->inject & SC_INJECT_COUPLED ? SOLVE_FAIL : 0));
         if (rc == SC_OK) {
             for (int i = 0; i < nrows; i++)
@@ -792,7 +793,9 @@ int sc_island_solve(sc_arena *arena, sc_body *bodies, sc_contact *c, const int *
     if (split) {
         info->split++;
         gs_problem pb = { .off = off, .lo = lo, .hi = hi, .mu = mu,
-                          .findex = friction ? findex : NULL };
+                          .findex = friction ? findex : NULL, .cold = p->cold };
+        if (p->cold)
+            memset(z, 0, n * sizeof *z);
         rc = solve_split(arena, rows, nrows, cstart, nc, &pb, z, bodies, 0, h, p, p->tol, info);
         if (rc != SC_OK)
             goto out;

@@ -117,6 +117,8 @@ typedef struct sc_contact_params {
     int block_contacts;             /* contacts per block (whole pairs) */
     double tol;                     /* outer residual to reach, m/s */
     int max_sweeps;                 /* outer sweeps at most */
+    int cold;                       /* benchmarks: no warm starts (every solve
+                                       from z = 0) */
     int inject;                     /* tests only: SC_INJECT_* faults */
 } sc_contact_params;
 
