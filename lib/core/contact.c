@@ -782,9 +782,14 @@ int sc_island_solve(sc_arena *arena, sc_body *bodies, sc_contact *c, const int *
                 }
             }
             if (rc != SC_OK && rc != SC_ENOMEM) {
-                /* last resort: blocks, from what was applied (in z) */
+                /* last resort: blocks, from what the staggered solve
+                 * applied (in z), taken back off the bodies first: the
+                 * block solve applies its start itself */
                 info->split_fallbacks++;
                 split = 1;
+                for (int i = 0; i < nrows; i++)
+                    if (z[i] != 0)
+                        apply(&rows[i], -z[i], bodies, 0, 0);
             }
         }
         if (rc != SC_OK && !split)
