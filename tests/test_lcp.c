@@ -1407,6 +1407,89 @@ static void test_friction_of_a_separating_contact_is_zero(void **state)
     assert_true(z[0] == 0 && z[1] == 0 && z[2] == 0);
 }
 
+/* Real pile islands on which the fixed point on the friction bounds
+ * cycles (tests/data/friction/): solved exactly (by Lemke's method on the
+ * friction LCP), checked here against Coulomb's conditions. */
+static void test_pile_friction_that_cycles_is_solved_exactly(void **state)
+{
+    (void)state;
+    const char *files[] = { "tests/data/friction/pile_4contacts.txt",
+                            "tests/data/friction/pile_4contacts_b.txt",
+                            "tests/data/friction/pile_8contacts.txt" };
+    for (size_t f = 0; f < sizeof files / sizeof *files; f++) {
+        FILE *fp = fopen(files[f], "r");
+        assert_non_null(fp);
+        int n, nc, rc0;
+        assert_int_equal(fscanf(fp, "%d %d %d", &n, &nc, &rc0), 3);
+        assert_true(n > 0 && n <= 64);
+        double *M = malloc((size_t)n * n * sizeof *M), *q = malloc(n * sizeof *q);
+        double *mu = malloc(n * sizeof *mu), *lo = malloc(n * sizeof *lo);
+        double *hi = malloc(n * sizeof *hi), *z = calloc(n, sizeof *z), *w = malloc(n * sizeof *w);
+        int *fx = malloc(n * sizeof *fx);
+        for (int i = 0; i < n * n; i++)
+            assert_int_equal(fscanf(fp, "%lf", &M[i]), 1);
+        for (int i = 0; i < n; i++) {
+            assert_int_equal(fscanf(fp, "%lf %d %lf %lf", &q[i], &fx[i], &mu[i], &lo[i]), 4);
+            hi[i] = INFINITY;
+            if (fx[i] >= 0)
+                lo[i] = -INFINITY;
+        }
+        fclose(fp);
+        sc_lcp_info li;
+        assert_int_equal(sc_lcp_boxed(n, M, q, lo, hi, fx, mu, z, w, &li), SC_OK);
+        assert_int_equal(li.lemke, 1);     /* the fixed point did cycle */
+        double zs = 0, ws = 0;
+        for (int i = 0; i < n; i++) {
+            zs = fmax(zs, fabs(z[i]));
+            ws = fmax(ws, fabs(q[i]));
+        }
+        for (int i = 0; i < n; i++) {
+            double wi = q[i];
+            for (int j = 0; j < n; j++)
+                wi += M[i * n + j] * z[j];
+            double tz = 1e-9 * zs, tw = 1e-9 * ws;
+            if (fx[i] < 0) {          /* normal: z >= 0, w >= 0, z w = 0 */
+                assert_true(z[i] >= -tz && wi >= -tw);
+                assert_true(fmin(z[i], wi) <= fmax(tz, tw));
+            } else {                  /* friction: inside the box with w = 0,
+                                         or at a bound with w opposing */
+                double b = mu[i] * z[fx[i]];
+                assert_true(fabs(z[i]) <= b + tz);
+                if (fabs(z[i]) < b - tz)
+                    assert_true(fabs(wi) <= tw);
+                else
+                    assert_true(z[i] * wi <= tw * zs);
+            }
+        }
+        free(M), free(q), free(mu), free(lo), free(hi), free(z), free(w), free(fx);
+    }
+}
+
+/* A warm start from the answer takes no more pivots than a cold start
+ * and gives the same answer; a wrong guess still gives the right one. */
+static void test_warm_start_reuses_the_answer(void **state)
+{
+    (void)state;
+    enum { N = 30 };
+    double M[N * N], q[N], z[N], zc[N], w[N];
+    rng r = { 0x5eed000bu };
+    make_spd(&r, N, 0.1, M);
+    for (int i = 0; i < N; i++)
+        q[i] = srnd(&r);
+    sc_lcp_info cold, warm, wrong;
+    assert_int_equal(sc_lcp_dantzig_in(NULL, N, M, q, zc, w, &cold), SC_OK);
+    memcpy(z, zc, sizeof z);
+    assert_int_equal(sc_lcp_dantzig_warm_in(NULL, N, M, q, z, w, &warm), SC_OK);
+    assert_true(warm.pivots < cold.pivots);
+    for (int i = 0; i < N; i++)
+        assert_true(fabs(z[i] - zc[i]) <= 1e-9 * (1 + fabs(zc[i])));
+    for (int i = 0; i < N; i++)
+        z[i] = (i % 3) ? 1.0 : 0.0;      /* a poor guess */
+    assert_int_equal(sc_lcp_dantzig_warm_in(NULL, N, M, q, z, w, &wrong), SC_OK);
+    for (int i = 0; i < N; i++)
+        assert_true(fabs(z[i] - zc[i]) <= 1e-9 * (1 + fabs(zc[i])));
+}
+
 int main(void)
 {
     const struct CMUnitTest tests[] = {
@@ -1431,6 +1514,8 @@ int main(void)
         cmocka_unit_test(test_boxed_redundant_equalities),
         cmocka_unit_test(test_friction_sticks_below_and_slides_above_the_coulomb_limit),
         cmocka_unit_test(test_friction_of_a_separating_contact_is_zero),
+        cmocka_unit_test(test_pile_friction_that_cycles_is_solved_exactly),
+        cmocka_unit_test(test_warm_start_reuses_the_answer),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
 }

@@ -986,6 +986,91 @@ static int solve_friction(work *wk, const double *q, const double *lo, const dou
     return SC_EMAXITER;
 }
 
+/* Friction by Lemke's method when the fixed point does not settle (it can
+ * cycle between sets near stick-slip). The box friction problem is an LCP
+ * of its own (Stewart and Trinkle's form, one multiplier per friction
+ * row): with z_t = b+ - b-, variables (z_normals, b+, b-, lambda) >= 0 and
+ *   w_n   = (M z + q)_n                  >= 0  _|_  z_n
+ *   w_b+  =  (M z + q)_t + lambda_t      >= 0  _|_  b+
+ *   w_b-  = -(M z + q)_t + lambda_t      >= 0  _|_  b-
+ *   w_lam =  mu_t z_f(t) - b+ - b-       >= 0  _|_  lambda_t
+ * so |z_t| <= mu z_n, and at the bound the sliding velocity opposes z_t.
+ * Lemke's method processes it (Anitescu and Potra, 1997); the answer is
+ * mapped back and verified against the coupled bounds like any other.
+ * Only for rows that are contact normals (lo 0, hi inf) and their
+ * friction rows; SC_EINVAL otherwise. */
+static int friction_lemke(work *wk, const double *q, const double *lo, const double *hi,
+                          const int *findex, const double *mu, double *z, double *w,
+                          double *residual)
+{
+    const int n = wk->s.n;
+    const double *M = wk->s.M;
+    int nf = 0;
+    for (int i = 0; i < n; i++) {
+        if (findex[i] >= 0)
+            nf++;
+        else if (lo[i] != 0 || hi[i] != INFINITY)
+            return SC_EINVAL;
+    }
+    /* column of each row's variable: normals keep their order, then b+ */
+    int nn = n - nf, N = n + 2 * nf;
+    size_t Nd = (size_t)N;
+    double *mem = malloc((Nd * Nd + 2 * Nd) * sizeof *mem + 2 * (size_t)n * sizeof(int));
+    if (!mem)
+        return SC_ENOMEM;
+    double *B = mem, *qb = B + Nd * Nd, *x = qb + Nd;
+    int *col = (int *)(void *)(x + Nd), *fr = col + n;
+    int kn = 0, kf = 0;
+    for (int i = 0; i < n; i++) {
+        if (findex[i] >= 0) {
+            fr[kf] = i;
+            col[i] = nn + kf++;
+        } else {
+            col[i] = kn++;
+        }
+    }
+    memset(B, 0, Nd * Nd * sizeof *B);
+    /* rows: w of normal i at col[i]; of b+_k at nn+k, b-_k at nn+nf+k,
+     * lambda_k at nn+2nf+k. Columns likewise. */
+    for (int i = 0; i < n; i++) {
+        const double *Mi = M + (size_t)i * n;
+        int ri = col[i];
+        int rows[2] = { ri, findex[i] >= 0 ? ri + nf : -1 };
+        for (int s2 = 0; s2 < 2 && rows[s2] >= 0; s2++) {
+            double sg = s2 == 0 ? 1.0 : -1.0;
+            double *Br = B + (size_t)rows[s2] * Nd;
+            for (int j = 0; j < n; j++) {
+                if (findex[j] >= 0) {
+                    Br[col[j]] += sg * Mi[j];
+                    Br[col[j] + nf] -= sg * Mi[j];
+                } else {
+                    Br[col[j]] += sg * Mi[j];
+                }
+            }
+            qb[rows[s2]] = sg * q[i];
+            if (findex[i] >= 0)
+                Br[col[i] + 2 * nf] = 1;   /* + lambda */
+        }
+    }
+    for (int k = 0; k < nf; k++) {
+        int i = fr[k];
+        double *Br = B + (size_t)(nn + 2 * nf + k) * Nd;
+        Br[col[findex[i]]] = mu[i];
+        Br[nn + k] = -1;
+        Br[nn + nf + k] = -1;
+        qb[nn + 2 * nf + k] = 0;
+    }
+    int rc = sc_lcp_lemke(N, B, qb, x, wk->s.pivots + LCP_MAX_PIVOTS(N), &wk->s.pivots);
+    if (rc == SC_OK) {
+        for (int i = 0; i < n; i++)
+            z[i] = findex[i] >= 0 ? x[col[i]] - x[col[i] + nf] : x[col[i]];
+        if (!verify_coupled(wk, q, lo, hi, findex, mu, z, w, residual))
+            rc = SC_ENUMERIC;
+    }
+    free(mem);
+    return rc;
+}
+
 static int boxed(sc_arena *arena, int n, const double *M, const double *q, const double *lo,
                  const double *hi, const int *findex, const double *mu, int start, double *z,
                  double *w, sc_lcp_info *info)
@@ -1009,11 +1094,22 @@ static int boxed(sc_arena *arena, int n, const double *M, const double *q, const
     if (rc != SC_OK)
         return rc;
     double residual;
-    if (friction)
+    int lemke = 0;
+    if (friction) {
         rc = solve_friction(&wk, q, lo, hi, findex, mu, start, z, w, &residual);
-    else
+        if (rc == SC_EMAXITER || rc == SC_ENUMERIC || rc == SC_ENOSOLUTION) {
+            int lr = friction_lemke(&wk, q, lo, hi, findex, mu, z, w, &residual);
+            if (lr != SC_EINVAL) {
+                rc = lr;
+                lemke = 1;
+            }
+        }
+    } else {
         rc = solve_fixed(&wk, q, lo, hi, start, z, w, &residual);
+    }
     report(info, &wk, residual);
+    if (info)
+        info->lemke = lemke;    /* counted by the callers */
     sc_arena_free(arena, wk.mem);
     return rc;
 }
