@@ -29,6 +29,7 @@
 
 static char url[128];
 static int groups;              /* motion groups for the worlds made */
+static int island_split = SC_ISLAND_SPLIT_DEFAULT;   /* theirs */
 static uint8_t key[SC_KEY_BYTES];
 static char key_path[64];
 
@@ -83,6 +84,7 @@ static sc_world *make_world(int cluster, const char *keyfile)
     sc_world_config c = sc_world_config_default();
     c.workers = 1;
     c.motion_groups = groups;
+    c.island_split = island_split;
     if (cluster) {
         c.cluster = url;
         c.key_file = keyfile;
@@ -132,6 +134,19 @@ static uint64_t run(sc_world *w, daemon_thread *d, int stop_at, sc_stats *sum)
         sum->remote_units += st.remote_units;
         sum->recomputed_units += st.recomputed_units;
         sum->late_results += st.late_results;
+        /* the solver's counters (remote units' come with their results) */
+        sum->lcp_pivots += st.lcp_pivots;
+        sum->lcp_split += st.lcp_split;
+        sum->lcp_blocks += st.lcp_blocks;
+        sum->lcp_unconverged += st.lcp_unconverged;
+        sum->lcp_fallbacks += st.lcp_fallbacks;
+        sum->lcp_regularised += st.lcp_regularised;
+        if (st.lcp_sweeps_max > sum->lcp_sweeps_max)
+            sum->lcp_sweeps_max = st.lcp_sweeps_max;
+        if (st.lcp_residual > sum->lcp_residual)
+            sum->lcp_residual = st.lcp_residual;
+        if (st.lcp_outer_residual > sum->lcp_outer_residual)
+            sum->lcp_outer_residual = st.lcp_outer_residual;
         sum->dropped_messages = st.dropped_messages;
         sum->daemons = st.daemons;
     }
@@ -172,6 +187,56 @@ static void test_daemons_with_motion_groups(void **state)
     groups = 1;
     test_daemons_give_the_same_bits(state);
     groups = 0;
+}
+
+/* Islands past 2 contacts solved by blocks, warm-started from the last
+ * frame's impulses, and units assigned at random (island units reach the
+ * daemons too, not only where they would pay): the impulses go out with a
+ * unit and come back with its result, so the bits are the local ones, and
+ * so are the solver's counters (with theirs). */
+static void test_split_islands_on_daemons_give_the_same_bits(void **state)
+{
+    (void)state;
+    island_split = 2;
+    sc_world *lw = make_world(0, NULL);
+    sc_stats ls;
+    uint64_t h0 = run(lw, NULL, -1, &ls);
+    sc_world_destroy(lw);
+    daemon_thread d[2];
+    start_daemon(&d[0], 0x1501, 1);
+    start_daemon(&d[1], 0x1502, 2);
+    sc_world *w = make_world(1, key_path);
+    wait_daemons(w, 2);
+    w->ex.sched.shuffle = 0x9e3779b97f4a7c15ULL;
+    sc_stats sum;
+    uint64_t h = run(w, NULL, -1, &sum);
+    sc_serve_counters n0, n1;
+    stop_daemon(&d[0], &n0);
+    stop_daemon(&d[1], &n1);
+    printf("  remote %ld recomputed %ld late %ld; split %d (local %d), blocks %ld (%ld), "
+           "pivots %ld (%ld), sweeps at most %d (%d); daemon results %ld and %ld\n",
+           sum.remote_units, sum.recomputed_units, sum.late_results, sum.lcp_split,
+           ls.lcp_split, sum.lcp_blocks, ls.lcp_blocks, sum.lcp_pivots, ls.lcp_pivots,
+           sum.lcp_sweeps_max, ls.lcp_sweeps_max, n0.results, n1.results);
+    island_split = SC_ISLAND_SPLIT_DEFAULT;
+    assert_true(h == h0);
+    assert_true(sum.lcp_split > 0 && sum.lcp_blocks > 0);
+    assert_int_equal(sum.lcp_split, ls.lcp_split);
+    assert_int_equal(sum.lcp_blocks, ls.lcp_blocks);
+    assert_int_equal(sum.lcp_pivots, ls.lcp_pivots);
+    assert_int_equal(sum.lcp_unconverged, ls.lcp_unconverged);
+    assert_int_equal(sum.lcp_fallbacks, ls.lcp_fallbacks);
+    assert_int_equal(sum.lcp_regularised, ls.lcp_regularised);
+    assert_int_equal(sum.lcp_sweeps_max, ls.lcp_sweeps_max);
+    assert_memory_equal(&sum.lcp_residual, &ls.lcp_residual, sizeof ls.lcp_residual);
+    assert_memory_equal(&sum.lcp_outer_residual, &ls.lcp_outer_residual,
+                        sizeof ls.lcp_outer_residual);
+    assert_true(sum.remote_units > 0);
+    assert_true(n0.results > 0 && n1.results > 0);
+    assert_int_equal(sum.dropped_messages, 0);
+    /* the setting took effect */
+    assert_true(h0 != local_hash());
+    sc_world_destroy(w);
 }
 
 static void test_a_daemon_that_stops_changes_nothing(void **state)
@@ -504,6 +569,7 @@ int main(void)
     const struct CMUnitTest tests[] = {
         cmocka_unit_test(test_daemons_give_the_same_bits),
         cmocka_unit_test(test_daemons_with_motion_groups),
+        cmocka_unit_test(test_split_islands_on_daemons_give_the_same_bits),
         cmocka_unit_test(test_a_daemon_that_stops_changes_nothing),
         cmocka_unit_test(test_wrong_key_daemon_is_never_used),
         cmocka_unit_test(test_cluster_wait_counts_daemons),

@@ -84,6 +84,11 @@ static void test_remote_unit_gives_the_local_bits(void **state)
     static job_mem local, remote;
     make_job(&local, bolt, nut);
     make_job(&remote, bolt, nut);
+    /* a pattern in the contact slots: every field of a merged contact is
+     * written as a local run writes it (the impulse 0, which the wire does
+     * not carry for detection) */
+    memset(local.contacts, 0xA5, sizeof local.contacts);
+    memset(remote.contacts, 0x5A, sizeof remote.contacts);
     sc_np_ctx *np = sc_np_create();
     assert_non_null(np);
     sc_unit_run(np, &local.job, &local.unit);
@@ -130,6 +135,10 @@ static void test_remote_unit_gives_the_local_bits(void **state)
         assert_memory_equal(&remote.contacts[i * SC_MAX_PAIR_CONTACTS],
                             &local.contacts[i * SC_MAX_PAIR_CONTACTS],
                             (size_t)local.ncontact[i] * sizeof(sc_contact));
+    for (int i = 0; i < NPAIRS * SC_MAX_PAIR_CONTACTS; i++)
+        if (i % SC_MAX_PAIR_CONTACTS < local.ncontact[i / SC_MAX_PAIR_CONTACTS])
+            for (int k = 0; k < 3; k++)
+                assert_true(remote.contacts[i].impulse[k] == 0);
     free(res);
     free(wire);
     sc_compute_destroy(cc);

@@ -24,8 +24,10 @@
 #define FRAMES 100            /* the bolts land from frame 60 on (seed 7) */
 #define TOI_BACK 5            /* TOI units span frames FRAMES - TOI_BACK .. FRAMES */
 
-/* The contact parameters of lib/core/frame.c. */
-static const sc_contact_params params = { .bounce_speed = 0.1, .slop = 0.5e-3, .baumgarte = 0.2 };
+/* The contact parameters of lib/core/frame.c (the default island split). */
+static const sc_contact_params params = { .bounce_speed = 0.1, .slop = 0.5e-3, .baumgarte = 0.2,
+                                          .split_contacts = SC_ISLAND_SPLIT_DEFAULT,
+                                          .block_contacts = 4, .tol = 1e-3, .max_sweeps = 50 };
 
 static uint64_t rng = 0x853c49e6748fea9bULL;
 static uint64_t next_rand(void)
@@ -315,18 +317,30 @@ typedef struct islands_job {
     sc_islands is;
     unsigned char *joins;
     sc_body *b0, *bl, *br;    /* the bodies before, and local and remote copies */
+    sc_contact *c0, *cl, *cr; /* the contacts (their impulses: the warm start), the same */
+    int nc;
     sc_job jl, jr;
 } islands_job;
 
-static void islands_job_init(islands_job *ij, const sc_world *w)
+/* With the solver settings p (the world's own solve used frame.c's). */
+static void islands_job_init_p(islands_job *ij, const sc_world *w, const sc_contact_params *p)
 {
-    size_t n = (size_t)w->st.nbodies;
+    size_t n = (size_t)w->st.nbodies, nc = (size_t)w->st.ncontacts;
     memset(ij, 0, sizeof *ij);
     ij->joins = malloc(n);
     ij->b0 = malloc(n * sizeof *ij->b0);
     ij->bl = malloc(n * sizeof *ij->bl);
     ij->br = malloc(n * sizeof *ij->br);
     assert_true(ij->joins && ij->b0 && ij->bl && ij->br);
+    /* the solve writes each contact's impulse: each copy has its own */
+    ij->nc = (int)nc;
+    ij->c0 = malloc((nc ? nc : 1) * sizeof *ij->c0);
+    ij->cl = malloc((nc ? nc : 1) * sizeof *ij->cl);
+    ij->cr = malloc((nc ? nc : 1) * sizeof *ij->cr);
+    assert_true(ij->c0 && ij->cl && ij->cr);
+    memcpy(ij->c0, w->st.contacts, nc * sizeof *ij->c0);
+    memcpy(ij->cl, ij->c0, nc * sizeof *ij->cl);
+    memcpy(ij->cr, ij->c0, nc * sizeof *ij->cr);
     for (size_t i = 0; i < n; i++)
         ij->joins[i] = (unsigned char)sc_body_movable(&w->st.bodies[i]);
     assert_int_equal(sc_islands_build(NULL, w->st.nbodies, ij->joins, w->st.contacts, w->st.ncontacts, &ij->is),
@@ -341,13 +355,19 @@ static void islands_job_init(islands_job *ij, const sc_world *w)
     sc_job job;
     memset(&job, 0, sizeof job);
     job.kind = SC_UNIT_ISLAND;
-    job.c = w->st.contacts;
     job.islands = &ij->is;
     job.h = DT;
-    job.params = &params;
+    job.params = p;
     ij->jl = ij->jr = job;
     ij->jl.bodies = ij->bl;
     ij->jr.bodies = ij->br;
+    ij->jl.c = ij->cl;
+    ij->jr.c = ij->cr;
+}
+
+static void islands_job_init(islands_job *ij, const sc_world *w)
+{
+    islands_job_init_p(ij, w, &params);
 }
 
 static void islands_job_free(islands_job *ij)
@@ -357,6 +377,14 @@ static void islands_job_free(islands_job *ij)
     free(ij->b0);
     free(ij->bl);
     free(ij->br);
+    free(ij->c0);
+    free(ij->cl);
+    free(ij->cr);
+}
+
+static int has_impulse(const sc_contact *c)
+{
+    return c->impulse[0] != 0 || c->impulse[1] != 0 || c->impulse[2] != 0;
 }
 
 /* A unit of islands [i, i + n), each solved on its own. */
@@ -367,9 +395,68 @@ static sc_unit island_unit(const sc_islands *is, int i, int n)
     return u;
 }
 
-/* Every island of several frames of the scene solved here and through the
- * wire: every body matches bit for bit, and the static and sleeping ones
- * (shared by islands, not carried back) are only read, collided included. */
+/* The solver settings the island units are solved with: frame.c's; every
+ * island of more than two contacts split into blocks (sweeps from the warm
+ * start); the same without warm starts; one sweep at most (unconverged). */
+#define NSETTINGS 4
+static sc_contact_params setting(int k)
+{
+    sc_contact_params p = params;
+    if (k == 1)
+        p.split_contacts = 2;
+    if (k == 2) {
+        p.split_contacts = 2;
+        p.cold = 1;
+    }
+    if (k == 3) {
+        p.split_contacts = 2;
+        p.block_contacts = 1;
+        p.max_sweeps = 1;
+        p.tol = 0;
+    }
+    return p;
+}
+
+typedef struct island_counts {
+    int islands, collisions, deep, warm, changed, split, blocks, unconverged;
+} island_counts;
+
+/* Every island of the world's islands solved here and through the wire
+ * under p: every body and every contact (its new impulse) matches bit for
+ * bit, info too (run_both), and the static and sleeping bodies (shared by
+ * islands, not carried back) are only read, collided included. */
+static void check_islands(const sc_world *w, sc_np_ctx *local, sc_np_ctx *remote, cache *cc,
+                          const sc_contact_params *p, island_counts *n)
+{
+    islands_job ij;
+    islands_job_init_p(&ij, w, p);
+    /* units of 1, 2 and 3 islands in turn */
+    for (int i = 0, g = 1; i < ij.is.count; i += g, g = g % 3 + 1) {
+        if (g > ij.is.count - i)
+            g = ij.is.count - i;
+        sc_unit u = island_unit(&ij.is, i, g);
+        sc_unit ul = run_both(local, remote, cc, &ij.jl, &ij.jr, &u);
+        n->collisions += ul.info.collisions;
+        n->split += ul.info.split;
+        n->blocks += ul.info.blocks;
+        n->unconverged += ul.info.unconverged;
+        n->islands += g;
+    }
+    for (int k = 0; k < ij.nc; k++) {
+        n->deep += ij.c0[k].depth > p->slop;
+        n->warm += has_impulse(&ij.c0[k]);
+        n->changed += memcmp(ij.c0[k].impulse, ij.cl[k].impulse, sizeof ij.c0[k].impulse) != 0;
+    }
+    assert_memory_equal(ij.br, ij.bl, (size_t)w->st.nbodies * sizeof *ij.bl);
+    assert_memory_equal(ij.cr, ij.cl, (size_t)ij.nc * sizeof *ij.cl);
+    for (int j = 0; j < w->st.nbodies; j++)
+        if (!ij.joins[j])
+            assert_memory_equal(&ij.bl[j], &ij.b0[j], sizeof ij.b0[j]);
+    islands_job_free(&ij);
+}
+
+/* Every island of several frames of the scene, its contacts carrying the
+ * world's last impulses as warm starts, under each setting. */
 static void test_island_units_through_wire_are_bit_identical(void **state)
 {
     (void)state;
@@ -377,34 +464,32 @@ static void test_island_units_through_wire_are_bit_identical(void **state)
     sc_np_ctx *local = sc_np_create(), *remote = sc_np_create();
     assert_true(local && remote);
     cache cc = { w, 0 };
-    int islands = 0, collisions = 0, deep = 0;
+    island_counts n[NSETTINGS] = { { 0 } };
     for (int f = 1; f <= 120; f++) {
         assert_int_equal(sc_world_step(w, DT), SC_OK);
         if (f < 60 || f % 5)
             continue;
-        islands_job ij;
-        islands_job_init(&ij, w);
-        /* units of 1, 2 and 3 islands in turn */
-        for (int i = 0, g = 1; i < ij.is.count; i += g, g = g % 3 + 1) {
-            if (g > ij.is.count - i)
-                g = ij.is.count - i;
-            sc_unit u = island_unit(&ij.is, i, g);
-            collisions += run_both(local, remote, &cc, &ij.jl, &ij.jr, &u).info.collisions;
-            islands += g;
+        for (int k = 0; k < NSETTINGS; k++) {
+            sc_contact_params p = setting(k);
+            check_islands(w, local, remote, &cc, &p, &n[k]);
         }
-        for (int k = 0; k < w->st.ncontacts; k++)
-            deep += w->st.contacts[k].depth > params.slop;
-        assert_memory_equal(ij.br, ij.bl, (size_t)w->st.nbodies * sizeof *ij.bl);
-        for (int j = 0; j < w->st.nbodies; j++)
-            if (!ij.joins[j])
-                assert_memory_equal(&ij.bl[j], &ij.b0[j], sizeof ij.b0[j]);
-        islands_job_free(&ij);
     }
-    print_message("island: %d islands, %d collisions, %d deep contacts\n", islands, collisions,
-                  deep);
-    assert_true(islands > 0);
-    assert_true(collisions > 0);
-    assert_true(deep > 0);
+    for (int k = 0; k < NSETTINGS; k++) {
+        print_message("island setting %d: %d islands, %d collisions, %d deep contacts, "
+                      "%d with a warm start, %d impulses changed, %d split, %d block solves, "
+                      "%d unconverged\n",
+                      k, n[k].islands, n[k].collisions, n[k].deep, n[k].warm, n[k].changed,
+                      n[k].split, n[k].blocks, n[k].unconverged);
+        assert_true(n[k].islands > 0);
+        assert_true(n[k].collisions > 0);
+        assert_true(n[k].deep > 0);
+        assert_true(n[k].warm > 0);
+        assert_true(n[k].changed > 0);
+    }
+    /* the settings took effect, and travelled */
+    assert_true(n[1].split > n[0].split && n[1].blocks > 0);
+    assert_int_equal(n[2].split, n[1].split);
+    assert_true(n[3].unconverged > 0);
     sc_np_destroy(local);
     sc_np_destroy(remote);
     sc_world_destroy(w);
@@ -520,6 +605,25 @@ static void put_u64(unsigned char *p, uint64_t v)
         p[i] = (unsigned char)(v >> (8 * i));
 }
 
+/* n little-endian bytes of v at b + at make buf a format error; then put back. */
+static void bad_at(unsigned char *buf, size_t len, size_t at, uint64_t v, int n)
+{
+    unsigned char keep[8];
+    memcpy(keep, buf + at, (size_t)n);
+    for (int i = 0; i < n; i++)
+        buf[at + (size_t)i] = (unsigned char)(v >> (8 * i));
+    sc_wire_unit wu;
+    assert_int_equal(sc_wire_unit_decode(buf, len, NULL, NULL, &wu), SC_EFORMAT);
+    memcpy(buf + at, keep, (size_t)n);
+}
+
+static uint64_t bits(double d)
+{
+    uint64_t u;
+    memcpy(&u, &d, sizeof u);
+    return u;
+}
+
 static void test_bad_fields_are_format_errors(void **state)
 {
     const scene *s = *state;
@@ -575,9 +679,71 @@ static void test_bad_fields_are_format_errors(void **state)
     int nisl = wu.islands.count, m = wu.nbodies, nm = wu.islands.body_start[nisl];
     sc_wire_unit_free(&wu);
     /* island header: magic, version, kind 8; bodies, members, contacts,
-     * islands 16; h and parameters 32; per island 8 */
-    const size_t isl0 = 8 + 16 + 32;
+     * islands 16; h, bounce_speed, slop, baumgarte, tol 40; split_contacts,
+     * block_contacts, max_sweeps, cold 16; per island 8 */
+    const size_t tol = 8 + 16 + 32, ints = tol + 8, isl0 = ints + 16;
+    size_t ilen = sm.len[SC_UNIT_ISLAND];
     print_message("island sample: %d islands, %d members, %d bodies\n", nisl, nm, m);
+    /* the offsets are right: other valid values there decode as such */
+    struct { size_t at; uint64_t v; int n; } good[] = {
+        { tol, bits(0.25), 8 }, { ints, 5, 4 }, { ints + 4, 1u << 16, 4 },
+        { ints + 8, 10000, 4 }, { ints + 12, 1, 4 },
+    };
+    for (int k = 0; k < 5; k++) {
+        unsigned char keep8[8];
+        memcpy(keep8, ib + good[k].at, (size_t)good[k].n);
+        for (int i = 0; i < good[k].n; i++)
+            ib[good[k].at + (size_t)i] = (unsigned char)(good[k].v >> (8 * i));
+        assert_int_equal(sc_wire_unit_decode(ib, ilen, NULL, NULL, &wu), SC_OK);
+        const sc_contact_params *q = &wu.params;
+        int ok = k == 0 ? q->tol == 0.25
+               : k == 1 ? q->split_contacts == 5
+               : k == 2 ? q->block_contacts == 1 << 16
+               : k == 3 ? q->max_sweeps == 10000
+                        : q->cold == 1;
+        assert_true(ok);
+        assert_int_equal(q->inject, 0);
+        sc_wire_unit_free(&wu);
+        memcpy(ib + good[k].at, keep8, (size_t)good[k].n);
+    }
+    /* solver settings out of range */
+    const double bad_tol[] = { NAN, INFINITY, -1e-3 };
+    for (int k = 0; k < 3; k++)
+        bad_at(ib, ilen, tol, bits(bad_tol[k]), 8);
+    bad_at(ib, ilen, ints, (uint32_t)-1, 4);                 /* split_contacts */
+    bad_at(ib, ilen, ints + 4, 0, 4);                        /* block_contacts */
+    bad_at(ib, ilen, ints + 4, (uint32_t)-4, 4);
+    bad_at(ib, ilen, ints + 4, (1u << 16) + 1, 4);
+    bad_at(ib, ilen, ints + 8, 0, 4);                        /* max_sweeps */
+    bad_at(ib, ilen, ints + 8, 10001, 4);
+    bad_at(ib, ilen, ints + 8, (uint32_t)-50, 4);
+    bad_at(ib, ilen, ints + 12, 2, 4);                       /* cold */
+    bad_at(ib, ilen, ints + 12, (uint32_t)-1, 4);
+    /* a NaN or infinite warm-start impulse (contact 0's, after its ids,
+     * pos, normal and depth) */
+    size_t imp0 = isl0 + 8 * (size_t)nisl + (size_t)m * (31 * 8 + 8) + 8 + 7 * 8;
+    assert_int_equal(sc_wire_unit_decode(ib, ilen, NULL, NULL, &wu), SC_OK);
+    double want[3];
+    memcpy(want, wu.c[0].impulse, sizeof want);
+    sc_wire_unit_free(&wu);
+    for (int k = 0; k < 3; k++) {
+        uint64_t keep64;
+        memcpy(&keep64, ib + imp0 + 8 * (size_t)k, 8);
+        put_u64(ib + imp0 + 8 * (size_t)k, bits(-0.5 - k));
+        assert_int_equal(sc_wire_unit_decode(ib, ilen, NULL, NULL, &wu), SC_OK);
+        assert_true(wu.c[0].impulse[k] == -0.5 - k);
+        assert_memory_equal(&wu.c[0].impulse[(k + 1) % 3], &want[(k + 1) % 3], sizeof(double));
+        sc_wire_unit_free(&wu);
+        memcpy(ib + imp0 + 8 * (size_t)k, &keep64, 8);
+    }
+    for (int k = 0; k < 3; k++) {
+        bad_at(ib, ilen, imp0 + 8 * (size_t)k, bits(NAN), 8);
+        bad_at(ib, ilen, imp0 + 8 * (size_t)k, bits(-INFINITY), 8);
+    }
+    /* the last contact's impulse ends the unit */
+    bad_at(ib, ilen, ilen - 8, bits(INFINITY), 8);
+    assert_int_equal(sc_wire_unit_decode(ib, ilen, NULL, NULL, &wu), SC_OK);
+    sc_wire_unit_free(&wu);
     if (nisl > 1) {
         /* per-island member counts that do not add up to the members */
         memcpy(keep, ib + isl0, 4);
@@ -611,6 +777,71 @@ static void test_bad_fields_are_format_errors(void **state)
         sc_wire_unit_free(&wu);
     }
     samples_free(&sm);
+}
+
+/* An island unit's settings and its contacts (warm-start impulses
+ * included) decode as they were; inject (tests only) and settings a
+ * receiver would refuse are not packed, so such a unit runs locally. */
+static void test_island_settings_and_impulses_travel(void **state)
+{
+    const scene *s = *state;
+    sc_contact_params p = { .bounce_speed = 0.25, .slop = 1e-4, .baumgarte = 0.3,
+                            .split_contacts = 3, .block_contacts = 2, .tol = 0.125,
+                            .max_sweeps = 7, .cold = 1 };
+    islands_job ij;
+    islands_job_init_p(&ij, s->w, &p);
+    /* warm starts of every sign and size, on every contact */
+    for (int k = 0; k < ij.nc; k++)
+        for (int j = 0; j < 3; j++)
+            ij.cl[k].impulse[j] = (double)(int64_t)next_rand() * 0x1p-70;
+    int with = 0;
+    for (int i = 0; i < ij.is.count; i++) {
+        sc_unit u = island_unit(&ij.is, i, 1);
+        size_t len;
+        unsigned char *buf = pack_unit(&ij.jl, &u, &len);
+        sc_wire_unit wu;
+        assert_int_equal(sc_wire_unit_decode(buf, len, NULL, NULL, &wu), SC_OK);
+        assert_true(wu.params.bounce_speed == p.bounce_speed && wu.params.slop == p.slop &&
+                    wu.params.baumgarte == p.baumgarte && wu.params.tol == p.tol &&
+                    wu.params.split_contacts == p.split_contacts &&
+                    wu.params.block_contacts == p.block_contacts &&
+                    wu.params.max_sweeps == p.max_sweeps && wu.params.cold == p.cold &&
+                    wu.params.inject == 0);
+        assert_int_equal(wu.unit.count, u.count);
+        const int *ci = &ij.is.contacts[ij.is.contact_start[i]];
+        for (int k = 0; k < u.count; k++) {
+            const sc_contact *a = &ij.cl[ci[k]], *b = &wu.c[k];
+            assert_memory_equal(a->impulse, b->impulse, sizeof a->impulse);
+            assert_memory_equal(a->pos, b->pos, sizeof a->pos);
+            assert_memory_equal(a->normal, b->normal, sizeof a->normal);
+            assert_memory_equal(&a->depth, &b->depth, sizeof a->depth);
+        }
+        with += u.count > 0;
+        sc_wire_unit_free(&wu);
+        free(buf);
+    }
+    assert_true(with > 0);
+    /* what cannot travel is not packed */
+    sc_unit u = island_unit(&ij.is, 0, 1);
+    const sc_contact_params keep = p;
+    sc_contact_params *q = &p;
+    for (int k = 0; k < 8; k++) {
+        *q = keep;
+        switch (k) {
+        case 0: q->inject = SC_INJECT_NAN; break;
+        case 1: q->tol = NAN; break;
+        case 2: q->tol = -1; break;
+        case 3: q->max_sweeps = 0; break;
+        case 4: q->max_sweeps = 10001; break;
+        case 5: q->block_contacts = 0; break;
+        case 6: q->split_contacts = -1; break;
+        default: q->cold = 2; break;
+        }
+        assert_int_equal(sc_wire_unit_pack(&ij.jl, &u, NULL, 0), 0);
+    }
+    *q = keep;
+    assert_true(sc_wire_unit_pack(&ij.jl, &u, NULL, 0) > 0);
+    islands_job_free(&ij);
 }
 
 /* A result must match the unit it is applied to; a mismatched or
@@ -671,6 +902,57 @@ static void test_result_for_another_unit_is_a_format_error(void **state)
         assert_memory_equal(ij.br, ij.bl, (size_t)s->w->st.nbodies * sizeof *ij.bl);
         assert_int_equal(sc_wire_result_apply(&ij.jr, &ua, res, rlen), SC_OK);
     }
+    /* an island result whose contact count or counters are wrong changes
+     * nothing (layout: header 8, members 4, rc 4, messages 8, pivots 8,
+     * failures ... unconverged 11 x 4, residuals 16, contacts 4) */
+    int big = 0;
+    for (int i = 1; i < ij.is.count; i++)
+        if (island_unit(&ij.is, i, 1).count > island_unit(&ij.is, big, 1).count)
+            big = i;
+    sc_unit ui = island_unit(&ij.is, big, 1);
+    assert_true(ui.count > 0);
+    free(buf);
+    free(res);
+    buf = pack_unit(&ij.jr, &ui, &len);
+    res = remote_run(np, buf, len, &cc, &rlen);
+    const size_t pivots = 24, counters = pivots + 8, ncont = counters + 44 + 16;
+    assert_int_equal(rlen, ncont + 4 +
+                               (size_t)(ij.is.body_start[big + 1] - ij.is.body_start[big]) *
+                                   (13 * 8 + 4) +
+                               (size_t)ui.count * 24);
+    size_t nb = (size_t)s->w->st.nbodies, ncb = (size_t)ij.nc * sizeof *ij.cr;
+    sc_body *bodies_before = malloc(nb * sizeof *bodies_before);
+    sc_contact *contacts_before = malloc(ncb ? ncb : 1);
+    assert_true(bodies_before && contacts_before);
+    memcpy(bodies_before, ij.br, nb * sizeof *bodies_before);
+    memcpy(contacts_before, ij.cr, ncb);
+    struct { size_t at; int n; uint64_t v; } wrong[] = {
+        { ncont, 4, (uint64_t)ui.count + 1 }, { ncont, 4, (uint64_t)ui.count - 1 },
+        { pivots, 8, (uint64_t)-1 },
+    };
+    for (int k = 0; k < 3 + 11; k++) {
+        size_t at = k < 3 ? wrong[k].at : counters + 4 * (size_t)(k - 3);
+        int nbytes = k < 3 ? wrong[k].n : 4;
+        uint64_t v = k < 3 ? wrong[k].v : (uint32_t)-1;   /* a negative counter */
+        unsigned char keep[8];
+        memcpy(keep, res + at, (size_t)nbytes);
+        for (int i = 0; i < nbytes; i++)
+            res[at + (size_t)i] = (unsigned char)(v >> (8 * i));
+        assert_int_equal(sc_wire_result_apply(&ij.jr, &ui, res, rlen), SC_EFORMAT);
+        memcpy(res + at, keep, (size_t)nbytes);
+    }
+    for (size_t k = 0; k < rlen; k++)
+        assert_int_equal(sc_wire_result_apply(&ij.jr, &ui, res, k), SC_EFORMAT);
+    assert_memory_equal(bodies_before, ij.br, nb * sizeof *bodies_before);
+    assert_memory_equal(contacts_before, ij.cr, ncb);
+    /* the residuals are carried as they are */
+    double odd = NAN;
+    memcpy(res + counters + 44, &odd, sizeof odd);
+    ui.info.residual_exact = 0;
+    assert_int_equal(sc_wire_result_apply(&ij.jr, &ui, res, rlen), SC_OK);
+    assert_true(isnan(ui.info.residual_exact));
+    free(bodies_before);
+    free(contacts_before);
     islands_job_free(&ij);
     free(before);
     free(buf);
@@ -688,6 +970,7 @@ int main(void)
         cmocka_unit_test(test_every_truncation_is_a_format_error),
         cmocka_unit_test(test_corrupted_units_are_refused_or_run_safely),
         cmocka_unit_test(test_bad_fields_are_format_errors),
+        cmocka_unit_test(test_island_settings_and_impulses_travel),
         cmocka_unit_test(test_result_for_another_unit_is_a_format_error),
     };
     return cmocka_run_group_tests(tests, scene_setup, scene_teardown);

@@ -16,7 +16,7 @@
 #define WIRE_PAIR 128
 #define WIRE_TOI_PAIR 240
 #define WIRE_BODY 400
-#define WIRE_CONTACT 64
+#define WIRE_CONTACT 112     /* 88 out (its warm-start impulse included), 24 back */
 
 static int grow_units(sc_exec_nodes *x, int n)
 {

@@ -17,20 +17,32 @@
  *             hash_b u64, body_a i32, body_b i32, deepen u8, a0, b0, (TOI) a1, b1
  *   ISLAND unit (consecutive islands, each solved on its own): bodies u32,
  *             members u32, contacts u32, islands u32, h, bounce_speed, slop,
- *             baumgarte f64, per island: members u32, contacts u32; per
- *             body: see put_body(), per contact: a contact (local body
- *             indices)
+ *             baumgarte, tol f64, split_contacts, block_contacts, max_sweeps,
+ *             cold i32, per island: members u32, contacts u32; per body: see
+ *             put_body(), per contact: a contact (local body indices) and its
+ *             impulse f64[3] (the warm start)
  *   result:   count u32 (pairs, or island members), rc i32, messages i64,
- *             pivots i64, failures, regularised, lemke, collisions i32, then
- *             per pair: n u8 and n contacts (COLLIDE), toi f64 (TOI); per
- *             member: x f64[3], q f64[4], v, w f64[3], collided i32 (ISLAND)
+ *             pivots i64, failures, regularised, lemke, collisions, split,
+ *             split_fallbacks, blocks, block_fallbacks, nan_islands,
+ *             sweeps_max, unconverged i32, residual_exact, residual_split f64,
+ *             then per pair: n u8 and n contacts (COLLIDE), toi f64 (TOI);
+ *             (ISLAND) contacts u32, per member: x f64[3], q f64[4], v, w
+ *             f64[3], collided i32, per contact in the unit's contact order:
+ *             impulse f64[3] (this solve's)
  * A unit's counts are bounded and its length checked exactly before
- * anything is allocated; its doubles must be finite. A result's doubles
- * are carried verbatim (a solve that blew up reaches the master as NaN, as
- * it would locally, for frame.c's check); its kind, counts and body ids must
- * match the master's unit, and nothing is written unless all of it is
- * valid. Outputs of a unit that failed (rc < 0) are as undefined as after
- * a local failure.
+ * anything is allocated; its doubles must be finite and its solver settings
+ * in range (params_ok()); sc_contact_params.inject (tests only) never
+ * travels. A unit with settings out of range or inject set is not packed
+ * (0: the master computes it), and a decoded one has inject 0. A result's doubles are carried verbatim (a solve
+ * that blew up reaches the master as NaN, as it would locally, for
+ * frame.c's check); its kind, counts (pairs, or members and contacts, which
+ * must be the master's unit's) and body ids must match the master's unit,
+ * and nothing is written unless all of it is valid. A COLLIDE result's
+ * contacts carry no impulse: the narrow phase emits every contact with
+ * impulse 0 (narrowphase.c, emit()) and detect.c matches last frame's onto
+ * them on the master afterwards, so the master writes 0 where the narrow
+ * phase would have. Outputs of a unit that failed (rc < 0) are as undefined as after a
+ * local failure.
  */
 #include <limits.h>
 #include <stdlib.h>
@@ -38,17 +50,19 @@
 
 #include "unit_wire.h"
 
-#define WIRE_VERSION 2
+#define WIRE_VERSION 3
 #define MAGIC_UNIT 0x55574353u        /* "SCWU" */
 #define MAGIC_RESULT 0x52574353u      /* "SCWR" */
 #define MAX_PAIRS (1 << 16)
 #define MAX_CONTACTS (1 << 16)
 #define MAX_BODIES (1 << 17)
+#define MAX_SWEEPS 10000      /* sc_contact_params.max_sweeps (frame.c: 50) */
 
 #define POSE_BYTES (7 * 8)
 #define PAIR_BYTES(nposes) (8 + 8 + 4 + 4 + 1 + (size_t)(nposes) * POSE_BYTES)
 #define BODY_BYTES (31 * 8 + 2 * 4)
 #define CONTACT_BYTES (2 * 4 + 7 * 8)
+#define IMPULSE_BYTES (3 * 8)
 
 /* ---- little-endian writer and reader ---- */
 
@@ -86,13 +100,16 @@ static void put_header(wbuf *w, uint32_t magic, int kind)
     put(w, (uint64_t)kind, 2);
 }
 
-static void put_contact(wbuf *w, const sc_contact *c, int a, int b)
+/* A contact; with its impulse only where it is an input (island units). */
+static void put_contact(wbuf *w, const sc_contact *c, int a, int b, int impulse)
 {
     put_i32(w, a);
     put_i32(w, b);
     put_f64s(w, c->pos, 3);
     put_f64s(w, c->normal, 3);
     put_f64s(w, &c->depth, 1);
+    if (impulse)
+        put_f64s(w, c->impulse, 3);
 }
 
 /* Bytes fn writes; written to buf too when cap is enough. */
@@ -150,13 +167,19 @@ static void get_f64s(rbuf *r, double *d, int n, int finite)
     }
 }
 
-static void get_contact(rbuf *r, sc_contact *c, int finite)
+/* Without an impulse on the wire the contact gets 0, as the narrow phase
+ * leaves it: every field is written. */
+static void get_contact(rbuf *r, sc_contact *c, int finite, int impulse)
 {
     c->body_a = get_i32(r);
     c->body_b = get_i32(r);
     get_f64s(r, c->pos, 3, finite);
     get_f64s(r, c->normal, 3, finite);
     get_f64s(r, &c->depth, 1, finite);
+    if (impulse)
+        get_f64s(r, c->impulse, 3, finite);
+    else
+        c->impulse[0] = c->impulse[1] = c->impulse[2] = 0;
 }
 
 /* The header's kind, or -1 when magic, version or kind are wrong. */
@@ -331,6 +354,17 @@ out:
     return rc;
 }
 
+/* Solver settings the wire carries and a receiver accepts; inject is not
+ * carried (tests only). */
+static int params_ok(const sc_contact_params *p)
+{
+    return isfinite(p->bounce_speed) && p->bounce_speed >= 0 && isfinite(p->slop) &&
+           p->slop >= 0 && isfinite(p->baumgarte) && p->baumgarte >= 0 && isfinite(p->tol) &&
+           p->tol >= 0 && p->split_contacts >= 0 && p->block_contacts >= 1 &&
+           p->block_contacts <= MAX_CONTACTS && p->max_sweeps >= 1 &&
+           p->max_sweeps <= MAX_SWEEPS && (p->cold == 0 || p->cold == 1) && p->inject == 0;
+}
+
 static void write_island(wbuf *w, const void *job_, const void *im_)
 {
     const sc_job *job = job_;
@@ -341,8 +375,12 @@ static void write_island(wbuf *w, const void *job_, const void *im_)
     put(w, (uint64_t)im->nc, 4);
     put(w, (uint64_t)im->nisl, 4);
     const sc_contact_params *p = job->params;
-    double head[4] = { job->h, p->bounce_speed, p->slop, p->baumgarte };
-    put_f64s(w, head, 4);
+    double head[5] = { job->h, p->bounce_speed, p->slop, p->baumgarte, p->tol };
+    put_f64s(w, head, 5);
+    put_i32(w, p->split_contacts);
+    put_i32(w, p->block_contacts);
+    put_i32(w, p->max_sweeps);
+    put_i32(w, p->cold);
     const sc_islands *is = job->islands;
     for (int i = im->first; i < im->first + im->nisl; i++) {
         put(w, (uint64_t)(is->body_start[i + 1] - is->body_start[i]), 4);
@@ -351,7 +389,7 @@ static void write_island(wbuf *w, const void *job_, const void *im_)
     for (int k = 0; k < im->m; k++)
         put_body(w, &job->bodies[im->world[k]]);
     for (int k = 0; k < im->nc; k++)
-        put_contact(w, &job->c[im->ci[k]], im->ends[2 * k], im->ends[2 * k + 1]);
+        put_contact(w, &job->c[im->ci[k]], im->ends[2 * k], im->ends[2 * k + 1], 1);
 }
 
 size_t sc_wire_unit_pack(const sc_job *job, const sc_unit *u, unsigned char *buf, size_t cap)
@@ -366,6 +404,10 @@ size_t sc_wire_unit_pack(const sc_job *job, const sc_unit *u, unsigned char *buf
     }
     if (job->kind != SC_UNIT_ISLAND || !job->islands || u->first < 0 || u->islands < 1 ||
         u->first > job->islands->count - u->islands)
+        return 0;
+    /* settings a receiver would refuse, or inject (tests only), are not
+     * sent: such a unit is computed locally */
+    if (!job->params || !params_ok(job->params))
         return 0;
     /* 0 also for an island the wire cannot carry (see map_island()) */
     island_map im = { 0 };
@@ -435,11 +477,18 @@ static int decode_island(rbuf *r, sc_wire_unit *wu)
 {
     uint32_t m = (uint32_t)get(r, 4), nm = (uint32_t)get(r, 4), nc = (uint32_t)get(r, 4);
     uint32_t nisl = (uint32_t)get(r, 4);
-    double head[4];
-    get_f64s(r, head, 4, 1);
+    double head[5];
+    get_f64s(r, head, 5, 1);
+    sc_contact_params p = { .bounce_speed = head[1], .slop = head[2], .baumgarte = head[3],
+                            .tol = head[4] };
+    p.split_contacts = get_i32(r);
+    p.block_contacts = get_i32(r);
+    p.max_sweeps = get_i32(r);
+    p.cold = get_i32(r);
     if (r->bad || nm < 1 || nm > m || m > MAX_BODIES || nc > MAX_CONTACTS || nisl < 1 ||
-        nisl > nm || !(head[0] > 0) || head[1] < 0 || head[2] < 0 || head[3] < 0 ||
-        r->len - r->n != (size_t)nisl * 8 + (size_t)m * BODY_BYTES + (size_t)nc * CONTACT_BYTES)
+        nisl > nm || !(head[0] > 0) || !params_ok(&p) ||
+        r->len - r->n != (size_t)nisl * 8 + (size_t)m * BODY_BYTES +
+                             (size_t)nc * (CONTACT_BYTES + IMPULSE_BYTES))
         return SC_EFORMAT;
     sc_islands *is = &wu->islands;
     wu->bodies = sc_calloc_array(m, sizeof *wu->bodies);
@@ -471,7 +520,7 @@ static int decode_island(rbuf *r, sc_wire_unit *wu)
     }
     for (uint32_t k = 0; k < nc; k++) {
         sc_contact *c = &wu->c[k];
-        get_contact(r, c, 1);
+        get_contact(r, c, 1, 1);
         int a = c->body_a, b = c->body_b;
         if (r->bad || a < 0 || b < 0 || a >= (int)m || b >= (int)m || a == b ||
             (a >= (int)nm && b >= (int)nm))
@@ -482,8 +531,7 @@ static int decode_island(rbuf *r, sc_wire_unit *wu)
         is->bodies[k] = (int)k;
     is->count = (int)nisl;
     wu->nbodies = (int)m;
-    wu->params = (sc_contact_params){ .bounce_speed = head[1], .slop = head[2],
-                                      .baumgarte = head[3] };
+    wu->params = p;      /* inject 0 */
     sc_job *job = &wu->job;
     job->bodies = wu->bodies;
     job->c = wu->c;
@@ -538,6 +586,48 @@ void sc_wire_unit_free(sc_wire_unit *wu)
 
 /* ---- results ---- */
 
+/* The solve's counters (sc_solve_info), field by field: every int of it (a
+ * field added there must be added here; test_unit_wire compares whole
+ * infos of a local and a remote run). */
+#define INFO_INTS 11
+
+static void info_ints(sc_solve_info *info, int *f[INFO_INTS])
+{
+    int *p[INFO_INTS] = { &info->failures,        &info->regularised, &info->lemke,
+                          &info->collisions,      &info->split,       &info->split_fallbacks,
+                          &info->blocks,          &info->block_fallbacks,
+                          &info->nan_islands,     &info->sweeps_max,  &info->unconverged };
+    memcpy(f, p, sizeof p);
+}
+
+static void put_info(wbuf *w, sc_solve_info info)
+{
+    int *f[INFO_INTS];
+    info_ints(&info, f);
+    put(w, (uint64_t)info.pivots, 8);
+    for (int k = 0; k < INFO_INTS; k++)
+        put_i32(w, *f[k]);
+    put_f64s(w, &info.residual_exact, 1);
+    put_f64s(w, &info.residual_split, 1);
+}
+
+/* Counts must not be negative; the residuals are carried verbatim. */
+static void get_info(rbuf *r, sc_solve_info *info)
+{
+    int *f[INFO_INTS];
+    memset(info, 0, sizeof *info);
+    info_ints(info, f);
+    int64_t pivots = get_signed(r, 8);
+    if (pivots < 0 || pivots > LONG_MAX)
+        r->bad = 1;
+    info->pivots = (long)pivots;
+    for (int k = 0; k < INFO_INTS; k++)
+        if ((*f[k] = get_i32(r)) < 0)
+            r->bad = 1;
+    get_f64s(r, &info->residual_exact, 1, 0);
+    get_f64s(r, &info->residual_split, 1, 0);
+}
+
 static void write_result(wbuf *w, const void *wu_, const void *unused)
 {
     (void)unused;
@@ -550,11 +640,7 @@ static void write_result(wbuf *w, const void *wu_, const void *unused)
     put(w, (uint64_t)(island ? nm : u->count), 4);
     put_i32(w, u->rc);
     put(w, (uint64_t)u->messages, 8);
-    put(w, (uint64_t)u->info.pivots, 8);
-    put_i32(w, u->info.failures);
-    put_i32(w, u->info.regularised);
-    put_i32(w, u->info.lemke);
-    put_i32(w, u->info.collisions);
+    put_info(w, u->info);
     for (int i = 0; !island && i < u->count; i++) {
         if (job->kind == SC_UNIT_TOI) {
             put_f64s(w, &job->toi[i], 1);
@@ -565,14 +651,21 @@ static void write_result(wbuf *w, const void *wu_, const void *unused)
         put(w, (uint64_t)n, 1);
         for (int k = 0; k < n; k++) {
             const sc_contact *c = &job->contacts[(size_t)i * SC_MAX_PAIR_CONTACTS + (size_t)k];
-            put_contact(w, c, c->body_a, c->body_b);
+            put_contact(w, c, c->body_a, c->body_b, 0);
         }
     }
+    if (!island)
+        return;
+    const sc_islands *is = job->islands;
+    int nc = is->contact_start[is->count];
+    put(w, (uint64_t)nc, 4);
     for (int k = 0; k < nm; k++) {
-        const sc_body *b = &job->bodies[job->islands->bodies[k]];
+        const sc_body *b = &job->bodies[is->bodies[k]];
         put_body_f64(w, *b, MEMBER_F64);
         put_i32(w, b->collided);
     }
+    for (int k = 0; k < nc; k++)
+        put_f64s(w, job->c[is->contacts[k]].impulse, 3);
 }
 
 size_t sc_wire_result_pack(const sc_wire_unit *wu, unsigned char *buf, size_t cap)
@@ -593,16 +686,11 @@ static int read_result(rbuf *r, const sc_job *job, sc_unit *u, int write)
     if (get_header(r, MAGIC_RESULT) != job->kind || get(r, 4) != (uint64_t)count)
         return SC_EFORMAT;
     int rc = get_i32(r);
-    int64_t msgs = get_signed(r, 8), pivots = get_signed(r, 8);
-    sc_solve_info info = { 0 };
-    info.failures = get_i32(r);
-    info.regularised = get_i32(r);
-    info.lemke = get_i32(r);
-    info.collisions = get_i32(r);
-    if (r->bad || rc > 0 || msgs < 0 || msgs > LONG_MAX || pivots < 0 || pivots > LONG_MAX ||
-        info.failures < 0 || info.regularised < 0 || info.lemke < 0 || info.collisions < 0)
+    int64_t msgs = get_signed(r, 8);
+    sc_solve_info info;
+    get_info(r, &info);
+    if (r->bad || rc > 0 || msgs < 0 || msgs > LONG_MAX)
         return SC_EFORMAT;
-    info.pivots = (long)pivots;
     for (int i = i0; !island && i < i0 + count; i++) {
         if (job->kind == SC_UNIT_TOI) {
             double t;
@@ -617,7 +705,7 @@ static int read_result(rbuf *r, const sc_job *job, sc_unit *u, int write)
             return SC_EFORMAT;
         for (int k = 0; k < n; k++) {
             sc_contact c;
-            get_contact(r, &c, 0);
+            get_contact(r, &c, 0, 0);
             if (c.body_a != p->body_a || c.body_b != p->body_b)
                 return SC_EFORMAT;
             if (write)
@@ -626,6 +714,12 @@ static int read_result(rbuf *r, const sc_job *job, sc_unit *u, int write)
         if (write)
             job->ncontact[i] = n;
     }
+    /* an island's contacts: the master's unit's, in its order (the
+     * receiver numbered them so); the count must be theirs */
+    int c0 = island ? is->contact_start[u->first] : 0;
+    int nc = island ? is->contact_start[u->first + u->islands] - c0 : 0;
+    if (island && get(r, 4) != (uint64_t)nc)
+        return SC_EFORMAT;
     sc_body scratch = { 0 };
     for (int k = 0; island && k < count; k++) {
         sc_body *b = write ? &job->bodies[is->bodies[i0 + k]] : &scratch;
@@ -634,6 +728,12 @@ static int read_result(rbuf *r, const sc_job *job, sc_unit *u, int write)
         if ((collided = get_i32(r)) < 0 || collided > 2)
             return SC_EFORMAT;
         b->collided = collided;
+    }
+    for (int k = 0; k < nc; k++) {
+        double imp[3];
+        get_f64s(r, imp, 3, 0);
+        if (write)
+            memcpy(job->c[is->contacts[c0 + k]].impulse, imp, sizeof imp);
     }
     if (r->bad || r->n != r->len)
         return SC_EFORMAT;

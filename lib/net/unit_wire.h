@@ -9,7 +9,9 @@
  * little-endian, versioned, every size bounded; shapes travel as content
  * hashes (sc_shape.hash) resolved by the receiver's lookup. */
 typedef const sc_shape *(*sc_shape_lookup_fn)(void *ctx, uint64_t hash);
-/* Bytes unit u of job needs; written to buf when cap is enough. */
+/* Bytes unit u of job needs; written to buf when cap is enough. 0 for a
+ * unit the wire cannot carry (an island with settings a receiver refuses,
+ * or sc_contact_params.inject set): compute it locally. */
 size_t sc_wire_unit_pack(const sc_job *job, const sc_unit *u, unsigned char *buf, size_t cap);
 /* A received unit: a job of its own holding that one unit. */
 typedef struct sc_wire_unit {
@@ -26,15 +28,18 @@ typedef struct sc_wire_unit {
     sc_contact_params params;
 } sc_wire_unit;
 /* Decode; SC_EFORMAT for anything malformed (truncated, bad version/kind,
- * counts out of range, NaN, unknown shape hash), SC_ENOMEM. */
+ * counts or solver settings out of range, NaN, unknown shape hash),
+ * SC_ENOMEM. A decoded island's params have inject 0. */
 int sc_wire_unit_decode(const unsigned char *buf, size_t len, sc_shape_lookup_fn lookup,
                         void *lookup_ctx, sc_wire_unit *out);
 void sc_wire_unit_free(sc_wire_unit *wu);
 /* Results of a decoded unit after sc_unit_run(&np, &wu->job, &wu->unit). */
 size_t sc_wire_result_pack(const sc_wire_unit *wu, unsigned char *buf, size_t cap);
 /* Merge received results into the master's job exactly as if u had run
- * locally (u->rc, u->messages, u->info and the job's outputs for u).
- * SC_EFORMAT when buf does not match u (kind, counts) or is malformed. */
+ * locally (u->rc, u->messages, the whole u->info and the job's outputs for
+ * u: an island's members and its contacts' impulses). SC_EFORMAT when buf
+ * does not match u (kind, counts of pairs, members or contacts) or is
+ * malformed. */
 int sc_wire_result_apply(const sc_job *job, sc_unit *u, const unsigned char *buf, size_t len);
 
 #endif /* SC_UNIT_WIRE_H */
