@@ -904,7 +904,7 @@ static void test_result_for_another_unit_is_a_format_error(void **state)
     }
     /* an island result whose contact count or counters are wrong changes
      * nothing (layout: header 8, members 4, rc 4, messages 8, pivots 8,
-     * failures ... unconverged 11 x 4, residuals 16, contacts 4) */
+     * failures ... solves 12 x 4, residuals 16, contacts 4) */
     int big = 0;
     for (int i = 1; i < ij.is.count; i++)
         if (island_unit(&ij.is, i, 1).count > island_unit(&ij.is, big, 1).count)
@@ -915,7 +915,7 @@ static void test_result_for_another_unit_is_a_format_error(void **state)
     free(res);
     buf = pack_unit(&ij.jr, &ui, &len);
     res = remote_run(np, buf, len, &cc, &rlen);
-    const size_t pivots = 24, counters = pivots + 8, ncont = counters + 44 + 16;
+    const size_t pivots = 24, counters = pivots + 8, ncont = counters + 48 + 16;
     assert_int_equal(rlen, ncont + 4 +
                                (size_t)(ij.is.body_start[big + 1] - ij.is.body_start[big]) *
                                    (13 * 8 + 4) +

@@ -41,7 +41,7 @@ void sc_stage_add(sc_stats *st, int stage, double t0)
 
 void sc_stats_add_solve(sc_stats *st, const sc_solve_info *info)
 {
-    st->lcp_solves++;
+    st->lcp_solves += info->solves;
     st->lcp_pivots += info->pivots;
     st->lcp_fallbacks += info->failures;
     st->lcp_split += info->split;

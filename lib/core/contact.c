@@ -658,6 +658,7 @@ int sc_island_solve(sc_arena *arena, sc_body *bodies, sc_contact *c, const int *
 {
     if (nc == 0)
         return SC_OK;
+    info->solves++;
     /* rows: normal, then two tangents where there is friction */
     int nrows = 0;
     for (int k = 0; k < nc; k++) {

@@ -131,6 +131,7 @@ enum {
 };
 
 typedef struct sc_solve_info {
+    int solves;                     /* islands solved */
     long pivots;
     int failures;                   /* coupled friction LCPs that failed even
                                        regularised (solved staggered) */
