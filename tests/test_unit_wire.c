@@ -930,7 +930,7 @@ static void test_result_for_another_unit_is_a_format_error(void **state)
         { ncont, 4, (uint64_t)ui.count + 1 }, { ncont, 4, (uint64_t)ui.count - 1 },
         { pivots, 8, (uint64_t)-1 },
     };
-    for (int k = 0; k < 3 + 11; k++) {
+    for (int k = 0; k < 3 + 12; k++) {
         size_t at = k < 3 ? wrong[k].at : counters + 4 * (size_t)(k - 3);
         int nbytes = k < 3 ? wrong[k].n : 4;
         uint64_t v = k < 3 ? wrong[k].v : (uint32_t)-1;   /* a negative counter */
@@ -947,7 +947,7 @@ static void test_result_for_another_unit_is_a_format_error(void **state)
     assert_memory_equal(contacts_before, ij.cr, ncb);
     /* the residuals are carried as they are */
     double odd = NAN;
-    memcpy(res + counters + 44, &odd, sizeof odd);
+    memcpy(res + counters + 48, &odd, sizeof odd);
     ui.info.residual_exact = 0;
     assert_int_equal(sc_wire_result_apply(&ij.jr, &ui, res, rlen), SC_OK);
     assert_true(isnan(ui.info.residual_exact));
