@@ -17,8 +17,7 @@
 #define SPLIT_TOL 1e-3
 #define SPLIT_MAX_SWEEPS 50
 
-/* The contact model and solver settings (docs/DESIGN.md section 11). */
-static sc_contact_params contact_params(const sc_frame_config *cfg)
+sc_contact_params sc_frame_contact_params(const sc_frame_config *cfg)
 {
     return (sc_contact_params){
         .bounce_speed = 0.1,      /* the paper's threshold speed */
@@ -76,7 +75,7 @@ static int substep(sc_frame *f, double h, sc_islands *is, unsigned char *touched
     }
     /* step 7: one work unit per island (islands share no movable body) */
     t0 = sc_cpu_now();
-    sc_contact_params params = contact_params(f->cfg);
+    sc_contact_params params = sc_frame_contact_params(f->cfg);
     sc_job job = {
         .kind = SC_UNIT_ISLAND,
         .bodies = st->bodies,

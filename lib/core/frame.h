@@ -160,6 +160,9 @@ typedef struct sc_frame {
     sc_pose *poses;
 } sc_frame;
 
+/* The contact model and solver settings a frame of cfg uses (frame.c;
+ * docs/DESIGN.md section 11). */
+sc_contact_params sc_frame_contact_params(const sc_frame_config *cfg);
 /* Adding the CPU time since t0 to a Table 1 row of f's figures. */
 void sc_stage_add(sc_stats *st, int stage, double t0);
 /* One island solve's figures into the frame's (sc_stats.lcp_*). */

@@ -1,0 +1,264 @@
+/* test_contact.c - the contact solver for piles (lib/core/contact.c;
+ * docs/DESIGN.md section 11): every fallback forced and counted with a
+ * finite, physical answer; split islands agree with exact ones; warm
+ * starts carry the weight from frame to frame.
+ *
+ * The island is a stack of three boxes on the floor, resting (12 contacts,
+ * 36 rows with friction), taken from a world after a few frames and solved
+ * with sc_island_solve() on copies of its bodies and contacts. */
+#include <math.h>
+#include <setjmp.h>
+#include <stdarg.h>
+#include <stddef.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include <cmocka.h>
+
+#include "world.h"
+
+#define H 0.01
+#define HALF 0.1
+#define LAYERS 3
+
+typedef struct stack {
+    sc_world *w;
+    int nb, nc;
+    sc_body *bodies;          /* u* (gravity applied), as a substep has them */
+    sc_contact *c;
+    int *ci;
+} stack;
+
+static sc_world *stack_world(void)
+{
+    sc_world_config cfg = sc_world_config_default();
+    cfg.workers = 1;
+    sc_world *w = sc_world_create(&cfg);
+    assert_non_null(w);
+    sc_shape *floor = sc_shape_plane(0, 0, 1, 0), *box = sc_shape_box(HALF, HALF, HALF);
+    sc_body_desc d = sc_body_desc_default();
+    d.shape = floor;
+    d.mass = 0;
+    assert_int_equal(sc_body_add(w, &d), 0);
+    for (int k = 0; k < LAYERS; k++) {
+        d = sc_body_desc_default();
+        d.shape = box;
+        d.mass = 1;
+        d.friction = 0.5;
+        d.pos[2] = HALF + 2 * HALF * k - 1e-4;    /* a hair of penetration */
+        assert_int_equal(sc_body_add(w, &d), k + 1);
+    }
+    sc_shape_release(floor);
+    sc_shape_release(box);
+    return w;
+}
+
+/* The stack after a few frames, its bodies at u* for one substep of H. */
+static void stack_make(stack *s)
+{
+    s->w = stack_world();
+    for (int f = 0; f < 5; f++)
+        assert_int_equal(sc_world_step(s->w, H), SC_OK);
+    sc_frame_state *st = &s->w->st;
+    s->nb = st->nbodies;
+    s->nc = st->ncontacts;
+    assert_int_equal(s->nc, 4 * LAYERS);
+    s->bodies = malloc((size_t)s->nb * sizeof *s->bodies);
+    s->c = malloc((size_t)s->nc * sizeof *s->c);
+    s->ci = malloc((size_t)s->nc * sizeof *s->ci);
+    assert_true(s->bodies && s->c && s->ci);
+    memcpy(s->c, st->contacts, (size_t)s->nc * sizeof *s->c);
+    for (int k = 0; k < s->nc; k++)
+        s->ci[k] = k;
+    /* u* as the frame makes it: sc_apply_forces on a copy of the state */
+    sc_body *keep = malloc((size_t)s->nb * sizeof *keep);
+    assert_non_null(keep);
+    memcpy(keep, st->bodies, (size_t)s->nb * sizeof *keep);
+    sc_frame f = { .cfg = &s->w->fcfg, .st = st };
+    sc_apply_forces(&f, H);
+    memcpy(s->bodies, st->bodies, (size_t)s->nb * sizeof *s->bodies);
+    memcpy(st->bodies, keep, (size_t)s->nb * sizeof *keep);
+    free(keep);
+}
+
+static void stack_free(stack *s)
+{
+    free(s->ci);
+    free(s->c);
+    free(s->bodies);
+    sc_world_destroy(s->w);
+}
+
+/* Solve a copy; returns the largest speed of a box afterwards (m/s) and
+ * checks every number is finite. */
+static double solve_copy(const stack *s, const sc_contact_params *p, sc_solve_info *info,
+                         sc_body *out, sc_contact *cout)
+{
+    memcpy(out, s->bodies, (size_t)s->nb * sizeof *out);
+    memcpy(cout, s->c, (size_t)s->nc * sizeof *cout);
+    sc_arena a;
+    sc_arena_init(&a);
+    memset(info, 0, sizeof *info);
+    assert_int_equal(sc_island_solve(&a, out, cout, s->ci, s->nc, H, p, info), SC_OK);
+    sc_arena_destroy(&a);
+    double vmax = 0;
+    for (int i = 1; i < s->nb; i++) {
+        for (int k = 0; k < 3; k++)
+            assert_true(isfinite(out[i].x[k]) && isfinite(out[i].v[k]) && isfinite(out[i].w[k]));
+        vmax = fmax(vmax, sqrt(out[i].v[0] * out[i].v[0] + out[i].v[1] * out[i].v[1] +
+                               out[i].v[2] * out[i].v[2]));
+    }
+    for (int k = 0; k < s->nc; k++)
+        for (int j = 0; j < 3; j++)
+            assert_true(isfinite(cout[k].impulse[j]));
+    return vmax;
+}
+
+/* The floor carries the stack's weight over the substep: the normal
+ * impulses of the floor contacts add up to m g h (3 kg). */
+static double floor_impulse(const sc_contact *c, int nc)
+{
+    double sum = 0;
+    for (int k = 0; k < nc; k++)
+        if (c[k].body_a == 0)
+            sum += c[k].impulse[2];
+    return sum;
+}
+
+static void test_each_fallback_is_taken_counted_and_physical(void **state)
+{
+    (void)state;
+    stack s;
+    stack_make(&s);
+    sc_body *out = malloc((size_t)s.nb * sizeof *out);
+    sc_contact *cout = malloc((size_t)s.nc * sizeof *cout);
+    assert_true(out && cout);
+    const double weight = LAYERS * 1.0 * 9.81 * H;
+    sc_contact_params base = sc_frame_contact_params(&s.w->fcfg);
+    sc_solve_info info;
+
+    /* no fault: one exact LCP, no fallback, the stack stays put */
+    double v = solve_copy(&s, &base, &info, out, cout);
+    assert_int_equal(info.solves, 1);
+    assert_int_equal(info.failures + info.split + info.split_fallbacks + info.nan_islands, 0);
+    assert_true(v < 1e-3);
+    assert_true(fabs(floor_impulse(cout, s.nc) - weight) < 0.02 * weight);
+    assert_true(info.residual_exact < 1e-9);
+
+    /* the coupled friction LCP fails: staggered (normals, then friction) */
+    sc_contact_params p = base;
+    p.inject = SC_INJECT_COUPLED;
+    v = solve_copy(&s, &p, &info, out, cout);
+    assert_int_equal(info.failures, 1);
+    assert_int_equal(info.split_fallbacks, 0);
+    assert_true(v < 1e-3);
+    assert_true(fabs(floor_impulse(cout, s.nc) - weight) < 0.02 * weight);
+
+    /* and the staggered one fails too: blocks */
+    p.inject = SC_INJECT_COUPLED | SC_INJECT_STAGGERED;
+    v = solve_copy(&s, &p, &info, out, cout);
+    assert_int_equal(info.failures, 1);
+    assert_int_equal(info.split_fallbacks, 1);
+    assert_int_equal(info.split, 1);
+    assert_true(info.blocks > 0);
+    assert_true(v < 5 * base.tol);
+    assert_true(fabs(floor_impulse(cout, s.nc) - weight) < 0.02 * weight);
+
+    /* a split island whose every block solve fails: projected Gauss-Seidel
+     * on each block, to the outer tolerance or counted unconverged */
+    p = base;
+    p.split_contacts = 2;
+    p.inject = SC_INJECT_BLOCK;
+    v = solve_copy(&s, &p, &info, out, cout);
+    assert_int_equal(info.split, 1);
+    assert_true(info.block_fallbacks > 0);
+    assert_int_equal(info.block_fallbacks, info.blocks);
+    assert_true(info.unconverged || info.residual_split <= base.tol);
+    assert_true(v < 0.05);
+    assert_true(fabs(floor_impulse(cout, s.nc) - weight) < 0.1 * weight);
+
+    /* a NaN in the island's data: no impulse, counted, nothing spread */
+    p = base;
+    p.inject = SC_INJECT_NAN;
+    solve_copy(&s, &p, &info, out, cout);
+    assert_int_equal(info.nan_islands, 1);
+    for (int i = 0; i < s.nb; i++)
+        assert_memory_equal(out[i].v, s.bodies[i].v, sizeof out[i].v);
+    for (int k = 0; k < s.nc; k++)
+        assert_true(cout[k].impulse[0] == 0 && cout[k].impulse[1] == 0 && cout[k].impulse[2] == 0);
+    free(cout);
+    free(out);
+    stack_free(&s);
+}
+
+/* Blocks of one pair each (split past 2 contacts) reach the exact answer
+ * within the outer tolerance. */
+static void test_split_island_agrees_with_the_exact_one(void **state)
+{
+    (void)state;
+    stack s;
+    stack_make(&s);
+    sc_body *ex = malloc((size_t)s.nb * sizeof *ex), *sp = malloc((size_t)s.nb * sizeof *sp);
+    sc_contact *cex = malloc((size_t)s.nc * sizeof *cex), *csp = malloc((size_t)s.nc * sizeof *csp);
+    assert_true(ex && sp && cex && csp);
+    sc_contact_params p = sc_frame_contact_params(&s.w->fcfg);
+    sc_solve_info ie, is;
+    p.split_contacts = 0;
+    solve_copy(&s, &p, &ie, ex, cex);
+    p.split_contacts = 2;
+    p.block_contacts = 4;
+    solve_copy(&s, &p, &is, sp, csp);
+    assert_int_equal(ie.split, 0);
+    assert_int_equal(is.split, 1);
+    assert_int_equal(is.unconverged, 0);
+    assert_true(is.residual_split <= p.tol);
+    assert_true(is.sweeps_max >= 1);
+    for (int i = 1; i < s.nb; i++)
+        for (int k = 0; k < 3; k++) {
+            assert_true(fabs(ex[i].v[k] - sp[i].v[k]) < 5 * p.tol);
+            assert_true(fabs(ex[i].w[k] - sp[i].w[k]) < 5 * p.tol / HALF);
+        }
+    assert_true(fabs(floor_impulse(cex, s.nc) - floor_impulse(csp, s.nc)) <
+                0.01 * floor_impulse(cex, s.nc));
+    free(csp), free(cex), free(sp), free(ex);
+    stack_free(&s);
+}
+
+/* Contacts persist from frame to frame with their impulses (the warm
+ * start): a resting stack's floor contacts carry its weight, and a warm
+ * exact solve takes fewer pivots than a cold one on the same island. */
+static void test_resting_contacts_keep_their_impulses(void **state)
+{
+    (void)state;
+    stack s;
+    stack_make(&s);
+    const double weight = LAYERS * 1.0 * 9.81 * H;
+    sc_contact got[4 * LAYERS];
+    int n = sc_world_contacts(s.w, got, 4 * LAYERS);
+    assert_int_equal(n, 4 * LAYERS);
+    assert_true(fabs(floor_impulse(got, n) - weight) < 0.02 * weight);
+    /* matched, not recomputed: the contacts the solve starts from carry it */
+    assert_true(fabs(floor_impulse(s.c, s.nc) - weight) < 0.02 * weight);
+    sc_body *out = malloc((size_t)s.nb * sizeof *out);
+    sc_contact *cout = malloc((size_t)s.nc * sizeof *cout);
+    assert_true(out && cout);
+    sc_contact_params p = sc_frame_contact_params(&s.w->fcfg);
+    sc_solve_info warm, cold;
+    solve_copy(&s, &p, &warm, out, cout);
+    p.cold = 1;
+    solve_copy(&s, &p, &cold, out, cout);
+    assert_true(warm.pivots < cold.pivots);
+    free(cout);
+    free(out);
+    stack_free(&s);
+}
+
+int main(void)
+{
+    const struct CMUnitTest tests[] = {
+        cmocka_unit_test(test_each_fallback_is_taken_counted_and_physical),
+        cmocka_unit_test(test_split_island_agrees_with_the_exact_one),
+        cmocka_unit_test(test_resting_contacts_keep_their_impulses),
+    };
+    return cmocka_run_group_tests(tests, NULL, NULL);
+}
