@@ -76,6 +76,11 @@ enum {
 #define SC_MAX_ISLAND_ROWS 8192
 /* The default sc_world_config.island_split. */
 #define SC_ISLAND_SPLIT_DEFAULT 16
+/* A split island's outer iteration stops when no contact row is further
+ * than SC_SPLIT_TOL (m/s) from its own answer given the others, or after
+ * SC_SPLIT_MAX_SWEEPS sweeps (counted in sc_stats.lcp_unconverged). */
+#define SC_SPLIT_TOL 1e-3
+#define SC_SPLIT_MAX_SWEEPS 50
 
 /* A sentence describing the error code err (never NULL). */
 SC_API const char *sc_strerror(int err);

@@ -81,6 +81,23 @@ check "run, bodies placed inside each other" 0 "$tool" run "$dir/heap.scene" --f
 one_line "run, bodies inside each other" "warning: 351 body pairs overlap"
 grep -q '"initial_overlaps": 351' "$dir/out" ||
     { echo "FAIL: run --json: no initial_overlaps 351"; cat "$dir/out"; fail=1; }
+# the heap is one island of 351 contacts: split into blocks by default,
+# one exact LCP with --island-split 0; both say so, with the residuals
+python3 - "$dir/out" <<'PY' || { echo "FAIL: run --json: solver figures of a split heap"; cat "$dir/out"; fail=1; }
+import json, sys
+r = json.load(open(sys.argv[1]))["solver"]
+ok = (r["island_split"] == 16 and r["split"] > 0 and r["blocks"] > 0 and r["solves"] >= r["split"]
+      and r["max_outer_residual"] >= 0 and r["substeps"] >= 20 and r["nan_islands"] == 0)
+sys.exit(not ok)
+PY
+check "run --island-split 0" 0 "$tool" run "$dir/heap.scene" --frames 5 --island-split 0
+grep -q "split into blocks 0," "$dir/out" || { echo "FAIL: --island-split 0 split"; cat "$dir/out"; fail=1; }
+grep -q "^  LCP residual at most [0-9.e+-]* m/s (exact)" "$dir/out" ||
+    { echo "FAIL: run: no LCP residual line"; cat "$dir/out"; fail=1; }
+grep -q "^  fallbacks: staggered friction [0-9]*, blocks after staggered [0-9]*, projected Gauss-Seidel blocks [0-9]*, non-finite islands 0$" "$dir/out" ||
+    { echo "FAIL: run: no fallbacks line"; cat "$dir/out"; fail=1; }
+check "run --island-split -1" 2 "$tool" run bolts --island-split -1
+one_line "run --island-split -1" "--island-split takes 0..1000000"
 check "run, bodies not inside each other" 0 "$tool" run bolts --bodies 12 --frames 20
 [ -s "$dir/err" ] && { echo "FAIL: run bolts: stderr not empty"; cat "$dir/err"; fail=1; }
 grep -q "overlapping" "$dir/out" && { echo "FAIL: run bolts: overlaps reported"; fail=1; }

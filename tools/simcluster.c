@@ -32,6 +32,7 @@ static const char run_help[] =
     "run and profile options: --bodies N --seed S --frames F --until-rest\n"
     "  --workers W --groups --cluster URL --key FILE --deadline S --json\n"
     "  --wait-daemons K (before the first frame, at most 10 s)\n"
+    "  --island-split N (islands of more contacts solved as blocks; 0: exact)\n"
     "profile only: --chart PNG (CPU by stage beside the paper's, by gnuplot)\n";
 static const char run_only_help[] =
     "run only: --record LOG (an LCM log of every frame, for simcluster-view)\n"
@@ -122,7 +123,7 @@ static int keygen(int argc, char **argv)
 typedef struct options {
     const char *scene;
     sc_scene *file;         /* a scene file, else NULL: the built-in scene */
-    long bodies, seed, frames, workers, wait_daemons;
+    long bodies, seed, frames, workers, wait_daemons, island_split;
     int until_rest, groups, json, realtime, bodies_set, seed_set;
     const char *cluster, *key, *record, *render, *publish, *chart;
     double deadline;
@@ -153,6 +154,7 @@ static int parse_options(const char *cmd, int argc, char **argv, options *o)
         { "publish", required_argument, 0, 'P' },  { "realtime", no_argument, 0, 'R' },
         { "wait-daemons", required_argument, 0, 'W' },
         { "chart", required_argument, 0, 'C' },
+        { "island-split", required_argument, 0, 'I' },
         { "help", no_argument, 0, 'h' },           { "version", no_argument, 0, 'V' },
         { 0, 0, 0, 0 }
     };
@@ -160,6 +162,7 @@ static int parse_options(const char *cmd, int argc, char **argv, options *o)
     o->bodies = 50;
     o->seed = 1;
     o->frames = -1;
+    o->island_split = -1;
     opterr = 0;
     optind = 2;
     int c, li;
@@ -237,6 +240,11 @@ static int parse_options(const char *cmd, int argc, char **argv, options *o)
             break;
         case 'R':
             o->realtime = 1;
+            break;
+        case 'I':
+            if (!parse_long(optarg, 0, 1000000, &o->island_split))
+                return bad(cmd, "--island-split takes 0..1000000 contacts (0: one exact LCP "
+                                "an island)");
             break;
         case 'C':
             if (optarg[0] == '\0')
@@ -358,6 +366,8 @@ static sc_world *make_world(const options *o, const char *cmd)
     c.cluster_deadline_s = o->deadline;
     if (o->file)
         sc_scene_config(o->file, &c);
+    if (o->island_split >= 0)
+        c.island_split = (int)o->island_split;
     sc_world *w = sc_world_create(&c);
     if (!w) {
         int err = sc_last_error();
@@ -540,6 +550,11 @@ typedef struct totals {
     double rest_s;
     int interrupted;            /* the signal that stopped the run, else 0 */
     long duplicates;            /* duplicate daemon ids reported so far */
+    /* the contact solver, summed (or the largest) over the frames */
+    long solves, split, blocks, pivots, staggered, split_fb, block_fb, nan, unconverged;
+    long substeps, max_pivots;
+    int max_sweeps, max_substeps;
+    double residual, outer_residual;
 } totals;
 
 /* SIGINT and SIGTERM during run and profile: the handler only notes the
@@ -613,6 +628,21 @@ static int simulate(const options *o, sc_world *w, totals *t, int progress, reco
                     (unsigned long long)st.duplicate_node);
         }
         t->max_pen = fmax(t->max_pen, st.max_penetration);
+        t->solves += st.lcp_solves;
+        t->split += st.lcp_split;
+        t->blocks += st.lcp_blocks;
+        t->pivots += st.lcp_pivots;
+        t->max_pivots = st.lcp_pivots > t->max_pivots ? st.lcp_pivots : t->max_pivots;
+        t->staggered += st.lcp_fallbacks;
+        t->split_fb += st.lcp_split_fallbacks;
+        t->block_fb += st.lcp_block_fallbacks;
+        t->nan += st.lcp_nan_islands;
+        t->unconverged += st.lcp_unconverged;
+        t->max_sweeps = st.lcp_sweeps_max > t->max_sweeps ? st.lcp_sweeps_max : t->max_sweeps;
+        t->residual = fmax(t->residual, st.lcp_residual);
+        t->outer_residual = fmax(t->outer_residual, st.lcp_outer_residual);
+        t->substeps += st.substeps;
+        t->max_substeps = st.substeps > t->max_substeps ? st.substeps : t->max_substeps;
         if (st.initial_overlaps > t->overlaps)
             fprintf(stderr, "%s: warning: %ld body pairs overlap by more than twice the "
                     "contact tolerance where they were placed; they are pushed apart, not "
@@ -748,6 +778,7 @@ static int run_cmd(int argc, char **argv)
     sc_world_stats(w, &st);
     double sim = t.frames * DT;
     unsigned long long hash = (unsigned long long)sc_world_hash(w);
+    int island_split = o.island_split >= 0 ? (int)o.island_split : SC_ISLAND_SPLIT_DEFAULT;
     char seed[24] = "null";         /* scene files have no seed */
     if (!strcmp(o.scene, "bolts") || !strcmp(o.scene, "bin"))
         snprintf(seed, sizeof seed, "%ld", o.seed);
@@ -763,13 +794,22 @@ static int run_cmd(int argc, char **argv)
                "\"dropped_stale\": %ld, "
                "\"dropped_misaddressed\": %ld, \"duplicate_nodes\": %ld, \"comm_s\": %.4f, "
                "\"frames_over_budget\": %ld, \"max_frame_s\": %.4f, \"initial_overlaps\": %ld, "
+               "\"solver\": {\"island_split\": %d, \"solves\": %ld, \"split\": %ld, "
+               "\"blocks\": %ld, \"pivots\": %ld, \"max_frame_pivots\": %ld, "
+               "\"staggered_fallbacks\": %ld, \"split_fallbacks\": %ld, "
+               "\"block_fallbacks\": %ld, \"nan_islands\": %ld, \"unconverged\": %ld, "
+               "\"max_sweeps\": %d, \"max_residual\": %.3g, \"max_outer_residual\": %.3g, "
+               "\"substeps\": %ld, \"max_substeps\": %d}, "
                "\"hash\": \"%016llx\", \"interrupted\": %s%s%s, \"error\": %s%s%s}\n",
                sc_world_body_count(w), seed, (int)(st.nodes - st.daemons), t.frames,
                sim, t.wall, t.wall > 0 ? sim / t.wall : 0, t.at_rest ? "true" : "false",
                t.rest_s, t.peak_energy, t.max_pen, t.units, st.daemons, t.remote, t.recomputed,
                t.late, st.dropped_messages, st.dropped_auth, st.dropped_stale,
                st.dropped_misaddressed,
-               st.duplicate_nodes, t.comm, t.over_budget, t.max_frame, t.overlaps, hash,
+               st.duplicate_nodes, t.comm, t.over_budget, t.max_frame, t.overlaps,
+               island_split, t.solves, t.split, t.blocks, t.pivots, t.max_pivots, t.staggered,
+               t.split_fb, t.block_fb, t.nan, t.unconverged, t.max_sweeps, t.residual,
+               t.outer_residual, t.substeps, t.max_substeps, hash,
                t.interrupted ? "\"" : "null", t.interrupted ? signal_name(t.interrupted) : "",
                t.interrupted ? "\"" : "", rc ? "\"" : "null",
                rc ? sc_strerror(rc) : "", rc ? "\"" : "");
@@ -787,6 +827,16 @@ static int run_cmd(int argc, char **argv)
                1e3 * t.max_pen);
         if (t.overlaps)
             printf("  body pairs overlapping where placed: %ld (pushed apart)\n", t.overlaps);
+        printf("  contact solves %ld (split into blocks %ld, block solves %ld), pivots %ld "
+               "(most in a frame %ld), substeps %.2f a frame (most %d)\n",
+               t.solves, t.split, t.blocks, t.pivots, t.max_pivots,
+               t.frames ? (double)t.substeps / (double)t.frames : 0.0, t.max_substeps);
+        printf("  LCP residual at most %.3g m/s (exact), %.3g m/s (split, tolerance %.0e; "
+               "%ld stopped at %d sweeps)\n",
+               t.residual, t.outer_residual, SC_SPLIT_TOL, t.unconverged, SC_SPLIT_MAX_SWEEPS);
+        printf("  fallbacks: staggered friction %ld, blocks after staggered %ld, projected "
+               "Gauss-Seidel blocks %ld, non-finite islands %ld\n",
+               t.staggered, t.split_fb, t.block_fb, t.nan);
         printf("  work units %ld", t.units);
         if (o.cluster)
             printf(", from daemons %ld, recomputed %ld, late %ld, dropped messages %ld",

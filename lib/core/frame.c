@@ -12,10 +12,8 @@
 
 #define MAX_SUBSTEPS 16       /* time-of-impact back-ups per frame */
 #define TOI_AIM 0.9           /* back up to this share of the tolerance */
-/* split islands: contacts per block, outer residual (m/s), sweeps */
+/* split islands: contacts per block (whole pairs: a pair has at most 4) */
 #define SPLIT_BLOCK_CONTACTS 4
-#define SPLIT_TOL 1e-3
-#define SPLIT_MAX_SWEEPS 50
 
 sc_contact_params sc_frame_contact_params(const sc_frame_config *cfg)
 {
@@ -25,8 +23,8 @@ sc_contact_params sc_frame_contact_params(const sc_frame_config *cfg)
         .baumgarte = 0.2,
         .split_contacts = cfg->island_split,
         .block_contacts = SPLIT_BLOCK_CONTACTS,
-        .tol = SPLIT_TOL,
-        .max_sweeps = SPLIT_MAX_SWEEPS,
+        .tol = SC_SPLIT_TOL,
+        .max_sweeps = SC_SPLIT_MAX_SWEEPS,
     };
 }
 
