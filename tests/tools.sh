@@ -96,6 +96,12 @@ grep -q "^  LCP residual at most [0-9.e+-]* m/s (exact)" "$dir/out" ||
     { echo "FAIL: run: no LCP residual line"; cat "$dir/out"; fail=1; }
 grep -q "^  fallbacks: staggered friction [0-9]*, blocks after staggered [0-9]*, projected Gauss-Seidel blocks [0-9]*, non-finite islands 0$" "$dir/out" ||
     { echo "FAIL: run: no fallbacks line"; cat "$dir/out"; fail=1; }
+# the dense pile: islands split into blocks, the same bits on 1 and 3 threads
+check "run bin, one worker" 0 "$tool" run bin --bodies 40 --frames 120 --workers 1 --json
+hb1=$(python3 -c 'import json,sys; r = json.load(open(sys.argv[1])); print(r["hash"] if r["solver"]["split"] > 0 and r["error"] is None else "")' "$dir/out")
+check "run bin, three workers" 0 "$tool" run bin --bodies 40 --frames 120 --workers 3 --json
+hb3=$(python3 -c 'import json,sys; print(json.load(open(sys.argv[1]))["hash"])' "$dir/out")
+[ -n "$hb1" ] && [ "$hb1" = "$hb3" ] || { echo "FAIL: run bin: hash '$hb1' (split) on 1 worker, $hb3 on 3"; fail=1; }
 check "run --island-split -1" 2 "$tool" run bolts --island-split -1
 one_line "run --island-split -1" "--island-split takes 0..1000000"
 check "run, bodies not inside each other" 0 "$tool" run bolts --bodies 12 --frames 20
