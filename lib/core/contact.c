@@ -385,18 +385,29 @@ static void blocks_free(sc_arena *a, blocks *bl)
  * fails): z clamped row by row into its bounds, always finite. */
 #define PGS_ITER 30
 
+/* Row r's own answer given the others, clamp(z - w / A_rr, lo, hi), in
+ * *zn; 0 for a row without a pivot (A_rr = 0: it moves nothing). */
+static int row_project(const gs_problem *pb, const blocks *bl, const double *z,
+                       const double *u, int r, double *zn)
+{
+    double d = bl->diag[r];
+    if (!(d > 0))
+        return 0;
+    double lo, hi;
+    row_bounds(pb, z, r, &lo, &hi);
+    double w = local_speed(&pb->rows[r], u) + pb->off[r];
+    *zn = fmin(fmax(z[r] - w / d, lo), hi);
+    return 1;
+}
+
 static void block_pgs(const gs_problem *pb, const blocks *bl, int k, double *z, double *u)
 {
     int r0 = bl->bstart[k], r1 = bl->bstart[k + 1];
     for (int it = 0; it < PGS_ITER; it++)
         for (int r = r0; r < r1; r++) {
-            double d = bl->diag[r];
-            if (!(d > 0))
+            double zn;
+            if (!row_project(pb, bl, z, u, r, &zn))
                 continue;
-            double lo, hi;
-            row_bounds(pb, z, r, &lo, &hi);
-            double w = local_speed(&pb->rows[r], u) + pb->off[r];
-            double zn = fmin(fmax(z[r] - w / d, lo), hi);
             local_apply(&pb->rows[r], zn - z[r], u);
             z[r] = zn;
         }
@@ -473,13 +484,9 @@ static double rows_residual(const gs_problem *pb, const blocks *bl, const double
 {
     double res = 0;
     for (int r = r0; r < r1; r++) {
-        double d = bl->diag[r];
-        if (!(d > 0))
-            continue;
-        double lo, hi;
-        row_bounds(pb, z, r, &lo, &hi);
-        double w = local_speed(&pb->rows[r], u) + pb->off[r];
-        res = fmax(res, fabs(z[r] - fmin(fmax(z[r] - w / d, lo), hi)) * d);
+        double zn;
+        if (row_project(pb, bl, z, u, r, &zn))
+            res = fmax(res, fabs(z[r] - zn) * bl->diag[r]);
     }
     return res;
 }
