@@ -272,6 +272,10 @@ typedef struct sc_stats {
     long lcp_blocks;          /* block solves (blocks x sweeps) */
     int lcp_sweeps_max;       /* most outer sweeps of one split solve */
     int lcp_unconverged;      /* split solves that stopped at the sweep limit */
+    int lcp_diverged;         /* split solves whose sweeps diverged: ended on
+                                 the best iterate */
+    int lcp_cold_starts;      /* split solves started from 0 because last
+                                 frame's impulses were a worse start */
     int lcp_regularised;      /* exact solves that needed a raised diagonal */
     int lcp_split_fallbacks;  /* exact islands whose staggered solve failed too:
                                  solved as blocks instead */

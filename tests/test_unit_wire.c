@@ -904,7 +904,7 @@ static void test_result_for_another_unit_is_a_format_error(void **state)
     }
     /* an island result whose contact count or counters are wrong changes
      * nothing (layout: header 8, members 4, rc 4, messages 8, pivots 8,
-     * failures ... solves 12 x 4, residuals 16, contacts 4) */
+     * failures ... cold_starts 14 x 4, residuals 16, contacts 4) */
     int big = 0;
     for (int i = 1; i < ij.is.count; i++)
         if (island_unit(&ij.is, i, 1).count > island_unit(&ij.is, big, 1).count)
@@ -915,7 +915,7 @@ static void test_result_for_another_unit_is_a_format_error(void **state)
     free(res);
     buf = pack_unit(&ij.jr, &ui, &len);
     res = remote_run(np, buf, len, &cc, &rlen);
-    const size_t pivots = 24, counters = pivots + 8, ncont = counters + 48 + 16;
+    const size_t pivots = 24, counters = pivots + 8, ncont = counters + 56 + 16;
     assert_int_equal(rlen, ncont + 4 +
                                (size_t)(ij.is.body_start[big + 1] - ij.is.body_start[big]) *
                                    (13 * 8 + 4) +
@@ -930,7 +930,7 @@ static void test_result_for_another_unit_is_a_format_error(void **state)
         { ncont, 4, (uint64_t)ui.count + 1 }, { ncont, 4, (uint64_t)ui.count - 1 },
         { pivots, 8, (uint64_t)-1 },
     };
-    for (int k = 0; k < 3 + 12; k++) {
+    for (int k = 0; k < 3 + 14; k++) {
         size_t at = k < 3 ? wrong[k].at : counters + 4 * (size_t)(k - 3);
         int nbytes = k < 3 ? wrong[k].n : 4;
         uint64_t v = k < 3 ? wrong[k].v : (uint32_t)-1;   /* a negative counter */
@@ -947,7 +947,7 @@ static void test_result_for_another_unit_is_a_format_error(void **state)
     assert_memory_equal(contacts_before, ij.cr, ncb);
     /* the residuals are carried as they are */
     double odd = NAN;
-    memcpy(res + counters + 48, &odd, sizeof odd);
+    memcpy(res + counters + 56, &odd, sizeof odd);
     ui.info.residual_exact = 0;
     assert_int_equal(sc_wire_result_apply(&ij.jr, &ui, res, rlen), SC_OK);
     assert_true(isnan(ui.info.residual_exact));

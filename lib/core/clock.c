@@ -49,6 +49,8 @@ void sc_stats_add_solve(sc_stats *st, const sc_solve_info *info)
     if (info->sweeps_max > st->lcp_sweeps_max)
         st->lcp_sweeps_max = info->sweeps_max;
     st->lcp_unconverged += info->unconverged;
+    st->lcp_diverged += info->diverged;
+    st->lcp_cold_starts += info->cold_starts;
     st->lcp_regularised += info->regularised;
     st->lcp_split_fallbacks += info->split_fallbacks;
     st->lcp_block_fallbacks += info->block_fallbacks;
@@ -67,6 +69,8 @@ void sc_stats_add_solver(sc_stats *s, const sc_stats *g)
     if (g->lcp_sweeps_max > s->lcp_sweeps_max)
         s->lcp_sweeps_max = g->lcp_sweeps_max;
     s->lcp_unconverged += g->lcp_unconverged;
+    s->lcp_diverged += g->lcp_diverged;
+    s->lcp_cold_starts += g->lcp_cold_starts;
     s->lcp_regularised += g->lcp_regularised;
     s->lcp_split_fallbacks += g->lcp_split_fallbacks;
     s->lcp_block_fallbacks += g->lcp_block_fallbacks;
@@ -86,6 +90,8 @@ void sc_stats_clear_solver(sc_stats *st)
     st->lcp_blocks = 0;
     st->lcp_sweeps_max = 0;
     st->lcp_unconverged = 0;
+    st->lcp_diverged = 0;
+    st->lcp_cold_starts = 0;
     st->lcp_regularised = 0;
     st->lcp_split_fallbacks = 0;
     st->lcp_block_fallbacks = 0;

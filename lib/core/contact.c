@@ -503,12 +503,26 @@ static double residual(const gs_problem *pb, const blocks *bl, const double *z, 
 
 /* Block Gauss-Seidel, sweeps alternating forwards and backwards (the
  * symmetric order converges faster on chains and stacks), from z (warm
- * start, already in u) until the residual is at most tol or max_sweeps. */
+ * start, already in u) until the residual is at most tol or max_sweeps.
+ * Gauss-Seidel over frictional blocks is not bound to converge: the best
+ * iterate is kept (z and u, nu doubles), and a sweep that leaves the
+ * residual DIVERGE times above the best stops the iteration, which then
+ * ends on the best (counted: sc_solve_info.diverged). */
+#define DIVERGE 100.0
+
 static int block_gs(sc_arena *a, const gs_problem *pb, const blocks *bl, double *z, double *u,
-                    const sc_contact_params *p, double tol, sc_solve_info *info)
+                    int nu, const sc_contact_params *p, double tol, sc_solve_info *info)
 {
-    int sweeps = 0, rc = SC_OK;
-    double res = residual(pb, bl, z, u);
+    size_t nz = (size_t)pb->nrows * sizeof *z, nub = (size_t)nu * sizeof *u;
+    double *zb = sc_arena_alloc(a, nz), *ub = zb ? sc_arena_alloc(a, nub) : NULL;
+    if (!ub) {
+        sc_arena_free(a, zb);
+        return SC_ENOMEM;
+    }
+    int sweeps = 0, rc = SC_OK, diverged = 0;
+    double res = residual(pb, bl, z, u), best = res;
+    memcpy(zb, z, nz);
+    memcpy(ub, u, nub);
     int fail = (p->inject & SC_INJECT_BLOCK) != 0;
     while (res > tol && sweeps < p->max_sweeps && rc == SC_OK) {
         for (int i = 0; i < bl->count && rc == SC_OK; i++) {
@@ -519,13 +533,29 @@ static int block_gs(sc_arena *a, const gs_problem *pb, const blocks *bl, double 
         }
         sweeps++;
         res = residual(pb, bl, z, u);
+        if (res < best) {
+            best = res;
+            memcpy(zb, z, nz);
+            memcpy(ub, u, nub);
+        } else if (!(res <= DIVERGE * best)) {
+            diverged = 1;
+            break;
+        }
     }
+    if (rc == SC_OK && !(res <= best)) {
+        memcpy(z, zb, nz);
+        memcpy(u, ub, nub);
+        res = best;
+    }
+    sc_arena_free(a, ub);
+    sc_arena_free(a, zb);
     if (rc != SC_OK)
         return rc;
     if (!isfinite(res))
         res = INFINITY;
     info->sweeps_max = sweeps > info->sweeps_max ? sweeps : info->sweeps_max;
-    info->unconverged += res > tol;
+    info->unconverged += res > tol && !diverged;
+    info->diverged += diverged;
     info->residual_split = fmax(info->residual_split, res);
     return SC_OK;
 }
@@ -588,13 +618,36 @@ static int solve_split(sc_arena *a, row *rows, int nrows, const int *cstart, int
                 memcpy(&u[6 * i + 3], b->w, 3 * sizeof *u);
             }
         }
-        for (int r = 0; r < nrows; r++)
-            if (z[r] != 0)
-                local_apply(&rows[r], z[r], u);
         gs_problem pb = *pb_in;
         pb.rows = rows;
         pb.nrows = nrows;
-        rc = block_gs(a, &pb, &bl, z, u, p, tol, info);
+        /* the warm start only where it is the better start: a matched
+         * impulse can come from another kind of contact (last frame's
+         * collision), and an iteration stopped early keeps what it
+         * started from */
+        int warm = 0;
+        for (int r = 0; r < nrows && !warm; r++)
+            warm = z[r] != 0;
+        double *ucold = warm ? sc_arena_alloc(a, (size_t)m * 6 * sizeof *u) : NULL;
+        double *zcold = ucold ? sc_arena_alloc(a, (size_t)nrows * sizeof *z) : NULL;
+        if (warm && !zcold)
+            rc = SC_ENOMEM;
+        if (zcold) {
+            memcpy(ucold, u, (size_t)m * 6 * sizeof *u);
+            memset(zcold, 0, (size_t)nrows * sizeof *z);
+            for (int r = 0; r < nrows; r++)
+                if (z[r] != 0)
+                    local_apply(&rows[r], z[r], u);
+            if (residual(&pb, &bl, zcold, ucold) < residual(&pb, &bl, z, u)) {
+                memcpy(u, ucold, (size_t)m * 6 * sizeof *u);
+                memset(z, 0, (size_t)nrows * sizeof *z);
+                info->cold_starts++;
+            }
+        }
+        sc_arena_free(a, zcold);
+        sc_arena_free(a, ucold);
+        if (rc == SC_OK)
+            rc = block_gs(a, &pb, &bl, z, u, 6 * m, p, tol, info);
     }
     if (rc == SC_OK)
         for (int i = 0; i < m; i++) {

@@ -147,6 +147,10 @@ typedef struct sc_solve_info {
     int nan_islands;                /* islands with non-finite data: no impulse */
     int sweeps_max;                 /* most outer sweeps of one split island */
     int unconverged;                /* split islands that stopped at max_sweeps */
+    int diverged;                   /* split islands whose sweeps diverged (ended
+                                       on the best iterate) */
+    int cold_starts;                /* split solves that started from 0: the
+                                       warm start was further from the answer */
     double residual_exact;          /* largest LCP residual of an exact island, m/s */
     double residual_split;          /* largest outer residual of a split island, m/s */
 } sc_solve_info;

@@ -24,7 +24,8 @@
  *   result:   count u32 (pairs, or island members), rc i32, messages i64,
  *             pivots i64, failures, regularised, lemke, collisions, split,
  *             split_fallbacks, blocks, block_fallbacks, nan_islands,
- *             sweeps_max, unconverged, solves i32, residual_exact, residual_split f64,
+ *             sweeps_max, unconverged, solves, diverged, cold_starts i32,
+ *             residual_exact, residual_split f64,
  *             then per pair: n u8 and n contacts (COLLIDE), toi f64 (TOI);
  *             (ISLAND) contacts u32, per member: x f64[3], q f64[4], v, w
  *             f64[3], collided i32, per contact in the unit's contact order:
@@ -589,7 +590,7 @@ void sc_wire_unit_free(sc_wire_unit *wu)
 /* The solve's counters (sc_solve_info), field by field: every int of it (a
  * field added there must be added here; test_unit_wire compares whole
  * infos of a local and a remote run). */
-#define INFO_INTS 12
+#define INFO_INTS 14
 
 static void info_ints(sc_solve_info *info, int *f[INFO_INTS])
 {
@@ -597,7 +598,7 @@ static void info_ints(sc_solve_info *info, int *f[INFO_INTS])
                           &info->collisions,      &info->split,       &info->split_fallbacks,
                           &info->blocks,          &info->block_fallbacks,
                           &info->nan_islands,     &info->sweeps_max,  &info->unconverged,
-                          &info->solves };
+                          &info->solves,          &info->diverged,    &info->cold_starts };
     memcpy(f, p, sizeof p);
 }
 
