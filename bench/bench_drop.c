@@ -1,5 +1,6 @@
-/* bench_drop.c - the bolt/nut drop of the paper's Figs 3-4, side by side
- * with ODE (docs/DESIGN.md section 10): the same scene simulated by
+/* bench_drop.c - the bolt/nut drop of the paper's Figs 3-4, and the dense
+ * parts bin, side by side with ODE (docs/DESIGN.md section 10): the same
+ * scene simulated by
  *   quick  ODE dWorldQuickStep, 20 iterations
  *   step   ODE dWorldStep (its Dantzig-type LCP)
  *   sc1    simcluster, sc_world_step on a default world with workers = 1
@@ -10,16 +11,40 @@
  * takes minutes of wall per run, so it is cut short and says "not at rest
  * within the cap".
  *
- * Same scene for all three: the poses and velocities are read back from a
- * world filled by sc_scene_bolts_nuts(N, seed) (sc_body_get_pose/velocity);
- * ODE gets the same meshes (sc_shape_mesh_data of sc_shape_bolt/nut, as
- * trimesh geoms in a dHashSpace with its default levels) and the same
- * masses and inertia (sc_shape_mass_props times the steel density 7800).
+ * The scenes (-S):
+ *   drop  (default) sc_scene_bolts_nuts(N, seed): N bolts and nuts at
+ *         random free poses in a column above a floor (the static half
+ *         space z <= 0), falling onto it: sparse, most islands small.
+ *   bin   sc_scene_bin(N, seed), the dense pile: N parts (body i a bolt
+ *         if i is even, a nut if odd) in BIN_LAYERS = 4 layers of
+ *         ceil(N / 4) on a k x k grid, k = ceil(sqrt(ceil(N / 4))), at a
+ *         pitch of 1.02 bounding diameters of the larger part (the nut or
+ *         the bolt, whichever bound is larger), centred on the z axis;
+ *         layer L at height (1.02 + 2.04 L) bounding radii; uniformly
+ *         random orientations from the seed, at rest. Five static half
+ *         spaces: the floor z <= 0 and the walls x <= -h, x >= h,
+ *         y <= -h, y >= h with h = k pitch / 2 (the grid fits them
+ *         exactly). The parts fall a few cm onto the floor and each other
+ *         and pile up, every part touching several others.
+ *   Both: steel (7800 kg/m^3), e = 0.8, mu = 0.5 for every body, static
+ *   ones included. The header prints the walls as read from the world.
+ *
+ * Same scene for all engines: the poses and velocities are read back from a
+ * world filled by the scene's function (sc_body_get_pose/velocity), and so
+ * are its static bodies: each is given to ODE as what it is in the world,
+ * a half space n.x <= d as dCreatePlane(n, d) (the same convention: the
+ * solid is n.x < d) and a box as a dCreateBox at its pose (the shape's
+ * own fields, read through lib/core/core.h: this bench is at the core
+ * layer for that only; other static shapes are refused). ODE gets the same
+ * meshes (sc_shape_mesh_data of sc_shape_bolt/nut, each body's checked to
+ * be the same bits as one of them, as trimesh geoms in a dHashSpace with
+ * its default levels) and the same masses and inertia
+ * (sc_shape_mass_props times the steel density 7800).
  * ODE contacts: at most 4 per pair (dCollide's limit), a contact joint each
  * with mode dContactBounce | dContactApprox1, mu 0.5, bounce 0.8, bounce_vel
  * 0.1 m/s (below it a contact does not bounce; ODE demos use this value),
  * no soft ERP/CFM (the world defaults: ERP 0.2, CFM 1e-10 in double),
- * floor dCreatePlane(0, 0, 1, 0), no auto-disable, gravity -9.81.
+ * no auto-disable, gravity -9.81.
  * dGeomTriMeshSetLastTransform is set to each geom's pose after every
  * collision pass (the trimesh-trimesh collider's temporal coherence).
  *
@@ -34,9 +59,20 @@
  * REST_HOLD_S; the run stops then). A run stops as "exploded" when the
  * state has a NaN or the energy passes 100 x the initial; as "budget" when
  * its wall time passes the budget (-b); a step that returns an error stops
- * it too. Each run happens in a forked child, so that an abort or crash
- * inside a peer is reported (as its signal) instead of ending the
- * benchmark. Nothing is special-cased: each engine is measured as it is.
+ * it too, reported as "step error" with the code and the simulated time at
+ * the end of the failed frame. Each run happens in a forked child, so that
+ * an abort or crash inside a peer is reported (as its signal) instead of
+ * ending the benchmark. Nothing is special-cased: each engine is measured
+ * as it is.
+ *
+ * For simcluster a second line under its row gives the contact solver's
+ * figures over the run (sc_stats, per frame, summed or maxed over every
+ * frame stepped without error): island solves, of them split (block
+ * Gauss-Seidel) and unconverged (stopped at the sweep limit), the most
+ * sweeps, the largest outer residual of a split solve and of an exact one,
+ * the fallbacks (coupled friction LCP failed: staggered; staggered failed:
+ * blocks; block failed: projected Gauss-Seidel; non-finite islands;
+ * regularised solves) and the mean substeps a frame.
  *
  * Each cell is the median of R runs (-r) by real-time factor; the run with
  * the median is reported whole. The physics of a run does not depend on
@@ -53,10 +89,11 @@
  * up to NMARK evenly spaced frames). Where a peer exploded, crashed or
  * failed, the line says so instead of giving ratios.
  *
- * usage: bench_drop [-r runs] [-T sim_seconds] [-b wall_budget_s]
- *                   [-s seed] [-e engines] [N ...]
+ * usage: bench_drop [-S drop|bin] [-r runs] [-T sim_seconds]
+ *                   [-b wall_budget_s] [-s seed] [-e engines] [N ...]
  *   engines: any of q (quick), s (step), 1 (sc1), n (scN), c (= 1n);
- *   default qsc.  N: body counts (1..100000), default 10 50 200 1000 */
+ *   default qsc.  N: body counts (1..100000), default 10 50 200 1000
+ *   (drop) or 50 200 (bin) */
 #include <errno.h>
 #include <math.h>
 #include <signal.h>
@@ -69,6 +106,8 @@
 #include <ode/ode.h>
 
 #include "simcluster.h"
+/* struct sc_shape: the static bodies' planes and boxes (see the top) */
+#include "core.h"
 
 #include "bench_util.h"
 
@@ -86,6 +125,10 @@
 #define EXPLODE_FACTOR 100.0
 #define MAX_RUNS 15
 #define NMARK 500                /* wall-time marks kept per run */
+#define MAX_STATIC 64            /* static bodies a scene may have */
+
+enum { SCENE_DROP, SCENE_BIN };
+static int scene_kind = SCENE_DROP;
 
 enum { ENG_QUICK, ENG_STEP, ENG_SC1, ENG_SCN, ENG_COUNT };
 static const char *eng_name[ENG_COUNT] = { "quick", "step", "sc1", "scN" };
@@ -102,6 +145,12 @@ typedef struct result {
     double max_pen;
     double rest_s;               /* -1: not at rest */
     double vmax, wmax;           /* fastest body at the last frame, m/s and rad/s */
+    /* simcluster's contact solver over the run (sc_stats, every frame) */
+    long frames;                 /* frames stepped without error */
+    long solves, split, unconverged, substeps;
+    long fallbacks, split_fallbacks, block_fallbacks, nan_islands, regularised;
+    int sweeps_max;
+    double outer_res, exact_res; /* largest of any frame, m/s */
     int nmark;                   /* marks kept: frames stride, 2 stride, ... */
     double mark_wall[NMARK];     /* cumulative wall time at frame (k + 1) * stride */
 } result;
@@ -114,11 +163,22 @@ typedef struct piece {
     double mass, inertia[9], com[3];
 } piece;
 
+/* A static body of the scene, as the world has it. */
+typedef struct wall {
+    int kind;                    /* SC_SHAPE_PLANE or SC_SHAPE_BOX */
+    double plane[4];             /* plane: the half space n.x <= d, n unit */
+    double half[3];              /* box: half extents */
+    double pos[3], quat[4];      /* box: pose */
+} wall;
+
 typedef struct scene {
     int n;
     uint64_t seed;
     piece kind[2];               /* bolt, nut */
+    int *body_kind;              /* 0 bolt, 1 nut, per dynamic body */
     double *pos, *quat, *vel, *omega;   /* of the shape origins, from the world */
+    int nwalls;
+    wall walls[MAX_STATIC];
 } scene;
 
 static double sim_limit_s = 10.0;
@@ -140,6 +200,44 @@ static int piece_init(piece *p, const sc_shape *s)
     return 0;
 }
 
+/* The scene's function (-S) into w. */
+static int scene_add(sc_world *w, int n, uint64_t seed)
+{
+    return scene_kind == SCENE_BIN ? sc_scene_bin(w, n, seed) : sc_scene_bolts_nuts(w, n, seed);
+}
+
+/* 1 when mesh s has exactly the vertices and triangles of p. */
+static int same_mesh(const sc_shape *s, const piece *p)
+{
+    const double *xyz;
+    const int *tri;
+    int nv, nt;
+    if (sc_shape_mesh_data(s, &xyz, &nv, &tri, &nt) != SC_OK || nv != p->nverts ||
+        nt != p->ntris)
+        return 0;
+    return memcmp(xyz, p->xyz, (size_t)nv * 3 * sizeof *xyz) == 0 &&
+           memcmp(tri, p->tri, (size_t)nt * 3 * sizeof *tri) == 0;
+}
+
+/* A static body of the world as a wall; -1 for a shape ODE is not given. */
+static int wall_init(wall *wl, const sc_world *w, int id)
+{
+    const sc_shape *s = sc_body_shape(w, id);
+    memset(wl, 0, sizeof *wl);
+    wl->kind = sc_shape_kind(s);
+    if (wl->kind == SC_SHAPE_PLANE) {
+        memcpy(wl->plane, s->plane, sizeof wl->plane);
+    } else if (wl->kind == SC_SHAPE_BOX) {
+        memcpy(wl->half, s->half, sizeof wl->half);
+        sc_body_get_pose(w, id, wl->pos, wl->quat);
+    } else {
+        fprintf(stderr, "static body %d: shape kind %d is not given to ODE here\n", id,
+                wl->kind);
+        return -1;
+    }
+    return 0;
+}
+
 static int scene_init(scene *sc, int n, uint64_t seed, sc_shape *bolt, sc_shape *nut)
 {
     sc->n = n;
@@ -149,9 +247,10 @@ static int scene_init(scene *sc, int n, uint64_t seed, sc_shape *bolt, sc_shape 
     sc_world *w = sc_world_create(NULL);
     if (!w)
         return -1;
-    int rc = sc_scene_bolts_nuts(w, n, seed);
+    int rc = scene_add(w, n, seed);
     if (rc != SC_OK) {
-        fprintf(stderr, "sc_scene_bolts_nuts(%d): %s\n", n, sc_strerror(rc));
+        fprintf(stderr, "sc_scene_%s(%d): %s\n", scene_kind == SCENE_BIN ? "bin" : "bolts_nuts",
+                n, sc_strerror(rc));
         sc_world_destroy(w);
         return -1;
     }
@@ -159,20 +258,47 @@ static int scene_init(scene *sc, int n, uint64_t seed, sc_shape *bolt, sc_shape 
     sc->quat = malloc((size_t)n * 4 * sizeof *sc->quat);
     sc->vel = malloc((size_t)n * 3 * sizeof *sc->vel);
     sc->omega = malloc((size_t)n * 3 * sizeof *sc->omega);
-    if (!sc->pos || !sc->quat || !sc->vel || !sc->omega) {
+    sc->body_kind = malloc((size_t)n * sizeof *sc->body_kind);
+    if (!sc->pos || !sc->quat || !sc->vel || !sc->omega || !sc->body_kind) {
         sc_world_destroy(w);
         return -1;
     }
-    for (int i = 0; i < n; i++) {   /* body 0 is the floor */
-        sc_body_get_pose(w, i + 1, &sc->pos[3 * i], &sc->quat[4 * i]);
-        sc_body_get_velocity(w, i + 1, &sc->vel[3 * i], &sc->omega[3 * i]);
+    /* every body in id order: static ones are walls, the others parts */
+    int nb = sc_world_body_count(w), i = 0;
+    rc = 0;
+    for (int id = 0; id < nb && rc == 0; id++) {
+        if (sc_body_state(w, id) == SC_STATIC) {
+            if (sc->nwalls == MAX_STATIC) {
+                fprintf(stderr, "more than %d static bodies\n", MAX_STATIC);
+                rc = -1;
+            } else {
+                rc = wall_init(&sc->walls[sc->nwalls++], w, id);
+            }
+            continue;
+        }
+        const sc_shape *s = sc_body_shape(w, id);
+        int k = same_mesh(s, &sc->kind[0]) ? 0 : same_mesh(s, &sc->kind[1]) ? 1 : -1;
+        if (k < 0 || i == n) {
+            fprintf(stderr, "body %d: not one of the %d bolts and nuts\n", id, n);
+            rc = -1;
+            break;
+        }
+        sc->body_kind[i] = k;
+        sc_body_get_pose(w, id, &sc->pos[3 * i], &sc->quat[4 * i]);
+        sc_body_get_velocity(w, id, &sc->vel[3 * i], &sc->omega[3 * i]);
+        i++;
+    }
+    if (rc == 0 && i != n) {
+        fprintf(stderr, "the scene has %d parts, not %d\n", i, n);
+        rc = -1;
     }
     sc_world_destroy(w);
-    return 0;
+    return rc;
 }
 
 static void scene_free(scene *sc)
 {
+    free(sc->body_kind);
     free(sc->pos);
     free(sc->quat);
     free(sc->vel);
@@ -278,7 +404,18 @@ static int ode_build(ode_sim *s, const scene *sc)
     dWorldSetQuickStepNumIterations(s->world, QUICK_ITERS);
     s->space = dHashSpaceCreate(0);
     s->contacts = dJointGroupCreate(0);
-    dCreatePlane(s->space, 0, 0, 1, 0);
+    /* the world's static bodies: geoms without a body */
+    for (int i = 0; i < sc->nwalls; i++) {
+        const wall *wl = &sc->walls[i];
+        if (wl->kind == SC_SHAPE_PLANE) {
+            dCreatePlane(s->space, wl->plane[0], wl->plane[1], wl->plane[2], wl->plane[3]);
+        } else {
+            dGeomID g = dCreateBox(s->space, 2 * wl->half[0], 2 * wl->half[1], 2 * wl->half[2]);
+            dQuaternion dq = { wl->quat[0], wl->quat[1], wl->quat[2], wl->quat[3] };
+            dGeomSetPosition(g, wl->pos[0], wl->pos[1], wl->pos[2]);
+            dGeomSetQuaternion(g, dq);
+        }
+    }
     for (int k = 0; k < 2; k++) {
         const piece *p = &sc->kind[k];
         /* ODE wants the centre of mass at the body origin */
@@ -301,9 +438,9 @@ static int ode_build(ode_sim *s, const scene *sc)
     if (!s->body || !s->geom || !s->kind)
         return -1;
     for (int i = 0; i < n; i++) {
-        const piece *p = &sc->kind[i % 2];
+        const piece *p = &sc->kind[sc->body_kind[i]];
         const double *q = &sc->quat[4 * i], *I = p->inertia;
-        s->kind[i] = i % 2;
+        s->kind[i] = sc->body_kind[i];
         dBodyID b = dBodyCreate(s->world);
         dMass m;
         dMassSetParameters(&m, p->mass, 0, 0, 0, I[0], I[4], I[8], I[1], I[2], I[5]);
@@ -322,7 +459,7 @@ static int ode_build(ode_sim *s, const scene *sc)
         dBodySetPosition(b, x[0] + rc[0], x[1] + rc[1], x[2] + rc[2]);
         dBodySetLinearVel(b, v[0] + wxr[0], v[1] + wxr[1], v[2] + wxr[2]);
         dBodySetAngularVel(b, w[0], w[1], w[2]);
-        dGeomID g = dCreateTriMesh(s->space, s->data[i % 2], NULL, NULL, NULL);
+        dGeomID g = dCreateTriMesh(s->space, s->data[s->kind[i]], NULL, NULL, NULL);
         dGeomSetBody(g, b);
         set_last_transform(g);
         s->body[i] = b;
@@ -422,12 +559,31 @@ static void run_ode(const scene *sc, int quick, result *r)
 
 /* ---- simcluster ---- */
 
+/* One frame's contact solver figures into the run's. */
+static void solver_add(result *r, const sc_stats *st)
+{
+    r->frames++;
+    r->solves += st->lcp_solves;
+    r->split += st->lcp_split;
+    r->unconverged += st->lcp_unconverged;
+    r->substeps += st->substeps;
+    r->fallbacks += st->lcp_fallbacks;
+    r->split_fallbacks += st->lcp_split_fallbacks;
+    r->block_fallbacks += st->lcp_block_fallbacks;
+    r->nan_islands += st->lcp_nan_islands;
+    r->regularised += st->lcp_regularised;
+    if (st->lcp_sweeps_max > r->sweeps_max)
+        r->sweeps_max = st->lcp_sweeps_max;
+    r->outer_res = fmax(r->outer_res, st->lcp_outer_residual);
+    r->exact_res = fmax(r->exact_res, st->lcp_residual);
+}
+
 static void run_sc(const scene *sc, int workers, result *r)
 {
     sc_world_config cfg = sc_world_config_default();
     cfg.workers = workers;
     sc_world *w = sc_world_create(&cfg);
-    int rc = w ? sc_scene_bolts_nuts(w, sc->n, sc->seed) : sc_last_error();
+    int rc = w ? scene_add(w, sc->n, sc->seed) : sc_last_error();
     if (rc != SC_OK) {
         r->end = END_ERROR;
         r->code = rc;
@@ -453,6 +609,7 @@ static void run_sc(const scene *sc, int workers, result *r)
         }
         sc_stats st;
         sc_world_stats(w, &st);
+        solver_add(r, &st);
         int rest = 1;
         r->vmax = r->wmax = 0;
         for (int i = 1; i <= sc->n; i++) {
@@ -573,6 +730,27 @@ static void print_row(int n, int eng, int runs, const result *r)
            r->max_pen, rest, r->vmax, end);
 }
 
+/* simcluster's solver line under its row (see the top); $2 is never an
+ * engine name, so scripts that read the rows by engine skip it. */
+static void print_solver(int eng, const result *r)
+{
+    if (eng != ENG_SC1 && eng != ENG_SCN)
+        return;
+    if (r->frames == 0) {
+        printf("        %s solver: no frame stepped\n", eng_name[eng]);
+        return;
+    }
+    printf("        %s solver: %ld frames, %ld island solves, %ld split (%.1f %%), "
+           "%ld unconverged, sweeps max %d, outer residual max %.3g m/s, exact residual max "
+           "%.3g m/s; fallbacks: staggered %ld, blocks %ld, block PGS %ld, NaN islands %ld, "
+           "regularised %ld; substeps %.3f a frame\n",
+           eng_name[eng], r->frames, r->solves, r->split,
+           r->solves ? 100.0 * (double)r->split / (double)r->solves : 0.0, r->unconverged,
+           r->sweeps_max, r->outer_res, r->exact_res, r->fallbacks, r->split_fallbacks,
+           r->block_fallbacks, r->nan_islands, r->regularised,
+           (double)r->substeps / (double)r->frames);
+}
+
 /* Real-time factors of a and b over the frames both simulated (a multiple
  * of mark_stride): 0 and *span_s = 0 when they share no mark. */
 static int common_rtf(const result *a, const result *b, double *span_s, double *ra, double *rb)
@@ -635,10 +813,27 @@ static void print_ratios(int o, int p, const result *ours, const result *peer)
     printf("\n");
 }
 
+/* The static bodies ODE was given, as read from the world. */
+static void print_walls(int n, const scene *sc)
+{
+    printf("  N = %d: %d static bod%s:", n, sc->nwalls, sc->nwalls == 1 ? "y" : "ies");
+    for (int i = 0; i < sc->nwalls; i++) {
+        const wall *wl = &sc->walls[i];
+        if (wl->kind == SC_SHAPE_PLANE)
+            printf("%s plane %+.3g x %+.3g y %+.3g z <= %.4g", i ? "," : "", wl->plane[0] + 0.0,
+                   wl->plane[1] + 0.0, wl->plane[2] + 0.0, wl->plane[3] + 0.0);
+        else
+            printf("%s box %.3g x %.3g x %.3g m at (%.3g, %.3g, %.3g)", i ? "," : "",
+                   2 * wl->half[0], 2 * wl->half[1], 2 * wl->half[2], wl->pos[0], wl->pos[1],
+                   wl->pos[2]);
+    }
+    printf("\n");
+}
+
 static void usage(void)
 {
-    fprintf(stderr, "usage: bench_drop [-r runs] [-T sim_seconds] [-b wall_budget_s] "
-                    "[-s seed] [-e qs1nc] [N ...]\n");
+    fprintf(stderr, "usage: bench_drop [-S drop|bin] [-r runs] [-T sim_seconds] "
+                    "[-b wall_budget_s] [-s seed] [-e qs1nc] [N ...]\n");
     exit(2);
 }
 
@@ -648,8 +843,16 @@ int main(int argc, char **argv)
     uint64_t seed = 1;
     const char *engines = "qsc";
     int opt;
-    while ((opt = getopt(argc, argv, "r:T:b:s:e:h")) != -1) {
+    while ((opt = getopt(argc, argv, "S:r:T:b:s:e:h")) != -1) {
         switch (opt) {
+        case 'S':
+            if (strcmp(optarg, "drop") == 0)
+                scene_kind = SCENE_DROP;
+            else if (strcmp(optarg, "bin") == 0)
+                scene_kind = SCENE_BIN;
+            else
+                usage();
+            break;
         case 'r': runs_opt = atoi(optarg); break;
         case 'T': sim_limit_s = atof(optarg); break;
         case 'b': budget_s = atof(optarg); break;
@@ -668,7 +871,11 @@ int main(int argc, char **argv)
             usage();
         nn++;
     }
-    if (nn == 0) {
+    if (nn == 0 && scene_kind == SCENE_BIN) {
+        ns[0] = 50;
+        ns[1] = 200;
+        nn = 2;
+    } else if (nn == 0) {
         ns[0] = 10;
         ns[1] = 50;
         ns[2] = 200;
@@ -692,8 +899,10 @@ int main(int argc, char **argv)
         fprintf(stderr, "building the meshes: %s\n", sc_strerror(sc_last_error()));
         return 1;
     }
-    printf("bolt/nut drop, %d + %d triangles, steel, e = %.1f, mu = %.1f, dt = %.2f s, "
+    printf("%s, %d + %d triangles, steel, e = %.1f, mu = %.1f, dt = %.2f s, "
            "up to %.1f s simulated, wall budget %.0f s a run, seed %llu\n",
+           scene_kind == SCENE_BIN ? "parts bin (-S bin, sc_scene_bin: the dense pile)"
+                                   : "bolt/nut drop (-S drop, sc_scene_bolts_nuts)",
            sc_shape_triangles(bolt), sc_shape_triangles(nut), BOUNCE, MU, DT, sim_limit_s,
            budget_s, (unsigned long long)seed);
     printf("quick: ODE dWorldQuickStep (%d iterations); step: ODE dWorldStep; ODE (%s): trimesh "
@@ -717,6 +926,7 @@ int main(int argc, char **argv)
             scene_free(&sc);
             return 1;
         }
+        print_walls(n, &sc);
         static result med[ENG_COUNT], rs[MAX_RUNS];
         int have[ENG_COUNT] = { 0 };
         for (int e = 0; e < ENG_COUNT; e++) {
@@ -733,6 +943,7 @@ int main(int argc, char **argv)
             med[e] = rs[made / 2];
             have[e] = 1;
             print_row(n, e, made, &med[e]);
+            print_solver(e, &med[e]);
             fflush(stdout);
         }
         /* ours over each peer, and scN over sc1 */

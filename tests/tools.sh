@@ -139,6 +139,10 @@ for s in "$scenes"/*.scene; do
     check "run $(basename "$s")" 0 "$tool" run "$s" --frames 30 --workers 2
     grep -q "bodies, 30 frames" "$dir/out" || { echo "FAIL: run $s: no report"; cat "$dir/out"; fail=1; }
 done
+# the dense parts bin (the loop above ran it): floor, four walls, 64 parts
+check "run bin.scene, whole" 0 "$tool" run "$scenes/bin.scene" --frames 5 --workers 1
+grep -q "bin.scene: 69 bodies, 5 frames" "$dir/out" ||
+    { echo "FAIL: bin.scene: not 69 bodies"; cat "$dir/out"; fail=1; }
 printf 'shape ball sphere 0.1\nbody ball pos 1 2\n' >"$dir/bad.scene"
 check "run, bad scene file" 1 "$tool" run "$dir/bad.scene"
 one_line "run, bad scene file" "bad.scene:2:18: missing position (m)"
