@@ -26,8 +26,7 @@
  *          exact and warm, so there split is warm)
  * An "exact" island of more than SC_MAX_ISLAND_ROWS rows is split by
  * sc_island_solve whatever the mode: the "rows>max" column counts them.
- * The other contact settings are frame.c's contact_params() (not
- * exported: replicated below, keep them in step).
+ * The other contact settings are the frame's (sc_frame_contact_params()).
  *
  * A solve's time is CLOCK_MONOTONIC around sc_island_solve alone (copying
  * the state back is outside it); it includes building the rows and
@@ -73,20 +72,14 @@
 #define NBUCKET 7
 #define MAX_SNAPS 100
 
-/* lib/core/frame.c's contact_params() and its SPLIT_* constants: the
- * contact model and the split solver's settings (static there). */
+/* The frame's contact model and solver settings (sc_frame_contact_params),
+ * with the mode's split and warm starts. */
 static sc_contact_params frame_params(int split_contacts, int cold)
 {
-    return (sc_contact_params){
-        .bounce_speed = 0.1,
-        .slop = 0.5e-3,
-        .baumgarte = 0.2,
-        .split_contacts = split_contacts,
-        .block_contacts = 4,      /* SPLIT_BLOCK_CONTACTS */
-        .tol = 1e-3,              /* SPLIT_TOL */
-        .max_sweeps = 50,         /* SPLIT_MAX_SWEEPS */
-        .cold = cold,
-    };
+    sc_frame_config cfg = { .island_split = split_contacts };
+    sc_contact_params p = sc_frame_contact_params(&cfg);
+    p.cold = cold;
+    return p;
 }
 
 enum { MODE_COLD, MODE_WARM, MODE_SPLIT, NMODE };
