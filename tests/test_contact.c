@@ -191,8 +191,8 @@ static void test_each_fallback_is_taken_counted_and_physical(void **state)
     stack_free(&s);
 }
 
-/* Blocks of one pair each (split past 2 contacts) reach the exact answer
- * within the outer tolerance. */
+/* Blocks of one pair each (split past 2 contacts), iterated from 0, reach
+ * the exact answer within the outer tolerance. */
 static void test_split_island_agrees_with_the_exact_one(void **state)
 {
     (void)state;
@@ -207,19 +207,25 @@ static void test_split_island_agrees_with_the_exact_one(void **state)
     solve_copy(&s, &p, &ie, ex, cex);
     p.split_contacts = 2;
     p.block_contacts = 4;
+    p.cold = 1;               /* from 0: the blocks must iterate */
     solve_copy(&s, &p, &is, sp, csp);
     assert_int_equal(ie.split, 0);
     assert_int_equal(is.split, 1);
     assert_int_equal(is.unconverged, 0);
     assert_true(is.residual_split <= p.tol);
-    assert_true(is.sweeps_max >= 1);
+    assert_true(is.sweeps_max >= 2);
+    print_message("split from 0: %d sweeps, outer residual %.2g m/s, floor %.6f vs %.6f N s\n",
+                  is.sweeps_max, is.residual_split, floor_impulse(csp, s.nc),
+                  floor_impulse(cex, s.nc));
     for (int i = 1; i < s.nb; i++)
         for (int k = 0; k < 3; k++) {
             assert_true(fabs(ex[i].v[k] - sp[i].v[k]) < 5 * p.tol);
             assert_true(fabs(ex[i].w[k] - sp[i].w[k]) < 5 * p.tol / HALF);
         }
+    /* momentum: the floor's impulse differs by at most the stack's mass
+     * times the velocity error allowed above */
     assert_true(fabs(floor_impulse(cex, s.nc) - floor_impulse(csp, s.nc)) <
-                0.01 * floor_impulse(cex, s.nc));
+                LAYERS * 1.0 * 5 * p.tol);
     free(csp), free(cex), free(sp), free(ex);
     stack_free(&s);
 }

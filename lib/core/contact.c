@@ -315,6 +315,9 @@ typedef struct gs_problem {
     const double *off, *lo, *hi, *mu;
     const int *findex;        /* island row indices, -1 none; NULL: none */
     int cold;                 /* no warm starts (sc_contact_params.cold) */
+    int pseudo;               /* the push-out: pseudo velocities, its own
+                                 relative tolerance, not in the residual and
+                                 sweep figures (its unit scales with 1/h) */
 } gs_problem;
 
 static void row_bounds(const gs_problem *pb, const double *z, int r, double *lo, double *hi)
@@ -553,9 +556,11 @@ static int block_gs(sc_arena *a, const gs_problem *pb, const blocks *bl, double 
         return rc;
     if (!isfinite(res))
         res = INFINITY;
+    info->diverged += diverged;
+    if (pb->pseudo)
+        return SC_OK;
     info->sweeps_max = sweeps > info->sweeps_max ? sweeps : info->sweeps_max;
     info->unconverged += res > tol && !diverged;
-    info->diverged += diverged;
     info->residual_split = fmax(info->residual_split, res);
     return SC_OK;
 }
@@ -716,7 +721,7 @@ static int push_out(sc_arena *a, const row *rows, const int *nsel, int nn, const
                 z[k] = 0;
     }
     if (rc != SC_OK && rc != SC_ENOMEM) {
-        gs_problem pb = { .off = q, .lo = lo, .hi = hi, .cold = p->cold };
+        gs_problem pb = { .off = q, .lo = lo, .hi = hi, .cold = p->cold, .pseudo = 1 };
         rc = solve_split(a, nr, nn, cs, nn, &pb, z, bodies, 1, h, p, fmax(p->tol, 1e-3 * qmax),
                          info);
     }
