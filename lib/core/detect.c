@@ -111,6 +111,11 @@ int sc_contacts_have_pair(const sc_contact *c, int n, int a, int b)
     return 0;
 }
 
+static int carries_impulse(const sc_contact *c)
+{
+    return c->impulse[0] != 0 || c->impulse[1] != 0 || c->impulse[2] != 0;
+}
+
 /* Warm starts (docs/DESIGN.md section 11): each new contact takes the
  * impulse of the nearest old contact of the same pair not yet taken, when
  * it lies within a tenth of the smaller body's bounding radius (a resting
@@ -177,8 +182,7 @@ static int narrowphase(sc_frame *f, int npairs)
     /* the old contacts that carry an impulse, for the warm start */
     int nold = 0;
     for (int k = 0; k < st->ncontacts; k++)
-        nold += st->contacts[k].impulse[0] != 0 || st->contacts[k].impulse[1] != 0 ||
-                st->contacts[k].impulse[2] != 0;
+        nold += carries_impulse(&st->contacts[k]);
     sc_contact *old = rc == SC_OK && nold ? sc_arena_alloc(a, (size_t)nold * sizeof *old) : NULL;
     unsigned char *taken = old ? sc_arena_alloc(a, (size_t)nold) : NULL;
     if (nold && rc == SC_OK && !taken)
@@ -187,8 +191,7 @@ static int narrowphase(sc_frame *f, int npairs)
         memset(taken, 0, (size_t)nold);
         nold = 0;
         for (int k = 0; k < st->ncontacts; k++)
-            if (st->contacts[k].impulse[0] != 0 || st->contacts[k].impulse[1] != 0 ||
-                st->contacts[k].impulse[2] != 0)
+            if (carries_impulse(&st->contacts[k]))
                 old[nold++] = st->contacts[k];
     }
     sc_job job = {
