@@ -188,6 +188,13 @@ SC_API int sc_toi(const sc_shape *a, const sc_pose *a0, const sc_pose *a1,
 typedef struct sc_world sc_world;
 
 enum { SC_BROADPHASE_AUTO, SC_BROADPHASE_SPHERES, SC_BROADPHASE_SAP };
+/* Time of impact (sc_world_config.toi_mode). */
+enum {
+    SC_TOI_LOCAL,             /* motion groups back up alone; slow approaches
+                                 enter the LCP as speculative contacts */
+    SC_TOI_WORLD              /* the paper's: the earliest impact anywhere
+                                 backs the whole world up (Table 1; default) */
+};
 
 #define SC_MAX_WORKERS 64
 /* Daemons a world uses at most, and the default cluster URL: LCM UDP
@@ -219,6 +226,16 @@ typedef struct sc_world_config {
                                  from last frame's impulses (piles); 0: every
                                  island one exact LCP (the paper's method);
                                  default 16 */
+    int toi_mode;             /* SC_TOI_WORLD (default): the paper's world-wide
+                                 back-up (motion_groups decides on regions);
+                                 SC_TOI_LOCAL: motion groups
+                                 (regions: bodies that can meet within the
+                                 frame) each back up to their own earliest
+                                 fast impact, and a pair that closes slowly
+                                 (moved less than half its smaller feature)
+                                 enters the substep's LCP again as a
+                                 speculative contact instead of backing up
+                                 (simcluster(3) says what it gains) */
     int internal_cookie;      /* set by sc_world_config_default(); do not touch */
 } sc_world_config;
 /* The default configuration. */
@@ -286,7 +303,18 @@ typedef struct sc_stats {
                                  solve (w_i z_i etc., m/s), last frame */
     double lcp_outer_residual;/* largest outer residual of a split solve, m/s */
     int substeps;             /* substeps of the frame (1 + time-of-impact
-                                 back-ups) */
+                                 back-ups; the most of one region) */
+    int backups;              /* time-of-impact back-ups, last frame (summed
+                                 over regions) */
+    int backup_regions;       /* regions (motion groups, or the world) that
+                                 backed up at least once, last frame */
+    int backup_bodies;        /* dynamic bodies in those regions, last frame */
+    long backups_total;       /* back-ups, all frames (mean: / frames) */
+    int backups_max;          /* most back-ups of one frame so far */
+    int spec_contacts;        /* speculative contacts entered in LCPs (slow
+                                 approaches caught without a back-up), last
+                                 frame */
+    int spec_rounds;          /* substeps solved again with them, last frame */
     double max_penetration;   /* deepest contact, m, last frame */
     long collider_warnings;   /* ODE collider messages (e.g. contact buffer
                                  overflow), last frame; never printed */

@@ -33,6 +33,8 @@ static const char run_help[] =
     "  --workers W --groups --cluster URL --key FILE --deadline S --json\n"
     "  --wait-daemons K (before the first frame, at most 10 s)\n"
     "  --island-split N (islands of more contacts solved as blocks; 0: exact)\n"
+    "  --toi world|local (time of impact: the paper's world-wide back-up, the\n"
+    "    default; or motion groups with speculative contacts)\n"
     "profile only: --chart PNG (CPU by stage beside the paper's, by gnuplot)\n";
 static const char run_only_help[] =
     "run only: --record LOG (an LCM log of every frame, for simcluster-view)\n"
@@ -124,7 +126,7 @@ typedef struct options {
     const char *scene;
     sc_scene *file;         /* a scene file, else NULL: the built-in scene */
     long bodies, seed, frames, workers, wait_daemons, island_split;
-    int until_rest, groups, json, realtime, bodies_set, seed_set;
+    int until_rest, groups, json, realtime, bodies_set, seed_set, toi_mode;
     const char *cluster, *key, *record, *render, *publish, *chart;
     double deadline;
 } options;
@@ -155,6 +157,7 @@ static int parse_options(const char *cmd, int argc, char **argv, options *o)
         { "wait-daemons", required_argument, 0, 'W' },
         { "chart", required_argument, 0, 'C' },
         { "island-split", required_argument, 0, 'I' },
+        { "toi", required_argument, 0, 'T' },
         { "help", no_argument, 0, 'h' },           { "version", no_argument, 0, 'V' },
         { 0, 0, 0, 0 }
     };
@@ -163,6 +166,7 @@ static int parse_options(const char *cmd, int argc, char **argv, options *o)
     o->seed = 1;
     o->frames = -1;
     o->island_split = -1;
+    o->toi_mode = SC_TOI_WORLD;
     opterr = 0;
     optind = 2;
     int c, li;
@@ -245,6 +249,14 @@ static int parse_options(const char *cmd, int argc, char **argv, options *o)
             if (!parse_long(optarg, 0, 1000000, &o->island_split))
                 return bad(cmd, "--island-split takes 0..1000000 contacts (0: one exact LCP "
                                 "an island)");
+            break;
+        case 'T':
+            if (!strcmp(optarg, "world"))
+                o->toi_mode = SC_TOI_WORLD;
+            else if (!strcmp(optarg, "local"))
+                o->toi_mode = SC_TOI_LOCAL;
+            else
+                return bad(cmd, "--toi takes world or local");
             break;
         case 'C':
             if (optarg[0] == '\0')
@@ -368,6 +380,7 @@ static sc_world *make_world(const options *o, const char *cmd)
         sc_scene_config(o->file, &c);
     if (o->island_split >= 0)
         c.island_split = (int)o->island_split;
+    c.toi_mode = o->toi_mode;
     sc_world *w = sc_world_create(&c);
     if (!w) {
         int err = sc_last_error();
@@ -552,8 +565,8 @@ typedef struct totals {
     long duplicates;            /* duplicate daemon ids reported so far */
     /* the contact solver, summed (or the largest) over the frames */
     long solves, split, blocks, pivots, staggered, split_fb, block_fb, nan, unconverged;
-    long substeps, max_pivots;
-    int max_sweeps, max_substeps;
+    long substeps, max_pivots, backups, spec;
+    int max_sweeps, max_substeps, max_backups;
     double residual, outer_residual;
 } totals;
 
@@ -643,6 +656,9 @@ static int simulate(const options *o, sc_world *w, totals *t, int progress, reco
         t->outer_residual = fmax(t->outer_residual, st.lcp_outer_residual);
         t->substeps += st.substeps;
         t->max_substeps = st.substeps > t->max_substeps ? st.substeps : t->max_substeps;
+        t->backups += st.backups;
+        t->max_backups = st.backups > t->max_backups ? st.backups : t->max_backups;
+        t->spec += st.spec_contacts;
         if (st.initial_overlaps > t->overlaps)
             fprintf(stderr, "%s: warning: %ld body pairs overlap by more than twice the "
                     "contact tolerance where they were placed; they are pushed apart, not "
@@ -800,6 +816,8 @@ static int run_cmd(int argc, char **argv)
                "\"block_fallbacks\": %ld, \"nan_islands\": %ld, \"unconverged\": %ld, "
                "\"max_sweeps\": %d, \"max_residual\": %.3g, \"max_outer_residual\": %.3g, "
                "\"substeps\": %ld, \"max_substeps\": %d}, "
+               "\"toi\": {\"mode\": \"%s\", \"backups\": %ld, \"max_frame_backups\": %d, "
+               "\"speculative_contacts\": %ld}, "
                "\"hash\": \"%016llx\", \"interrupted\": %s%s%s, \"error\": %s%s%s}\n",
                sc_world_body_count(w), seed, (int)(st.nodes - st.daemons), t.frames,
                sim, t.wall, t.wall > 0 ? sim / t.wall : 0, t.at_rest ? "true" : "false",
@@ -809,7 +827,9 @@ static int run_cmd(int argc, char **argv)
                st.duplicate_nodes, t.comm, t.over_budget, t.max_frame, t.overlaps,
                island_split, t.solves, t.split, t.blocks, t.pivots, t.max_pivots, t.staggered,
                t.split_fb, t.block_fb, t.nan, t.unconverged, t.max_sweeps, t.residual,
-               t.outer_residual, t.substeps, t.max_substeps, hash,
+               t.outer_residual, t.substeps, t.max_substeps,
+               o.toi_mode == SC_TOI_LOCAL ? "local" : "world", t.backups, t.max_backups, t.spec,
+               hash,
                t.interrupted ? "\"" : "null", t.interrupted ? signal_name(t.interrupted) : "",
                t.interrupted ? "\"" : "", rc ? "\"" : "null",
                rc ? sc_strerror(rc) : "", rc ? "\"" : "");
@@ -834,6 +854,10 @@ static int run_cmd(int argc, char **argv)
         printf("  LCP residual at most %.3g m/s (exact), %.3g m/s (split, tolerance %.0e; "
                "%ld stopped at %d sweeps)\n",
                t.residual, t.outer_residual, SC_SPLIT_TOL, t.unconverged, SC_SPLIT_MAX_SWEEPS);
+        printf("  time of impact (%s): back-ups %.2f a frame (most %d), speculative "
+               "contacts %ld\n",
+               o.toi_mode == SC_TOI_LOCAL ? "local" : "world",
+               t.frames ? (double)t.backups / (double)t.frames : 0.0, t.max_backups, t.spec);
         printf("  fallbacks: staggered friction %ld, blocks after staggered %ld, projected "
                "Gauss-Seidel blocks %ld, non-finite islands %ld\n",
                t.staggered, t.split_fb, t.block_fb, t.nan);

@@ -22,7 +22,7 @@ SC_API sc_world *sc_world_create(const sc_world_config *cfg)
         !isfinite(c.contact_tol_m) || !(c.cluster_deadline_s >= 0) ||
         !isfinite(c.cluster_deadline_s) || (c.key_file && !c.cluster) || c.broadphase < SC_BROADPHASE_AUTO ||
         c.broadphase > SC_BROADPHASE_SAP || (c.motion_groups != 0 && c.motion_groups != 1) ||
-        c.island_split < 0) {
+        c.island_split < 0 || (c.toi_mode != SC_TOI_LOCAL && c.toi_mode != SC_TOI_WORLD)) {
         sc_set_error(SC_EINVAL);
         return NULL;
     }
@@ -38,6 +38,7 @@ SC_API sc_world *sc_world_create(const sc_world_config *cfg)
     w->fcfg.contact_tol_m = c.contact_tol_m;
     w->fcfg.broadphase = c.broadphase;
     w->fcfg.island_split = c.island_split;
+    w->fcfg.toi_mode = c.toi_mode;
     /* nodes: this thread (node 0) and workers - 1 worker threads */
     int nodes = c.workers;
     if (nodes == 0) {
@@ -332,11 +333,14 @@ SC_API int sc_world_step(sc_world *w, double dt)
     int rc = sc_arena_reset(&w->scr.arena);
     if (rc != SC_OK)
         return rc;
-    rc = w->cfg.motion_groups
+    rc = w->cfg.motion_groups || w->cfg.toi_mode == SC_TOI_LOCAL
              ? sc_groups_step(&w->fcfg, &w->st, dt, &w->scr, &w->ex.base, st)
              : sc_frame_step(&w->fcfg, &w->st, dt, &w->scr, &w->ex.base, st);
     if (rc == SC_OK) {
         st->frames++;
+        st->backups_total += st->backups;
+        if (st->backups > st->backups_max)
+            st->backups_max = st->backups;
         st->makespan_ratio = st->makespan_bound_s > 0 ? st->makespan_s / st->makespan_bound_s
                                                       : 0;
     }

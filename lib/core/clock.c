@@ -79,6 +79,11 @@ void sc_stats_add_solver(sc_stats *s, const sc_stats *g)
     s->lcp_outer_residual = fmax(s->lcp_outer_residual, g->lcp_outer_residual);
     if (g->substeps > s->substeps)
         s->substeps = g->substeps;
+    s->backups += g->backups;
+    s->backup_regions += g->backup_regions;
+    s->backup_bodies += g->backup_bodies;
+    s->spec_contacts += g->spec_contacts;
+    s->spec_rounds += g->spec_rounds;
 }
 
 void sc_stats_clear_solver(sc_stats *st)
@@ -99,4 +104,31 @@ void sc_stats_clear_solver(sc_stats *st)
     st->lcp_residual = 0;
     st->lcp_outer_residual = 0;
     st->substeps = 0;
+    st->backups = 0;
+    st->backup_regions = 0;
+    st->backup_bodies = 0;
+    st->spec_contacts = 0;
+    st->spec_rounds = 0;
+}
+
+void sc_stats_add_frame(sc_stats *s, const sc_stats *g)
+{
+    for (int k = 0; k < SC_STAGE_COUNT; k++) {
+        s->stage_s[k] += g->stage_s[k];
+        s->stage_total_s[k] += g->stage_s[k];
+    }
+    s->pairs += g->pairs;
+    s->islands += g->islands;
+    sc_stats_add_solver(s, g);
+    s->max_penetration = fmax(s->max_penetration, g->max_penetration);
+    s->collider_warnings += g->collider_warnings;
+    s->units += g->units;
+    s->sched_s += g->sched_s;
+    s->makespan_s += g->makespan_s;
+    s->makespan_bound_s += g->makespan_bound_s;
+    s->initial_overlaps += g->initial_overlaps;
+    if (g->arena_bytes > s->unit_arena_bytes)
+        s->unit_arena_bytes = g->arena_bytes;
+    if (g->unit_arena_bytes > s->unit_arena_bytes)
+        s->unit_arena_bytes = g->unit_arena_bytes;
 }

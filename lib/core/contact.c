@@ -186,6 +186,26 @@ static int solve(sc_arena *a, int n, double *A, const double *q, const double *l
     return rc;
 }
 
+/* Whether impulses z change the island's kinetic energy by more than
+ * rounding upwards: with row speeds s = q - off (J u*), the change is
+ * z.s + z.A z / 2. A normal-only or a boxed LCP answer never adds energy
+ * (z.w = 0 makes it -z.A z / 2); a coupled friction answer can. */
+static int adds_energy(const double *A, int n, const double *q, const double *off,
+                       const double *z)
+{
+    double lin = 0, quad = 0;
+    for (int i = 0; i < n; i++) {
+        if (z[i] == 0)
+            continue;
+        double az = 0;
+        for (int j = 0; j < n; j++)
+            az += A[i * n + j] * z[j];
+        lin += z[i] * (q[i] - off[i]);
+        quad += 0.5 * z[i] * az;
+    }
+    return lin + quad > 1e-6 * (fabs(lin) + quad) + 1e-12;
+}
+
 /* Move a movable body by h times a pseudo velocity (6: linear, angular). */
 static void move_body(sc_body *b, const double u[6], double h)
 {
@@ -785,7 +805,9 @@ int sc_island_solve(sc_arena *arena, sc_body *bodies, sc_contact *c, const int *
          * external forces act: target J u' = -e v_pre + (J u* - J u0), so
          * w = A p + (1 + e) v_pre. A resting contact absorbs the forces. */
         double speed = row_speed(&rows[r], bodies, 0);
-        q[r] = collide ? (1 + e) * vpre : speed;
+        /* a speculative contact (depth < 0: a gap, docs/DESIGN.md 3.4)
+         * lets the bodies close it within h but no more */
+        q[r] = collide ? (1 + e) * vpre : speed + fmax(-ck->depth, 0.0) / h;
         off[r] = q[r] - speed;
         lo[r] = 0;
         hi[r] = INFINITY;
@@ -833,6 +855,13 @@ int sc_island_solve(sc_arena *arena, sc_body *bodies, sc_contact *c, const int *
         rc = solve(arena, nrows, A, q, lo, hi, friction ? findex : NULL, mu, z, w, info,
                    (nc > WARM_MIN_CONTACTS && !p->cold ? SOLVE_WARM : 0) |
                        (p->inject & SC_INJECT_COUPLED ? SOLVE_FAIL : 0));
+        if (rc == SC_OK && friction && adds_energy(A, nrows, q, off, z)) {
+            /* a coupled friction answer that adds kinetic energy (seen on a
+             * bolt wedged in a nut's hole: near-opposed normals squeezing
+             * with hundreds of N s, friction bounded by them): an LCP
+             * answer, but not physics; the staggered solve cannot do it */
+            rc = SC_ENUMERIC;
+        }
         if (rc == SC_OK) {
             for (int i = 0; i < nrows; i++)
                 apply(&rows[i], z[i], bodies, 0, h);

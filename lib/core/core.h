@@ -216,6 +216,12 @@ int sc_poly_clip(const sc_shape *a, const sc_pose *pa, const sc_shape *b, const 
  * SC_EIO with errno saying why (EISDIR for a folder). */
 int sc_read_file(const char *path, size_t max, unsigned char **out, size_t *len);
 
+/* How far any point of s can move between poses p0 and p1 (translation
+ * plus rotation angle times the bounding radius; 0 for planes), and the
+ * smallest feature of s a motion must not skip in one step (toi.c). */
+double sc_toi_sweep(const sc_shape *s, const sc_pose *p0, const sc_pose *p1);
+double sc_toi_feature(const sc_shape *s);
+
 /* sc_toi() with the caller's (per-thread) narrow-phase context. */
 int sc_toi_ctx(sc_np_ctx *ctx, const sc_shape *a, const sc_pose *a0, const sc_pose *a1,
                const sc_shape *b, const sc_pose *b0, const sc_pose *b1, double tol_m,

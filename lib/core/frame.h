@@ -106,6 +106,7 @@ typedef struct sc_frame_config {
     double contact_tol_m;
     int broadphase;                 /* SC_BROADPHASE_* */
     int island_split;               /* sc_world_config.island_split */
+    int toi_mode;                   /* sc_world_config.toi_mode */
 } sc_frame_config;
 
 /* What a frame reads and writes: the bodies (states in, new states out)
@@ -169,6 +170,9 @@ void sc_stage_add(sc_stats *st, int stage, double t0);
 void sc_stats_add_solve(sc_stats *st, const sc_solve_info *info);
 /* The solver figures of s2 (a motion group's frame) into s. */
 void sc_stats_add_solver(sc_stats *s, const sc_stats *s2);
+/* The figures of g (a motion group's or a region's frame, its own stats
+ * from zero) into s: stage times, counters, maxima. */
+void sc_stats_add_frame(sc_stats *s, const sc_stats *g);
 /* Clearing the solver figures for a new frame. */
 void sc_stats_clear_solver(sc_stats *st);
 /* Step 4: pairs and contacts of the current state into f->st->contacts. */

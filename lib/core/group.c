@@ -346,28 +346,6 @@ static int group_unit_run(sc_np_ctx *np, const sc_job *job, const sc_unit *u)
     return job->group->out[u->first].rc;
 }
 
-static void add_stats(sc_stats *s, const sc_stats *g)
-{
-    for (int k = 0; k < SC_STAGE_COUNT; k++) {
-        s->stage_s[k] += g->stage_s[k];
-        s->stage_total_s[k] += g->stage_s[k];
-    }
-    s->pairs += g->pairs;
-    s->islands += g->islands;
-    sc_stats_add_solver(s, g);
-    s->max_penetration = fmax(s->max_penetration, g->max_penetration);
-    s->collider_warnings += g->collider_warnings;
-    s->units += g->units;
-    s->sched_s += g->sched_s;
-    s->makespan_s += g->makespan_s;
-    s->makespan_bound_s += g->makespan_bound_s;
-    s->initial_overlaps += g->initial_overlaps;
-    if (g->arena_bytes > s->unit_arena_bytes)
-        s->unit_arena_bytes = g->arena_bytes;
-    if (g->unit_arena_bytes > s->unit_arena_bytes)
-        s->unit_arena_bytes = g->unit_arena_bytes;
-}
-
 typedef struct pair_run {
     int a, b;                 /* the pair */
     int start, len;           /* its contacts in the concatenation */
@@ -475,7 +453,7 @@ static int step_groups(const sc_frame_config *cfg, sc_frame_state *st, double dt
         rc = ex->run(ex, &job, -1, stats);
     }
     for (int k = 0; k < ng; k++) {
-        add_stats(stats, &out[k].stats);
+        sc_stats_add_frame(stats, &out[k].stats);
         if (out[k].rc != SC_OK && rc == SC_OK)
             rc = out[k].rc;
     }

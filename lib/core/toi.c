@@ -41,7 +41,7 @@ static int depth_at(sc_np_ctx *ctx, const sc_shape *a, const sc_pose *a0, const 
 
 /* How far any point of s can move between p0 and p1 (translation plus
  * rotation angle times the bounding radius). Planes are static. */
-static double sweep_length(const sc_shape *s, const sc_pose *p0, const sc_pose *p1)
+double sc_toi_sweep(const sc_shape *s, const sc_pose *p0, const sc_pose *p1)
 {
     if (s->kind == SC_SHAPE_PLANE)
         return 0;
@@ -49,7 +49,7 @@ static double sweep_length(const sc_shape *s, const sc_pose *p0, const sc_pose *
 }
 
 /* Smallest feature a sample step must not skip: a fraction of the shape. */
-static double feature_size(const sc_shape *s)
+double sc_toi_feature(const sc_shape *s)
 {
     switch (s->kind) {
     case SC_SHAPE_SPHERE: return s->radius;
@@ -64,8 +64,8 @@ static double feature_size(const sc_shape *s)
 static int sample_count(const sc_shape *a, const sc_pose *a0, const sc_pose *a1,
                         const sc_shape *b, const sc_pose *b0, const sc_pose *b1, double tol_m)
 {
-    double sweep = sweep_length(a, a0, a1) + sweep_length(b, b0, b1);
-    double step = fmax(0.5 * fmin(feature_size(a), feature_size(b)), tol_m);
+    double sweep = sc_toi_sweep(a, a0, a1) + sc_toi_sweep(b, b0, b1);
+    double step = fmax(0.5 * fmin(sc_toi_feature(a), sc_toi_feature(b)), tol_m);
     return (int)fmin(fmax(ceil(sweep / step), 1), TOI_MAX_SAMPLES);
 }
 
