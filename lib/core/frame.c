@@ -401,7 +401,8 @@ static int substeps(sc_frame *f, double dt, sc_body *saved, unsigned char *touch
                 nspec = 0;
                 h = fmax(frac * h, 1e-6 * dt);
             }
-            qsort(spec, (size_t)nspec, sizeof *spec, cmp_contact_pair);
+            if (nspec > 1)
+                qsort(spec, (size_t)nspec, sizeof *spec, cmp_contact_pair);
             rc = merge_spec(st, c0, n0, spec, nspec);
             f->stats->spec_contacts += nspec;
             f->stats->spec_rounds += !back;
