@@ -55,6 +55,7 @@ LAYER_test_lcp := core
 LAYER_test_shape_load := core
 LAYER_test_units := api
 LAYER_test_contact := api
+LAYER_test_toi := core
 LAYER_test_cluster_msg := net
 LAYER_test_bus := net
 LAYER_test_unit_wire := api

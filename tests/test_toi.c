@@ -7,6 +7,7 @@
 #include <stdint.h>
 #include <cmocka.h>
 
+#include "core.h"
 #include "simcluster.h"
 
 #define TOL 1e-3
@@ -131,6 +132,58 @@ static void test_tumbling_bolt_hits_floor_within_tolerance(void **state)
     sc_shape_release(bolt);
 }
 
+/* The search before tmax (what a TOI unit uses once it has an earlier
+ * pair): when the full search's answer is earlier than tmax it gives the
+ * same bits; otherwise it gives 0 (no hit looked at) or a time >= tmax,
+ * so the minimum over pairs does not change. Bolt on nut, both moving and
+ * turning, new and deepening pairs. */
+static void test_search_before_tmax_keeps_the_earliest_exact(void **state)
+{
+    (void)state;
+    sc_shape *bolt = sc_shape_bolt(), *nut = sc_shape_nut();
+    sc_np_ctx *np = sc_np_create();
+    assert_non_null(np);
+    const double s = 0.70710678118654752;
+    int hits = 0, pruned = 0;
+    for (int k = 0; k < 24; k++) {
+        double x = 0.004 * k;
+        sc_pose a0 = { { -0.12 + x, 0, 0.01 }, { s, 0, s, 0 } };
+        sc_pose a1 = { { 0.03, 0.002 * k, 0.0 }, { 0.5, 0.5, 0.5, 0.5 } };
+        sc_pose b0 = at(0.02, 0, 0), b1 = at(0.02 - 0.001 * k, 0, 0.001);
+        for (int deepen = 0; deepen < 2; deepen++) {
+            double t = -1;
+            int hit = deepen ? sc_toi_deepen_ctx(np, bolt, &a0, &a1, nut, &b0, &b1, TOL, &t)
+                             : sc_toi_ctx(np, bolt, &a0, &a1, nut, &b0, &b1, TOL, &t);
+            assert_true(hit >= 0);
+            if (hit != 1)
+                continue;
+            hits++;
+            double tmaxes[3] = { fmin(1, t + 1e-3), 0.5 * t, 0 };
+            for (int j = 0; j < 3; j++) {
+                double u = -1;
+                int h2 = deepen ? sc_toi_deepen_before_ctx(np, bolt, &a0, &a1, nut, &b0, &b1,
+                                                           TOL, tmaxes[j], &u)
+                                : sc_toi_before_ctx(np, bolt, &a0, &a1, nut, &b0, &b1, TOL,
+                                                    tmaxes[j], &u);
+                assert_true(h2 >= 0);
+                if (tmaxes[j] > t) {
+                    assert_int_equal(h2, 1);
+                    assert_true(u == t);    /* the same bits */
+                } else {
+                    assert_true(h2 == 0 || u >= tmaxes[j] || u == t);
+                    pruned += h2 == 0;
+                }
+            }
+        }
+    }
+    print_message("bolt-nut searches: %d hits, %d searches stopped at tmax\n", hits, pruned);
+    assert_true(hits >= 10);
+    assert_true(pruned >= 1);
+    sc_np_destroy(np);
+    sc_shape_release(bolt);
+    sc_shape_release(nut);
+}
+
 static void test_toi_rejects_bad_arguments(void **state)
 {
     (void)state;
@@ -152,6 +205,7 @@ int main(void)
         cmocka_unit_test(test_missing_each_other_returns_zero),
         cmocka_unit_test(test_already_touching_is_time_zero),
         cmocka_unit_test(test_tumbling_bolt_hits_floor_within_tolerance),
+        cmocka_unit_test(test_search_before_tmax_keeps_the_earliest_exact),
         cmocka_unit_test(test_toi_rejects_bad_arguments),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);

@@ -236,6 +236,18 @@ int sc_toi_deepen_ctx(sc_np_ctx *ctx, const sc_shape *a, const sc_pose *a0, cons
                       const sc_shape *b, const sc_pose *b0, const sc_pose *b1, double limit_m,
                       double *t);
 
+/* The same, looking only at samples that start before tmax (a time in
+ * [0, 1]): a pair whose answer would be earlier than tmax gets exactly the
+ * answer of the full search; one that would not gets one >= tmax or 0.
+ * The minimum over pairs, searched with tmax = the minimum so far, is the
+ * same whatever the order and grouping of the pairs (unit.c). */
+int sc_toi_before_ctx(sc_np_ctx *ctx, const sc_shape *a, const sc_pose *a0, const sc_pose *a1,
+                      const sc_shape *b, const sc_pose *b0, const sc_pose *b1, double tol_m,
+                      double tmax, double *t);
+int sc_toi_deepen_before_ctx(sc_np_ctx *ctx, const sc_shape *a, const sc_pose *a0,
+                             const sc_pose *a1, const sc_shape *b, const sc_pose *b0,
+                             const sc_pose *b1, double limit_m, double tmax, double *t);
+
 /* Validate a triangle mesh and compute its mass properties:
  * SC_EINVAL (NaN, bad index), SC_ETOOBIG, SC_EDEGENERATE (zero-area
  * triangles, no volume), SC_ENOTCLOSED (an edge not shared by exactly two

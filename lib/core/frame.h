@@ -62,7 +62,8 @@ typedef struct sc_job {
     sc_contact *contacts;           /* COLLIDE: SC_MAX_PAIR_CONTACTS per pair */
     int *ncontact;                  /* COLLIDE: contacts of each pair */
     double tol_m;                   /* TOI: contact tolerance */
-    double *toi;                    /* TOI: per pair, 1 = no impact */
+    double *toi;                    /* TOI: per pair, 1 = no impact (before the
+                                       unit's earliest: only the minimum counts) */
     /* ISLAND: bodies are updated in place (islands share no movable body;
      * static and sleeping ones are only read) */
     sc_body *bodies;

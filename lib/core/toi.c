@@ -29,6 +29,11 @@ static int depth_at(sc_np_ctx *ctx, const sc_shape *a, const sc_pose *a0, const 
     sc_pose pa, pb;
     lerp_pose(&pa, a0, a1, t);
     lerp_pose(&pb, b0, b1, t);
+    /* bounding spheres apart: the shapes are (no narrow phase needed) */
+    if (v3_dist(pa.pos, pb.pos) > a->bound_r + b->bound_r + 1e-9) {
+        *depth = -1;
+        return SC_OK;
+    }
     sc_contact c[SC_MAX_PAIR_CONTACTS];
     int n = sc_np_collide(ctx, a, &pa, b, &pb, c, SC_MAX_PAIR_CONTACTS);
     if (n < 0)
@@ -73,6 +78,13 @@ int sc_toi_ctx(sc_np_ctx *ctx, const sc_shape *a, const sc_pose *a0, const sc_po
                const sc_shape *b, const sc_pose *b0, const sc_pose *b1, double tol_m,
                double *t)
 {
+    return sc_toi_before_ctx(ctx, a, a0, a1, b, b0, b1, tol_m, 1, t);
+}
+
+int sc_toi_before_ctx(sc_np_ctx *ctx, const sc_shape *a, const sc_pose *a0, const sc_pose *a1,
+                      const sc_shape *b, const sc_pose *b0, const sc_pose *b1, double tol_m,
+                      double tmax, double *t)
+{
     if (!ctx || !a || !b || !a0 || !a1 || !b0 || !b1 || !t || !(tol_m > 0) || !isfinite(tol_m))
         return SC_EINVAL;
     double d;
@@ -84,7 +96,7 @@ int sc_toi_ctx(sc_np_ctx *ctx, const sc_shape *a, const sc_pose *a0, const sc_po
         return 1;
     }
     int samples = sample_count(a, a0, a1, b, b0, b1, tol_m);
-    for (int k = 1; k <= samples; k++) {
+    for (int k = 1; k <= samples && (double)(k - 1) / samples < tmax; k++) {
         double hi = (double)k / samples, lo = (double)(k - 1) / samples;
         rc = depth_at(ctx, a, a0, a1, b, b0, b1, hi, &d);
         if (rc < 0)
@@ -117,6 +129,13 @@ int sc_toi_deepen_ctx(sc_np_ctx *ctx, const sc_shape *a, const sc_pose *a0, cons
                       const sc_shape *b, const sc_pose *b0, const sc_pose *b1, double limit_m,
                       double *t)
 {
+    return sc_toi_deepen_before_ctx(ctx, a, a0, a1, b, b0, b1, limit_m, 1, t);
+}
+
+int sc_toi_deepen_before_ctx(sc_np_ctx *ctx, const sc_shape *a, const sc_pose *a0,
+                             const sc_pose *a1, const sc_shape *b, const sc_pose *b0,
+                             const sc_pose *b1, double limit_m, double tmax, double *t)
+{
     if (!ctx || !a || !b || !a0 || !a1 || !b0 || !b1 || !t || !(limit_m > 0))
         return SC_EINVAL;
     double d;
@@ -133,7 +152,7 @@ int sc_toi_deepen_ctx(sc_np_ctx *ctx, const sc_shape *a, const sc_pose *a0, cons
     if (d > limit_m)
         limit_m = d + 0.1 * limit_m;
     int samples = sample_count(a, a0, a1, b, b0, b1, limit_m);
-    for (int k = 1; k <= samples; k++) {
+    for (int k = 1; k <= samples && (double)(k - 1) / samples < tmax; k++) {
         double hi = (double)k / samples, lo = (double)(k - 1) / samples;
         rc = depth_at(ctx, a, a0, a1, b, b0, b1, hi, &d);
         if (rc < 0)

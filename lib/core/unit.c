@@ -32,20 +32,26 @@ static int run_collide(sc_np_ctx *np, const sc_job *job, const sc_unit *u)
     return SC_OK;
 }
 
+/* The frame takes the minimum of a TOI job's times, so each pair is only
+ * searched before the unit's earliest so far: a pair's time is exact when
+ * it is the earliest, and the minimum is the same bits whoever ran which
+ * pairs in which units (docs/DESIGN.md 3.4). */
 static int run_toi(sc_np_ctx *np, const sc_job *job, const sc_unit *u)
 {
+    double best = 1;
     for (int i = u->first; i < u->first + u->count; i++) {
         const sc_unit_pair *p = &job->pairs[i];
         double t = 1;
         /* a new pair: back up to first touch; a pair already touching that
          * digs in past the tolerance: back up to where it reaches it */
-        int hit = p->deepen ? sc_toi_deepen_ctx(np, p->sa, &p->a0, &p->a1, p->sb, &p->b0,
-                                                &p->b1, job->tol_m, &t)
-                            : sc_toi_ctx(np, p->sa, &p->a0, &p->a1, p->sb, &p->b0, &p->b1,
-                                         job->tol_m, &t);
+        int hit = p->deepen ? sc_toi_deepen_before_ctx(np, p->sa, &p->a0, &p->a1, p->sb,
+                                                       &p->b0, &p->b1, job->tol_m, best, &t)
+                            : sc_toi_before_ctx(np, p->sa, &p->a0, &p->a1, p->sb, &p->b0,
+                                                &p->b1, job->tol_m, best, &t);
         if (hit < 0)
             return hit;
         job->toi[i] = hit == 1 ? t : 1;
+        best = fmin(best, job->toi[i]);
     }
     return SC_OK;
 }
