@@ -32,12 +32,6 @@ static int run_collide(sc_np_ctx *np, const sc_job *job, const sc_unit *u)
     return SC_OK;
 }
 
-/* A new pair backs up to a touch within half the job's tolerance (0.45 mm
- * by default): below the push-out's slop, so an elastic bounce is not
- * followed by a push-out that lifts the body against gravity (that gained
- * 0.39 % of the Table 1 box's energy in 5000 frames; docs/DESIGN.md 3.4). */
-#define NEW_PAIR_AIM 0.5
-
 /* The frame takes the minimum of a TOI job's times, so each pair is only
  * searched before the unit's earliest so far: a pair's time is exact when
  * it is the earliest, and the minimum is the same bits whoever ran which
@@ -53,7 +47,7 @@ static int run_toi(sc_np_ctx *np, const sc_job *job, const sc_unit *u)
         int hit = p->deepen ? sc_toi_deepen_before_ctx(np, p->sa, &p->a0, &p->a1, p->sb,
                                                        &p->b0, &p->b1, job->tol_m, best, &t)
                             : sc_toi_before_ctx(np, p->sa, &p->a0, &p->a1, p->sb, &p->b0,
-                                                &p->b1, NEW_PAIR_AIM * job->tol_m, best, &t);
+                                                &p->b1, job->tol_m, best, &t);
         if (hit < 0)
             return hit;
         job->toi[i] = hit == 1 ? t : 1;
