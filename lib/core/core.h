@@ -309,7 +309,10 @@ void sc_body_pose(const sc_body *b, sc_pose *p);
 /* Thread CPU seconds and monotonic wall seconds. */
 double sc_cpu_now(void);
 double sc_wall_now(void);
-/* 1 if the contact list c (sorted by pair) has a contact of pair (a, b). */
+/* In the contact list c (sorted by pair): the index of pair (a, b)'s first
+ * contact (where it would be: n or a later pair's when it has none), and
+ * whether it has one. */
+int sc_contacts_pair_start(const sc_contact *c, int n, int a, int b);
 int sc_contacts_have_pair(const sc_contact *c, int n, int a, int b);
 
 #endif /* SC_CORE_H */

@@ -94,21 +94,23 @@ static int broadphase(sc_frame *f, int *npairs)
     return SC_OK;
 }
 
-int sc_contacts_have_pair(const sc_contact *c, int n, int a, int b)
+int sc_contacts_pair_start(const sc_contact *c, int n, int a, int b)
 {
-    int lo = 0, hi = n - 1;
-    while (lo <= hi) {
+    int lo = 0, hi = n;
+    while (lo < hi) {
         int mid = (lo + hi) / 2;
-        int d = c[mid].body_a != a ? (c[mid].body_a < a ? -1 : 1)
-                                   : (c[mid].body_b != b ? (c[mid].body_b < b ? -1 : 1) : 0);
-        if (d == 0)
-            return 1;
-        if (d < 0)
+        if (c[mid].body_a < a || (c[mid].body_a == a && c[mid].body_b < b))
             lo = mid + 1;
         else
-            hi = mid - 1;
+            hi = mid;
     }
-    return 0;
+    return lo;
+}
+
+int sc_contacts_have_pair(const sc_contact *c, int n, int a, int b)
+{
+    int k = sc_contacts_pair_start(c, n, a, b);
+    return k < n && c[k].body_a == a && c[k].body_b == b;
 }
 
 static int carries_impulse(const sc_contact *c)

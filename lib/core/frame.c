@@ -45,7 +45,6 @@ void sc_frame_scratch_free(sc_frame_scratch *s)
 {
     if (!s)
         return;
-
     if (s->groups_free)
         s->groups_free(s->groups);
     sc_bp_destroy(s->bp);
@@ -125,8 +124,9 @@ static void toi_pair(const sc_frame *f, const sc_body *saved, const sc_contact *
 
 /* Step 5: the earliest time of impact (fraction of the substep) among the
  * pairs whose contacts are marked 1 in fast (sort_out()), or, fast NULL,
- * among all new contacts deeper than the tolerance; 1 when there is none. One query per pair, as work units; the
- * minimum does not depend on who ran what. */
+ * among all new contacts deeper than the tolerance; 1 when there is none.
+ * One query per pair, as work units; the minimum does not depend on who
+ * ran what. */
 static int earliest_impact(sc_frame *f, const sc_body *saved, const sc_contact *c0, int n0,
                            const unsigned char *fast, double *frac)
 {
@@ -179,23 +179,6 @@ static int earliest_impact(sc_frame *f, const sc_body *saved, const sc_contact *
 
 /* ---- speculative contacts (local mode; docs/DESIGN.md section 3.4) --- */
 
-/* Deepest contact of c0's pair (a, b), or -1 when c0 has none. */
-static double start_depth(const sc_contact *c0, int n0, int a, int b)
-{
-    double d = -1;
-    int lo = 0, hi = n0;    /* first contact of the pair (sorted by pair) */
-    while (lo < hi) {
-        int mid = (lo + hi) / 2;
-        if (c0[mid].body_a < a || (c0[mid].body_a == a && c0[mid].body_b < b))
-            lo = mid + 1;
-        else
-            hi = mid;
-    }
-    for (int k = lo; k < n0 && c0[k].body_a == a && c0[k].body_b == b; k++)
-        d = fmax(d, c0[k].depth);
-    return d;
-}
-
 /* Where the material point of body at pose p1 that lies at x ends up at
  * pose p0 (a rigid transport back to the substep's start). */
 static void transport(double out[3], const double x[3], const sc_pose *p1, const sc_pose *p0)
@@ -235,7 +218,11 @@ static int sort_out(sc_frame *f, const sc_body *saved, const sc_contact *c0, int
         for (k1 = k0; k1 < st->ncontacts && st->contacts[k1].body_a == a &&
                       st->contacts[k1].body_b == b; k1++)
             d1 = fmax(d1, st->contacts[k1].depth);
-        double d0 = start_depth(c0, n0, a, b);
+        /* the pair at the start: its contacts c0[j0 .. j1), deepest d0 */
+        int j0 = sc_contacts_pair_start(c0, n0, a, b), j1 = j0;
+        double d0 = -1;
+        for (; j1 < n0 && c0[j1].body_a == a && c0[j1].body_b == b; j1++)
+            d0 = fmax(d0, c0[j1].depth);
         double limit = d0 < 0 ? tol : fmax(tol, d0 + 0.1 * tol);
         if (!(d1 > limit))
             continue;
@@ -276,9 +263,8 @@ static int sort_out(sc_frame *f, const sc_body *saved, const sc_contact *c0, int
             s.depth = ck->depth - v3_dot(dd, ck->normal);
             v3_set(s.impulse, 0, 0, 0);
             int dup = 0;
-            for (int j = 0; j < n0 && !dup; j++)
-                if (c0[j].body_a == a && c0[j].body_b == b && v3_dist(c0[j].pos, s.pos) < near)
-                    dup = 1;
+            for (int j = j0; j < j1 && !dup; j++)
+                dup = v3_dist(c0[j].pos, s.pos) < near;
             for (int j = 0; j < *nspec && !dup; j++)
                 if ((*spec)[j].body_a == a && (*spec)[j].body_b == b &&
                     v3_dist((*spec)[j].pos, s.pos) < near)
