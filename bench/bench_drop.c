@@ -5,6 +5,8 @@
  *   step   ODE dWorldStep (its Dantzig-type LCP)
  *   sc1    simcluster, sc_world_step on a default world with workers = 1
  *   scN    the same with workers = every online CPU (the embedded default)
+ *   sl1    simcluster with toi_mode = SC_TOI_LOCAL (speculative contacts,
+ *          local back-ups; docs/DESIGN.md 3.4), workers = 1
  * at 100 Hz for up to 10 s of simulated time (-T), stopping early when
  * every body is at rest, or when a run's wall time passes the budget (-b,
  * default 30 s). The budget bounds the default run: a 1000-body drop
@@ -72,7 +74,8 @@
  * sweeps, the largest outer residual of a split solve and of an exact one,
  * the fallbacks (coupled friction LCP failed: staggered; staggered failed:
  * blocks; block failed: projected Gauss-Seidel; non-finite islands;
- * regularised solves) and the mean substeps a frame.
+ * regularised solves), the mean substeps and back-ups a frame and the
+ * speculative contacts entered.
  *
  * Each cell is the median of R runs (-r) by real-time factor; the run with
  * the median is reported whole. The physics of a run does not depend on
@@ -91,7 +94,7 @@
  *
  * usage: bench_drop [-S drop|bin] [-r runs] [-T sim_seconds]
  *                   [-b wall_budget_s] [-s seed] [-e engines] [N ...]
- *   engines: any of q (quick), s (step), 1 (sc1), n (scN), c (= 1n);
+ *   engines: any of q (quick), s (step), 1 (sc1), n (scN), l (sl1), c (= 1n);
  *   default qsc.  N: body counts (1..100000), default 10 50 200 1000
  *   (drop) or 50 200 (bin) */
 #include <errno.h>
@@ -130,10 +133,15 @@
 enum { SCENE_DROP, SCENE_BIN };
 static int scene_kind = SCENE_DROP;
 
-enum { ENG_QUICK, ENG_STEP, ENG_SC1, ENG_SCN, ENG_COUNT };
-static const char *eng_name[ENG_COUNT] = { "quick", "step", "sc1", "scN" };
-static const char eng_key[ENG_COUNT] = { 'q', 's', '1', 'n' };
-static int eng_threads[ENG_COUNT] = { 1, 1, 1, 1 };   /* scN's set in main */
+enum { ENG_QUICK, ENG_STEP, ENG_SC1, ENG_SCN, ENG_SL1, ENG_COUNT };
+static const char *eng_name[ENG_COUNT] = { "quick", "step", "sc1", "scN", "sl1" };
+static const char eng_key[ENG_COUNT] = { 'q', 's', '1', 'n', 'l' };
+static int eng_threads[ENG_COUNT] = { 1, 1, 1, 1, 1 };   /* scN's set in main */
+/* ours: sc1, scN and sl1 (the local time-of-impact mode) */
+static int is_ours(int eng)
+{
+    return eng == ENG_SC1 || eng == ENG_SCN || eng == ENG_SL1;
+}
 
 enum { END_TIME, END_REST, END_EXPLODED, END_BUDGET, END_ERROR, END_CRASH };
 
@@ -147,7 +155,7 @@ typedef struct result {
     double vmax, wmax;           /* fastest body at the last frame, m/s and rad/s */
     /* simcluster's contact solver over the run (sc_stats, every frame) */
     long frames;                 /* frames stepped without error */
-    long solves, split, unconverged, substeps;
+    long solves, split, unconverged, substeps, backups, spec;
     long fallbacks, split_fallbacks, block_fallbacks, nan_islands, regularised;
     int sweeps_max;
     double outer_res, exact_res; /* largest of any frame, m/s */
@@ -567,6 +575,8 @@ static void solver_add(result *r, const sc_stats *st)
     r->split += st->lcp_split;
     r->unconverged += st->lcp_unconverged;
     r->substeps += st->substeps;
+    r->backups += st->backups;
+    r->spec += st->spec_contacts;
     r->fallbacks += st->lcp_fallbacks;
     r->split_fallbacks += st->lcp_split_fallbacks;
     r->block_fallbacks += st->lcp_block_fallbacks;
@@ -578,10 +588,11 @@ static void solver_add(result *r, const sc_stats *st)
     r->exact_res = fmax(r->exact_res, st->lcp_residual);
 }
 
-static void run_sc(const scene *sc, int workers, result *r)
+static void run_sc(const scene *sc, int workers, int toi_mode, result *r)
 {
     sc_world_config cfg = sc_world_config_default();
     cfg.workers = workers;
+    cfg.toi_mode = toi_mode;
     sc_world *w = sc_world_create(&cfg);
     int rc = w ? scene_add(w, sc->n, sc->seed) : sc_last_error();
     if (rc != SC_OK) {
@@ -650,8 +661,8 @@ static void run_child(const scene *sc, int eng, result *r)
         close(fd[0]);
         /* a single step far beyond the budget is killed */
         alarm((unsigned)(budget_s + 300));
-        if (eng == ENG_SC1 || eng == ENG_SCN)
-            run_sc(sc, eng_threads[eng], r);
+        if (is_ours(eng))
+            run_sc(sc, eng_threads[eng], eng == ENG_SL1 ? SC_TOI_LOCAL : SC_TOI_WORLD, r);
         else
             run_ode(sc, eng == ENG_QUICK, r);
         ssize_t k = write(fd[1], r, sizeof *r);
@@ -734,7 +745,7 @@ static void print_row(int n, int eng, int runs, const result *r)
  * engine name, so scripts that read the rows by engine skip it. */
 static void print_solver(int eng, const result *r)
 {
-    if (eng != ENG_SC1 && eng != ENG_SCN)
+    if (!is_ours(eng))
         return;
     if (r->frames == 0) {
         printf("        %s solver: no frame stepped\n", eng_name[eng]);
@@ -743,12 +754,14 @@ static void print_solver(int eng, const result *r)
     printf("        %s solver: %ld frames, %ld island solves, %ld split (%.1f %%), "
            "%ld unconverged, sweeps max %d, outer residual max %.3g m/s, exact residual max "
            "%.3g m/s; fallbacks: staggered %ld, blocks %ld, block PGS %ld, NaN islands %ld, "
-           "regularised %ld; substeps %.3f a frame\n",
+           "regularised %ld; substeps %.3f a frame, back-ups %.3f a frame (summed over "
+           "motion groups), speculative contacts %ld\n",
            eng_name[eng], r->frames, r->solves, r->split,
            r->solves ? 100.0 * (double)r->split / (double)r->solves : 0.0, r->unconverged,
            r->sweeps_max, r->outer_res, r->exact_res, r->fallbacks, r->split_fallbacks,
            r->block_fallbacks, r->nan_islands, r->regularised,
-           (double)r->substeps / (double)r->frames);
+           (double)r->substeps / (double)r->frames, (double)r->backups / (double)r->frames,
+           r->spec);
 }
 
 /* Real-time factors of a and b over the frames both simulated (a multiple
@@ -833,7 +846,7 @@ static void print_walls(int n, const scene *sc)
 static void usage(void)
 {
     fprintf(stderr, "usage: bench_drop [-S drop|bin] [-r runs] [-T sim_seconds] "
-                    "[-b wall_budget_s] [-s seed] [-e qs1nc] [N ...]\n");
+                    "[-b wall_budget_s] [-s seed] [-e qs1nlc] [N ...]\n");
     exit(2);
 }
 
@@ -862,7 +875,7 @@ int main(int argc, char **argv)
         }
     }
     if (runs_opt < 0 || runs_opt > MAX_RUNS || !(sim_limit_s > 0) || !(budget_s > 0) ||
-        sim_limit_s > 1e6 || budget_s > 1e6 || strspn(engines, "qs1nc") != strlen(engines))
+        sim_limit_s > 1e6 || budget_s > 1e6 || strspn(engines, "qs1nlc") != strlen(engines))
         usage();
     int ns[64], nn = 0;
     for (int i = optind; i < argc && nn < 64; i++) {
@@ -909,7 +922,8 @@ int main(int argc, char **argv)
            "in dHashSpace, <= %d contacts a pair, Bounce|Approx1, bounce_vel %.1f m/s, "
            "default ERP/CFM\n",
            QUICK_ITERS, dGetConfiguration(), MAX_PAIR_CONTACTS, BOUNCE_VEL);
-    printf("sc1: simcluster, default world, workers = 1; scN: workers = %d (every online CPU)\n",
+    printf("sc1: simcluster, default world, workers = 1; scN: workers = %d (every online CPU); "
+           "sl1: toi_mode local, workers = 1\n",
            eng_threads[ENG_SCN]);
     printf("rest: all bodies < %.0f cm/s and < %.1f rad/s for %.1f s; "
            "explosion: NaN or energy > %.0fx initial\n\n",
@@ -948,8 +962,9 @@ int main(int argc, char **argv)
         }
         /* ours over each peer, and scN over sc1 */
         static const int pairs[][2] = { { ENG_SC1, ENG_QUICK }, { ENG_SCN, ENG_QUICK },
-                                        { ENG_SC1, ENG_STEP },  { ENG_SCN, ENG_STEP },
-                                        { ENG_SCN, ENG_SC1 } };
+                                        { ENG_SL1, ENG_QUICK }, { ENG_SC1, ENG_STEP },
+                                        { ENG_SCN, ENG_STEP },  { ENG_SL1, ENG_STEP },
+                                        { ENG_SCN, ENG_SC1 },   { ENG_SL1, ENG_SC1 } };
         int header = 0;
         for (size_t i = 0; i < sizeof pairs / sizeof pairs[0]; i++) {
             int o = pairs[i][0], p = pairs[i][1];

@@ -190,8 +190,9 @@ typedef struct sc_world sc_world;
 enum { SC_BROADPHASE_AUTO, SC_BROADPHASE_SPHERES, SC_BROADPHASE_SAP };
 /* Time of impact (sc_world_config.toi_mode). */
 enum {
-    SC_TOI_LOCAL,             /* motion groups back up alone; slow approaches
-                                 enter the LCP as speculative contacts */
+    SC_TOI_LOCAL,             /* motion groups back up alone; pairs within
+                                 a margin of touching are held in the
+                                 substep's LCP as speculative contacts */
     SC_TOI_WORLD              /* the paper's: the earliest impact anywhere
                                  backs the whole world up (Table 1; default) */
 };
@@ -230,11 +231,13 @@ typedef struct sc_world_config {
                                  back-up (motion_groups decides on regions);
                                  SC_TOI_LOCAL: motion groups
                                  (regions: bodies that can meet within the
-                                 frame) each back up to their own earliest
-                                 fast impact, and a pair that closes slowly
-                                 (moved less than half its smaller feature)
-                                 enters the substep's LCP again as a
-                                 speculative contact instead of backing up
+                                 frame); a pair that got too deep enters the
+                                 substep's LCP again as speculative contacts
+                                 found where it first touched (or where it
+                                 ended, when it moved less than half its
+                                 smaller feature), their gap limiting the
+                                 approach; only pairs whose gap passes 10
+                                 contact tolerances back their region up
                                  (simcluster(3) says what it gains) */
     int internal_cookie;      /* set by sc_world_config_default(); do not touch */
 } sc_world_config;
@@ -311,8 +314,8 @@ typedef struct sc_stats {
     int backup_bodies;        /* dynamic bodies in those regions, last frame */
     long backups_total;       /* back-ups, all frames (mean: / frames) */
     int backups_max;          /* most back-ups of one frame so far */
-    int spec_contacts;        /* speculative contacts entered in LCPs (slow
-                                 approaches caught without a back-up), last
+    int spec_contacts;        /* speculative contacts entered in LCPs
+                                 (approaches held without a back-up), last
                                  frame */
     int spec_rounds;          /* substeps solved again with them, last frame */
     double max_penetration;   /* deepest contact, m, last frame */

@@ -659,8 +659,24 @@ static void test_bad_fields_are_format_errors(void **state)
     put_u64(b + hash0, h ^ 0x1234);
     assert_int_equal(sc_wire_unit_decode(b, len, lookup, &cc, &wu), SC_EFORMAT);
     memcpy(b + hash0, keep, 8);
-    /* NaN and infinity in a pose (pair 0's a0.pos[0], after hashes, ids, deepen) */
-    const size_t pos0 = hash0 + 8 + 8 + 4 + 4 + 1;
+    /* pair 0's flags byte (after hashes and ids): bit 0 deepen, bit 1
+     * exact (a search of the pair's own time) travel; other bits are
+     * refused */
+    const size_t flags0 = hash0 + 8 + 8 + 4 + 4;
+    unsigned char kf = b[flags0];
+    b[flags0] = 3;
+    assert_int_equal(sc_wire_unit_decode(b, len, lookup, &cc, &wu), SC_OK);
+    assert_true(wu.pairs[0].deepen == 1 && wu.pairs[0].exact == 1);
+    sc_wire_unit_free(&wu);
+    b[flags0] = 2;
+    assert_int_equal(sc_wire_unit_decode(b, len, lookup, &cc, &wu), SC_OK);
+    assert_true(wu.pairs[0].deepen == 0 && wu.pairs[0].exact == 1);
+    sc_wire_unit_free(&wu);
+    b[flags0] = 4;
+    assert_int_equal(sc_wire_unit_decode(b, len, lookup, &cc, &wu), SC_EFORMAT);
+    b[flags0] = kf;
+    /* NaN and infinity in a pose (pair 0's a0.pos[0], after hashes, ids, flags) */
+    const size_t pos0 = flags0 + 1;
     memcpy(keep, b + pos0, 8);
     double bad[2] = { NAN, INFINITY };
     for (int k = 0; k < 2; k++) {

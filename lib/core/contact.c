@@ -797,7 +797,10 @@ int sc_island_solve(sc_arena *arena, sc_body *bodies, sc_contact *c, const int *
         cstart[k] = r;
         make_row(&rows[r], bodies, ck, ck->normal);
         double vpre = row_speed(&rows[r], bodies, 1);
-        int collide = vpre < -p->bounce_speed;
+        double speed = row_speed(&rows[r], bodies, 0);
+        /* a speculative contact (depth < 0: a gap, docs/DESIGN.md 3.4)
+         * collides only if its approach closes the gap within h */
+        int collide = vpre < -p->bounce_speed && -ck->depth < -fmin(vpre, speed) * h;
         info->collisions += collide;
         /* only movable bodies are written: static and sleeping ones are
          * shared by islands solved concurrently */
@@ -808,9 +811,8 @@ int sc_island_solve(sc_arena *arena, sc_body *bodies, sc_contact *c, const int *
         /* a collision is an impulse at the start of the substep, before the
          * external forces act: target J u' = -e v_pre + (J u* - J u0), so
          * w = A p + (1 + e) v_pre. A resting contact absorbs the forces. */
-        double speed = row_speed(&rows[r], bodies, 0);
-        /* a speculative contact (depth < 0: a gap, docs/DESIGN.md 3.4)
-         * lets the bodies close it within h but no more */
+        /* a speculative resting contact lets the bodies close its gap
+         * within h but no more */
         q[r] = collide ? (1 + e) * vpre : speed + fmax(-ck->depth, 0.0) / h;
         off[r] = q[r] - speed;
         lo[r] = 0;

@@ -220,6 +220,9 @@ int sc_read_file(const char *path, size_t max, unsigned char **out, size_t *len)
  * plus rotation angle times the bounding radius; 0 for planes), and the
  * smallest feature of s a motion must not skip in one step (toi.c). */
 double sc_toi_sweep(const sc_shape *s, const sc_pose *p0, const sc_pose *p1);
+/* The pose at t in [0, 1] between p0 and p1: position lerped, rotation
+ * slerped (the motion time of impact assumes). */
+void sc_pose_lerp(sc_pose *r, const sc_pose *p0, const sc_pose *p1, double t);
 double sc_toi_feature(const sc_shape *s);
 
 /* sc_toi() with the caller's (per-thread) narrow-phase context. */

@@ -20,6 +20,9 @@ typedef struct sc_unit_pair {
     const sc_shape *sa, *sb;        /* serialised as content hashes */
     int body_a, body_b;             /* world ids (a < b), carried through */
     int deepen;                     /* TOI: the pair touched at the start */
+    int exact;                      /* TOI: its own time, not only when before
+                                       the unit's earliest (speculative
+                                       contacts at the touch, impact.c) */
     int touching;                   /* COLLIDE: in contact at the last detection
                                        (only a cost feature, not sent) */
     sc_pose a0, b0;                 /* COLLIDE: the poses; TOI: start ... */
@@ -176,6 +179,40 @@ void sc_stats_add_solver(sc_stats *s, const sc_stats *s2);
 void sc_stats_add_frame(sc_stats *s, const sc_stats *g);
 /* Clearing the solver figures for a new frame. */
 void sc_stats_clear_solver(sc_stats *st);
+/* Back-ups aim at this share of the contact tolerance: the backed-up
+ * substep's impulses and push-out differ a little from the path the
+ * search interpolated. */
+#define SC_TOI_AIM 0.9
+/* Step 5 (impact.c): the earliest time of impact (fraction of the
+ * substep) among the pairs whose contacts are marked 1 in fast, or, fast
+ * NULL, among all contacts deeper than the tolerance; 1 when there is
+ * none. saved: the bodies at the substep's start, c0[0 .. n0) its
+ * contacts. One query per pair, as a TOI job. */
+int sc_frame_earliest_impact(sc_frame *f, const sc_body *saved, const sc_contact *c0, int n0,
+                             const unsigned char *fast, double *frac);
+/* Speculative contacts of a substep (local mode), sorted by pair when
+ * merged. */
+typedef struct sc_spec_list {
+    sc_contact *c;
+    int n, cap;
+} sc_spec_list;
+/* The detection's pairs that got deeper than allowed (a new pair past the
+ * tolerance, a touching one past its start depth plus a tenth of it),
+ * sorted out: slow ones (sweep below half the smaller feature, depth
+ * below a quarter of it) add their new contacts to spec, moved back to
+ * the substep's start with their depth there (negative: a gap), and are
+ * marked 2 in fast; fast ones are marked 1 and counted in *nfast.
+ * Returns the number of slow pairs that added a contact, or a code. */
+int sc_spec_sort_out(sc_frame *f, const sc_body *saved, const sc_contact *c0, int n0,
+                     sc_spec_list *spec, unsigned char *fast, int *nfast);
+/* Fast pairs (marked 1) searched for their own time of impact, their
+ * contacts there moved back to the start into spec: a pair that added one
+ * is marked 2 and taken off *nfast. Returns the number of such pairs. */
+int sc_spec_touch(sc_frame *f, const sc_body *saved, const sc_contact *c0, int n0,
+                  sc_spec_list *spec, unsigned char *fast, int *nfast);
+/* st->contacts = c0 and spec (sorted here) merged by pair, a pair's start
+ * contacts first. */
+int sc_spec_merge(sc_frame_state *st, const sc_contact *c0, int n0, sc_spec_list *spec);
 /* Step 4: pairs and contacts of the current state into f->st->contacts. */
 int sc_detect(sc_frame *f);
 /* Step 3: u* = u + h (g + F/m) (keeping u in v0/w0); positions after the

@@ -14,7 +14,7 @@
 #define TOI_MAX_SAMPLES 256
 #define TOI_MAX_BISECT 64
 
-static void lerp_pose(sc_pose *r, const sc_pose *a, const sc_pose *b, double t)
+void sc_pose_lerp(sc_pose *r, const sc_pose *a, const sc_pose *b, double t)
 {
     for (int k = 0; k < 3; k++)
         r->pos[k] = a->pos[k] + t * (b->pos[k] - a->pos[k]);
@@ -27,8 +27,8 @@ static int depth_at(sc_np_ctx *ctx, const sc_shape *a, const sc_pose *a0, const 
                     double *depth)
 {
     sc_pose pa, pb;
-    lerp_pose(&pa, a0, a1, t);
-    lerp_pose(&pb, b0, b1, t);
+    sc_pose_lerp(&pa, a0, a1, t);
+    sc_pose_lerp(&pb, b0, b1, t);
     /* bounding spheres apart: the shapes are (no narrow phase needed) */
     if (v3_dist(pa.pos, pb.pos) > a->bound_r + b->bound_r + 1e-9) {
         *depth = -1;

@@ -41,17 +41,18 @@ static int run_toi(sc_np_ctx *np, const sc_job *job, const sc_unit *u)
     double best = 1;
     for (int i = u->first; i < u->first + u->count; i++) {
         const sc_unit_pair *p = &job->pairs[i];
-        double t = 1;
+        double t = 1, tmax = p->exact ? 1 : best;
         /* a new pair: back up to first touch; a pair already touching that
          * digs in past the tolerance: back up to where it reaches it */
         int hit = p->deepen ? sc_toi_deepen_before_ctx(np, p->sa, &p->a0, &p->a1, p->sb,
-                                                       &p->b0, &p->b1, job->tol_m, best, &t)
+                                                       &p->b0, &p->b1, job->tol_m, tmax, &t)
                             : sc_toi_before_ctx(np, p->sa, &p->a0, &p->a1, p->sb, &p->b0,
-                                                &p->b1, job->tol_m, best, &t);
+                                                &p->b1, job->tol_m, tmax, &t);
         if (hit < 0)
             return hit;
         job->toi[i] = hit == 1 ? t : 1;
-        best = fmin(best, job->toi[i]);
+        if (!p->exact)
+            best = fmin(best, job->toi[i]);
     }
     return SC_OK;
 }

@@ -14,7 +14,8 @@
  *   pose      pos f64[3], quat f64[4]
  *   contact   body_a i32, body_b i32, pos f64[3], normal f64[3], depth f64
  *   COLLIDE / TOI unit: count u32, (TOI) tol_m f64, per pair: hash_a u64,
- *             hash_b u64, body_a i32, body_b i32, deepen u8, a0, b0, (TOI) a1, b1
+ *             hash_b u64, body_a i32, body_b i32, flags u8 (bit 0 deepen, bit 1
+ *             exact), a0, b0, (TOI) a1, b1
  *   ISLAND unit (consecutive islands, each solved on its own): bodies u32,
  *             members u32, contacts u32, islands u32, h, bounce_speed, slop,
  *             baumgarte, tol f64, split_contacts, block_contacts, max_sweeps,
@@ -51,7 +52,7 @@
 
 #include "unit_wire.h"
 
-#define WIRE_VERSION 3
+#define WIRE_VERSION 4
 #define MAGIC_UNIT 0x55574353u        /* "SCWU" */
 #define MAGIC_RESULT 0x52574353u      /* "SCWR" */
 #define MAX_PAIRS (1 << 16)
@@ -211,7 +212,7 @@ static void write_pairs(wbuf *w, const void *job_, const void *u_)
         put(w, p->sb->hash, 8);
         put_i32(w, p->body_a);
         put_i32(w, p->body_b);
-        put(w, p->deepen != 0, 1);
+        put(w, (uint64_t)(p->deepen != 0) | (uint64_t)(p->exact != 0) << 1, 1);
         const sc_pose *pose[4] = { &p->a0, &p->b0, &p->a1, &p->b1 };
         for (int k = 0; k < (toi ? 4 : 2); k++) {
             put_f64s(w, pose[k]->pos, 3);
@@ -447,8 +448,9 @@ static int decode_pairs(rbuf *r, int kind, sc_shape_lookup_fn lookup, void *ctx,
         uint64_t ha = get(r, 8), hb = get(r, 8);
         p->body_a = get_i32(r);
         p->body_b = get_i32(r);
-        uint64_t deepen = get(r, 1);
-        p->deepen = deepen != 0;
+        uint64_t deepen = get(r, 1);    /* bit 0 deepen, bit 1 exact */
+        p->deepen = (deepen & 1) != 0;
+        p->exact = (deepen & 2) != 0;
         sc_pose *pose[4] = { &p->a0, &p->b0, &p->a1, &p->b1 };
         for (int k = 0; k < (toi ? 4 : 2); k++) {
             get_f64s(r, pose[k]->pos, 3, 1);
@@ -456,7 +458,7 @@ static int decode_pairs(rbuf *r, int kind, sc_shape_lookup_fn lookup, void *ctx,
         }
         if (toi)
             wu->toi[i] = 1;
-        if (r->bad || p->body_a < 0 || p->body_b <= p->body_a || deepen > 1)
+        if (r->bad || p->body_a < 0 || p->body_b <= p->body_a || deepen > 3)
             return SC_EFORMAT;
         p->sa = lookup(ctx, ha);
         p->sb = lookup(ctx, hb);

@@ -1,0 +1,414 @@
+/* impact.c - what a substep does about contacts that got too deep (the
+ * paper's steps 5-6; docs/DESIGN.md section 3.4): the earliest time of
+ * impact to back up to, and in the local mode the speculative contacts
+ * that let a substep be solved again with the pair in its LCP instead.
+ * frame.c runs the loop; this file decides per pair. */
+#include <limits.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "frame.h"
+#include "vecmath.h"
+
+#define SAME_NORMAL 0.95      /* cos of ~18 degrees */
+/* A pair held at its touch bounces at the substep's start, early by its
+ * gap: gaps beyond this many contact tolerances back up instead (a sphere
+ * box with e = 1 at 7 m/s bounced 46 mm early and then met the floor in
+ * the same substep, a collision the LCP cannot order) */
+#define SPEC_MARGIN 10.0
+#define SPEC_DEPTH 0.25       /* deepest share of the smaller feature a
+                                 speculative contact may come from */
+
+/* One query pair of a TOI job from the substep's start (saved) and end
+ * (the detection just before) poses. */
+static void toi_pair(const sc_frame *f, const sc_body *saved, const sc_contact *c0, int n0,
+                     int a, int b, sc_unit_pair *p)
+{
+    const sc_frame_state *st = f->st;
+    memset(p, 0, sizeof *p);
+    p->sa = st->bodies[a].shape;
+    p->sb = st->bodies[b].shape;
+    p->body_a = a;
+    p->body_b = b;
+    /* a new pair backs up to first touch; a pair already touching that
+     * digs in past the tolerance (a bolt rocking onto its other end)
+     * backs up to where it reaches the tolerance */
+    p->deepen = sc_contacts_have_pair(c0, n0, a, b);
+    sc_body_pose(&saved[a], &p->a0);
+    sc_body_pose(&saved[b], &p->b0);
+    p->a1 = f->poses[a];
+    p->b1 = f->poses[b];
+}
+
+/* The pairs whose contacts are marked 1 in fast (or, fast NULL, have a
+ * contact deeper than the tolerance), one query each, into a TOI job
+ * (pairs and toi from the arena, toi[i] = 1). */
+static int toi_job(sc_frame *f, const sc_body *saved, const sc_contact *c0, int n0,
+                   const unsigned char *fast, int exact, sc_job *job)
+{
+    const sc_frame_state *st = f->st;
+    int np = 0;
+    for (int k = 0; k < st->ncontacts; k++)
+        np += fast ? fast[k] == 1 : st->contacts[k].depth > f->cfg->contact_tol_m;
+    memset(job, 0, sizeof *job);
+    job->kind = SC_UNIT_TOI;
+    if (np == 0)
+        return SC_OK;
+    sc_arena *a = &f->scr->arena;
+    sc_unit_pair *pairs = sc_arena_alloc(a, (size_t)np * sizeof *pairs);
+    double *toi = pairs ? sc_arena_alloc(a, (size_t)np * sizeof *toi) : NULL;
+    if (!toi) {
+        sc_arena_free(a, pairs);
+        return SC_ENOMEM;
+    }
+    np = 0;
+    for (int k = 0; k < st->ncontacts; k++) {
+        const sc_contact *c = &st->contacts[k];
+        if (fast ? fast[k] != 1 : c->depth <= f->cfg->contact_tol_m)
+            continue;
+        if (np > 0 && pairs[np - 1].body_a == c->body_a && pairs[np - 1].body_b == c->body_b)
+            continue;    /* one query per pair */
+        toi_pair(f, saved, c0, n0, c->body_a, c->body_b, &pairs[np]);
+        pairs[np].exact = exact;
+        toi[np++] = 1;
+    }
+    job->pairs = pairs;
+    job->npairs = np;
+    /* aim below the tolerance: the backed-up substep's impulses and
+     * push-out differ a little from the path the search interpolated */
+    job->tol_m = SC_TOI_AIM * f->cfg->contact_tol_m;
+    job->toi = toi;
+    return SC_OK;
+}
+
+static void toi_job_free(sc_frame *f, sc_job *job)
+{
+    sc_arena_free(&f->scr->arena, job->toi);
+    sc_arena_free(&f->scr->arena, (void *)job->pairs);
+}
+
+int sc_frame_earliest_impact(sc_frame *f, const sc_body *saved, const sc_contact *c0, int n0,
+                             const unsigned char *fast, double *frac)
+{
+    double t0 = sc_cpu_now();
+    *frac = 1;
+    sc_job job;
+    int rc = toi_job(f, saved, c0, n0, fast, 0, &job);
+    if (rc == SC_OK && job.npairs > 0) {
+        rc = f->ex->run(f->ex, &job, SC_STAGE_TOI, f->stats);
+        for (int i = 0; rc == SC_OK && i < job.npairs; i++)
+            *frac = fmin(*frac, job.toi[i]);
+        toi_job_free(f, &job);
+    }
+    sc_stage_add(f->stats, SC_STAGE_TOI, t0);
+    return rc;
+}
+
+/* ---- speculative contacts (local mode) -------------------------------- */
+
+/* Where the material point of body at pose p1 that lies at x ends up at
+ * pose p0 (a rigid transport back to the substep's start). */
+static void transport(double out[3], const double x[3], const sc_pose *p1, const sc_pose *p0)
+{
+    double R1[9], R0[9], l[3], d[3];
+    q_to_m3(R1, p1->quat);
+    q_to_m3(R0, p0->quat);
+    v3_sub(d, x, p1->pos);
+    m3_tmulv(l, R1, d);
+    m3_mulv(out, R0, l);
+    v3_add(out, out, p0->pos);
+}
+
+/* Contact ck, found with the bodies at poses a1 and b1, moved back to
+ * poses a0 and b0: the midpoint of the two bodies' material points, and
+ * depth there = depth - (da - db).n (d: the points' displacements from 0
+ * to 1); negative is a gap. */
+static sc_contact to_start(const sc_contact *ck, const sc_pose *a1, const sc_pose *b1,
+                           const sc_pose *a0, const sc_pose *b0)
+{
+    double pa[3], pb[3], da[3], db[3], dd[3];
+    transport(pa, ck->pos, a1, a0);
+    transport(pb, ck->pos, b1, b0);
+    sc_contact s = *ck;
+    for (int j = 0; j < 3; j++)
+        s.pos[j] = 0.5 * (pa[j] + pb[j]);
+    v3_sub(da, ck->pos, pa);
+    v3_sub(db, ck->pos, pb);
+    v3_sub(dd, da, db);
+    s.depth = ck->depth - v3_dot(dd, ck->normal);
+    v3_set(s.impulse, 0, 0, 0);
+    return s;
+}
+
+/* Two contacts of a pair hold the same thing: close, and pushing the same
+ * way (the same place of a mesh touched along another face is not). */
+static int same_point(const sc_contact *x, const sc_contact *y, double near)
+{
+    return v3_dist(x->pos, y->pos) < near && v3_dot(x->normal, y->normal) > SAME_NORMAL;
+}
+
+/* s appended to spec unless a start contact of its pair (c0[j0 .. j1))
+ * or a speculative one lies within near of it: 1 added, 0 not, or
+ * SC_ENOMEM. */
+static int spec_add(sc_spec_list *spec, const sc_contact *c0, int j0, int j1,
+                    const sc_contact *s, double near)
+{
+    for (int j = j0; j < j1; j++)
+        if (same_point(&c0[j], s, near))
+            return 0;
+    for (int j = 0; j < spec->n; j++)
+        if (spec->c[j].body_a == s->body_a && spec->c[j].body_b == s->body_b &&
+            same_point(&spec->c[j], s, near))
+            return 0;
+    if (sc_grow((void **)&spec->c, &spec->cap, spec->n + 1, sizeof *spec->c, INT_MAX))
+        return SC_ENOMEM;
+    spec->c[spec->n++] = *s;
+    return 1;
+}
+
+/* Two contacts of one pair count as the same point within this (and
+ * normals within acos(SAME_NORMAL)). */
+static double near_of(const sc_frame *f, int a, int b)
+{
+    return 0.1 * fmin(f->st->bodies[a].shape->bound_r, f->st->bodies[b].shape->bound_r);
+}
+
+/* How deep pair (a, b) may get in this substep: the tolerance for a new
+ * pair; for one touching at the start (contacts in c0, *touching = 1)
+ * its deepest start depth plus a tenth of the tolerance. */
+static double pair_limit(const sc_contact *c0, int n0, int a, int b, double tol, int *touching)
+{
+    double d0 = -1;
+    for (int j = sc_contacts_pair_start(c0, n0, a, b);
+         j < n0 && c0[j].body_a == a && c0[j].body_b == b; j++)
+        d0 = fmax(d0, c0[j].depth);
+    *touching = d0 >= 0;
+    return d0 < 0 ? tol : fmax(tol, d0 + 0.1 * tol);
+}
+
+/* The contacts of the detection's pair run st->contacts[k0 .. k1) moved
+ * back to the substep's start into spec (of a pair touching at the start,
+ * only those deeper than limit: its new points), unless a start or
+ * speculative contact holds the same point. 1 if one was added, 0 if not,
+ * or SC_ENOMEM. */
+static int end_contacts(sc_frame *f, const sc_body *saved, const sc_contact *c0, int n0, int k0,
+                        int k1, double limit, int touching, sc_spec_list *spec)
+{
+    const sc_frame_state *st = f->st;
+    int a = st->contacts[k0].body_a, b = st->contacts[k0].body_b;
+    int j0 = sc_contacts_pair_start(c0, n0, a, b), j1 = j0;
+    while (j1 < n0 && c0[j1].body_a == a && c0[j1].body_b == b)
+        j1++;
+    sc_pose a0, b0;
+    sc_body_pose(&saved[a], &a0);
+    sc_body_pose(&saved[b], &b0);
+    int added = 0;
+    for (int k = k0; k < k1; k++) {
+        const sc_contact *ck = &st->contacts[k];
+        if (touching && ck->depth <= limit)
+            continue;
+        sc_contact s = to_start(ck, &f->poses[a], &f->poses[b], &a0, &b0);
+        int rc = spec_add(spec, c0, j0, j1, &s, near_of(f, a, b));
+        if (rc < 0)
+            return rc;
+        added |= rc;
+    }
+    return added;
+}
+
+int sc_spec_sort_out(sc_frame *f, const sc_body *saved, const sc_contact *c0, int n0,
+                     sc_spec_list *spec, unsigned char *fast, int *nfast)
+{
+    const sc_frame_state *st = f->st;
+    double tol = f->cfg->contact_tol_m;
+    int nslow = 0;
+    *nfast = 0;
+    memset(fast, 0, (size_t)st->ncontacts);
+    for (int k0 = 0, k1; k0 < st->ncontacts; k0 = k1) {
+        const sc_contact *c = &st->contacts[k0];
+        int a = c->body_a, b = c->body_b;
+        double d1 = 0;
+        for (k1 = k0; k1 < st->ncontacts && st->contacts[k1].body_a == a &&
+                      st->contacts[k1].body_b == b; k1++)
+            d1 = fmax(d1, st->contacts[k1].depth);
+        int touching;
+        double limit = pair_limit(c0, n0, a, b, tol, &touching);
+        if (!(d1 > limit))
+            continue;
+        const sc_shape *sa = st->bodies[a].shape, *sb = st->bodies[b].shape;
+        sc_pose a0, b0;
+        sc_body_pose(&saved[a], &a0);
+        sc_body_pose(&saved[b], &b0);
+        double feature = fmin(sc_toi_feature(sa), sc_toi_feature(sb));
+        double sweep = sc_toi_sweep(sa, &a0, &f->poses[a]) + sc_toi_sweep(sb, &b0, &f->poses[b]);
+        if (sweep > 0.5 * feature || d1 > SPEC_DEPTH * feature) {
+            for (int k = k0; k < k1; k++)
+                fast[k] = 1;
+            (*nfast)++;
+            continue;
+        }
+        for (int k = k0; k < k1; k++)
+            fast[k] = 2;
+        int added = end_contacts(f, saved, c0, n0, k0, k1, limit, touching, spec);
+        if (added < 0)
+            return added;
+        nslow += added;
+    }
+    return nslow;
+}
+
+/* Fast pair (a, b) held by its contacts where the substep ended (as a
+ * slow pair is): 1 when one was added (its contacts then marked 2 in fast
+ * and the pair taken off *nfast), 0 when none was, or SC_ENOMEM. */
+static int hold_at_end(sc_frame *f, const sc_body *saved, const sc_contact *c0, int n0, int a,
+                       int b, sc_spec_list *spec, unsigned char *fast, int *nfast)
+{
+    const sc_frame_state *st = f->st;
+    int k0 = sc_contacts_pair_start(st->contacts, st->ncontacts, a, b), k1 = k0;
+    while (k1 < st->ncontacts && st->contacts[k1].body_a == a && st->contacts[k1].body_b == b)
+        k1++;
+    int touching;
+    double limit = pair_limit(c0, n0, a, b, f->cfg->contact_tol_m, &touching);
+    int added = end_contacts(f, saved, c0, n0, k0, k1, limit, touching, spec);
+    if (added > 0) {
+        memset(fast + k0, 2, (size_t)(k1 - k0));
+        (*nfast)--;
+    }
+    return added;
+}
+
+int sc_spec_touch(sc_frame *f, const sc_body *saved, const sc_contact *c0, int n0,
+                  sc_spec_list *spec, unsigned char *fast, int *nfast)
+{
+    double t0 = sc_cpu_now();
+    sc_arena *ar = &f->scr->arena;
+    const sc_frame_state *st = f->st;
+    sc_job tj;
+    int rc = toi_job(f, saved, c0, n0, fast, 1, &tj);
+    int np = tj.npairs, ntouch = 0;
+    if (rc != SC_OK || np == 0) {
+        sc_stage_add(f->stats, SC_STAGE_TOI, t0);
+        return rc;
+    }
+    /* a pair already held by speculative contacts that still got too
+     * deep touches elsewhere too (a bolt landing on one end and rocking
+     * onto the other within the substep): search where its depth passes
+     * the tolerance, not its first touch again */
+    for (int i = 0; i < np; i++) {
+        sc_unit_pair *p = (sc_unit_pair *)&tj.pairs[i];
+        for (int j = 0; j < spec->n && !p->deepen; j++)
+            p->deepen = spec->c[j].body_a == p->body_a && spec->c[j].body_b == p->body_b;
+    }
+    /* each pair's own time of impact (exact: every pair, not only the
+     * earliest), then its contacts there */
+    rc = f->ex->run(f->ex, &tj, SC_STAGE_TOI, f->stats);
+    sc_unit_pair *cp = NULL;
+    sc_contact *uc = NULL;
+    int *ncontact = NULL;
+    if (rc == SC_OK) {
+        cp = sc_arena_alloc(ar, (size_t)np * sizeof *cp);
+        uc = cp ? sc_arena_alloc(ar, (size_t)np * SC_MAX_PAIR_CONTACTS * sizeof *uc) : NULL;
+        ncontact = uc ? sc_arena_alloc(ar, (size_t)np * sizeof *ncontact) : NULL;
+        rc = ncontact ? SC_OK : SC_ENOMEM;
+    }
+    int nc = 0;
+    for (int i = 0; rc == SC_OK && i < np; i++) {
+        const sc_unit_pair *p = &tj.pairs[i];
+        if (!(tj.toi[i] < 1)) {
+            /* no time found (a pair already deep at the start is not
+             * searched): held where it ended, as a slow pair */
+            int r = hold_at_end(f, saved, c0, n0, p->body_a, p->body_b, spec, fast, nfast);
+            if (r < 0)
+                rc = r;
+            ntouch += r > 0;
+            continue;
+        }
+        sc_unit_pair *q = &cp[nc++];
+        *q = *p;
+        sc_pose_lerp(&q->a0, &p->a0, &p->a1, tj.toi[i]);
+        sc_pose_lerp(&q->b0, &p->b0, &p->b1, tj.toi[i]);
+        q->a1 = p->a0;    /* the start, for the transport below */
+        q->b1 = p->b0;
+    }
+    sc_job cj = { .kind = SC_UNIT_COLLIDE, .pairs = cp, .npairs = nc, .contacts = uc,
+                  .ncontact = ncontact };
+    if (rc == SC_OK && nc > 0)
+        rc = f->ex->run(f->ex, &cj, SC_STAGE_TOI, f->stats);
+    /* the contacts at the touch, moved back to the substep's start */
+    double margin = SPEC_MARGIN * f->cfg->contact_tol_m;
+    for (int i = 0; rc == SC_OK && i < nc; i++) {
+        const sc_unit_pair *q = &cp[i];
+        int a = q->body_a, b = q->body_b;
+        int j0 = sc_contacts_pair_start(c0, n0, a, b), j1 = j0;
+        while (j1 < n0 && c0[j1].body_a == a && c0[j1].body_b == b)
+            j1++;
+        sc_contact s[SC_MAX_PAIR_CONTACTS];
+        double gap = INFINITY;
+        for (int k = 0; k < ncontact[i]; k++) {
+            s[k] = to_start(&uc[(size_t)i * SC_MAX_PAIR_CONTACTS + k], &q->a0, &q->b0, &q->a1,
+                            &q->b1);
+            gap = fmin(gap, -s[k].depth);
+        }
+        if (gap > margin)
+            continue;    /* too far to bounce early: it backs up */
+        int added = 0;
+        for (int k = 0; k < ncontact[i] && rc == SC_OK; k++) {
+            int r = spec_add(spec, c0, j0, j1, &s[k], near_of(f, a, b));
+            if (r < 0)
+                rc = r;
+            added |= r > 0;
+        }
+        if (!added) {
+            /* nothing new at the touch: where it ended, then */
+            int r = hold_at_end(f, saved, c0, n0, a, b, spec, fast, nfast);
+            if (r < 0)
+                rc = r;
+            ntouch += r > 0;
+            if (r != 0)
+                continue;
+            continue;    /* nothing new to hold it: it backs up */
+        }
+        /* the pair's contacts are no longer fast */
+        int k0 = sc_contacts_pair_start(st->contacts, st->ncontacts, a, b), k1 = k0;
+        while (k1 < st->ncontacts && st->contacts[k1].body_a == a && st->contacts[k1].body_b == b)
+            k1++;
+        memset(fast + k0, 2, (size_t)(k1 - k0));
+        (*nfast)--;
+        ntouch++;
+    }
+    sc_arena_free(ar, ncontact);
+    sc_arena_free(ar, uc);
+    sc_arena_free(ar, cp);
+    toi_job_free(f, &tj);
+    sc_stage_add(f->stats, SC_STAGE_TOI, t0);
+    return rc == SC_OK ? ntouch : rc;
+}
+
+static int cmp_contact_pair(const void *x, const void *y)
+{
+    const sc_contact *a = x, *b = y;
+    if (a->body_a != b->body_a)
+        return (a->body_a > b->body_a) - (a->body_a < b->body_a);
+    return (a->body_b > b->body_b) - (a->body_b < b->body_b);
+}
+
+int sc_spec_merge(sc_frame_state *st, const sc_contact *c0, int n0, sc_spec_list *spec)
+{
+    const sc_contact *sp = spec->c;
+    int ns = spec->n;
+    if (ns > 1)
+        qsort(spec->c, (size_t)ns, sizeof *spec->c, cmp_contact_pair);
+    if (sc_grow((void **)&st->contacts, &st->contact_cap, n0 + ns, sizeof *st->contacts,
+                INT_MAX))
+        return SC_ENOMEM;
+    /* by pair, a pair's start contacts first */
+    int i = 0, j = 0, k = 0;
+    while (i < n0 || j < ns) {
+        int take0 = j >= ns || (i < n0 && (c0[i].body_a < sp[j].body_a ||
+                                           (c0[i].body_a == sp[j].body_a &&
+                                            c0[i].body_b <= sp[j].body_b)));
+        st->contacts[k++] = take0 ? c0[i++] : sp[j++];
+    }
+    st->ncontacts = k;
+    return SC_OK;
+}
