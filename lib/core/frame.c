@@ -11,6 +11,7 @@
 
 #define MAX_SUBSTEPS 16       /* time-of-impact back-ups per frame */
 #define SPEC_ROUNDS 4         /* speculative re-solves of a substep at most */
+#define SPEC_BACKUPS 3        /* back-ups of one substep at most (local mode) */
 /* split islands: contacts per block (whole pairs: a pair has at most 4) */
 #define SPLIT_BLOCK_CONTACTS 4
 
@@ -141,7 +142,7 @@ static int substeps(sc_frame *f, double dt, sc_body *saved, unsigned char *touch
         if (rc == SC_OK)
             rc = sc_detect(f);
         spec.n = 0;
-        int rounds = 0;
+        int rounds = 0, sub_backups = 0;
         while (rc == SC_OK && local) {
             /* local mode: pairs past the tolerance enter the substep again
              * as speculative contacts (slow ones from where they ended,
@@ -153,13 +154,18 @@ static int substeps(sc_frame *f, double dt, sc_body *saved, unsigned char *touch
                 break;
             }
             /* a substep backed up may back up again (its speculative
-             * contacts change the motion): every back-up counts against
-             * the frame's MAX_SUBSTEPS */
-            int nfast = 0, nslow = 0, can_back = backups + 1 < MAX_SUBSTEPS;
+             * contacts change the motion), SPEC_BACKUPS times at most:
+             * every back-up counts against the frame's MAX_SUBSTEPS, and
+             * a pair pushed in by another's push-out is as deep after any
+             * substep, however short (a bin backed up 15 times to 1e-8 s
+             * and let a part in 12 mm); once backed up, pairs too far to
+             * hold at their touch are held where they ended */
+            int nfast = 0, nslow = 0;
+            int can_back = backups + 1 < MAX_SUBSTEPS && sub_backups < SPEC_BACKUPS;
             if (rounds < SPEC_ROUNDS || can_back)
                 nslow = sc_spec_sort_out(f, saved, c0, n0, &spec, fast, &nfast);
             if (nslow >= 0 && nfast > 0 && rounds < SPEC_ROUNDS) {
-                int nt = sc_spec_touch(f, saved, c0, n0, &spec, fast, &nfast);
+                int nt = sc_spec_touch(f, saved, c0, n0, &spec, fast, &nfast, sub_backups > 0);
                 nslow = nt < 0 ? nt : nslow + nt;
             }
             if (nslow < 0) {
@@ -191,6 +197,7 @@ static int substeps(sc_frame *f, double dt, sc_body *saved, unsigned char *touch
                  * the speculative contacts stay (their gaps are at the
                  * substep's start, which does not move) */
                 backups++;
+                sub_backups++;
                 h = fmax(frac * h, 1e-6 * dt);
             }
             rc = sc_spec_merge(st, c0, n0, &spec);

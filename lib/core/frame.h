@@ -206,10 +206,14 @@ typedef struct sc_spec_list {
 int sc_spec_sort_out(sc_frame *f, const sc_body *saved, const sc_contact *c0, int n0,
                      sc_spec_list *spec, unsigned char *fast, int *nfast);
 /* Fast pairs (marked 1) searched for their own time of impact, their
- * contacts there moved back to the start into spec: a pair that added one
- * is marked 2 and taken off *nfast. Returns the number of such pairs. */
+ * contacts there moved back to the start into spec (a pair with nothing
+ * new there, or no time, held by its contacts where it ended, as a slow
+ * one): a pair that added one is marked 2 and taken off *nfast. A pair
+ * whose gap at the start passes SPEC_MARGIN contact tolerances is left
+ * fast, unless hold (then it is held where it ended). Returns the number
+ * of pairs held. */
 int sc_spec_touch(sc_frame *f, const sc_body *saved, const sc_contact *c0, int n0,
-                  sc_spec_list *spec, unsigned char *fast, int *nfast);
+                  sc_spec_list *spec, unsigned char *fast, int *nfast, int hold);
 /* st->contacts = c0 and spec (sorted here) merged by pair, a pair's start
  * contacts first. */
 int sc_spec_merge(sc_frame_state *st, const sc_contact *c0, int n0, sc_spec_list *spec);

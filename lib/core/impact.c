@@ -278,7 +278,7 @@ static int hold_at_end(sc_frame *f, const sc_body *saved, const sc_contact *c0, 
 }
 
 int sc_spec_touch(sc_frame *f, const sc_body *saved, const sc_contact *c0, int n0,
-                  sc_spec_list *spec, unsigned char *fast, int *nfast)
+                  sc_spec_list *spec, unsigned char *fast, int *nfast, int hold)
 {
     double t0 = sc_cpu_now();
     sc_arena *ar = &f->scr->arena;
@@ -349,8 +349,16 @@ int sc_spec_touch(sc_frame *f, const sc_body *saved, const sc_contact *c0, int n
                             &q->b1);
             gap = fmin(gap, -s[k].depth);
         }
-        if (gap > margin)
+        if (gap > margin && !hold)
             continue;    /* too far to bounce early: it backs up */
+        if (gap > margin) {
+            /* a substep already backed up: held where it ended */
+            int r = hold_at_end(f, saved, c0, n0, a, b, spec, fast, nfast);
+            if (r < 0)
+                rc = r;
+            ntouch += r > 0;
+            continue;
+        }
         int added = 0;
         for (int k = 0; k < ncontact[i] && rc == SC_OK; k++) {
             int r = spec_add(spec, c0, j0, j1, &s[k], near_of(f, a, b));
