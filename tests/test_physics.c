@@ -12,9 +12,11 @@
 #define G 9.81
 #define DT 0.01
 
-static sc_world *world_with_plane(double nx, double nz, double e, double mu)
+static sc_world *world_with_plane_mode(double nx, double nz, double e, double mu, int mode)
 {
-    sc_world *w = sc_world_create(NULL);
+    sc_world_config c = sc_world_config_default();
+    c.toi_mode = mode;
+    sc_world *w = sc_world_create(&c);
     assert_non_null(w);
     sc_shape *p = sc_shape_plane(nx, 0, nz, 0);
     sc_body_desc d = sc_body_desc_default();
@@ -25,6 +27,11 @@ static sc_world *world_with_plane(double nx, double nz, double e, double mu)
     assert_int_equal(sc_body_add(w, &d), 0);
     sc_shape_release(p);
     return w;
+}
+
+static sc_world *world_with_plane(double nx, double nz, double e, double mu)
+{
+    return world_with_plane_mode(nx, nz, e, mu, sc_world_config_default().toi_mode);
 }
 
 static void test_ball_rebounds_to_e_squared_height(void **state)
@@ -187,9 +194,9 @@ static sc_shape *corner_cube(int hull)
  * ever gets deeper than the contact tolerance (ODE's convex-convex collider
  * gives one point; on it the upper cube rocked and sank 10 mm into the
  * lower one), and, from 1 s on, the top cube stays within 0.5 mm. */
-static void cube_stack(int hull, int n, int still)
+static void cube_stack(int hull, int n, int still, int mode)
 {
-    sc_world *w = world_with_plane(0, 1, 0.5, 0.5);
+    sc_world *w = world_with_plane_mode(0, 1, 0.5, 0.5, mode);
     sc_shape *s = corner_cube(hull);
     double tol = sc_world_config_default().contact_tol_m;
     int id[3];
@@ -218,8 +225,9 @@ static void cube_stack(int hull, int n, int still)
             hi = fmax(hi, z[n - 1]);
         }
     }
-    print_message("%d %s cubes: max penetration %.3f mm, least gap %.3f mm, top moved %.3f mm "
-                  "after 1 s\n", n, hull ? "hull" : "mesh", 1000 * pen, 1000 * gap,
+    print_message("%d %s cubes (%s): max penetration %.3f mm, least gap %.3f mm, top moved "
+                  "%.3f mm after 1 s\n", n, hull ? "hull" : "mesh",
+                  mode == SC_TOI_LOCAL ? "local" : "world", 1000 * pen, 1000 * gap,
                   1000 * (hi - lo));
     assert_true(pen <= tol);
     assert_true(gap >= -tol);
@@ -235,32 +243,57 @@ static void test_mesh_and_hull_cube_stacks_do_not_sink(void **state)
 {
     (void)state;
     for (int hull = 0; hull < 2; hull++) {
-        cube_stack(hull, 2, 0);
-        cube_stack(hull, 3, 1);
+        cube_stack(hull, 2, 0, SC_TOI_WORLD);
+        cube_stack(hull, 3, 1, SC_TOI_WORLD);
+        /* the local mode: a slow pair that got deeper on the rows it had
+         * (nothing new to hold it) is searched and backed up as a fast
+         * one (held as slow, a mesh stack sank 3.1 mm); the top cube
+         * still hops there (docs/DESIGN.md 3.4), so depth only */
+        cube_stack(hull, 3, 0, SC_TOI_LOCAL);
     }
 }
 
-/* Table 1: 27 spheres, e = 1, no friction, 5000 frames of 0.01 s: energy
- * is conserved within 0.5 %. */
-static void test_table1_spheres_conserve_energy(void **state)
+/* The Table 1 box (27 spheres, e = 1) over 5000 frames in toi mode:
+ * energy within 0.5 % of the start, never above 1.001 of it. In the local
+ * mode a sphere bounced off one neighbour into the next within one
+ * substep must back up, not be held there too: held, the two collisions
+ * were simultaneous and Newton's restitution on both gained 1.26 %. */
+static void table1_energy(int mode)
 {
-    (void)state;
-    sc_world *w = sc_world_create(NULL);
+    sc_world_config c = sc_world_config_default();
+    c.toi_mode = mode;
+    sc_world *w = sc_world_create(&c);
+    assert_non_null(w);
     assert_int_equal(sc_scene_spheres_box(w), SC_OK);
-    double e0 = sc_world_energy(w), worst = 0;
+    double e0 = sc_world_energy(w), worst = 0, peak = 1;
     long collisions = 0;
     for (int n = 0; n < 5000; n++) {
         assert_int_equal(sc_world_step(w, DT), SC_OK);
         worst = fmax(worst, fabs(sc_world_energy(w) / e0 - 1));
+        peak = fmax(peak, sc_world_energy(w) / e0);
         sc_stats st;
         sc_world_stats(w, &st);
         collisions += st.contacts;
     }
-    print_message("Table 1 scene: worst |E/E0 - 1| = %.5f over 5000 frames, %ld contact points\n",
-                  worst, collisions);
+    print_message("Table 1 scene, %s mode: worst |E/E0 - 1| = %.5f, peak %.5f over 5000 frames, "
+                  "%ld contact points\n", mode == SC_TOI_LOCAL ? "local" : "world", worst, peak,
+                  collisions);
     assert_true(collisions > 0);
     assert_true(worst <= 0.005);
+    assert_true(peak <= 1.001);
     sc_world_destroy(w);
+}
+
+static void test_table1_spheres_conserve_energy(void **state)
+{
+    (void)state;
+    table1_energy(SC_TOI_WORLD);
+}
+
+static void test_table1_spheres_conserve_energy_in_local_mode(void **state)
+{
+    (void)state;
+    table1_energy(SC_TOI_LOCAL);
 }
 
 /* A nut thrown at 1.5 m/s onto a box resting on the floor, tilted so that
@@ -449,6 +482,7 @@ int main(void)
         cmocka_unit_test(test_stack_of_five_boxes_stands_ten_seconds),
         cmocka_unit_test(test_mesh_and_hull_cube_stacks_do_not_sink),
         cmocka_unit_test(test_table1_spheres_conserve_energy),
+        cmocka_unit_test(test_table1_spheres_conserve_energy_in_local_mode),
         cmocka_unit_test(test_local_mode_holds_a_fast_landing_without_backing_up),
         cmocka_unit_test(test_fifty_bolts_and_nuts_drop_stably_and_come_to_rest),
         cmocka_unit_test(test_fifty_bolts_and_nuts_in_motion_groups),

@@ -203,7 +203,7 @@ typedef struct sc_spec_list {
  * the substep's start with their depth there (negative: a gap), and are
  * marked 2 in fast; fast ones are marked 1 and counted in *nfast.
  * Returns the number of slow pairs that added a contact, or a code. */
-int sc_spec_sort_out(sc_frame *f, const sc_body *saved, const sc_contact *c0, int n0,
+int sc_spec_sort_out(sc_frame *f, const sc_body *saved, const sc_contact *c0, int n0, double h,
                      sc_spec_list *spec, unsigned char *fast, int *nfast);
 /* Fast pairs (marked 1) searched for their own time of impact, their
  * contacts there moved back to the start into spec (a pair with nothing
@@ -212,7 +212,7 @@ int sc_spec_sort_out(sc_frame *f, const sc_body *saved, const sc_contact *c0, in
  * whose gap at the start passes SPEC_MARGIN contact tolerances is left
  * fast, unless hold (then it is held where it ended). Returns the number
  * of pairs held. */
-int sc_spec_touch(sc_frame *f, const sc_body *saved, const sc_contact *c0, int n0,
+int sc_spec_touch(sc_frame *f, const sc_body *saved, const sc_contact *c0, int n0, double h,
                   sc_spec_list *spec, unsigned char *fast, int *nfast, int hold);
 /* st->contacts = c0 and spec (sorted here) merged by pair, a pair's start
  * contacts first. */
