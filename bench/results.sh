@@ -129,7 +129,7 @@ if [ $quick -eq 1 ]; then
     drop_args="-r 1 -T 0.5 -b 2 10 200"
     scale_args="-p scaling -n 200 -s 0.2 -r 1 -d 0,1"
     steal_args="-p fg,busy -r 1"
-    pile_args="-S bin -r 1 -T 0.3 -b 10 200"
+    pile_args="-S bin -r 1 -T 0.3 -b 10 -e qscl 200"
     island_args="-n 50 -t 0.5 -k 1 -r 1 -b 2"
 else
     frames=5000
@@ -147,7 +147,7 @@ else
     steal_args="-p fg,busy"
     # each run of ours on the pile takes minutes: a run cut by the budget
     # is not repeated (bench_drop's default), one that is not gets 3
-    pile_args="-S bin -b 600 200"
+    pile_args="-S bin -b 600 -e qscl 200"
     island_args=
 fi
 load0=$(cut -d' ' -f1-3 /proc/loadavg)
@@ -370,7 +370,8 @@ w "(half spaces) on a floor; they fall a few cm and pile up. Every engine gets t
 w "same bodies, meshes, masses, inertia and the same five half spaces (read back"
 w "from the world; bench/bench_drop.c's header has the details). The line under each"
 w "row of ours is its contact solver over the run: split (block Gauss-Seidel) and"
-w "unconverged solves, residuals, fallbacks, substeps a frame."
+w "unconverged solves, residuals, fallbacks, substeps and back-ups a frame. sl1 is"
+w "the local time-of-impact mode (toi_mode = SC_TOI_LOCAL) on one worker."
 # shellcheck disable=SC2086 # the arguments are words
 run f_pile "$B/bench/bench_drop" $pile_args
 w ""
