@@ -189,8 +189,8 @@ static void test_daemons_give_the_same_bits(void **state)
            n0.shapes, (double)sum.unit_messages / FRAMES, (double)sum.result_messages / FRAMES);
     assert_true(h == h0);
     assert_true(sum.remote_units > 0);
-    /* every result came in a message, none without a unit sent before */
-    assert_true(sum.result_messages > 0 && sum.result_messages <= sum.remote_units);
+    /* results came in messages of one or more, units went out in some */
+    assert_true(sum.result_messages > 0 && sum.result_messages <= n0.results + n1.results);
     assert_true(sum.unit_messages > 0);
     assert_true(n0.results > 0 && n1.results > 0);
     assert_true(n0.shapes + n1.shapes >= 2);    /* bolt, nut, floor: on request */

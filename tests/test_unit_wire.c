@@ -620,7 +620,8 @@ static void group_both_ways(group_exec *gx, sc_job *job)
     sc_group_out *out_l = calloc((size_t)g->ngroups, sizeof *out_l);
     assert_true(cp.bodies && cp.contacts && before && out_l);
     memcpy(cp.bodies, gj->st->bodies, nb * sizeof *cp.bodies);
-    memcpy(cp.contacts, gj->st->contacts, nc * sizeof *cp.contacts);
+    if (nc)    /* none yet in the first frame (and no array) */
+        memcpy(cp.contacts, gj->st->contacts, nc * sizeof *cp.contacts);
     memcpy(before, gj->st->bodies, nb * sizeof *before);
     sc_group_job gl = *gj;
     gl.st = &cp;
@@ -731,7 +732,8 @@ static void group_frame_of_copy(const sc_world *w, group_exec *gx)
     st.contacts = malloc((nc ? nc : 1) * sizeof *st.contacts);
     assert_true(st.bodies && st.contacts);
     memcpy(st.bodies, w->st.bodies, nb * sizeof *st.bodies);
-    memcpy(st.contacts, w->st.contacts, nc * sizeof *st.contacts);
+    if (nc)
+        memcpy(st.contacts, w->st.contacts, nc * sizeof *st.contacts);
     st.contact_cap = nc ? (int)nc : 1;
     sc_frame_scratch scr;
     assert_int_equal(sc_frame_scratch_init(&scr), SC_OK);
