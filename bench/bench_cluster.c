@@ -17,8 +17,13 @@
  *             takes over while the master runs: the time until it reports
  *             owner-busy and the time until the master stops sending it
  *             work.
+ *   With -t local the frames run by motion groups in the local time-of-
+ *             impact mode (-g: motion groups in the world mode), so that most
+ *             units are groups' whole frames; the messages per frame (units
+ *             out, results in) are counted.
  * usage: bench_cluster [-r RUNS] [-s SECONDS] [-n BODIES] [-d 0,1,2,...]
  *                      [-x DAEMON] [-u LCM-URL] [-p scaling,fg,busy]
+ *                      [-t world|local] [-g]
  * The daemon binary defaults to daemon/simclusterd next to this bench's
  * build directory (build/bench/../daemon/simclusterd). */
 #include <errno.h>
@@ -44,6 +49,7 @@
 
 static char url[160], key_path[64], daemon_bin[512];
 static int ncpu;
+static int toi_mode = SC_TOI_WORLD, groups;     /* the worlds' (-t, -g) */
 
 static double median(double *x, int n)
 {
@@ -109,6 +115,8 @@ static sc_world *make_world(int n, int cluster)
 {
     sc_world_config c = sc_world_config_default();
     c.workers = 1;
+    c.toi_mode = toi_mode;
+    c.motion_groups = groups;
     if (cluster) {
         c.cluster = url;
         c.key_file = key_path;
@@ -134,7 +142,7 @@ static int wait_daemons(sc_world *w, int k)
 }
 
 typedef struct result {
-    double wall, remote, recomputed, comm_ms, late, wait_ms, local_ms;
+    double wall, remote, recomputed, comm_ms, late, wait_ms, local_ms, msgs_out, msgs_in;
     uint64_t hash;
 } result;
 
@@ -147,7 +155,7 @@ static int run(int n, int k, double seconds, result *r)
         return -1;
     }
     int frames = (int)(seconds / DT + 0.5);
-    long units = 0, remote = 0, recomputed = 0, late = 0;
+    long units = 0, remote = 0, recomputed = 0, late = 0, msgs_out = 0, msgs_in = 0;
     double comm = 0, wait = 0, local = 0;
     double t0 = now_s();
     for (int f = 0; f < frames; f++) {
@@ -166,6 +174,8 @@ static int run(int n, int k, double seconds, result *r)
         comm += st.comm_s;
         wait += st.remote_wait_s;
         local += st.makespan_s;
+        msgs_out += st.unit_messages;
+        msgs_in += st.result_messages;
     }
     r->wall = now_s() - t0;
     r->remote = units ? (double)remote / (double)units : 0;
@@ -174,6 +184,8 @@ static int run(int n, int k, double seconds, result *r)
     r->comm_ms = 1e3 * comm / frames;
     r->wait_ms = 1e3 * wait / frames;
     r->local_ms = 1e3 * local / frames;
+    r->msgs_out = (double)msgs_out / frames;
+    r->msgs_in = (double)msgs_in / frames;
     r->hash = sc_world_hash(w);
     sc_world_destroy(w);
     return 0;
@@ -182,11 +194,14 @@ static int run(int n, int k, double seconds, result *r)
 static void scaling(int n, const int *ks, int nk, int runs, double seconds)
 {
     printf("\nscaling: %d bolts/nuts, %.2f s simulated, 1 local worker + k one-thread "
-           "daemons, medians of %d runs\n",
-           n, seconds, runs);
-    printf("%8s %9s %9s %8s %9s %12s %10s %10s %10s %10s %6s\n", "daemons", "wall s",
+           "daemons, medians of %d runs%s\n",
+           n, seconds, runs,
+           toi_mode == SC_TOI_LOCAL ? ", local time of impact (motion groups)"
+           : groups                 ? ", motion groups"
+                                    : "");
+    printf("%8s %9s %9s %8s %9s %12s %10s %10s %10s %10s %9s %9s %6s\n", "daemons", "wall s",
            "RT factor", "speedup", "remote %", "recomp/frame", "late/frame", "jobs ms/fr",
-           "wait ms/fr", "comm ms/fr", "bits");
+           "wait ms/fr", "comm ms/fr", "msg out/fr", "msg in/fr", "bits");
     double base = 0;
     uint64_t h0 = 0;
     for (int i = 0; i < nk; i++) {
@@ -197,7 +212,7 @@ static void scaling(int n, const int *ks, int nk, int runs, double seconds)
         for (int j = 0; j < k; j++)
             pid[j] = start_daemon(100 + j, ncpu > 1 ? 1 + j % (ncpu - 1) : 0, 1.0, 1);
         double wall[MAX_RUNS], rem[MAX_RUNS], rc[MAX_RUNS], comm[MAX_RUNS], late[MAX_RUNS],
-            wait[MAX_RUNS], jobs[MAX_RUNS];
+            wait[MAX_RUNS], jobs[MAX_RUNS], mout[MAX_RUNS], min[MAX_RUNS];
         int same = 1, ok = 1;
         for (int r = 0; r < runs && ok; r++) {
             result res;
@@ -212,6 +227,8 @@ static void scaling(int n, const int *ks, int nk, int runs, double seconds)
             late[r] = res.late;
             wait[r] = res.wait_ms;
             jobs[r] = res.local_ms;
+            mout[r] = res.msgs_out;
+            min[r] = res.msgs_in;
             if (k == 0 && r == 0)
                 h0 = res.hash;
             same = same && res.hash == h0;
@@ -229,9 +246,10 @@ static void scaling(int n, const int *ks, int nk, int runs, double seconds)
             snprintf(sp, sizeof sp, "%.2f", base / m);
             snprintf(bits, sizeof bits, "%s", same ? "same" : "DIFF");
         }
-        printf("%8d %9.3f %9.3f %8s %9.1f %12.2f %10.2f %10.1f %10.1f %10.1f %6s\n", k, m,
-               seconds / m, sp, median(rem, runs), median(rc, runs), median(late, runs),
-               median(jobs, runs), median(wait, runs), median(comm, runs), bits);
+        printf("%8d %9.3f %9.3f %8s %9.1f %12.2f %10.2f %10.1f %10.1f %10.1f %10.1f %9.1f %6s\n",
+               k, m, seconds / m, sp, median(rem, runs), median(rc, runs), median(late, runs),
+               median(jobs, runs), median(wait, runs), median(comm, runs), median(mout, runs),
+               median(min, runs), bits);
         fflush(stdout);
     }
 }
@@ -414,13 +432,19 @@ int main(int argc, char **argv)
             snprintf(url, sizeof url, "%s", argv[++i]);
         } else if (!strcmp(argv[i], "-p") && i + 1 < argc) {
             parts = argv[++i];
+        } else if (!strcmp(argv[i], "-t") && i + 1 < argc &&
+                   (!strcmp(argv[i + 1], "world") || !strcmp(argv[i + 1], "local"))) {
+            toi_mode = !strcmp(argv[++i], "local") ? SC_TOI_LOCAL : SC_TOI_WORLD;
+        } else if (!strcmp(argv[i], "-g")) {
+            groups = 1;
         } else if (!strcmp(argv[i], "-d") && i + 1 < argc) {
             nk = 0;
             for (char *t = strtok(argv[++i], ","); t && nk < MAX_D; t = strtok(NULL, ","))
                 ks[nk++] = atoi(t);
         } else {
             fprintf(stderr, "usage: bench_cluster [-r RUNS] [-s SECONDS] [-n BODIES] "
-                            "[-d 0,1,2,...] [-x DAEMON] [-u LCM-URL] [-p scaling,fg,busy]\n");
+                            "[-d 0,1,2,...] [-x DAEMON] [-u LCM-URL] [-p scaling,fg,busy] "
+                            "[-t world|local] [-g]\n");
             return 2;
         }
     }

@@ -363,6 +363,12 @@ typedef struct sc_stats {
     double remote_wait_s;     /* wall seconds waiting for daemons' results
                                  after the local nodes were done, last frame
                                  (recomputation included) */
+    long unit_messages;       /* sealed messages of units sent to daemons (each
+                                 daemon's units of a job go together, up to
+                                 256 KiB a message), last frame */
+    long result_messages;     /* sealed messages of results received (a daemon
+                                 thread sends what it has done together), last
+                                 frame */
     /* per-frame scratch (a stack arena that grows to its high-water mark) */
     size_t arena_bytes;       /* high-water mark of the frame's arena, bytes
                                  (since the world was created) */

@@ -29,6 +29,7 @@
 
 static char url[128];
 static int groups;              /* motion groups for the worlds made */
+static int toi_mode = SC_TOI_WORLD;                  /* their time of impact */
 static int island_split = SC_ISLAND_SPLIT_DEFAULT;   /* theirs */
 static uint8_t key[SC_KEY_BYTES];
 static char key_path[64];
@@ -84,6 +85,7 @@ static sc_world *make_world(int cluster, const char *keyfile)
     sc_world_config c = sc_world_config_default();
     c.workers = 1;
     c.motion_groups = groups;
+    c.toi_mode = toi_mode;
     c.island_split = island_split;
     if (cluster) {
         c.cluster = url;
@@ -134,6 +136,8 @@ static uint64_t run(sc_world *w, daemon_thread *d, int stop_at, sc_stats *sum)
         sum->remote_units += st.remote_units;
         sum->recomputed_units += st.recomputed_units;
         sum->late_results += st.late_results;
+        sum->unit_messages += st.unit_messages;
+        sum->result_messages += st.result_messages;
         /* the solver's counters (remote units' come with their results) */
         sum->lcp_pivots += st.lcp_pivots;
         sum->lcp_split += st.lcp_split;
@@ -153,6 +157,17 @@ static uint64_t run(sc_world *w, daemon_thread *d, int stop_at, sc_stats *sum)
     return sc_world_hash(w);
 }
 
+/* Units of motion groups (a group's whole frame each) whose results came
+ * from daemons: the scheduler learns from them on the daemons' nodes only
+ * (a recomputed unit counts as the calling thread's). */
+static int remote_group_units(const sc_world *w)
+{
+    int n = 0;
+    for (int k = w->ex.nlocal; k < w->ex.nnodes; k++)
+        n += w->ex.sched.nodes[k].model[SC_UNIT_GROUP].n;
+    return n;
+}
+
 static void test_daemons_give_the_same_bits(void **state)
 {
     (void)state;
@@ -167,26 +182,43 @@ static void test_daemons_give_the_same_bits(void **state)
     sc_serve_counters n0, n1;
     stop_daemon(&d[0], &n0);
     stop_daemon(&d[1], &n1);
-    printf("  remote %ld recomputed %ld late %ld; daemon results %ld and %ld, shapes %ld\n",
-           sum.remote_units, sum.recomputed_units, sum.late_results, n0.results, n1.results,
-           n0.shapes);
+    int gu = remote_group_units(w);
+    printf("  remote %ld (group units at least %d) recomputed %ld late %ld; daemon results %ld "
+           "and %ld, shapes %ld; messages a frame %.2f out, %.2f in\n",
+           sum.remote_units, gu, sum.recomputed_units, sum.late_results, n0.results, n1.results,
+           n0.shapes, (double)sum.unit_messages / FRAMES, (double)sum.result_messages / FRAMES);
     assert_true(h == h0);
-    if (!groups) {
-        /* groups: most frames are group units, which stay here */
-        assert_true(sum.remote_units > 0);
-        assert_true(n0.results > 0 && n1.results > 0);
-        assert_true(n0.shapes + n1.shapes >= 2);    /* bolt, nut, floor: on request */
-    }
+    assert_true(sum.remote_units > 0);
+    /* results came in messages of one or more, units went out in some */
+    assert_true(sum.result_messages > 0 && sum.result_messages <= n0.results + n1.results);
+    assert_true(sum.unit_messages > 0);
+    assert_true(n0.results > 0 && n1.results > 0);
+    assert_true(n0.shapes + n1.shapes >= 2);    /* bolt, nut, floor: on request */
+    /* by motion groups, whole frames of groups travel */
+    if (groups || toi_mode == SC_TOI_LOCAL)
+        assert_true(gu > 0);
+    else
+        assert_int_equal(gu, 0);
     assert_int_equal(sum.dropped_messages, 0);
     sc_world_destroy(w);
 }
 
-/* Motion groups: group units stay here, a pile's inner jobs may travel. */
+/* Motion groups: each group's frame is a unit, sent to daemons like any
+ * (a pile's stays here, its inner jobs may travel). */
 static void test_daemons_with_motion_groups(void **state)
 {
     groups = 1;
     test_daemons_give_the_same_bits(state);
     groups = 0;
+}
+
+/* The local time-of-impact mode runs every frame by motion groups: the
+ * group units go to the daemons, and the bits are the local run's. */
+static void test_daemons_in_local_toi_mode(void **state)
+{
+    toi_mode = SC_TOI_LOCAL;
+    test_daemons_give_the_same_bits(state);
+    toi_mode = SC_TOI_WORLD;
 }
 
 /* Islands past 2 contacts solved by blocks, warm-started from the last
@@ -251,11 +283,23 @@ static void test_a_daemon_that_stops_changes_nothing(void **state)
     sc_stats sum;
     uint64_t h = run(w, &d[0], FRAMES / 3, &sum);
     stop_daemon(&d[1], NULL);
-    printf("  remote %ld recomputed %ld late %ld\n", sum.remote_units, sum.recomputed_units,
-           sum.late_results);
+    int gu = remote_group_units(w);
+    printf("  remote %ld (group units at least %d) recomputed %ld late %ld\n", sum.remote_units,
+           gu, sum.recomputed_units, sum.late_results);
     assert_true(h == h0);
     assert_true(sum.remote_units > 0);
+    if (toi_mode == SC_TOI_LOCAL)
+        assert_true(gu > 0);
     sc_world_destroy(w);
+}
+
+/* The same with group units in flight when the daemon stops: those it
+ * held are recomputed here after the deadline. */
+static void test_a_daemon_that_stops_in_local_toi_mode_changes_nothing(void **state)
+{
+    toi_mode = SC_TOI_LOCAL;
+    test_a_daemon_that_stops_changes_nothing(state);
+    toi_mode = SC_TOI_WORLD;
 }
 
 static void test_wrong_key_daemon_is_never_used(void **state)
@@ -569,8 +613,10 @@ int main(void)
     const struct CMUnitTest tests[] = {
         cmocka_unit_test(test_daemons_give_the_same_bits),
         cmocka_unit_test(test_daemons_with_motion_groups),
+        cmocka_unit_test(test_daemons_in_local_toi_mode),
         cmocka_unit_test(test_split_islands_on_daemons_give_the_same_bits),
         cmocka_unit_test(test_a_daemon_that_stops_changes_nothing),
+        cmocka_unit_test(test_a_daemon_that_stops_in_local_toi_mode_changes_nothing),
         cmocka_unit_test(test_wrong_key_daemon_is_never_used),
         cmocka_unit_test(test_cluster_wait_counts_daemons),
         cmocka_unit_test(test_hostile_messages_are_dropped),

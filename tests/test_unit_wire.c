@@ -1,7 +1,8 @@
 /* test_unit_wire.c - the wire form of work units (lib/net/unit_wire.c): a unit
  * packed, decoded, run elsewhere and its result applied gives the bits a
- * local run gives, for narrow-phase, time-of-impact and island units of a
- * real bolts-and-nuts scene; malformed buffers are refused, never crash.
+ * local run gives, for narrow-phase, time-of-impact, island and motion-group
+ * units of a real bolts-and-nuts scene; malformed buffers are refused,
+ * never crash.
  * (Internal API: lib/net/unit_wire.h, lib/api/world.h.) */
 #include <math.h>
 #include <setjmp.h>
@@ -16,8 +17,8 @@
 #include "unit_wire.h"
 #include "world.h"
 
-/* the kinds that travel (group units do not) */
-#define WIRE_KINDS (SC_UNIT_ISLAND + 1)
+/* the kinds that travel: all */
+#define WIRE_KINDS (SC_UNIT_GROUP + 1)
 
 #define NBODIES 30
 #define DT (1.0 / 60.0)
@@ -42,6 +43,22 @@ static sc_world *make_world(void)
 {
     sc_world_config cfg = sc_world_config_default();
     cfg.workers = 1;
+    sc_world *w = sc_world_create(&cfg);
+    assert_non_null(w);
+    assert_int_equal(sc_scene_bolts_nuts(w, NBODIES, 7), SC_OK);
+    return w;
+}
+
+/* A world of NBODIES bolts and nuts whose frames run by motion groups:
+ * the local time-of-impact mode, or motion groups in the world mode. */
+static sc_world *make_group_world(int toi_local)
+{
+    sc_world_config cfg = sc_world_config_default();
+    cfg.workers = 1;
+    if (toi_local)
+        cfg.toi_mode = SC_TOI_LOCAL;
+    else
+        cfg.motion_groups = 1;
     sc_world *w = sc_world_create(&cfg);
     assert_non_null(w);
     assert_int_equal(sc_scene_bolts_nuts(w, NBODIES, 7), SC_OK);
@@ -174,6 +191,7 @@ static pairs make_pairs(const sc_world *w, const sc_body *from, const sc_contact
 
 typedef struct scene {
     sc_world *w;
+    sc_world *gw;             /* the same by motion groups (local mode) */
     sc_body *from;            /* bodies TOI_BACK frames before the end */
     sc_contact *c0;           /* and their contacts */
     int n0;
@@ -197,6 +215,9 @@ static int scene_setup(void **state)
         }
         assert_int_equal(sc_world_step(s->w, DT), SC_OK);
     }
+    s->gw = make_group_world(1);
+    for (int f = 0; f < FRAMES; f++)
+        assert_int_equal(sc_world_step(s->gw, DT), SC_OK);
     s->pc = make_pairs(s->w, s->w->st.bodies, s->c0, s->n0);
     s->pt = make_pairs(s->w, s->from, s->c0, s->n0);
     assert_true(s->pc.hits > 0);
@@ -210,6 +231,7 @@ static int scene_teardown(void **state)
     if (!s)
         return 0;
     sc_world_destroy(s->w);
+    sc_world_destroy(s->gw);
     free(s->from);
     free(s->c0);
     free(s->pc.p);
@@ -495,6 +517,254 @@ static void test_island_units_through_wire_are_bit_identical(void **state)
     sc_world_destroy(w);
 }
 
+/* ---- group units (a motion group's whole frame) ---- */
+
+/* An executor that hands GROUP jobs to a test's hook (which must leave
+ * every unit's outputs written) and runs any other job serially. Width 1:
+ * no pile stays home, every group is a unit. */
+typedef struct group_exec group_exec;
+struct group_exec {
+    sc_exec base;
+    sc_exec_serial serial;
+    void (*on_job)(group_exec *gx, sc_job *job);
+    sc_np_ctx *local, *remote;
+    cache cc;
+    /* what the units held */
+    int units, warm, found, backups, spec, asleep, nodes;
+    /* capture: the unit with the most bodies and contacts */
+    unsigned char *sample;
+    size_t sample_len;
+    int sample_size, sample_nm, sample_m, sample_nc;
+};
+
+static int gx_run(sc_exec *ex, sc_job *job, int stage, sc_stats *st)
+{
+    group_exec *gx = (group_exec *)ex;
+    if (job->kind != SC_UNIT_GROUP)
+        return gx->serial.base.run(&gx->serial.base, job, stage, st);
+    gx->on_job(gx, job);
+    int rc = SC_OK;
+    for (int i = 0; i < job->nunits; i++)
+        if (job->units[i].rc != SC_OK && rc == SC_OK)
+            rc = job->units[i].rc;
+    st->units += job->nunits;
+    return rc;
+}
+
+static int gx_width(const sc_exec *ex)
+{
+    (void)ex;
+    return 1;
+}
+
+static void gx_init(group_exec *gx, const sc_world *shapes, void (*on_job)(group_exec *, sc_job *))
+{
+    memset(gx, 0, sizeof *gx);
+    gx->base.run = gx_run;
+    gx->base.width = gx_width;
+    gx->on_job = on_job;
+    gx->local = sc_np_create();
+    gx->remote = sc_np_create();
+    assert_true(gx->local && gx->remote);
+    sc_exec_serial_init(&gx->serial, gx->local);
+    gx->cc = (cache){ shapes, 0 };
+}
+
+static void gx_free(group_exec *gx)
+{
+    sc_np_destroy(gx->local);
+    sc_np_destroy(gx->remote);
+    free(gx->sample);
+}
+
+/* One frame of w by motion groups on gx (as sc_world_step() runs it). */
+static void group_step(sc_world *w, group_exec *gx)
+{
+    sc_stats fs;
+    memset(&fs, 0, sizeof fs);
+    assert_int_equal(sc_arena_reset(&w->scr.arena), SC_OK);
+    assert_int_equal(sc_groups_step(&w->fcfg, &w->st, DT, &w->scr, &gx->base, &fs), SC_OK);
+}
+
+/* The figures of a group's frame as the world merges them
+ * (sc_stats_add_frame), timings aside (CPU seconds differ run to run). */
+static void assert_same_figures(const sc_stats *a, const sc_stats *b)
+{
+    sc_stats x, y;
+    memset(&x, 0, sizeof x);
+    memset(&y, 0, sizeof y);
+    sc_stats_add_frame(&x, a);
+    sc_stats_add_frame(&y, b);
+    sc_stats *s[2] = { &x, &y };
+    for (int i = 0; i < 2; i++) {
+        memset(s[i]->stage_s, 0, sizeof s[i]->stage_s);
+        memset(s[i]->stage_total_s, 0, sizeof s[i]->stage_total_s);
+        s[i]->sched_s = s[i]->makespan_s = s[i]->makespan_bound_s = 0;
+    }
+    assert_memory_equal(&x, &y, sizeof x);
+}
+
+/* Each unit of a GROUP job run here on a copy of the state and through
+ * the wire on the job itself: the members, the unit's rc, messages and
+ * info, and the group's contacts (impulses included) and figures agree
+ * bit for bit; the static bodies are not written. */
+static void group_both_ways(group_exec *gx, sc_job *job)
+{
+    const sc_group_job *gj = job->group;
+    const sc_groups *g = gj->g;
+    size_t nb = (size_t)gj->st->nbodies, nc = (size_t)gj->st->ncontacts;
+    sc_frame_state cp = *gj->st;
+    cp.bodies = malloc(nb * sizeof *cp.bodies);
+    cp.contacts = malloc((nc ? nc : 1) * sizeof *cp.contacts);
+    sc_body *before = malloc(nb * sizeof *before);
+    sc_group_out *out_l = calloc((size_t)g->ngroups, sizeof *out_l);
+    assert_true(cp.bodies && cp.contacts && before && out_l);
+    memcpy(cp.bodies, gj->st->bodies, nb * sizeof *cp.bodies);
+    if (nc)    /* none yet in the first frame (and no array) */
+        memcpy(cp.contacts, gj->st->contacts, nc * sizeof *cp.contacts);
+    memcpy(before, gj->st->bodies, nb * sizeof *before);
+    sc_group_job gl = *gj;
+    gl.st = &cp;
+    gl.out = out_l;
+    sc_job jl = *job;
+    jl.group = &gl;
+    gx->nodes = job->nunits > gx->nodes ? job->nunits : gx->nodes;
+    for (int i = 0; i < job->nunits; i++) {
+        sc_unit *u = &job->units[i];
+        int k = u->first;
+        sc_unit ul = *u;
+        sc_unit_run(gx->local, &jl, &ul);
+        size_t len, rlen;
+        unsigned char *buf = pack_unit(job, u, &len);
+        unsigned char *res = remote_run(gx->remote, buf, len, &gx->cc, &rlen);
+        u->rc = 99;
+        u->messages = -1;
+        assert_int_equal(sc_wire_result_apply(job, u, res, rlen), SC_OK);
+        assert_int_equal(ul.rc, SC_OK);
+        assert_int_equal(u->rc, ul.rc);
+        assert_int_equal(u->messages, ul.messages);
+        assert_memory_equal(&u->info, &ul.info, sizeof ul.info);
+        const sc_group_out *a = &out_l[k], *b = &gj->out[k];
+        assert_int_equal(b->rc, a->rc);
+        assert_int_equal(b->ncontacts, a->ncontacts);
+        if (a->ncontacts)
+            assert_memory_equal(b->contacts, a->contacts, (size_t)a->ncontacts * sizeof *a->contacts);
+        assert_same_figures(&a->stats, &b->stats);
+        /* the daemon's CPU time came with them */
+        double cpu = 0;
+        for (int s = 0; s < SC_STAGE_COUNT; s++)
+            cpu += b->stats.stage_s[s];
+        assert_true(cpu > 0);
+        gx->units++;
+        gx->warm += g->cstart[k + 1] > g->cstart[k];
+        gx->found += b->ncontacts > 0;
+        gx->backups += b->stats.backups;
+        gx->spec += b->stats.spec_contacts;
+        for (int j = g->start[k]; j < g->start[k + 1]; j++)
+            gx->asleep += gj->st->bodies[g->members[j]].state == SC_ASLEEP;
+        free(buf);
+        free(res);
+    }
+    assert_memory_equal(cp.bodies, gj->st->bodies, nb * sizeof *cp.bodies);
+    for (int j = 0; j < g->nstatics; j++)
+        assert_memory_equal(&gj->st->bodies[g->statics[j]], &before[g->statics[j]],
+                            sizeof *before);
+    for (int k = 0; k < g->ngroups; k++)
+        free(out_l[k].contacts);
+    free(out_l);
+    free(before);
+    free(cp.bodies);
+    free(cp.contacts);
+}
+
+/* A body's bytes but its shape pointer (each world has its own shapes). */
+static void assert_same_body(const sc_body *a, const sc_body *b)
+{
+    size_t at = offsetof(sc_body, mass);
+    assert_memory_equal((const char *)a + at, (const char *)b + at, sizeof *a - at);
+}
+
+/* Every group unit of 150 frames of falling, landing and settling bolts
+ * and nuts through the wire: each gives the bits of a local run (units
+ * and results in group_both_ways), and the world stepped so ends on the
+ * bits of the same world stepped by sc_world_step(), frame by frame. In
+ * the local time-of-impact mode and with motion groups in the world mode
+ * (the mode travels with the unit). */
+static void test_group_units_through_wire_are_bit_identical(void **state)
+{
+    (void)state;
+    for (int mode = 0; mode < 2; mode++) {
+        sc_world *w = make_group_world(mode == 0), *ref = make_group_world(mode == 0);
+        group_exec gx;
+        gx_init(&gx, ref, group_both_ways);
+        for (int f = 0; f < 150; f++) {
+            group_step(w, &gx);
+            assert_int_equal(sc_world_step(ref, DT), SC_OK);
+            assert_true(sc_world_hash(w) == sc_world_hash(ref));
+            assert_int_equal(w->st.nbodies, ref->st.nbodies);
+            for (int i = 0; i < w->st.nbodies; i++)
+                assert_same_body(&w->st.bodies[i], &ref->st.bodies[i]);
+            assert_int_equal(w->st.ncontacts, ref->st.ncontacts);
+            if (w->st.ncontacts)
+                assert_memory_equal(w->st.contacts, ref->st.contacts,
+                                    (size_t)w->st.ncontacts * sizeof *w->st.contacts);
+        }
+        print_message("group units (%s): %d, at most %d a frame; %d with last frame's contacts, "
+                      "%d with new ones; %d back-ups, %d speculative contacts, %d asleep "
+                      "members\n",
+                      mode == 0 ? "local mode" : "motion groups", gx.units, gx.nodes, gx.warm,
+                      gx.found, gx.backups, gx.spec, gx.asleep);
+        assert_true(gx.units > 150);
+        assert_true(gx.warm > 0 && gx.found > 0);
+        assert_true(gx.backups > 0);
+        gx_free(&gx);
+        sc_world_destroy(w);
+        sc_world_destroy(ref);
+    }
+}
+
+/* One frame of a copy of w's state by motion groups on gx (w unchanged). */
+static void group_frame_of_copy(const sc_world *w, group_exec *gx)
+{
+    sc_frame_state st = w->st;
+    size_t nb = (size_t)st.nbodies, nc = (size_t)st.ncontacts;
+    st.bodies = malloc(nb * sizeof *st.bodies);
+    st.contacts = malloc((nc ? nc : 1) * sizeof *st.contacts);
+    assert_true(st.bodies && st.contacts);
+    memcpy(st.bodies, w->st.bodies, nb * sizeof *st.bodies);
+    if (nc)
+        memcpy(st.contacts, w->st.contacts, nc * sizeof *st.contacts);
+    st.contact_cap = nc ? (int)nc : 1;
+    sc_frame_scratch scr;
+    assert_int_equal(sc_frame_scratch_init(&scr), SC_OK);
+    sc_stats fs;
+    memset(&fs, 0, sizeof fs);
+    assert_int_equal(sc_groups_step(&w->fcfg, &st, DT, &scr, &gx->base, &fs), SC_OK);
+    sc_frame_scratch_free(&scr);
+    free(st.bodies);
+    free(st.contacts);
+}
+
+/* The hook that keeps the packed unit with the most bodies and contacts
+ * (a sample for the malformed-input tests), then runs every unit here. */
+static void group_capture(group_exec *gx, sc_job *job)
+{
+    const sc_groups *g = job->group->g;
+    for (int i = 0; i < job->nunits; i++) {
+        sc_unit *u = &job->units[i];
+        int k = u->first, nm = g->start[k + 1] - g->start[k], nc = g->cstart[k + 1] - g->cstart[k];
+        if (nm + 4 * nc > gx->sample_size) {
+            free(gx->sample);
+            gx->sample = pack_unit(job, u, &gx->sample_len);
+            gx->sample_size = nm + 4 * nc;
+            gx->sample_nm = nm;
+            gx->sample_m = nm + g->nstatics;
+            gx->sample_nc = nc;
+        }
+        sc_unit_run(gx->local, job, u);
+    }
+}
+
 /* ---- malformed input ---- */
 
 /* One packed unit of each kind from the scene (caller frees). */
@@ -523,6 +793,15 @@ static void samples_init(samples *sm, const scene *s)
     sc_unit u = island_unit(&sm->ij.is, best, best + 1 < sm->ij.is.count ? 2 : 1);
     assert_true(u.count > 0);
     sm->buf[SC_UNIT_ISLAND] = pack_unit(&sm->ij.jl, &u, &sm->len[SC_UNIT_ISLAND]);
+    /* the group with the most bodies and contacts of a frame of the pile */
+    group_exec gx;
+    gx_init(&gx, s->w, group_capture);
+    group_frame_of_copy(s->gw, &gx);
+    assert_non_null(gx.sample);
+    sm->buf[SC_UNIT_GROUP] = gx.sample;
+    sm->len[SC_UNIT_GROUP] = gx.sample_len;
+    gx.sample = NULL;
+    gx_free(&gx);
 }
 
 static void samples_free(samples *sm)
@@ -977,6 +1256,286 @@ static void test_result_for_another_unit_is_a_format_error(void **state)
     outputs_free(&o);
 }
 
+/* A GROUP unit's layout (see unit_wire.c's header): the header; bodies,
+ * members, contacts, contacts_valid at 8; dt, gravity, tol at 24;
+ * broadphase, island_split, toi_mode at 64; bodies from 76, 496 bytes
+ * each (hash, 60 doubles, state, collided); then contacts, 88 each. */
+#define G_DT 24
+#define G_GRAVITY 32
+#define G_TOL 56
+#define G_INTS 64
+#define G_BODY(q) (76 + 496 * (size_t)(q))
+#define GB_MASS 8
+#define GB_INV_MASS 16
+#define GB_X 208
+#define GB_REST 480
+#define GB_STATE 488
+#define GB_COLLIDED 492
+#define G_CONTACT(m, k) (G_BODY(m) + 88 * (size_t)(k))
+
+/* n little-endian bytes of v at at, with the world's shapes to look up:
+ * the decode's answer, then put back. */
+static int group_decode_with(unsigned char *buf, size_t len, const cache *cc, size_t at,
+                             uint64_t v, int n)
+{
+    unsigned char keep[8];
+    memcpy(keep, buf + at, (size_t)n);
+    for (int i = 0; i < n; i++)
+        buf[at + (size_t)i] = (unsigned char)(v >> (8 * i));
+    sc_wire_unit wu;
+    int rc = sc_wire_unit_decode(buf, len, lookup, (void *)cc, &wu);
+    if (rc == SC_OK)
+        sc_wire_unit_free(&wu);
+    memcpy(buf + at, keep, (size_t)n);
+    return rc;
+}
+
+#define GROUP_BAD(at, v, n) \
+    assert_int_equal(group_decode_with(b, len, &cc, (at), (v), (n)), SC_EFORMAT)
+#define GROUP_GOOD(at, v, n) \
+    assert_int_equal(group_decode_with(b, len, &cc, (at), (v), (n)), SC_OK)
+
+/* A group unit's counts, frame settings, bodies and contacts out of range
+ * are format errors; other valid values at the same places decode. */
+static void test_bad_group_fields_are_format_errors(void **state)
+{
+    const scene *s = *state;
+    samples sm;
+    samples_init(&sm, s);
+    cache cc = { s->w, 0 };
+    unsigned char *b = sm.buf[SC_UNIT_GROUP];
+    size_t len = sm.len[SC_UNIT_GROUP];
+    sc_wire_unit wu;
+    assert_int_equal(sc_wire_unit_decode(b, len, lookup, &cc, &wu), SC_OK);
+    int m = wu.nbodies, nm = wu.unit.count, nc = wu.gst.ncontacts, member = -1, fixed = -1;
+    for (int q = 0; q < m; q++) {
+        if (wu.bodies[q].inv_mass > 0 && member < 0)
+            member = q;
+        if (wu.bodies[q].inv_mass == 0 && fixed < 0)
+            fixed = q;
+    }
+    assert_true(wu.gst.contacts_valid == 1 && wu.group.dt == DT && !wu.group.g);
+    assert_true(wu.cfg.toi_mode == SC_TOI_LOCAL && wu.cfg.contact_tol_m == s->w->cfg.contact_tol_m);
+    sc_wire_unit_free(&wu);
+    print_message("group sample: %d bodies, %d members, %d contacts\n", m, nm, nc);
+    assert_true(member >= 0 && fixed >= 0 && nc >= 2);
+    /* without a lookup the shapes cannot be had */
+    assert_int_equal(sc_wire_unit_decode(b, len, NULL, NULL, &wu), SC_EINVAL);
+    /* counts: members beyond the bodies, none, or not the bodies with mass */
+    GROUP_BAD(8, (uint64_t)nm - 1, 4);
+    GROUP_BAD(12, 0, 4);
+    GROUP_BAD(12, (uint64_t)nm + 1, 4);
+    GROUP_BAD(12, (uint64_t)nm - 1, 4);
+    GROUP_BAD(16, (uint64_t)nc + 1, 4);
+    GROUP_BAD(20, 2, 4);                          /* contacts_valid */
+    GROUP_BAD(20, 0, 4);                          /* ... 0 with contacts */
+    /* frame settings */
+    const double bad_dt[] = { NAN, INFINITY, 0, -DT };
+    for (int k = 0; k < 4; k++)
+        GROUP_BAD(G_DT, bits(bad_dt[k]), 8);
+    GROUP_BAD(G_GRAVITY + 8, bits(-INFINITY), 8);
+    GROUP_BAD(G_GRAVITY, bits(NAN), 8);
+    const double bad_tol[] = { NAN, 0, -1e-3, INFINITY };
+    for (int k = 0; k < 4; k++)
+        GROUP_BAD(G_TOL, bits(bad_tol[k]), 8);
+    GROUP_BAD(G_INTS, (uint32_t)-1, 4);           /* broadphase */
+    GROUP_BAD(G_INTS, SC_BROADPHASE_SAP + 1, 4);
+    GROUP_BAD(G_INTS + 4, (uint32_t)-1, 4);       /* island_split */
+    GROUP_BAD(G_INTS + 8, 2, 4);                  /* toi_mode */
+    GROUP_BAD(G_INTS + 8, (uint32_t)-1, 4);
+    /* the offsets are right: other valid settings decode as such */
+    GROUP_GOOD(G_DT, bits(0.5), 8);
+    GROUP_GOOD(G_TOL, bits(0.25), 8);
+    GROUP_GOOD(G_INTS, SC_BROADPHASE_SAP, 4);
+    GROUP_GOOD(G_INTS + 4, 0, 4);
+    GROUP_GOOD(G_INTS + 8, SC_TOI_WORLD, 4);
+    GROUP_GOOD(G_BODY(member) + GB_REST, bits(2.5), 8);
+    /* bodies: a shape nobody has, negative or NaN masses, a position at
+     * infinity, a member marked static, a static given mass (or a member
+     * made static: the member count no longer holds), states and
+     * collided out of range */
+    GROUP_BAD(G_BODY(member), s->w->st.bodies[1].shape->hash ^ 0x1234, 8);
+    GROUP_BAD(G_BODY(member) + GB_INV_MASS, bits(-1), 8);
+    GROUP_BAD(G_BODY(member) + GB_INV_MASS, bits(NAN), 8);
+    GROUP_BAD(G_BODY(member) + GB_MASS, bits(-1), 8);
+    GROUP_BAD(G_BODY(member) + GB_X + 8, bits(INFINITY), 8);
+    GROUP_BAD(G_BODY(member) + GB_REST, bits(NAN), 8);
+    GROUP_BAD(G_BODY(member) + GB_STATE, SC_STATIC, 4);
+    GROUP_BAD(G_BODY(member) + GB_STATE, SC_STATIC + 1, 4);
+    GROUP_BAD(G_BODY(member) + GB_STATE, (uint32_t)-1, 4);
+    GROUP_BAD(G_BODY(fixed) + GB_INV_MASS, bits(1), 8);
+    GROUP_BAD(G_BODY(fixed) + GB_STATE, SC_FREE, 4);
+    GROUP_BAD(G_BODY(member) + GB_COLLIDED, 3, 4);
+    GROUP_BAD(G_BODY(member) + GB_COLLIDED, (uint32_t)-1, 4);
+    GROUP_GOOD(G_BODY(member) + GB_STATE, SC_ASLEEP, 4);
+    GROUP_GOOD(G_BODY(member) + GB_COLLIDED, 2, 4);
+    {
+        /* a member turned static whole: the counts no longer match */
+        unsigned char keep[8];
+        size_t at = G_BODY(member) + GB_INV_MASS;
+        memcpy(keep, b + at, 8);
+        put_u64(b + at, bits(0));
+        GROUP_BAD(G_BODY(member) + GB_STATE, SC_STATIC, 4);
+        memcpy(b + at, keep, 8);
+    }
+    /* contacts: ends out of range, reversed, on one body, between two
+     * static bodies, out of pair order, not finite */
+    size_t c0 = G_CONTACT(m, 0), cl = G_CONTACT(m, nc - 1);
+    GROUP_BAD(c0, (uint32_t)-1, 4);
+    GROUP_BAD(c0 + 4, (uint64_t)m, 4);
+    GROUP_BAD(c0 + 4, b[c0], 4);                  /* body_b = body_a */
+    GROUP_BAD(c0, (uint64_t)m - 1, 4);            /* body_a > body_b */
+    GROUP_BAD(c0 + 4, (uint64_t)fixed, 4);        /* fixed: then both static, or a > b */
+    GROUP_BAD(c0 + 56, bits(NAN), 8);             /* depth */
+    GROUP_BAD(c0 + 64 + 16, bits(INFINITY), 8);   /* impulse */
+    GROUP_BAD(cl + 64, bits(-INFINITY), 8);
+    {
+        /* the first and last contacts swapped (other pairs: out of order) */
+        unsigned char *t = malloc(88);
+        assert_non_null(t);
+        int apart = memcmp(b + c0, b + cl, 8) != 0;
+        memcpy(t, b + c0, 88);
+        memcpy(b + c0, b + cl, 88);
+        memcpy(b + cl, t, 88);
+        if (apart)
+            assert_int_equal(sc_wire_unit_decode(b, len, lookup, &cc, &wu), SC_EFORMAT);
+        memcpy(b + cl, b + c0, 88);
+        memcpy(b + c0, t, 88);
+        free(t);
+        assert_true(apart);
+    }
+    assert_int_equal(sc_wire_unit_decode(b, len, lookup, &cc, &wu), SC_OK);
+    sc_wire_unit_free(&wu);
+    samples_free(&sm);
+}
+
+/* A group result at its layout (header 8, members 4, rc 4, messages 8,
+ * info 80; figures 232; per member 288: 35 doubles, state, collided; then
+ * contacts 4 and 88 each). */
+#define GR_RC 12
+#define GR_STATS 104
+#define GR_STAT_INTS (GR_STATS + 8 * 20)
+#define GR_MEMBER(i) (GR_STATS + 232 + 288 * (size_t)(i))
+#define GR_CONTACTS(nm) GR_MEMBER(nm)
+
+/* The hook that sends results at units they do not fit, and malformed
+ * ones: refused, nothing written; then the right ones, and the rest here. */
+static void group_hostile_results(group_exec *gx, sc_job *job)
+{
+    const sc_group_job *gj = job->group;
+    const sc_groups *g = gj->g;
+    size_t nb = (size_t)gj->st->nbodies;
+    /* the unit with the most contacts of the last frame, and one with
+     * another member count */
+    int a = 0, o = -1;
+    for (int i = 1; i < job->nunits; i++) {
+        int k = job->units[i].first, ka = job->units[a].first;
+        if (g->cstart[k + 1] - g->cstart[k] > g->cstart[ka + 1] - g->cstart[ka])
+            a = i;
+    }
+    sc_unit *ua = &job->units[a];
+    int ka = ua->first, nm = g->start[ka + 1] - g->start[ka];
+    for (int i = 0; i < job->nunits && o < 0; i++) {
+        int k = job->units[i].first;
+        if (g->start[k + 1] - g->start[k] != nm)
+            o = i;
+    }
+    size_t len, rlen;
+    unsigned char *buf = pack_unit(job, ua, &len);
+    unsigned char *res = remote_run(gx->remote, buf, len, &gx->cc, &rlen);
+    sc_body *before = malloc(nb * sizeof *before);
+    assert_non_null(before);
+    memcpy(before, gj->st->bodies, nb * sizeof *before);
+    sc_group_out out0[2] = { gj->out[ka], { 0 } };
+    if (o >= 0) {
+        out0[1] = gj->out[job->units[o].first];
+        assert_int_equal(sc_wire_result_apply(job, &job->units[o], res, rlen), SC_EFORMAT);
+    }
+    /* a result for a unit of another kind, or beyond the groups */
+    sc_unit bad = *ua;
+    bad.first = g->ngroups;
+    assert_int_equal(sc_wire_result_apply(job, &bad, res, rlen), SC_EINVAL);
+    for (size_t k = 0; k < rlen; k++)
+        assert_int_equal(sc_wire_result_apply(job, ua, res, k), SC_EFORMAT);
+    /* a unit buffer is not a result */
+    assert_int_equal(sc_wire_result_apply(job, ua, buf, len), SC_EFORMAT);
+    /* counts and states out of range */
+    uint32_t nc;
+    memcpy(&nc, res + GR_CONTACTS(nm), 4);
+    int m = nm + g->nstatics;
+    struct { size_t at; int n; uint64_t v; } wrong[] = {
+        { 8, 4, (uint64_t)nm + 1 },                       /* members */
+        { GR_STATS + 8 * 12, 8, (uint64_t)-1 },           /* lcp_pivots < 0 */
+        { GR_STAT_INTS, 4, (uint32_t)-1 },                /* pairs < 0 */
+        { GR_STAT_INTS + 4 * 17, 4, (uint32_t)-1 },       /* spec_rounds < 0 */
+        { GR_MEMBER(0) + 280, 4, SC_STATIC },             /* a member made static */
+        { GR_MEMBER(nm - 1) + 280, 4, (uint32_t)-1 },
+        { GR_MEMBER(0) + 284, 4, 3 },                     /* collided */
+        { GR_CONTACTS(nm), 4, (uint64_t)nc + 1 },         /* contacts */
+        { GR_CONTACTS(nm), 4, (uint64_t)nc - 1 },
+        { GR_CONTACTS(nm) + 4, 4, (uint32_t)-1 },         /* contact 0's body_a */
+        { GR_CONTACTS(nm) + 8, 4, (uint64_t)m },          /* ... its body_b */
+        { GR_RC, 4, (uint32_t)SC_ENUMERIC },              /* failed, with contacts */
+        { GR_RC, 4, 1 },                                  /* rc > 0 */
+    };
+    assert_true(nc >= 1);
+    for (size_t k = 0; k < sizeof wrong / sizeof wrong[0]; k++) {
+        unsigned char keep[8];
+        memcpy(keep, res + wrong[k].at, (size_t)wrong[k].n);
+        for (int i = 0; i < wrong[k].n; i++)
+            res[wrong[k].at + (size_t)i] = (unsigned char)(wrong[k].v >> (8 * i));
+        assert_int_equal(sc_wire_result_apply(job, ua, res, rlen), SC_EFORMAT);
+        memcpy(res + wrong[k].at, keep, (size_t)wrong[k].n);
+    }
+    /* nothing was written */
+    assert_memory_equal(before, gj->st->bodies, nb * sizeof *before);
+    assert_memory_equal(&gj->out[ka], &out0[0], sizeof out0[0]);
+    if (o >= 0)
+        assert_memory_equal(&gj->out[job->units[o].first], &out0[1], sizeof out0[1]);
+    /* the doubles are carried as they come (the master's frame checks
+     * them, as after a local run): a NaN position is merged */
+    unsigned char keep[8];
+    memcpy(keep, res + GR_MEMBER(0), 8);
+    put_u64(res + GR_MEMBER(0), bits(NAN));
+    unsigned char *odd = malloc(rlen);
+    assert_non_null(odd);
+    memcpy(odd, res, rlen);
+    memcpy(res + GR_MEMBER(0), keep, 8);
+    sc_unit copy = *ua;
+    sc_body b0 = gj->st->bodies[g->members[g->start[ka]]];
+    assert_int_equal(sc_wire_result_apply(job, &copy, odd, rlen), SC_OK);
+    assert_true(isnan(gj->st->bodies[g->members[g->start[ka]]].x[0]));
+    free(gj->out[ka].contacts);
+    gj->st->bodies[g->members[g->start[ka]]] = b0;
+    free(odd);
+    /* the right one */
+    assert_int_equal(sc_wire_result_apply(job, ua, res, rlen), SC_OK);
+    assert_int_equal(gj->out[ka].ncontacts, (int)nc);
+    gx->units++;
+    gx->found += o >= 0;
+    for (int i = 0; i < job->nunits; i++)
+        if (i != a)
+            sc_unit_run(gx->local, job, &job->units[i]);
+    free(before);
+    free(buf);
+    free(res);
+}
+
+/* A group result must match its unit; a mismatched or malformed one
+ * writes nothing. Over several frames of the scene's settling pile. */
+static void test_group_result_for_another_unit_is_a_format_error(void **state)
+{
+    const scene *s = *state;
+    group_exec gx;
+    gx_init(&gx, s->w, group_hostile_results);
+    group_frame_of_copy(s->gw, &gx);
+    print_message("hostile group results: %d jobs, %d with a unit of another size\n", gx.units,
+                  gx.found);
+    assert_int_equal(gx.units, 1);
+    assert_int_equal(gx.found, 1);
+    gx_free(&gx);
+}
+
 int main(void)
 {
     const struct CMUnitTest tests[] = {
@@ -988,6 +1547,9 @@ int main(void)
         cmocka_unit_test(test_bad_fields_are_format_errors),
         cmocka_unit_test(test_island_settings_and_impulses_travel),
         cmocka_unit_test(test_result_for_another_unit_is_a_format_error),
+        cmocka_unit_test(test_group_units_through_wire_are_bit_identical),
+        cmocka_unit_test(test_bad_group_fields_are_format_errors),
+        cmocka_unit_test(test_group_result_for_another_unit_is_a_format_error),
     };
     return cmocka_run_group_tests(tests, scene_setup, scene_teardown);
 }

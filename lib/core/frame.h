@@ -53,7 +53,7 @@ typedef struct sc_unit {
                                        arena after it (0: not known) */
 } sc_unit;
 
-struct sc_group_job;
+struct sc_group_job;         /* below */
 
 typedef struct sc_job {
     int kind;
@@ -151,6 +151,50 @@ int sc_frame_step(const sc_frame_config *cfg, sc_frame_state *st, double dt,
  * within it step apart, each group by sc_frame_step() as a unit of its own. */
 int sc_groups_step(const sc_frame_config *cfg, sc_frame_state *st, double dt,
                    sc_frame_scratch *scr, sc_exec *ex, sc_stats *stats);
+
+/* ---- motion groups (group.c): what a GROUP unit reads and writes ---- */
+/* The groups of a frame: arrays from the parent frame's arena. Group k's
+ * members (world ids, ascending) are members[start[k] .. start[k + 1]),
+ * gid[i] is body i's group (-1: none); the static bodies statics[0 ..
+ * nstatics) are read by every group; group k's contacts of the last frame
+ * are contacts[cstart[k] .. cstart[k + 1]) (indices into the frame
+ * state's contacts, in their order). */
+typedef struct sc_groups {
+    int n, ngroups, nstatics;
+    double *centre, *radius;
+    unsigned char *active;
+    int *parent, *start, *members, *gid, *statics, *cstart, *contacts;
+} sc_groups;
+
+/* A group's frame's outputs besides its members' new states. */
+typedef struct sc_group_out {
+    int rc;
+    sc_contact *contacts;           /* world ids, canonical order; malloc'd */
+    int ncontacts;
+    sc_stats stats;                 /* of the group's frame, from zero */
+} sc_group_out;
+
+/* What a GROUP job's units read and write. On the master (g set), unit
+ * u->first = k is group k of st: run on a copy, its members written back
+ * to st, its outputs to out[k]. A unit received over the wire (g NULL,
+ * unit_wire.c): st is that one group's copy (its members and the static
+ * bodies in world order, contacts by their index there), stepped in
+ * place; out[0] gets rc and stats, the new contacts stay in st. */
+typedef struct sc_group_job {
+    const sc_frame_config *cfg;
+    sc_frame_state *st;
+    const sc_groups *g;
+    double dt;
+    sc_group_out *out;
+} sc_group_job;
+
+/* Group k's bodies in the order its copy has them: its members and the
+ * static bodies merged by world id into ids (room for both); returns how
+ * many. */
+int sc_group_ids(const sc_groups *g, int k, int *ids);
+/* Unit u of a GROUP job in either form above, on the calling thread's
+ * group scratch and the serial executor (sc_job.run_group). */
+int sc_group_unit_run(sc_np_ctx *np, const sc_job *job, const sc_unit *u);
 
 /* ---- inside a frame: the stages' shared view ---- */
 typedef struct sc_frame {

@@ -16,7 +16,8 @@
  * they are only read. A group with no awake body is asleep and skipped.
  *
  * Groups are independent, so they are work units of their own: each runs
- * on one node from start to end of the frame, with no synchronisation per
+ * on one node (a thread here, or a daemon: unit_wire.c carries a group's
+ * frame) from start to end of the frame, with no synchronisation per
  * substep, and the result does not depend on who ran what. A group holding
  * most of the awake bodies (a pile) instead runs on the calling thread
  * with its jobs spread over every node as before.
@@ -34,6 +35,10 @@
 
 #define REACH_MARGIN 2e-3     /* m added to every body's reach */
 #define BIG_GROUP 0.5         /* share of the awake bodies that makes a pile */
+#define WIRE_GROUP_HEADER 400 /* bytes: unit and result headers, settings, figures */
+#define WIRE_GROUP_BODY 496   /* per body out */
+#define WIRE_GROUP_MEMBER 288 /* per member's state back */
+#define WIRE_GROUP_CONTACT 88 /* per contact, with its impulse */
 
 /* A group's frame runs on a copy of its bodies: this holds the copy and a
  * frame scratch of its own, kept between frames (one per thread that runs
@@ -49,30 +54,6 @@ typedef struct sc_group_scratch {
     sc_pair *gpairs;
     int gpair_cap;
 } sc_group_scratch;
-
-/* The groups of a frame: arrays from the parent frame's arena. */
-typedef struct sc_groups {
-    int n, ngroups, nstatics;
-    double *centre, *radius;
-    unsigned char *active;
-    int *parent, *start, *members, *gid, *statics, *cstart, *contacts;
-} sc_groups;
-
-typedef struct sc_group_out {
-    int rc;
-    sc_contact *contacts;           /* world ids, canonical order; malloc'd */
-    int ncontacts;
-    sc_stats stats;                 /* of the group's frame */
-} sc_group_out;
-
-/* What a GROUP job's units read (and the bodies they write back). */
-typedef struct sc_group_job {
-    const sc_frame_config *cfg;
-    sc_frame_state *st;
-    const sc_groups *g;
-    double dt;
-    sc_group_out *out;              /* per group */
-} sc_group_job;
 
 static sc_group_scratch *group_scratch_create(void)
 {
@@ -274,6 +255,25 @@ static int local_id(const int *ids, int m, int id)
     return -1;
 }
 
+int sc_group_ids(const sc_groups *g, int k, int *ids)
+{
+    const int *mem = &g->members[g->start[k]];
+    int nm = g->start[k + 1] - g->start[k], ns = g->nstatics, m = nm + ns;
+    for (int i = 0, j = 0, q = 0; q < m; q++)
+        ids[q] = j >= ns || (i < nm && mem[i] < g->statics[j]) ? mem[i++] : g->statics[j++];
+    return m;
+}
+
+/* A group's frame on its copy st: what every group runs, here or on a
+ * daemon (sc_group_unit_run), so that both give the same bits. */
+static int group_copy_step(const sc_frame_config *cfg, sc_frame_state *st, double dt,
+                           sc_frame_scratch *scr, sc_exec *ex, sc_stats *stats)
+{
+    if (sc_arena_reset(&scr->arena) != SC_OK)
+        return SC_ENOMEM;
+    return sc_frame_step(cfg, st, dt, scr, ex, stats);
+}
+
 /* Group k's frame on the copy in gs: its members and the static bodies,
  * in world order (so contacts keep their canonical order), the last
  * frame's contacts, sc_frame_step() with executor ex, and back. */
@@ -282,8 +282,7 @@ static void group_frame(const sc_group_job *gj, sc_group_scratch *gs, int k, sc_
     const sc_groups *g = gj->g;
     sc_frame_state *ps = gj->st;
     sc_group_out *out = &gj->out[k];
-    const int *mem = &g->members[g->start[k]];
-    int nm = g->start[k + 1] - g->start[k], ns = g->nstatics, m = nm + ns;
+    int m = g->start[k + 1] - g->start[k] + g->nstatics;
     memset(out, 0, sizeof *out);
     out->rc = SC_ENOMEM;
     sc_frame_state *st = &gs->st;
@@ -291,8 +290,7 @@ static void group_frame(const sc_group_job *gj, sc_group_scratch *gs, int k, sc_
         sc_grow((void **)&st->bodies, &gs->body_cap, m, sizeof *st->bodies, INT_MAX))
         return;
     int *ids = gs->ids;
-    for (int i = 0, j = 0, q = 0; q < m; q++)
-        ids[q] = j >= ns || (i < nm && mem[i] < g->statics[j]) ? mem[i++] : g->statics[j++];
+    sc_group_ids(g, k, ids);
     for (int q = 0; q < m; q++)
         st->bodies[q] = ps->bodies[ids[q]];
     st->nbodies = m;
@@ -308,9 +306,7 @@ static void group_frame(const sc_group_job *gj, sc_group_scratch *gs, int k, sc_
     }
     st->ncontacts = nc;
     st->contacts_valid = ps->contacts_valid;
-    if (sc_arena_reset(&gs->scr.arena) != SC_OK)
-        return;
-    out->rc = sc_frame_step(gj->cfg, st, gj->dt, &gs->scr, ex, &out->stats);
+    out->rc = group_copy_step(gj->cfg, st, gj->dt, &gs->scr, ex, &out->stats);
     for (int q = 0; q < m; q++)
         if (st->bodies[q].inv_mass > 0)
             ps->bodies[ids[q]] = st->bodies[q];
@@ -330,7 +326,7 @@ static void group_frame(const sc_group_job *gj, sc_group_scratch *gs, int k, sc_
     out->ncontacts = st->ncontacts;
 }
 
-static int group_unit_run(sc_np_ctx *np, const sc_job *job, const sc_unit *u)
+int sc_group_unit_run(sc_np_ctx *np, const sc_job *job, const sc_unit *u)
 {
     void (*fn)(void *) = group_scratch_free;
     void **slot = sc_np_scratch(np, &fn);
@@ -342,8 +338,16 @@ static int group_unit_run(sc_np_ctx *np, const sc_job *job, const sc_unit *u)
     /* a group unit runs on this thread alone */
     sc_exec_serial ex;
     sc_exec_serial_init(&ex, np);
-    group_frame(job->group, gs, u->first, &ex.base);
-    return job->group->out[u->first].rc;
+    const sc_group_job *gj = job->group;
+    if (!gj->g) {
+        /* received: the copy is the unit's own (the same step as below) */
+        sc_group_out *out = &gj->out[0];
+        memset(out, 0, sizeof *out);
+        out->rc = group_copy_step(gj->cfg, gj->st, gj->dt, &gs->scr, &ex.base, &out->stats);
+        return out->rc;
+    }
+    group_frame(gj, gs, u->first, &ex.base);
+    return gj->out[u->first].rc;
 }
 
 typedef struct pair_run {
@@ -441,6 +445,10 @@ static int step_groups(const sc_frame_config *cfg, sc_frame_state *st, double dt
         u->feat[0] = 1;
         u->feat[1] = nm;
         u->feat[2] = nc;
+        /* its wire size (the transfer estimate; unit_wire.c): every body
+         * out, the members' states back, contacts both ways */
+        u->bytes = WIRE_GROUP_HEADER + WIRE_GROUP_BODY * (size_t)(nm + g->nstatics) +
+                   WIRE_GROUP_MEMBER * (size_t)nm + 2 * WIRE_GROUP_CONTACT * (size_t)nc;
     }
     if (nu > 0) {
         sc_job job = {
@@ -448,7 +456,7 @@ static int step_groups(const sc_frame_config *cfg, sc_frame_state *st, double dt
             .units = units,
             .nunits = nu,
             .group = &gj,
-            .run_group = group_unit_run,
+            .run_group = sc_group_unit_run,
         };
         rc = ex->run(ex, &job, -1, stats);
     }

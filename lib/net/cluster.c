@@ -270,6 +270,7 @@ static void take_result(sc_cluster *c, sc_msg_work *r)
 static void on_result(sc_cluster *c, const sc_msg *m)
 {
     size_t off = 0;
+    c->stats->result_messages++;
     while (off < m->len) {
         sc_msg_work r;
         if (sc_msg_work_next(SC_MSG_RESULT, m->payload, m->len, &off, &r) != SC_OK) {
@@ -356,7 +357,8 @@ static double capacity(const sc_node *n, int kind)
 {
     const remote_node *r = (const remote_node *)n;
     const daemon_slot *d = &r->c->d[r->slot];
-    if (kind == SC_UNIT_GROUP || !d->used || !d->verified || sc_wall_now() - d->heard > SILENT_S)
+    (void)kind;                 /* every kind travels (a pile's group stays home: group.c) */
+    if (!d->used || !d->verified || sc_wall_now() - d->heard > SILENT_S)
         return 0;
     if (r->c->force)
         return 1;
@@ -391,6 +393,8 @@ static int flush(sc_cluster *c, daemon_slot *d)
         return rc;
     rc = sc_bus_publish(c->bus, d->channel, env, elen);
     free(env);
+    if (rc == SC_OK)
+        c->stats->unit_messages++;
     return rc;
 }
 

@@ -119,10 +119,13 @@ int sc_remote_unit_decode(const void *wire, size_t len, sc_shape_find_fn find, v
         free(u);
         return missing > 0 ? missing : rc;
     }
-    /* the caller's cache may drop a shape while the unit waits for a thread */
+    /* the caller's cache may drop a shape while the unit waits for a thread:
+     * a reference per pair end, and per body of a group (island bodies
+     * travel without shapes) */
     int np = u->wu.job.npairs;
-    if (np > 0) {
-        u->shapes = sc_alloc_array(2 * (size_t)np, sizeof *u->shapes);
+    int nb = u->wu.job.kind == SC_UNIT_GROUP ? u->wu.nbodies : 0;
+    if (np > 0 || nb > 0) {
+        u->shapes = sc_alloc_array(2 * (size_t)np + (size_t)nb, sizeof *u->shapes);
         if (!u->shapes) {
             sc_remote_unit_free(u);
             return SC_ENOMEM;
@@ -131,6 +134,8 @@ int sc_remote_unit_decode(const void *wire, size_t len, sc_shape_find_fn find, v
             u->shapes[u->nshapes++] = sc_shape_retain((sc_shape *)u->wu.pairs[i].sa);
             u->shapes[u->nshapes++] = sc_shape_retain((sc_shape *)u->wu.pairs[i].sb);
         }
+        for (int i = 0; i < nb; i++)
+            u->shapes[u->nshapes++] = sc_shape_retain(u->wu.bodies[i].shape);
     }
     *out = u;
     return SC_OK;

@@ -22,24 +22,44 @@
  *             cold i32, per island: members u32, contacts u32; per body: see
  *             put_body(), per contact: a contact (local body indices) and its
  *             impulse f64[3] (the warm start)
- *   result:   count u32 (pairs, or island members), rc i32, messages i64,
- *             pivots i64, failures, regularised, lemke, collisions, split,
- *             split_fallbacks, blocks, block_fallbacks, nan_islands,
- *             sweeps_max, unconverged, solves, diverged, cold_starts i32,
- *             residual_exact, residual_split f64,
+ *   GROUP unit (a motion group's whole frame, group.c): bodies u32,
+ *             members u32, contacts u32, contacts_valid i32, dt, gravity
+ *             f64[3], contact_tol_m f64, broadphase, island_split, toi_mode
+ *             i32; per body (the group's members and the static bodies in
+ *             world order, re-indexed 0..m-1; members are those with
+ *             inv_mass > 0): shape hash u64, every double of sc_body (see
+ *             gbody_fields()), state i32, collided i32; per contact of the
+ *             last frame (local indices, the master's order): a contact and
+ *             its impulse f64[3]
+ *   result:   count u32 (pairs, island members or group members), rc i32,
+ *             messages i64, pivots i64, failures, regularised, lemke,
+ *             collisions, split, split_fallbacks, blocks, block_fallbacks,
+ *             nan_islands, sweeps_max, unconverged, solves, diverged,
+ *             cold_starts i32, residual_exact, residual_split f64,
  *             then per pair: n u8 and n contacts (COLLIDE), toi f64 (TOI);
  *             (ISLAND) contacts u32, per member: x f64[3], q f64[4], v, w
  *             f64[3], collided i32, per contact in the unit's contact order:
- *             impulse f64[3] (this solve's)
+ *             impulse f64[3] (this solve's);
+ *             (GROUP) the frame's figures that sc_stats_add_frame() merges
+ *             (stat_fields(): f64s, i64s, u64s, i32s), per member in the
+ *             unit's order: the doubles a frame writes (gbody_fields() from
+ *             x on), state i32, collided i32; contacts u32 (0 unless rc is
+ *             0) and the frame's new contacts with their impulses (local
+ *             indices, canonical order)
  * A unit's counts are bounded and its length checked exactly before
  * anything is allocated; its doubles must be finite and its solver settings
  * in range (params_ok()); sc_contact_params.inject (tests only) never
  * travels. A unit with settings out of range or inject set is not packed
- * (0: the master computes it), and a decoded one has inject 0. A result's doubles are carried verbatim (a solve
+ * (0: the master computes it), and a decoded one has inject 0. A group
+ * unit's frame settings must be the world's (world.c's ranges), its bodies
+ * consistent (static exactly when inv_mass is 0, members counted), its
+ * contacts between a member and a body of the unit, body_a < body_b, sorted
+ * by pair as a frame leaves them. A result's doubles are carried verbatim (a solve
  * that blew up reaches the master as NaN, as it would locally, for
  * frame.c's check); its kind, counts (pairs, or members and contacts, which
- * must be the master's unit's) and body ids must match the master's unit,
- * and nothing is written unless all of it is valid. A COLLIDE result's
+ * must be the master's unit's) and body ids must match the master's unit
+ * (a group's contacts: as a unit's, and none when it failed), and nothing
+ * is written unless all of it is valid. A COLLIDE result's
  * contacts carry no impulse: the narrow phase emits every contact with
  * impulse 0 (narrowphase.c, emit()) and detect.c matches last frame's onto
  * them on the master afterwards, so the master writes 0 where the narrow
@@ -52,7 +72,7 @@
 
 #include "unit_wire.h"
 
-#define WIRE_VERSION 4
+#define WIRE_VERSION 5
 #define MAGIC_UNIT 0x55574353u        /* "SCWU" */
 #define MAGIC_RESULT 0x52574353u      /* "SCWR" */
 #define MAX_PAIRS (1 << 16)
@@ -65,6 +85,8 @@
 #define BODY_BYTES (31 * 8 + 2 * 4)
 #define CONTACT_BYTES (2 * 4 + 7 * 8)
 #define IMPULSE_BYTES (3 * 8)
+#define GBODY_BYTES (8 + 60 * 8 + 2 * 4)
+#define GMEMBER_BYTES (35 * 8 + 2 * 4)
 
 /* ---- little-endian writer and reader ---- */
 
@@ -189,8 +211,7 @@ static int get_header(rbuf *r, uint32_t magic)
 {
     uint32_t m = (uint32_t)get(r, 4);
     unsigned version = (unsigned)get(r, 2), kind = (unsigned)get(r, 2);
-    /* group units (a motion group's whole frame) do not travel */
-    if (r->bad || m != magic || version != WIRE_VERSION || kind > SC_UNIT_ISLAND)
+    if (r->bad || m != magic || version != WIRE_VERSION || kind > SC_UNIT_GROUP)
         return -1;
     return (int)kind;
 }
@@ -394,10 +415,164 @@ static void write_island(wbuf *w, const void *job_, const void *im_)
         put_contact(w, &job->c[im->ci[k]], im->ends[2 * k], im->ends[2 * k + 1], 1);
 }
 
+/* ---- group units: a motion group's whole frame ---- */
+
+/* Every double of a body (a frame may read any), all but the shape, which
+ * travels as its hash: the first GBODY_KEEP a frame only reads; the rest it
+ * writes, and a result carries them back. A field added to sc_body must be
+ * added here (test_unit_wire compares whole bodies of a local and a
+ * remote run). */
+#define GBODY_F64 17
+#define GBODY_KEEP 7
+static const int gbody_n[GBODY_F64] = { 1, 1, 9, 9, 3, 1, 1, 3, 4, 3, 3, 3, 3, 3, 3, 9, 1 };
+
+static void gbody_fields(sc_body *b, double *f[GBODY_F64])
+{
+    double *p[GBODY_F64] = { &b->mass, &b->inv_mass, b->inertia, b->inv_inertia, b->com,
+                             &b->restitution, &b->friction, b->x, b->q, b->v, b->w,
+                             b->force, b->torque, b->v0, b->w0, b->iw, &b->rest_s };
+    memcpy(f, p, sizeof p);
+}
+
+static void put_gbody_f64(wbuf *w, sc_body b, int from, int to)
+{
+    double *f[GBODY_F64];
+    gbody_fields(&b, f);
+    for (int k = from; k < to; k++)
+        put_f64s(w, f[k], gbody_n[k]);
+}
+
+static void get_gbody_f64(rbuf *r, sc_body *b, int from, int to, int finite)
+{
+    double *f[GBODY_F64];
+    gbody_fields(b, f);
+    for (int k = from; k < to; k++)
+        get_f64s(r, f[k], gbody_n[k], finite);
+}
+
+/* A unit's body: static exactly when its inverse mass is 0 (world.c), its
+ * shape one the receiver holds under that hash. */
+static void get_gbody(rbuf *r, sc_body *b, sc_shape_lookup_fn lookup, void *ctx)
+{
+    uint64_t hash = get(r, 8);
+    get_gbody_f64(r, b, 0, GBODY_F64, 1);
+    b->state = get_i32(r);
+    b->collided = get_i32(r);
+    if (!(b->inv_mass >= 0) || !(b->mass >= 0) || b->state < SC_FREE ||
+        b->state > SC_STATIC || (b->inv_mass > 0) != (b->state != SC_STATIC) ||
+        b->collided < 0 || b->collided > 2)
+        r->bad = 1;
+    if (r->bad)
+        return;
+    /* a frame only reads shapes; sc_body holds them unqualified for the
+     * world's references */
+    const sc_shape *s = lookup(ctx, hash);
+    if (!s || s->hash != hash)
+        r->bad = 1;
+    b->shape = (sc_shape *)s;
+}
+
+/* The frame settings a receiver accepts: those sc_world_create() does. */
+static int frame_cfg_ok(const sc_frame_config *c, double dt)
+{
+    return sc_finite3(c->gravity) && isfinite(c->contact_tol_m) && c->contact_tol_m > 0 &&
+           c->broadphase >= SC_BROADPHASE_AUTO && c->broadphase <= SC_BROADPHASE_SAP &&
+           c->island_split >= 0 &&
+           (c->toi_mode == SC_TOI_LOCAL || c->toi_mode == SC_TOI_WORLD) && isfinite(dt) &&
+           dt > 0;
+}
+
+/* Index of id in the ascending ids[0 .. m), or -1. */
+static int find_sorted(const int *ids, int m, int id)
+{
+    int lo = 0, hi = m - 1;
+    while (lo <= hi) {
+        int mid = lo + (hi - lo) / 2;
+        if (ids[mid] == id)
+            return mid;
+        if (ids[mid] < id)
+            lo = mid + 1;
+        else
+            hi = mid - 1;
+    }
+    return -1;
+}
+
+/* Group k of a master's GROUP job: its bodies' world ids in the copy's
+ * order (sc_group_ids) and its counts. */
+typedef struct group_map {
+    int k, nm, m, nc;
+    int *ids;
+} group_map;
+
+static int map_group(const sc_job *job, int k, group_map *gm)
+{
+    const sc_groups *g = job->group->g;
+    gm->k = k;
+    gm->nm = g->start[k + 1] - g->start[k];
+    gm->nc = g->cstart[k + 1] - g->cstart[k];
+    if (gm->nm < 1 || gm->nm > MAX_BODIES - g->nstatics || gm->nc > MAX_CONTACTS)
+        return SC_ETOOBIG;
+    gm->ids = sc_alloc_array((size_t)gm->nm + (size_t)g->nstatics, sizeof *gm->ids);
+    if (!gm->ids)
+        return SC_ENOMEM;
+    gm->m = sc_group_ids(g, k, gm->ids);
+    return SC_OK;
+}
+
+static void write_group(wbuf *w, const void *job_, const void *gm_)
+{
+    const sc_job *job = job_;
+    const group_map *gm = gm_;
+    const sc_group_job *gj = job->group;
+    const sc_groups *g = gj->g;
+    const sc_frame_state *st = gj->st;
+    const sc_frame_config *cfg = gj->cfg;
+    put_header(w, MAGIC_UNIT, SC_UNIT_GROUP);
+    put(w, (uint64_t)gm->m, 4);
+    put(w, (uint64_t)gm->nm, 4);
+    put(w, (uint64_t)gm->nc, 4);
+    put_i32(w, st->contacts_valid != 0);
+    double head[5] = { gj->dt, cfg->gravity[0], cfg->gravity[1], cfg->gravity[2],
+                       cfg->contact_tol_m };
+    put_f64s(w, head, 5);
+    put_i32(w, cfg->broadphase);
+    put_i32(w, cfg->island_split);
+    put_i32(w, cfg->toi_mode);
+    for (int q = 0; q < gm->m; q++) {
+        const sc_body *b = &st->bodies[gm->ids[q]];
+        put(w, b->shape->hash, 8);
+        put_gbody_f64(w, *b, 0, GBODY_F64);
+        put_i32(w, b->state);
+        put_i32(w, b->collided);
+    }
+    for (int q = 0; q < gm->nc; q++) {
+        const sc_contact *c = &st->contacts[g->contacts[g->cstart[gm->k] + q]];
+        put_contact(w, c, find_sorted(gm->ids, gm->m, c->body_a),
+                    find_sorted(gm->ids, gm->m, c->body_b), 1);
+    }
+}
+
+static size_t pack_group(const sc_job *job, const sc_unit *u, unsigned char *buf, size_t cap)
+{
+    const sc_group_job *gj = job->group;
+    /* only a master's group (a received one is not sent on) with settings
+     * a receiver takes */
+    if (!gj || !gj->g || u->first < 0 || u->first >= gj->g->ngroups ||
+        !frame_cfg_ok(gj->cfg, gj->dt))
+        return 0;
+    group_map gm = { 0 };
+    size_t n = map_group(job, u->first, &gm) == SC_OK ? emit(write_group, job, &gm, buf, cap) : 0;
+    free(gm.ids);
+    return n;
+}
+
 size_t sc_wire_unit_pack(const sc_job *job, const sc_unit *u, unsigned char *buf, size_t cap)
 {
     if (!job || !u || u->kind != job->kind)
         return 0;
+    if (job->kind == SC_UNIT_GROUP)
+        return pack_group(job, u, buf, cap);
     if (job->kind == SC_UNIT_COLLIDE || job->kind == SC_UNIT_TOI) {
         if (u->count < 0 || u->count > MAX_PAIRS || u->first < 0 ||
             u->first > job->npairs - u->count)
@@ -546,6 +721,80 @@ static int decode_island(rbuf *r, sc_wire_unit *wu)
     return SC_OK;
 }
 
+/* A group's contacts (a unit's, or a result's): between two bodies of
+ * the unit, body_a < body_b, not both static (stat[i] set: body i is),
+ * sorted by pair as a frame keeps them. */
+static int group_contact_ok(const sc_contact *c, int m, const unsigned char *stat, int *pa,
+                            int *pb)
+{
+    int a = c->body_a, b = c->body_b;
+    if (a < 0 || a >= b || b >= m || (stat[a] && stat[b]) || a < *pa || (a == *pa && b < *pb))
+        return 0;
+    *pa = a;
+    *pb = b;
+    return 1;
+}
+
+static int decode_group(rbuf *r, sc_shape_lookup_fn lookup, void *ctx, sc_wire_unit *wu)
+{
+    uint32_t m = (uint32_t)get(r, 4), nm = (uint32_t)get(r, 4), nc = (uint32_t)get(r, 4);
+    int valid = get_i32(r);
+    double head[5];
+    get_f64s(r, head, 5, 1);
+    sc_frame_config cfg = { .gravity = { head[1], head[2], head[3] }, .contact_tol_m = head[4] };
+    cfg.broadphase = get_i32(r);
+    cfg.island_split = get_i32(r);
+    cfg.toi_mode = get_i32(r);
+    /* the last frame's contacts only when they are valid (group.c) */
+    if (r->bad || nm < 1 || nm > m || m > MAX_BODIES || nc > MAX_CONTACTS || valid < 0 ||
+        valid > 1 || (!valid && nc > 0) || !frame_cfg_ok(&cfg, head[0]) ||
+        r->len - r->n != (size_t)m * GBODY_BYTES + (size_t)nc * (CONTACT_BYTES + IMPULSE_BYTES))
+        return SC_EFORMAT;
+    if (!lookup)
+        return SC_EINVAL;
+    sc_frame_state *st = &wu->gst;
+    wu->bodies = sc_calloc_array(m, sizeof *wu->bodies);
+    st->contacts = sc_calloc_array(nc > 0 ? nc : 1, sizeof *st->contacts);
+    unsigned char *stat = sc_alloc_array(m, 1);
+    int rc = wu->bodies && st->contacts && stat ? SC_OK : SC_ENOMEM;
+    uint32_t members = 0;
+    for (uint32_t k = 0; k < m && rc == SC_OK; k++) {
+        get_gbody(r, &wu->bodies[k], lookup, ctx);
+        stat[k] = wu->bodies[k].inv_mass == 0;
+        members += !stat[k];
+        if (r->bad)
+            rc = SC_EFORMAT;
+    }
+    if (rc == SC_OK && members != nm)
+        rc = SC_EFORMAT;
+    int pa = -1, pb = -1;
+    for (uint32_t k = 0; k < nc && rc == SC_OK; k++) {
+        get_contact(r, &st->contacts[k], 1, 1);
+        if (r->bad || !group_contact_ok(&st->contacts[k], (int)m, stat, &pa, &pb))
+            rc = SC_EFORMAT;
+    }
+    free(stat);
+    if (rc != SC_OK)
+        return rc;
+    wu->nbodies = (int)m;
+    wu->cfg = cfg;
+    st->bodies = wu->bodies;
+    st->nbodies = (int)m;
+    st->ncontacts = (int)nc;
+    st->contact_cap = nc > 0 ? (int)nc : 1;
+    st->contacts_valid = valid;
+    /* the unit's own group, stepped in place (group.c) */
+    wu->group = (sc_group_job){ .cfg = &wu->cfg, .st = st, .g = NULL, .dt = head[0],
+                                .out = &wu->gout };
+    sc_job *job = &wu->job;
+    job->group = &wu->group;
+    job->run_group = sc_group_unit_run;
+    wu->unit.first = 0;
+    wu->unit.count = (int)nm;
+    wu->unit.islands = 1;
+    return SC_OK;
+}
+
 int sc_wire_unit_decode(const unsigned char *buf, size_t len, sc_shape_lookup_fn lookup,
                         void *lookup_ctx, sc_wire_unit *out)
 {
@@ -556,9 +805,10 @@ int sc_wire_unit_decode(const unsigned char *buf, size_t len, sc_shape_lookup_fn
         return SC_EINVAL;
     rbuf r = { buf, 0, len, 0 };
     int kind = get_header(&r, MAGIC_UNIT);
-    int rc = kind < 0 ? SC_EFORMAT
-           : kind == SC_UNIT_ISLAND ? decode_island(&r, out)
-                                    : decode_pairs(&r, kind, lookup, lookup_ctx, out);
+    int rc = kind < 0                 ? SC_EFORMAT
+           : kind == SC_UNIT_ISLAND   ? decode_island(&r, out)
+           : kind == SC_UNIT_GROUP    ? decode_group(&r, lookup, lookup_ctx, out)
+                                      : decode_pairs(&r, kind, lookup, lookup_ctx, out);
     if (rc == SC_OK && r.n != len)
         rc = SC_EFORMAT;
     if (rc != SC_OK) {
@@ -583,6 +833,7 @@ void sc_wire_unit_free(sc_wire_unit *wu)
     free(wu->toi);
     free(wu->bodies);
     free(wu->c);
+    free(wu->gst.contacts);
     sc_islands_free(&wu->islands);
     memset(wu, 0, sizeof *wu);
 }
@@ -632,6 +883,108 @@ static void get_info(rbuf *r, sc_solve_info *info)
     get_f64s(r, &info->residual_split, 1, 0);
 }
 
+/* The figures of a group's frame that sc_stats_add_frame() and
+ * sc_stats_add_solver() (clock.c) read, field by field: a field they
+ * start to read must be added here (test_unit_wire compares them). */
+#define STAT_F64 (SC_STAGE_COUNT + 6)
+#define STAT_LONGS 6
+#define STAT_SIZES 2
+#define STAT_INTS 18
+
+typedef struct stat_ptrs {
+    double *d[STAT_F64];
+    long *l[STAT_LONGS];
+    size_t *z[STAT_SIZES];
+    int *i[STAT_INTS];
+} stat_ptrs;
+
+static void stat_fields(sc_stats *s, stat_ptrs *p)
+{
+    for (int k = 0; k < SC_STAGE_COUNT; k++)
+        p->d[k] = &s->stage_s[k];
+    double *d[] = { &s->lcp_residual, &s->lcp_outer_residual, &s->max_penetration,
+                    &s->sched_s, &s->makespan_s, &s->makespan_bound_s };
+    long *l[STAT_LONGS] = { &s->lcp_pivots, &s->lcp_blocks, &s->lcp_block_fallbacks,
+                            &s->collider_warnings, &s->units, &s->initial_overlaps };
+    size_t *z[STAT_SIZES] = { &s->arena_bytes, &s->unit_arena_bytes };
+    int *i[STAT_INTS] = { &s->pairs,          &s->islands,          &s->lcp_solves,
+                          &s->lcp_fallbacks,  &s->lcp_split,        &s->lcp_sweeps_max,
+                          &s->lcp_unconverged, &s->lcp_diverged,    &s->lcp_cold_starts,
+                          &s->lcp_regularised, &s->lcp_split_fallbacks, &s->lcp_nan_islands,
+                          &s->substeps,       &s->backups,          &s->backup_regions,
+                          &s->backup_bodies,  &s->spec_contacts,    &s->spec_rounds };
+    _Static_assert(sizeof d / sizeof d[0] == STAT_F64 - SC_STAGE_COUNT, "stat doubles");
+    memcpy(&p->d[SC_STAGE_COUNT], d, sizeof d);
+    memcpy(p->l, l, sizeof l);
+    memcpy(p->z, z, sizeof z);
+    memcpy(p->i, i, sizeof i);
+}
+
+#define STAT_BYTES (8 * (STAT_F64 + STAT_LONGS + STAT_SIZES) + 4 * STAT_INTS)
+
+static void put_stats(wbuf *w, sc_stats s)
+{
+    stat_ptrs p;
+    stat_fields(&s, &p);
+    for (int k = 0; k < STAT_F64; k++)
+        put_f64s(w, p.d[k], 1);
+    for (int k = 0; k < STAT_LONGS; k++)
+        put(w, (uint64_t)*p.l[k], 8);
+    for (int k = 0; k < STAT_SIZES; k++)
+        put(w, (uint64_t)*p.z[k], 8);
+    for (int k = 0; k < STAT_INTS; k++)
+        put_i32(w, *p.i[k]);
+}
+
+/* Doubles verbatim (timings, residuals, depths), counts not negative;
+ * everything else of s is 0. */
+static void get_stats(rbuf *r, sc_stats *s)
+{
+    stat_ptrs p;
+    memset(s, 0, sizeof *s);
+    stat_fields(s, &p);
+    for (int k = 0; k < STAT_F64; k++)
+        get_f64s(r, p.d[k], 1, 0);
+    for (int k = 0; k < STAT_LONGS; k++) {
+        int64_t v = get_signed(r, 8);
+        if (v < 0 || v > LONG_MAX)
+            r->bad = 1;
+        *p.l[k] = (long)v;
+    }
+    for (int k = 0; k < STAT_SIZES; k++) {
+        uint64_t v = get(r, 8);
+        if (v > SIZE_MAX)
+            r->bad = 1;
+        *p.z[k] = (size_t)v;
+    }
+    for (int k = 0; k < STAT_INTS; k++)
+        if ((*p.i[k] = get_i32(r)) < 0)
+            r->bad = 1;
+}
+
+/* A received group's outputs: its figures, its members' new states in
+ * their order, and its new contacts (none when it failed: a failed frame
+ * makes none here either, group.c). */
+static void write_group_result(wbuf *w, const sc_wire_unit *wu)
+{
+    const sc_frame_state *st = &wu->gst;
+    put_stats(w, wu->gout.stats);
+    for (int q = 0; q < st->nbodies; q++) {
+        const sc_body *b = &st->bodies[q];
+        if (!(b->inv_mass > 0))
+            continue;
+        put_gbody_f64(w, *b, GBODY_KEEP, GBODY_F64);
+        put_i32(w, b->state);
+        put_i32(w, b->collided);
+    }
+    int nc = wu->unit.rc == SC_OK ? st->ncontacts : 0;
+    put(w, (uint64_t)nc, 4);
+    for (int k = 0; k < nc; k++) {
+        const sc_contact *c = &st->contacts[k];
+        put_contact(w, c, c->body_a, c->body_b, 1);
+    }
+}
+
 static void write_result(wbuf *w, const void *wu_, const void *unused)
 {
     (void)unused;
@@ -645,6 +998,10 @@ static void write_result(wbuf *w, const void *wu_, const void *unused)
     put_i32(w, u->rc);
     put(w, (uint64_t)u->messages, 8);
     put_info(w, u->info);
+    if (job->kind == SC_UNIT_GROUP) {
+        write_group_result(w, wu);
+        return;
+    }
     for (int i = 0; !island && i < u->count; i++) {
         if (job->kind == SC_UNIT_TOI) {
             put_f64s(w, &job->toi[i], 1);
@@ -674,19 +1031,86 @@ static void write_result(wbuf *w, const void *wu_, const void *unused)
 
 size_t sc_wire_result_pack(const sc_wire_unit *wu, unsigned char *buf, size_t cap)
 {
-    if (!wu || wu->job.units != &wu->unit)
+    if (!wu || wu->job.units != &wu->unit ||
+        (wu->job.kind == SC_UNIT_GROUP && wu->job.group != &wu->group))
         return 0;
     return emit(write_result, wu, NULL, buf, cap);
 }
 
+/* A group result's side of the master: group k's bodies' world ids (the
+ * copy's order), then the result's contact count (the check) and where its
+ * contacts go (the write). */
+typedef struct group_res {
+    int *ids;
+    int m;
+    unsigned char *stat;        /* per body of the copy: static */
+    int nc;
+    sc_contact *c;
+} group_res;
+
+/* The group part of a result for u (after the common part); rc is the
+ * result's. Written to the master's bodies and out[k] only when write. */
+static int read_group_result(rbuf *r, const sc_job *job, const sc_unit *u, int write, int rc,
+                             group_res *gr)
+{
+    const sc_group_job *gj = job->group;
+    const sc_groups *g = gj->g;
+    int k = u->first;
+    const int *mem = &g->members[g->start[k]];
+    int nm = g->start[k + 1] - g->start[k];
+    sc_stats stats;
+    get_stats(r, &stats);
+    sc_body scratch = { 0 };
+    for (int i = 0; i < nm && !r->bad; i++) {
+        sc_body *b = write ? &gj->st->bodies[mem[i]] : &scratch;
+        get_gbody_f64(r, b, GBODY_KEEP, GBODY_F64, 0);
+        int state = get_i32(r), collided = get_i32(r);
+        /* a member stays dynamic */
+        if (state < SC_FREE || state > SC_ASLEEP || collided < 0 || collided > 2)
+            return SC_EFORMAT;
+        b->state = state;
+        b->collided = collided;
+    }
+    uint32_t nc = (uint32_t)get(r, 4);
+    if (r->bad || nc > MAX_CONTACTS || (rc != SC_OK && nc > 0) ||
+        r->len - r->n != (size_t)nc * (CONTACT_BYTES + IMPULSE_BYTES))
+        return SC_EFORMAT;
+    int pa = -1, pb = -1;
+    for (uint32_t q = 0; q < nc; q++) {
+        sc_contact c;
+        get_contact(r, &c, 0, 1);
+        if (r->bad || !group_contact_ok(&c, gr->m, gr->stat, &pa, &pb))
+            return SC_EFORMAT;
+        if (write) {
+            c.body_a = gr->ids[c.body_a];
+            c.body_b = gr->ids[c.body_b];
+            gr->c[q] = c;
+        }
+    }
+    gr->nc = (int)nc;
+    if (write) {
+        sc_group_out *out = &gj->out[k];
+        memset(out, 0, sizeof *out);
+        out->rc = rc;
+        out->stats = stats;
+        out->contacts = nc > 0 ? gr->c : NULL;
+        out->ncontacts = (int)nc;
+    }
+    return SC_OK;
+}
+
 /* Read a result for u; write it to the job and u only when write is set
  * (the caller validates the whole buffer first, then writes). */
-static int read_result(rbuf *r, const sc_job *job, sc_unit *u, int write)
+static int read_result(rbuf *r, const sc_job *job, sc_unit *u, int write, group_res *gr)
 {
-    int island = job->kind == SC_UNIT_ISLAND;
+    int island = job->kind == SC_UNIT_ISLAND, group = job->kind == SC_UNIT_GROUP;
+    int pairs = !island && !group;
     const sc_islands *is = job->islands;
+    const sc_groups *g = group ? job->group->g : NULL;
     int i0 = island ? is->body_start[u->first] : u->first;
-    int count = island ? is->body_start[u->first + u->islands] - i0 : u->count;
+    int count = island ? is->body_start[u->first + u->islands] - i0
+              : group  ? g->start[u->first + 1] - g->start[u->first]
+                       : u->count;
     if (get_header(r, MAGIC_RESULT) != job->kind || get(r, 4) != (uint64_t)count)
         return SC_EFORMAT;
     int rc = get_i32(r);
@@ -695,7 +1119,12 @@ static int read_result(rbuf *r, const sc_job *job, sc_unit *u, int write)
     get_info(r, &info);
     if (r->bad || rc > 0 || msgs < 0 || msgs > LONG_MAX)
         return SC_EFORMAT;
-    for (int i = i0; !island && i < i0 + count; i++) {
+    if (group) {
+        int grc = read_group_result(r, job, u, write, rc, gr);
+        if (grc != SC_OK)
+            return grc;
+    }
+    for (int i = i0; pairs && i < i0 + count; i++) {
         if (job->kind == SC_UNIT_TOI) {
             double t;
             get_f64s(r, &t, 1, 0);
@@ -749,19 +1178,59 @@ static int read_result(rbuf *r, const sc_job *job, sc_unit *u, int write)
     return SC_OK;
 }
 
+/* Group u->first's ids and static flags, for read_result(). */
+static int group_res_init(const sc_job *job, const sc_unit *u, group_res *gr)
+{
+    const sc_groups *g = job->group->g;
+    size_t m = (size_t)(g->start[u->first + 1] - g->start[u->first]) + (size_t)g->nstatics;
+    gr->ids = sc_alloc_array(m > 0 ? m : 1, sizeof *gr->ids);
+    gr->stat = sc_alloc_array(m > 0 ? m : 1, 1);
+    if (!gr->ids || !gr->stat)
+        return SC_ENOMEM;
+    gr->m = sc_group_ids(g, u->first, gr->ids);
+    for (int q = 0; q < gr->m; q++)
+        gr->stat[q] = g->gid[gr->ids[q]] != u->first;
+    return SC_OK;
+}
+
 int sc_wire_result_apply(const sc_job *job, sc_unit *u, const unsigned char *buf, size_t len)
 {
     if (!job || !u || (!buf && len) || u->kind != job->kind || u->first < 0)
         return SC_EINVAL;
-    if (job->kind == SC_UNIT_ISLAND ? !job->islands || u->islands < 1 ||
-                                          u->first > job->islands->count - u->islands
-                                    : job->kind < 0 || job->kind > SC_UNIT_ISLAND ||
-                                          u->count < 0 || u->first > job->npairs - u->count)
+    int bad;
+    switch (job->kind) {
+    case SC_UNIT_COLLIDE:
+    case SC_UNIT_TOI:
+        bad = u->count < 0 || u->first > job->npairs - u->count;
+        break;
+    case SC_UNIT_ISLAND:
+        bad = !job->islands || u->islands < 1 || u->first > job->islands->count - u->islands;
+        break;
+    case SC_UNIT_GROUP:
+        /* a master's group job (a received one is not answered to) */
+        bad = !job->group || !job->group->g || u->first >= job->group->g->ngroups;
+        break;
+    default:
+        bad = 1;
+    }
+    if (bad)
         return SC_EINVAL;
+    group_res gr = { 0 };
+    int rc = job->kind == SC_UNIT_GROUP ? group_res_init(job, u, &gr) : SC_OK;
     rbuf r = { buf, 0, len, 0 };
-    int rc = read_result(&r, job, u, 0);
-    if (rc != SC_OK)
-        return rc;
-    r.n = 0;
-    return read_result(&r, job, u, 1);
+    if (rc == SC_OK)
+        rc = read_result(&r, job, u, 0, &gr);
+    /* the contacts' room before anything is written: the write cannot fail */
+    if (rc == SC_OK && gr.nc > 0 && !(gr.c = sc_alloc_array((size_t)gr.nc, sizeof *gr.c)))
+        rc = SC_ENOMEM;
+    if (rc == SC_OK) {
+        r = (rbuf){ buf, 0, len, 0 };
+        rc = read_result(&r, job, u, 1, &gr);
+        SC_ASSERT(rc == SC_OK);
+    } else {
+        free(gr.c);
+    }
+    free(gr.ids);
+    free(gr.stat);
+    return rc;
 }

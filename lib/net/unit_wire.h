@@ -26,10 +26,16 @@ typedef struct sc_wire_unit {
     sc_contact *c;
     sc_islands islands;
     sc_contact_params params;
+    /* GROUP: the group's frame, run in place (bodies above; its contacts
+     * grow as the frame needs) */
+    sc_frame_config cfg;
+    sc_frame_state gst;
+    sc_group_job group;
+    sc_group_out gout;
 } sc_wire_unit;
 /* Decode; SC_EFORMAT for anything malformed (truncated, bad version/kind,
- * counts or solver settings out of range, NaN, unknown shape hash),
- * SC_ENOMEM. A decoded island's params have inject 0. */
+ * counts or solver or frame settings out of range, NaN, unknown shape
+ * hash), SC_ENOMEM. A decoded island's params have inject 0. */
 int sc_wire_unit_decode(const unsigned char *buf, size_t len, sc_shape_lookup_fn lookup,
                         void *lookup_ctx, sc_wire_unit *out);
 void sc_wire_unit_free(sc_wire_unit *wu);
@@ -37,9 +43,10 @@ void sc_wire_unit_free(sc_wire_unit *wu);
 size_t sc_wire_result_pack(const sc_wire_unit *wu, unsigned char *buf, size_t cap);
 /* Merge received results into the master's job exactly as if u had run
  * locally (u->rc, u->messages, the whole u->info and the job's outputs for
- * u: an island's members and its contacts' impulses). SC_EFORMAT when buf
- * does not match u (kind, counts of pairs, members or contacts) or is
- * malformed. */
+ * u: an island's members and its contacts' impulses; a group's members,
+ * and its new contacts and figures in its sc_group_out). SC_EFORMAT when
+ * buf does not match u (kind, counts of pairs, members or contacts) or is
+ * malformed, SC_ENOMEM; nothing is written then. */
 int sc_wire_result_apply(const sc_job *job, sc_unit *u, const unsigned char *buf, size_t len);
 
 #endif /* SC_UNIT_WIRE_H */
