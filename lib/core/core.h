@@ -310,6 +310,29 @@ int sc_toi_deepen_before_ctx(sc_np_ctx *ctx, const sc_shape *a, const sc_pose *a
                              const sc_pose *a1, const sc_shape *b, const sc_pose *b0,
                              const sc_pose *b1, double limit_m, double tmax, double *t);
 
+/* The two searches behind those (benchmarks and tests compare them). The
+ * sampling search over ODE's narrow phase, for any pair: */
+int sc_toi_sample_before_ctx(sc_np_ctx *ctx, const sc_shape *a, const sc_pose *a0,
+                             const sc_pose *a1, const sc_shape *b, const sc_pose *b0,
+                             const sc_pose *b1, double tol_m, double tmax, double *t);
+int sc_toi_sample_deepen_before_ctx(sc_np_ctx *ctx, const sc_shape *a, const sc_pose *a0,
+                                    const sc_pose *a1, const sc_shape *b, const sc_pose *b0,
+                                    const sc_pose *b1, double limit_m, double tmax, double *t);
+/* 1 when conservative advancement takes the pair: both sc_ccd_convex(), or
+ * one of them and a plane that does not move (the same pose bits). */
+int sc_toi_ca_pair(const sc_shape *a, const sc_pose *a0, const sc_pose *a1, const sc_shape *b,
+                   const sc_pose *b0, const sc_pose *b1);
+/* Conservative advancement on ccd.c's distances, the same contracts (the
+ * touch found is at most tol_m / 2 deep, and the pair was never deeper
+ * before it); SC_ENOTSUP for other pairs. After 64 steps (a long graze)
+ * the sampling search takes the rest of the motion (ctx is for that). */
+int sc_toi_ca_before_ctx(sc_np_ctx *ctx, const sc_shape *a, const sc_pose *a0,
+                         const sc_pose *a1, const sc_shape *b, const sc_pose *b0,
+                         const sc_pose *b1, double tol_m, double tmax, double *t);
+int sc_toi_ca_deepen_before_ctx(sc_np_ctx *ctx, const sc_shape *a, const sc_pose *a0,
+                                const sc_pose *a1, const sc_shape *b, const sc_pose *b0,
+                                const sc_pose *b1, double limit_m, double tmax, double *t);
+
 /* Validate a triangle mesh and compute its mass properties:
  * SC_EINVAL (NaN, bad index), SC_ETOOBIG, SC_EDEGENERATE (zero-area
  * triangles, no volume), SC_ENOTCLOSED (an edge not shared by exactly two
