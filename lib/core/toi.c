@@ -1,16 +1,16 @@
 /* toi.c - time of impact (the paper's step 5): the time at which two
  * moving shapes first touch, so the frame can back up to it.
  *
- * Two searches. The frame's samples the motion finely enough that no
- * sample can skip a feature (each sub-interval moves any surface point by
- * at most a fraction of the smaller shape), and the first overlapping
- * sample is bracketed and bisected until the penetration is within
- * tolerance, on ODE's narrow phase. For convex pairs (spheres, boxes,
- * hulls, convex meshes, and those against a static plane) conservative
- * advancement on ccd.c's distances gives the same answers: the pair cannot
- * close its gap along the separating direction n faster than the motion
- * bound along n, so time advances by gap / bound at each step, and never
- * past a touch (bench/bench_toi.c compares them).
+ * Two searches. Convex pairs (spheres, boxes, hulls, convex meshes, and
+ * those against a static plane) use conservative advancement on ccd.c's
+ * distances: the pair cannot close its gap along the separating direction
+ * n faster than the motion bound along n, so time advances by gap / bound
+ * at each step, and never past a touch (docs/DESIGN.md 3.4 has the
+ * figures). Other pairs (non-convex meshes) sample the motion finely
+ * enough that no sample can skip a feature (each sub-interval moves any
+ * surface point by at most a fraction of the smaller shape), and the first
+ * overlapping sample is bracketed and bisected until the penetration is
+ * within tolerance, on ODE's narrow phase.
  */
 #include "core.h"
 #include "vecmath.h"
@@ -446,6 +446,8 @@ int sc_toi_before_ctx(sc_np_ctx *ctx, const sc_shape *a, const sc_pose *a0, cons
                       const sc_shape *b, const sc_pose *b0, const sc_pose *b1, double tol_m,
                       double tmax, double *t)
 {
+    if (a && b && a0 && a1 && b0 && b1 && sc_toi_ca_pair(a, a0, a1, b, b0, b1))
+        return sc_toi_ca_before_ctx(ctx, a, a0, a1, b, b0, b1, tol_m, tmax, t);
     return sc_toi_sample_before_ctx(ctx, a, a0, a1, b, b0, b1, tol_m, tmax, t);
 }
 
@@ -460,6 +462,8 @@ int sc_toi_deepen_before_ctx(sc_np_ctx *ctx, const sc_shape *a, const sc_pose *a
                              const sc_pose *a1, const sc_shape *b, const sc_pose *b0,
                              const sc_pose *b1, double limit_m, double tmax, double *t)
 {
+    if (a && b && a0 && a1 && b0 && b1 && sc_toi_ca_pair(a, a0, a1, b, b0, b1))
+        return sc_toi_ca_deepen_before_ctx(ctx, a, a0, a1, b, b0, b1, limit_m, tmax, t);
     return sc_toi_sample_deepen_before_ctx(ctx, a, a0, a1, b, b0, b1, limit_m, tmax, t);
 }
 
