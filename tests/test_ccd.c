@@ -451,8 +451,8 @@ static double np_depth(sc_np_ctx *np, const sc_shape *a, const sc_pose *a0, cons
 /* Random convex pairs (boxes, hulls, spheres, a UV sphere mesh, a plane),
  * turning and moving at each other: both searches find the same touch,
  * that is, the earlier of their times already touches and no time between
- * them is deeper than the tolerance; CA's touch is at most half of it
- * deep. Where only one search finds a touch, it is a graze shallower than
+ * them is deeper than the tolerance; CA's touch is at most 3/4 of it deep
+ * (half, unless a shallow landing moved on). Where only one search finds a touch, it is a graze shallower than
  * the tolerance (the sampling search skips some, CA those below half of
  * it), checked by a fine scan. */
 static void test_ca_agrees_with_sampling_on_random_convex_pairs(void **state)
@@ -495,7 +495,7 @@ static void test_ca_agrees_with_sampling_on_random_convex_pairs(void **state)
                 assert_true(np_depth(np, a, &a0, &a1, b, &b0, &b1, lo + (hi - lo) * k / 10) <=
                             TOL);
             double dc = np_depth(np, a, &a0, &a1, b, &b0, &b1, tc);
-            assert_true(dc >= 0 && dc <= 0.5 * TOL + 1e-9);
+            assert_true(dc >= 0 && dc <= 0.75 * TOL + 1e-9);
         } else if (hs != hc) {
             grazes++;
             double deepest = -1;
@@ -526,7 +526,7 @@ static void test_ca_catches_a_thin_fast_plate(void **state)
     assert_int_equal(sc_toi_ca_before_ctx(np, box, &o, &o, plate, &p0, &p1, TOL, 1, &tc), 1);
     /* touches when its face reaches x = -0.01: t = (5 - 0.0105) / 10 */
     double touch = (5 - 0.0105) / 10;
-    assert_true(tc >= touch && tc <= touch + 0.5 * TOL / 10 + 1e-12);
+    assert_true(tc >= touch && tc <= touch + 0.75 * TOL / 10 + 1e-12);
     assert_true(ts >= touch && ts <= touch + TOL / 10 + 1e-12);
     /* turning a quarter turn about y on the way: still caught, by both */
     double y[3] = { 0, 1, 0 };
@@ -534,7 +534,7 @@ static void test_ca_catches_a_thin_fast_plate(void **state)
     assert_int_equal(sc_toi_sample_before_ctx(np, box, &o, &o, plate, &p0, &p1, TOL, 1, &ts), 1);
     assert_int_equal(sc_toi_ca_before_ctx(np, box, &o, &o, plate, &p0, &p1, TOL, 1, &tc), 1);
     double dc = np_depth(np, box, &o, &o, plate, &p0, &p1, tc);
-    assert_true(dc >= 0 && dc <= 0.5 * TOL + 1e-9);
+    assert_true(dc >= 0 && dc <= 0.75 * TOL + 1e-9);
     assert_true(fabs(tc - ts) * 10 < 0.02);      /* the same crossing */
     sc_shape_release(box);
     sc_shape_release(plate);

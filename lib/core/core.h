@@ -323,9 +323,11 @@ int sc_toi_sample_deepen_before_ctx(sc_np_ctx *ctx, const sc_shape *a, const sc_
 int sc_toi_ca_pair(const sc_shape *a, const sc_pose *a0, const sc_pose *a1, const sc_shape *b,
                    const sc_pose *b0, const sc_pose *b1);
 /* Conservative advancement on ccd.c's distances, the same contracts (the
- * touch found is at most tol_m / 2 deep, and the pair was never deeper
- * before it); SC_ENOTSUP for other pairs. After 64 steps (a long graze)
- * the sampling search takes the rest of the motion (ctx is for that). */
+ * touch found is at most tol_m / 2 deep, 3/4 tol_m where a shallower one
+ * than tol_m / 8 moved on, and the pair was never deeper before it);
+ * SC_ENOTSUP for other pairs. After 64 steps (a long graze) the sampling
+ * search takes the rest of the motion (ctx is for that), as it does a
+ * start that overlaps less than the narrow phase sees. */
 int sc_toi_ca_before_ctx(sc_np_ctx *ctx, const sc_shape *a, const sc_pose *a0,
                          const sc_pose *a1, const sc_shape *b, const sc_pose *b0,
                          const sc_pose *b1, double tol_m, double tmax, double *t);

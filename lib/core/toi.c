@@ -5,8 +5,8 @@
  * those against a static plane) use conservative advancement on ccd.c's
  * distances: the pair cannot close its gap along the separating direction
  * n faster than the motion bound along n, so time advances by gap / bound
- * at each step, and never past a touch (docs/DESIGN.md 3.4 has the
- * figures). Other pairs (non-convex meshes) sample the motion finely
+ * at each step (plus half the tolerance: a touch is found at most that
+ * deep; docs/DESIGN.md 3.4 has the figures). Other pairs (non-convex meshes) sample the motion finely
  * enough that no sample can skip a feature (each sub-interval moves any
  * surface point by at most a fraction of the smaller shape), and the first
  * overlapping sample is bracketed and bisected until the penetration is
