@@ -35,7 +35,7 @@ BUILD   ?= build
 XFLAGS  :=
 endif
 
-DEP_PKGS := ode gsl lcm libsodium
+DEP_PKGS := ode ccd gsl lcm libsodium
 GEN     := $(BUILD)/gen
 # The library's layers, each seeing only its own and lower layers' headers
 # (docs/DESIGN.md section 2): core <- exec <- net <- api.
@@ -56,6 +56,7 @@ LAYER_test_shape_load := core
 LAYER_test_units := api
 LAYER_test_contact := api
 LAYER_test_toi := core
+LAYER_test_ccd := core
 LAYER_test_cluster_msg := net
 LAYER_test_bus := net
 LAYER_test_unit_wire := api
@@ -64,6 +65,7 @@ LAYER_test_idle := core
 LAYER_test_cluster := api
 LAYER_bench_broadphase := core
 LAYER_bench_lcp := core
+LAYER_bench_toi := core
 LAYER_bench_cluster := api
 LAYER_bench_drop := core
 LAYER_bench_islands := api
@@ -78,7 +80,7 @@ CFLAGS  += -std=c11 $(OPT) -g -Wall -Wextra $(WERROR) -fPIC -fvisibility=hidden 
            -pthread $(XFLAGS)
 LDFLAGS += -pthread $(XFLAGS)
 LIBS    := $(shell pkg-config --libs $(DEP_PKGS) 2>/dev/null || \
-             echo -lode -lgsl -lgslcblas -llcm -lsodium) -lm -ldl
+             echo -lode -lccd -lgsl -lgslcblas -llcm -lsodium) -lm -ldl
 TESTLIBS := $(LIBS) -lcmocka
 # simcluster-view(1) renders with OSMesa and writes PNG; tests/png_check reads PNG.
 PNG_LIBS := $(shell pkg-config --cflags --libs libpng 2>/dev/null || echo -lpng)

@@ -20,8 +20,8 @@ cc=${CLANG:-clang}
 findings=tests/fuzz/findings
 flags="-std=c11 -D_GNU_SOURCE -Iinclude -Ilib -Ilib/core -Ilib/exec -Ilib/net -Ilib/api -I$out/gen -O1 -g -fno-omit-frame-pointer -pthread
        -fsanitize=address,undefined -fno-sanitize-recover=all"
-libs=$(pkg-config --libs ode gsl lcm libsodium 2>/dev/null ||
-       echo -lode -lgsl -lgslcblas -llcm -lsodium)
+libs=$(pkg-config --libs ode ccd gsl lcm libsodium 2>/dev/null ||
+       echo -lode -lccd -lgsl -lgslcblas -llcm -lsodium)
 mkdir -p "$out/obj" "$out/gen" "$findings"
 rm -f "$out"/gen/sclcm_*
 lcm-gen -c --c-no-pubsub --c-cpath "$out/gen" --c-hpath "$out/gen" proto/*.lcm
