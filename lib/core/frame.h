@@ -192,6 +192,8 @@ typedef struct sc_group_job {
  * static bodies merged by world id into ids (room for both); returns how
  * many. */
 int sc_group_ids(const sc_groups *g, int k, int *ids);
+/* Index of id in the ascending ids[0 .. m) (a group's copy), or -1. */
+int sc_group_local_id(const int *ids, int m, int id);
 /* Unit u of a GROUP job in either form above, on the calling thread's
  * group scratch and the serial executor (sc_job.run_group). */
 int sc_group_unit_run(sc_np_ctx *np, const sc_job *job, const sc_unit *u);

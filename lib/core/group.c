@@ -240,11 +240,11 @@ static int build_groups(const sc_frame_config *cfg, const sc_frame_state *st,
     return SC_OK;
 }
 
-static int local_id(const int *ids, int m, int id)
+int sc_group_local_id(const int *ids, int m, int id)
 {
     int lo = 0, hi = m - 1;
     while (lo <= hi) {
-        int mid = (lo + hi) / 2;
+        int mid = lo + (hi - lo) / 2;
         if (ids[mid] == id)
             return mid;
         if (ids[mid] < id)
@@ -300,8 +300,8 @@ static void group_frame(const sc_group_job *gj, sc_group_scratch *gs, int k, sc_
         return;
     for (int q = 0; q < nc; q++) {
         sc_contact c = ps->contacts[ck[q]];
-        c.body_a = local_id(ids, m, c.body_a);
-        c.body_b = local_id(ids, m, c.body_b);
+        c.body_a = sc_group_local_id(ids, m, c.body_a);
+        c.body_b = sc_group_local_id(ids, m, c.body_b);
         st->contacts[q] = c;
     }
     st->ncontacts = nc;

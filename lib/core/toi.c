@@ -332,6 +332,21 @@ static int ca_deep_at(const sc_shape *a, const sc_pose *pa, const sc_shape *b,
     return sc_ccd_separation(a, pa, b, pb, 1, n, s);
 }
 
+/* The limit a deepening search holds a pair to that starts d deep: a
+ * little past *limit (a backed-up substep left it there), it may not get
+ * deeper by more than a tenth of the limit (a bolt that let it go ended
+ * 7.9 mm in the floor); far past it (a pile at the substep cap), 0: not
+ * held, the push-out works on it (holding those doubled the time of the
+ * 1000-body drop). */
+static int held_limit(double d, double *limit)
+{
+    if (d > 2 * *limit)
+        return 0;
+    if (d > *limit)
+        *limit = d + 0.1 * *limit;
+    return 1;
+}
+
 /* The deepening search: steps of (gap + limit) / rate keep the depth
  * within the limit (the gap is -depth along n where they overlap), at
  * least CA_DEEP_STEP of the limit, so that one that passes it ends a
@@ -357,12 +372,9 @@ int sc_toi_ca_deepen_before_ctx(sc_np_ctx *ctx, const sc_shape *a, const sc_pose
     int rc = deepest_at(ctx, a, a0, a1, b, b0, b1, 0, &d0, n0);
     if (rc < 0)
         return rc;
-    /* as the sampling search: far past the limit is left to the push-out,
-     * a little past it is held a tenth of the limit deeper */
-    if (d0 > 2 * limit_m)
+    /* as the sampling search */
+    if (!held_limit(d0, &limit_m))
         return 0;
-    if (d0 > limit_m)
-        limit_m = d0 + 0.1 * limit_m;
     sc_pose_lerp(&pa, a0, a1, 0);
     sc_pose_lerp(&pb, b0, b1, 0);
     if (d0 >= 0)
@@ -423,15 +435,8 @@ int sc_toi_sample_deepen_before_ctx(sc_np_ctx *ctx, const sc_shape *a, const sc_
     int rc = depth_at(ctx, a, a0, a1, b, b0, b1, 0.0, &d);
     if (rc < 0)
         return rc;
-    /* A little past it (a backed-up substep left it there): it may not
-     * get deeper by more than a tenth of the limit (a bolt that let it go
-     * ended 7.9 mm in the floor). Far past it (a pile at the substep cap):
-     * not held, the push-out works on it; holding those doubled the time
-     * of the 1000-body drop. */
-    if (d > 2 * limit_m)
+    if (!held_limit(d, &limit_m))
         return 0;
-    if (d > limit_m)
-        limit_m = d + 0.1 * limit_m;
     return sample_deepen(ctx, a, a0, a1, b, b0, b1, limit_m, 0, tmax, t);
 }
 

@@ -482,22 +482,6 @@ static int frame_cfg_ok(const sc_frame_config *c, double dt)
            dt > 0;
 }
 
-/* Index of id in the ascending ids[0 .. m), or -1. */
-static int find_sorted(const int *ids, int m, int id)
-{
-    int lo = 0, hi = m - 1;
-    while (lo <= hi) {
-        int mid = lo + (hi - lo) / 2;
-        if (ids[mid] == id)
-            return mid;
-        if (ids[mid] < id)
-            lo = mid + 1;
-        else
-            hi = mid - 1;
-    }
-    return -1;
-}
-
 /* Group k of a master's GROUP job: its bodies' world ids in the copy's
  * order (sc_group_ids) and its counts. */
 typedef struct group_map {
@@ -548,8 +532,8 @@ static void write_group(wbuf *w, const void *job_, const void *gm_)
     }
     for (int q = 0; q < gm->nc; q++) {
         const sc_contact *c = &st->contacts[g->contacts[g->cstart[gm->k] + q]];
-        put_contact(w, c, find_sorted(gm->ids, gm->m, c->body_a),
-                    find_sorted(gm->ids, gm->m, c->body_b), 1);
+        put_contact(w, c, sc_group_local_id(gm->ids, gm->m, c->body_a),
+                    sc_group_local_id(gm->ids, gm->m, c->body_b), 1);
     }
 }
 
