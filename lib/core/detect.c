@@ -247,11 +247,16 @@ int sc_detect(sc_frame *f)
     t0 = sc_cpu_now();
     rc = narrowphase(f, npairs);
     sc_stage_add(f->stats, SC_STAGE_NARROWPHASE, t0);
-    /* a sleeping body touched by an awake one wakes up */
-    for (int k = 0; rc == SC_OK && k < st->ncontacts; k++) {
-        sc_body *a = &st->bodies[st->contacts[k].body_a], *b = &st->bodies[st->contacts[k].body_b];
+    if (rc == SC_OK)
+        sc_wake_touched(st->bodies, st->contacts, st->ncontacts);
+    return rc;
+}
+
+void sc_wake_touched(sc_body *bodies, const sc_contact *c, int n)
+{
+    for (int k = 0; k < n; k++) {
+        sc_body *a = &bodies[c[k].body_a], *b = &bodies[c[k].body_b];
         if (a->state == SC_ASLEEP && sc_body_movable(b)) { a->state = SC_CONTACT; a->rest_s = 0; }
         if (b->state == SC_ASLEEP && sc_body_movable(a)) { b->state = SC_CONTACT; b->rest_s = 0; }
     }
-    return rc;
 }

@@ -187,11 +187,7 @@ static int substeps(sc_frame *f, double dt, sc_body *saved, unsigned char *touch
              * body wakes for the re-solve, as detection wakes one touched
              * (else it would stay immovable, and the other body might
              * come to rest on it at a gap, never touching it) */
-            for (int k = 0; k < spec.n; k++) {
-                sc_body *ba = &saved[spec.c[k].body_a], *bb = &saved[spec.c[k].body_b];
-                if (ba->state == SC_ASLEEP && sc_body_movable(bb)) { ba->state = SC_CONTACT; ba->rest_s = 0; }
-                if (bb->state == SC_ASLEEP && sc_body_movable(ba)) { bb->state = SC_CONTACT; bb->rest_s = 0; }
-            }
+            sc_wake_touched(saved, spec.c, spec.n);
             memcpy(st->bodies, saved, (size_t)n * sizeof *saved);
             if (back) {
                 /* back up to the first impact of the pairs nothing holds;
