@@ -173,14 +173,34 @@ static double near_of(const sc_frame *f, int a, int b)
     return 0.1 * fmin(f->st->bodies[a].shape->bound_r, f->st->bodies[b].shape->bound_r);
 }
 
+/* The run of pair (a, b) in the pair-sorted c[0 .. n): its first index,
+ * *end one past its last (both the pair's place when it has none). */
+static int pair_run(const sc_contact *c, int n, int a, int b, int *end)
+{
+    int k = sc_contacts_pair_start(c, n, a, b), e = k;
+    while (e < n && c[e].body_a == a && c[e].body_b == b)
+        e++;
+    *end = e;
+    return k;
+}
+
+/* Pair (a, b) held: its detected contacts marked 2 in fast, one fast pair
+ * fewer. */
+static void mark_held(const sc_frame_state *st, int a, int b, unsigned char *fast, int *nfast)
+{
+    int k1, k0 = pair_run(st->contacts, st->ncontacts, a, b, &k1);
+    memset(fast + k0, 2, (size_t)(k1 - k0));
+    (*nfast)--;
+}
+
 /* How deep pair (a, b) may get in this substep: the tolerance for a new
  * pair; for one touching at the start (contacts in c0, *touching = 1)
  * its deepest start depth plus a tenth of the tolerance. */
 static double pair_limit(const sc_contact *c0, int n0, int a, int b, double tol, int *touching)
 {
     double d0 = -1;
-    for (int j = sc_contacts_pair_start(c0, n0, a, b);
-         j < n0 && c0[j].body_a == a && c0[j].body_b == b; j++)
+    int j1;
+    for (int j = pair_run(c0, n0, a, b, &j1); j < j1; j++)
         d0 = fmax(d0, c0[j].depth);
     *touching = d0 >= 0;
     return d0 < 0 ? tol : fmax(tol, d0 + 0.1 * tol);
@@ -239,9 +259,7 @@ static int end_contacts(sc_frame *f, const sc_body *saved, const sc_contact *c0,
 {
     const sc_frame_state *st = f->st;
     int a = st->contacts[k0].body_a, b = st->contacts[k0].body_b;
-    int j0 = sc_contacts_pair_start(c0, n0, a, b), j1 = j0;
-    while (j1 < n0 && c0[j1].body_a == a && c0[j1].body_b == b)
-        j1++;
+    int j1, j0 = pair_run(c0, n0, a, b, &j1);
     sc_pose a0, b0;
     sc_body_pose(&saved[a], &a0);
     sc_body_pose(&saved[b], &b0);
@@ -315,16 +333,12 @@ static int hold_at_end(sc_frame *f, const sc_body *saved, const sc_contact *c0, 
                        int *nfast)
 {
     const sc_frame_state *st = f->st;
-    int k0 = sc_contacts_pair_start(st->contacts, st->ncontacts, a, b), k1 = k0;
-    while (k1 < st->ncontacts && st->contacts[k1].body_a == a && st->contacts[k1].body_b == b)
-        k1++;
+    int k1, k0 = pair_run(st->contacts, st->ncontacts, a, b, &k1);
     int touching;
     double limit = pair_limit(c0, n0, a, b, f->cfg->contact_tol_m, &touching);
     int added = end_contacts(f, saved, c0, n0, k0, k1, limit, touching, h, hold, spec);
-    if (added > 0) {
-        memset(fast + k0, 2, (size_t)(k1 - k0));
-        (*nfast)--;
-    }
+    if (added > 0)
+        mark_held(st, a, b, fast, nfast);
     return added;
 }
 
@@ -390,9 +404,7 @@ int sc_spec_touch(sc_frame *f, const sc_body *saved, const sc_contact *c0, int n
     for (int i = 0; rc == SC_OK && i < nc; i++) {
         const sc_unit_pair *q = &cp[i];
         int a = q->body_a, b = q->body_b;
-        int j0 = sc_contacts_pair_start(c0, n0, a, b), j1 = j0;
-        while (j1 < n0 && c0[j1].body_a == a && c0[j1].body_b == b)
-            j1++;
+        int j1, j0 = pair_run(c0, n0, a, b, &j1);
         sc_contact s[SC_MAX_PAIR_CONTACTS];
         double gap = INFINITY;
         for (int k = 0; k < ncontact[i]; k++) {
@@ -400,40 +412,29 @@ int sc_spec_touch(sc_frame *f, const sc_body *saved, const sc_contact *c0, int n
                             &q->b1);
             gap = fmin(gap, -s[k].depth);
         }
-        if ((gap > margin || pushed_in(f, saved, s, ncontact[i], h)) && !hold)
-            continue;    /* too far to bounce early, or pushed in: backs up */
-        if (gap > margin) {
-            /* a substep already backed up: held where it ended */
-            int r = hold_at_end(f, saved, c0, n0, a, b, h, hold, spec, fast, nfast);
-            if (r < 0)
-                rc = r;
-            ntouch += r > 0;
+        /* too far to bounce early, or pushed in: it backs up, unless the
+         * substep already backed up (then it is held where it ended) */
+        int far = gap > margin;
+        if (!hold && (far || pushed_in(f, saved, s, ncontact[i], h)))
             continue;
-        }
         int added = 0;
-        for (int k = 0; k < ncontact[i] && rc == SC_OK; k++) {
+        for (int k = 0; !far && k < ncontact[i] && rc == SC_OK; k++) {
             int r = spec_add(spec, c0, j0, j1, &s[k], near_of(f, a, b));
             if (r < 0)
                 rc = r;
             added |= r > 0;
         }
-        if (!added) {
-            /* nothing new at the touch: where it ended, then */
+        if (added) {
+            mark_held(st, a, b, fast, nfast);
+            ntouch++;
+        } else if (rc == SC_OK) {
+            /* nothing new at the touch: where it ended, then (else it
+             * backs up) */
             int r = hold_at_end(f, saved, c0, n0, a, b, h, hold, spec, fast, nfast);
             if (r < 0)
                 rc = r;
             ntouch += r > 0;
-            if (r != 0)
-                continue;
-            continue;    /* nothing new to hold it: it backs up */
         }
-        /* the pair's contacts are no longer fast */
-        int k0 = sc_contacts_pair_start(st->contacts, st->ncontacts, a, b), k1 = k0;
-        while (k1 < st->ncontacts && st->contacts[k1].body_a == a && st->contacts[k1].body_b == b)
-            k1++;
-        memset(fast + k0, 2, (size_t)(k1 - k0));
-        (*nfast)--;
-        ntouch++;
     }
     sc_arena_free(ar, ncontact);
     sc_arena_free(ar, uc);
