@@ -97,6 +97,7 @@ enum { SC_SHAPE_SPHERE, SC_SHAPE_BOX, SC_SHAPE_PLANE, SC_SHAPE_CONVEX, SC_SHAPE_
 /* Limits on what a mesh may hold (loaders and sc_shape_mesh enforce them). */
 #define SC_MESH_MAX_VERTS 1000000
 #define SC_MESH_MAX_TRIS  2000000
+#define SC_MESH_MAX_PIECES 4096
 
 /* Mass properties for unit density, in the shape's own frame. */
 typedef struct sc_mass_props {
@@ -115,6 +116,16 @@ SC_API sc_shape *sc_shape_plane(double nx, double ny, double nz, double d);
  * the data are copied, vertices no triangle uses dropped. Non-convex
  * meshes are fine. */
 SC_API sc_shape *sc_shape_mesh(const double *xyz, int nverts, const int *tri, int ntris);
+/* A mesh as sc_shape_mesh() whose collisions with other bodies use convex
+ * pieces instead of its triangles (a convex decomposition, such as V-HACD
+ * makes): piece k is the convex hull of counts[k] >= 4 points, taken in
+ * order from pts (3 doubles each, the mesh's frame). Their union should be
+ * the mesh's solid: it is what other bodies collide with. Mass, rendering
+ * and contacts with planes use the mesh. Every point must lie within the
+ * mesh's bounding box and sphere and every hull be solid, else SC_EINVAL;
+ * at most SC_MESH_MAX_PIECES pieces. */
+SC_API sc_shape *sc_shape_mesh_pieces(const double *xyz, int nverts, const int *tri, int ntris,
+                                      const double *pts, const int *counts, int npieces);
 /* The convex hull of npoints points (xyz: 3*npoints). */
 SC_API sc_shape *sc_shape_convex(const double *xyz, int npoints);
 /* A mesh from a Wavefront .obj or STL (binary or ASCII) file. NULL on error,
@@ -128,13 +139,17 @@ SC_API sc_shape *sc_shape_load_err(const char *path, char *err, size_t errlen);
 /* A UV sphere mesh: slices around, stacks pole to pole; 2*slices*(stacks-1)
  * triangles (224 for the paper's (r, 16, 8)). Convex. */
 SC_API sc_shape *sc_shape_uv_sphere(double r, int slices, int stacks);
-/* The paper's bolt: hex head + round shaft along +z, 180 triangles. */
+/* The paper's bolt: hex head + round shaft along +z, 180 triangles; two
+ * convex pieces (head, shaft). */
 SC_API sc_shape *sc_shape_bolt(void);
-/* The paper's nut: hexagonal prism with a round hole along z, 396 triangles. */
+/* The paper's nut: hexagonal prism with a round hole along z, 396
+ * triangles; 16 convex pieces (one per edge of the hole). */
 SC_API sc_shape *sc_shape_nut(void);
 
 /* SC_SHAPE_* kind of s. */
 SC_API int sc_shape_kind(const sc_shape *s);
+/* Number of convex pieces of a mesh (sc_shape_mesh_pieces()); 0 if none. */
+SC_API int sc_shape_pieces(const sc_shape *s);
 /* Number of triangles of a mesh or hull; 0 for analytic shapes. */
 SC_API int sc_shape_triangles(const sc_shape *s);
 /* Mass properties per unit density; SC_ENOTSUP for planes. */
@@ -302,6 +317,9 @@ typedef struct sc_stats {
     long lcp_block_fallbacks; /* block solves that failed: projected
                                  Gauss-Seidel on that block instead */
     int lcp_nan_islands;      /* islands with non-finite data: no impulse */
+    int lcp_inelastic;        /* islands whose elastic answer added kinetic
+                                 energy (restitution at several contacts at
+                                 once): solved again with e = 0 */
     double lcp_residual;      /* largest complementarity error of an exact
                                  solve (w_i z_i etc., m/s), last frame */
     double lcp_outer_residual;/* largest outer residual of a split solve, m/s */

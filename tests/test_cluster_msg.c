@@ -573,6 +573,7 @@ static void test_shapes_round_trip_and_tampered_ones_are_refused(void **state)
         assert_true(back->hash == s->hash);
         assert_int_equal(back->kind, s->kind);
         assert_int_equal(back->ntris, s->ntris);
+        assert_int_equal(back->npieces, s->npieces);
         sc_shape_release(back);
         /* flip one byte at a few places: header, arrays, tail */
         size_t at[] = { 9, 17, n / 2, n - 30, n - 1 };
@@ -597,6 +598,51 @@ static void test_shapes_round_trip_and_tampered_ones_are_refused(void **state)
     free(p);
 }
 
+/* A mesh's convex pieces travel with it (the nut's 16); piece counts that
+ * are zero, huge, do not add up to the points sent, or move points from
+ * one piece to another are refused, and nothing is built from them. */
+static void test_shape_pieces_travel_and_bad_counts_are_refused(void **state)
+{
+    (void)state;
+    sc_shape *nut = sc_shape_nut();
+    assert_non_null(nut);
+    assert_int_equal(nut->npieces, 16);
+    uint8_t *p;
+    size_t n;
+    assert_int_equal(sc_msg_shape_encode(nut, &p, &n), SC_OK);
+    /* the tail: npieces (big-endian i32) and the counts */
+    size_t np_at = n - 4 * 17, c0 = n - 4 * 16;
+    struct { size_t at; uint32_t v; } bad[] = {
+        { c0, 0 },                                      /* an empty piece */
+        { c0, 0x7fffffff },                             /* more points than sent */
+        { c0, (uint32_t)-3 },
+        { c0, (uint32_t)nut->piece_count[0] + 1 },      /* the sum is off */
+        { np_at, 17 },                                  /* one count too many */
+        { np_at, (uint32_t)-1 },
+    };
+    sc_shape *back = NULL;
+    for (size_t k = 0; k < sizeof bad / sizeof *bad; k++) {
+        uint8_t keep[4];
+        memcpy(keep, p + bad[k].at, 4);
+        put_be32(p + bad[k].at, bad[k].v);
+        assert_int_equal(sc_msg_shape_decode(p, n, &back), SC_EFORMAT);
+        assert_null(back);
+        memcpy(p + bad[k].at, keep, 4);
+    }
+    /* a point moved from piece 0 to piece 1: the same sum, other hulls */
+    put_be32(p + c0, (uint32_t)nut->piece_count[0] - 1);
+    put_be32(p + c0 + 4, (uint32_t)nut->piece_count[1] + 1);
+    assert_int_equal(sc_msg_shape_decode(p, n, &back), SC_EFORMAT);
+    assert_null(back);
+    put_be32(p + c0, (uint32_t)nut->piece_count[0]);
+    put_be32(p + c0 + 4, (uint32_t)nut->piece_count[1]);
+    assert_int_equal(sc_msg_shape_decode(p, n, &back), SC_OK);
+    assert_true(back->hash == nut->hash);
+    sc_shape_release(back);
+    free(p);
+    sc_shape_release(nut);
+}
+
 int main(void)
 {
     const struct CMUnitTest tests[] = {
@@ -616,6 +662,7 @@ int main(void)
         cmocka_unit_test(test_seal_refuses_bad_arguments),
         cmocka_unit_test(test_key_files_round_trip_and_bad_ones_are_refused),
         cmocka_unit_test(test_shapes_round_trip_and_tampered_ones_are_refused),
+        cmocka_unit_test(test_shape_pieces_travel_and_bad_counts_are_refused),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
 }

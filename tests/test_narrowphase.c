@@ -576,6 +576,61 @@ static void test_threads_collide_shared_shapes_concurrently(void **state)
     sc_shape_release(nut);
 }
 
+/* A box pressed 2 mm into the nut's top face astride the cut between two
+ * of its convex pieces (1.5 mm of it on one side): the cut is inside the
+ * nut, so it is pushed up (+z), not out sideways through the cut, which is
+ * the shallower way out of that piece. */
+static void test_a_box_astride_a_nut_piece_cut_is_pushed_up(void **state)
+{
+    (void)state;
+    sc_shape *nut = sc_shape_nut(), *box = sc_shape_box(0.002, 0.002, 0.002);
+    double lo, hi;
+    z_range(nut, &lo, &hi);
+    sc_pose n = at(0, 0, 0);
+    /* the cut at angle 0 is the plane y = 0, from the hole out to x = 20 mm */
+    sc_pose b = at(0.015, 0.0005, hi);     /* its bottom 2 mm below the top */
+    sc_contact c[4];
+    int k = sc_collide(nut, &n, box, &b, c, 4);
+    assert_true(k >= 3);
+    assert_normals(c, k, 0, 0, 1, 1e-6);
+    assert_true(fabs(max_depth(c, k) - 0.002) < 1e-6);
+    sc_shape_release(nut);
+    sc_shape_release(box);
+}
+
+/* A mesh cut into two convex halves collides as the whole mesh does: the
+ * same deepest point, normal and manifold size for a box resting on it. */
+static void test_mesh_pieces_collide_as_the_whole(void **state)
+{
+    (void)state;
+    static const double xyz[] = { 0, 0, 0, 2, 0, 0, 2, 3, 0, 0, 3, 0,
+                                  0, 0, 4, 2, 0, 4, 2, 3, 4, 0, 3, 4 };
+    static const int tri[] = { 0, 2, 1, 0, 3, 2, 4, 5, 6, 4, 6, 7, 0, 1, 5, 0, 5, 4,
+                               1, 2, 6, 1, 6, 5, 2, 3, 7, 2, 7, 6, 3, 0, 4, 3, 4, 7 };
+    double pts[48];
+    for (int h = 0; h < 2; h++)
+        for (int i = 0; i < 8; i++) {
+            pts[24 * h + 3 * i] = i & 1 ? 2 : 0;
+            pts[24 * h + 3 * i + 1] = i & 2 ? 3 : 0;
+            pts[24 * h + 3 * i + 2] = 2 * h + (i & 4 ? 2 : 0);
+        }
+    int counts[2] = { 8, 8 };
+    sc_shape *whole = sc_shape_mesh(xyz, 8, tri, 12),
+             *cut = sc_shape_mesh_pieces(xyz, 8, tri, 12, pts, counts, 2),
+             *box = sc_shape_box(0.3, 0.3, 0.3);
+    assert_true(whole && cut && box);
+    sc_pose m = at(0, 0, 0), b = at(1, 1.5, 4 + 0.3 - 0.001);
+    sc_contact cw[4], cc[4];
+    int kw = sc_collide(whole, &m, box, &b, cw, 4), kc = sc_collide(cut, &m, box, &b, cc, 4);
+    assert_int_equal(kw, 4);
+    assert_int_equal(kc, kw);
+    assert_normals(cc, kc, 0, 0, 1, 1e-9);
+    assert_true(fabs(max_depth(cc, kc) - max_depth(cw, kw)) < 1e-12);
+    sc_shape_release(whole);
+    sc_shape_release(cut);
+    sc_shape_release(box);
+}
+
 int main(void)
 {
     const struct CMUnitTest tests[] = {
@@ -586,6 +641,8 @@ int main(void)
         cmocka_unit_test(test_bolt_lying_on_plane_touches_on_its_head),
         cmocka_unit_test(test_bolt_standing_on_head_gets_a_spread_manifold),
         cmocka_unit_test(test_bolt_passes_through_nut_hole_without_contact),
+        cmocka_unit_test(test_a_box_astride_a_nut_piece_cut_is_pushed_up),
+        cmocka_unit_test(test_mesh_pieces_collide_as_the_whole),
         cmocka_unit_test(test_nut_resting_on_bolt_head_is_pushed_up_the_axis),
         cmocka_unit_test(test_crossed_bolts_touch_shaft_on_shaft),
         cmocka_unit_test(test_nuts_stacked_flat_touch_on_their_faces),

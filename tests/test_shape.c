@@ -6,6 +6,7 @@
 #include <stddef.h>
 #include <stdint.h>
 #include <stdlib.h>
+#include <string.h>
 #include <cmocka.h>
 
 #include "simcluster.h"
@@ -300,6 +301,67 @@ static void test_every_error_code_has_a_sentence(void **state)
     assert_string_equal(sc_strerror(-999), "unknown error code");
 }
 
+/* The 8 corners of [x0,x1] x [y0,y1] x [z0,z1] into p (24 doubles). */
+static void box_points(double *p, double x0, double x1, double y0, double y1, double z0,
+                       double z1)
+{
+    for (int i = 0; i < 8; i++) {
+        p[3 * i] = i & 1 ? x1 : x0;
+        p[3 * i + 1] = i & 2 ? y1 : y0;
+        p[3 * i + 2] = i & 4 ? z1 : z0;
+    }
+}
+
+/* A mesh's convex pieces: counted, the mesh's mass kept, and bad pieces
+ * (too few points, outside the mesh, flat, not finite, none, too many)
+ * refused with a code. The paper's bolt has 2, its nut 16. */
+static void test_mesh_pieces_are_checked(void **state)
+{
+    (void)state;
+    double pts[48];
+    int counts[2] = { 8, 8 };
+    box_points(pts, 0, 2, 0, 3, 0, 2);
+    box_points(pts + 24, 0, 2, 0, 3, 2, 4);
+    sc_shape *s = sc_shape_mesh_pieces(cube_xyz, 8, cube_tri, 12, pts, counts, 2);
+    assert_non_null(s);
+    assert_int_equal(sc_shape_pieces(s), 2);
+    assert_int_equal(sc_shape_kind(s), SC_SHAPE_MESH);
+    sc_mass_props mp;
+    assert_int_equal(sc_shape_mass_props(s, &mp), SC_OK);
+    assert_true(fabs(mp.volume - 24) < 1e-12);
+    sc_shape_release(s);
+    sc_shape *plain = sc_shape_mesh(cube_xyz, 8, cube_tri, 12), *bolt = sc_shape_bolt(),
+             *nut = sc_shape_nut();
+    assert_int_equal(sc_shape_pieces(plain), 0);
+    assert_int_equal(sc_shape_pieces(bolt), 2);
+    assert_int_equal(sc_shape_pieces(nut), 16);
+    sc_shape_release(plain);
+    sc_shape_release(bolt);
+    sc_shape_release(nut);
+
+    assert_null(sc_shape_mesh_pieces(cube_xyz, 8, cube_tri, 12, pts, counts, 0));
+    assert_int_equal(sc_last_error(), SC_EINVAL);
+    assert_null(sc_shape_mesh_pieces(cube_xyz, 8, cube_tri, 12, NULL, counts, 2));
+    assert_int_equal(sc_last_error(), SC_EINVAL);
+    int few[2] = { 3, 13 };
+    assert_null(sc_shape_mesh_pieces(cube_xyz, 8, cube_tri, 12, pts, few, 2));
+    assert_int_equal(sc_last_error(), SC_EINVAL);
+    assert_null(sc_shape_mesh_pieces(cube_xyz, 8, cube_tri, 12, pts, counts,
+                                     SC_MESH_MAX_PIECES + 1));
+    assert_int_equal(sc_last_error(), SC_ETOOBIG);
+    double bad[48];
+    memcpy(bad, pts, sizeof bad);
+    bad[3 * 9] = 2.5;                             /* outside the mesh */
+    assert_null(sc_shape_mesh_pieces(cube_xyz, 8, cube_tri, 12, bad, counts, 2));
+    assert_int_equal(sc_last_error(), SC_EINVAL);
+    bad[3 * 9] = NAN;
+    assert_null(sc_shape_mesh_pieces(cube_xyz, 8, cube_tri, 12, bad, counts, 2));
+    assert_int_equal(sc_last_error(), SC_EINVAL);
+    box_points(bad, 0, 2, 0, 3, 1, 1);            /* a flat piece */
+    assert_null(sc_shape_mesh_pieces(cube_xyz, 8, cube_tri, 12, bad, counts, 2));
+    assert_int_equal(sc_last_error(), SC_EINVAL);
+}
+
 int main(void)
 {
     const struct CMUnitTest tests[] = {
@@ -314,6 +376,7 @@ int main(void)
         cmocka_unit_test(test_unused_vertices_are_dropped_not_fatal),
         cmocka_unit_test(test_bad_analytic_parameters_are_rejected),
         cmocka_unit_test(test_convex_hull_shape_of_cube_points),
+        cmocka_unit_test(test_mesh_pieces_are_checked),
         cmocka_unit_test(test_shapes_are_reference_counted),
         cmocka_unit_test(test_every_error_code_has_a_sentence),
     };

@@ -1199,7 +1199,7 @@ static void test_result_for_another_unit_is_a_format_error(void **state)
     }
     /* an island result whose contact count or counters are wrong changes
      * nothing (layout: header 8, members 4, rc 4, messages 8, pivots 8,
-     * failures ... cold_starts 14 x 4, residuals 16, contacts 4) */
+     * failures ... inelastic 15 x 4, residuals 16, contacts 4) */
     int big = 0;
     for (int i = 1; i < ij.is.count; i++)
         if (island_unit(&ij.is, i, 1).count > island_unit(&ij.is, big, 1).count)
@@ -1210,7 +1210,7 @@ static void test_result_for_another_unit_is_a_format_error(void **state)
     free(res);
     buf = pack_unit(&ij.jr, &ui, &len);
     res = remote_run(np, buf, len, &cc, &rlen);
-    const size_t pivots = 24, counters = pivots + 8, ncont = counters + 56 + 16;
+    const size_t pivots = 24, counters = pivots + 8, ncont = counters + 60 + 16;
     assert_int_equal(rlen, ncont + 4 +
                                (size_t)(ij.is.body_start[big + 1] - ij.is.body_start[big]) *
                                    (13 * 8 + 4) +
@@ -1225,7 +1225,7 @@ static void test_result_for_another_unit_is_a_format_error(void **state)
         { ncont, 4, (uint64_t)ui.count + 1 }, { ncont, 4, (uint64_t)ui.count - 1 },
         { pivots, 8, (uint64_t)-1 },
     };
-    for (int k = 0; k < 3 + 14; k++) {
+    for (int k = 0; k < 3 + 15; k++) {
         size_t at = k < 3 ? wrong[k].at : counters + 4 * (size_t)(k - 3);
         int nbytes = k < 3 ? wrong[k].n : 4;
         uint64_t v = k < 3 ? wrong[k].v : (uint32_t)-1;   /* a negative counter */
@@ -1242,7 +1242,7 @@ static void test_result_for_another_unit_is_a_format_error(void **state)
     assert_memory_equal(contacts_before, ij.cr, ncb);
     /* the residuals are carried as they are */
     double odd = NAN;
-    memcpy(res + counters + 56, &odd, sizeof odd);
+    memcpy(res + counters + 60, &odd, sizeof odd);
     ui.info.residual_exact = 0;
     assert_int_equal(sc_wire_result_apply(&ij.jr, &ui, res, rlen), SC_OK);
     assert_true(isnan(ui.info.residual_exact));
@@ -1410,12 +1410,12 @@ static void test_bad_group_fields_are_format_errors(void **state)
 }
 
 /* A group result at its layout (header 8, members 4, rc 4, messages 8,
- * info 80; figures 232; per member 288: 35 doubles, state, collided; then
+ * info 84; figures 236; per member 288: 35 doubles, state, collided; then
  * contacts 4 and 88 each). */
 #define GR_RC 12
-#define GR_STATS 104
+#define GR_STATS 108
 #define GR_STAT_INTS (GR_STATS + 8 * 20)
-#define GR_MEMBER(i) (GR_STATS + 232 + 288 * (size_t)(i))
+#define GR_MEMBER(i) (GR_STATS + 236 + 288 * (size_t)(i))
 #define GR_CONTACTS(nm) GR_MEMBER(nm)
 
 /* The hook that sends results at units they do not fit, and malformed
@@ -1425,14 +1425,37 @@ static void group_hostile_results(group_exec *gx, sc_job *job)
     const sc_group_job *gj = job->group;
     const sc_groups *g = gj->g;
     size_t nb = (size_t)gj->st->nbodies;
-    /* the unit with the most contacts of the last frame, and one with
-     * another member count */
-    int a = 0, o = -1;
-    for (int i = 1; i < job->nunits; i++) {
-        int k = job->units[i].first, ka = job->units[a].first;
-        if (g->cstart[k + 1] - g->cstart[k] > g->cstart[ka + 1] - g->cstart[ka])
-            a = i;
+    /* of the units whose frame ends with contacts, the one with the most
+     * contacts of the last frame; and one with another member count */
+    int a = -1, o = -1;
+    size_t len = 0, rlen = 0;
+    unsigned char *buf = NULL, *res = NULL;
+    for (int i = 0; i < job->nunits; i++) {
+        int k = job->units[i].first;
+        if (a >= 0) {
+            int ka = job->units[a].first;
+            if (g->cstart[k + 1] - g->cstart[k] <= g->cstart[ka + 1] - g->cstart[ka])
+                continue;
+        }
+        size_t l, rl;
+        unsigned char *b = pack_unit(job, &job->units[i], &l);
+        unsigned char *r = remote_run(gx->remote, b, l, &gx->cc, &rl);
+        uint32_t n;
+        memcpy(&n, r + GR_CONTACTS(g->start[k + 1] - g->start[k]), 4);
+        if (n == 0) {
+            free(b);
+            free(r);
+            continue;
+        }
+        free(buf);
+        free(res);
+        a = i;
+        buf = b;
+        res = r;
+        len = l;
+        rlen = rl;
     }
+    assert_true(a >= 0);
     sc_unit *ua = &job->units[a];
     int ka = ua->first, nm = g->start[ka + 1] - g->start[ka];
     for (int i = 0; i < job->nunits && o < 0; i++) {
@@ -1440,9 +1463,6 @@ static void group_hostile_results(group_exec *gx, sc_job *job)
         if (g->start[k + 1] - g->start[k] != nm)
             o = i;
     }
-    size_t len, rlen;
-    unsigned char *buf = pack_unit(job, ua, &len);
-    unsigned char *res = remote_run(gx->remote, buf, len, &gx->cc, &rlen);
     sc_body *before = malloc(nb * sizeof *before);
     assert_non_null(before);
     memcpy(before, gj->st->bodies, nb * sizeof *before);

@@ -565,7 +565,7 @@ typedef struct totals {
     int interrupted;            /* the signal that stopped the run, else 0 */
     long duplicates;            /* duplicate daemon ids reported so far */
     /* the contact solver, summed (or the largest) over the frames */
-    long solves, split, blocks, pivots, staggered, split_fb, block_fb, nan, unconverged;
+    long solves, split, blocks, pivots, staggered, split_fb, block_fb, nan, inelastic, unconverged;
     long substeps, max_pivots, backups, spec;
     int max_sweeps, max_substeps, max_backups;
     double residual, outer_residual;
@@ -653,6 +653,7 @@ static int simulate(const options *o, sc_world *w, totals *t, int progress, reco
         t->split_fb += st.lcp_split_fallbacks;
         t->block_fb += st.lcp_block_fallbacks;
         t->nan += st.lcp_nan_islands;
+        t->inelastic += st.lcp_inelastic;
         t->unconverged += st.lcp_unconverged;
         t->max_sweeps = st.lcp_sweeps_max > t->max_sweeps ? st.lcp_sweeps_max : t->max_sweeps;
         t->residual = fmax(t->residual, st.lcp_residual);
@@ -817,7 +818,8 @@ static int run_cmd(int argc, char **argv)
                "\"solver\": {\"island_split\": %d, \"solves\": %ld, \"split\": %ld, "
                "\"blocks\": %ld, \"pivots\": %ld, \"max_frame_pivots\": %ld, "
                "\"staggered_fallbacks\": %ld, \"split_fallbacks\": %ld, "
-               "\"block_fallbacks\": %ld, \"nan_islands\": %ld, \"unconverged\": %ld, "
+               "\"block_fallbacks\": %ld, \"nan_islands\": %ld, \"inelastic_islands\": %ld, "
+               "\"unconverged\": %ld, "
                "\"max_sweeps\": %d, \"max_residual\": %.3g, \"max_outer_residual\": %.3g, "
                "\"substeps\": %ld, \"max_substeps\": %d}, "
                "\"toi\": {\"mode\": \"%s\", \"backups\": %ld, \"max_frame_backups\": %d, "
@@ -830,7 +832,7 @@ static int run_cmd(int argc, char **argv)
                st.dropped_misaddressed,
                st.duplicate_nodes, t.comm, t.msgs_out, t.msgs_in, t.over_budget, t.max_frame, t.overlaps,
                island_split, t.solves, t.split, t.blocks, t.pivots, t.max_pivots, t.staggered,
-               t.split_fb, t.block_fb, t.nan, t.unconverged, t.max_sweeps, t.residual,
+               t.split_fb, t.block_fb, t.nan, t.inelastic, t.unconverged, t.max_sweeps, t.residual,
                t.outer_residual, t.substeps, t.max_substeps,
                o.toi_mode == SC_TOI_LOCAL ? "local" : "world", t.backups, t.max_backups, t.spec,
                hash,
@@ -863,8 +865,8 @@ static int run_cmd(int argc, char **argv)
                o.toi_mode == SC_TOI_LOCAL ? "local" : "world",
                t.frames ? (double)t.backups / (double)t.frames : 0.0, t.max_backups, t.spec);
         printf("  fallbacks: staggered friction %ld, blocks after staggered %ld, projected "
-               "Gauss-Seidel blocks %ld, non-finite islands %ld\n",
-               t.staggered, t.split_fb, t.block_fb, t.nan);
+               "Gauss-Seidel blocks %ld, non-finite islands %ld, inelastic re-solves %ld\n",
+               t.staggered, t.split_fb, t.block_fb, t.nan, t.inelastic);
         printf("  work units %ld", t.units);
         if (o.cluster)
             printf(", from daemons %ld, recomputed %ld, late %ld, dropped messages %ld",

@@ -55,6 +55,7 @@ void sc_stats_add_solve(sc_stats *st, const sc_solve_info *info)
     st->lcp_split_fallbacks += info->split_fallbacks;
     st->lcp_block_fallbacks += info->block_fallbacks;
     st->lcp_nan_islands += info->nan_islands;
+    st->lcp_inelastic += info->inelastic;
     st->lcp_residual = fmax(st->lcp_residual, info->residual_exact);
     st->lcp_outer_residual = fmax(st->lcp_outer_residual, info->residual_split);
 }
@@ -75,6 +76,7 @@ void sc_stats_add_solver(sc_stats *s, const sc_stats *g)
     s->lcp_split_fallbacks += g->lcp_split_fallbacks;
     s->lcp_block_fallbacks += g->lcp_block_fallbacks;
     s->lcp_nan_islands += g->lcp_nan_islands;
+    s->lcp_inelastic += g->lcp_inelastic;
     s->lcp_residual = fmax(s->lcp_residual, g->lcp_residual);
     s->lcp_outer_residual = fmax(s->lcp_outer_residual, g->lcp_outer_residual);
     if (g->substeps > s->substeps)
@@ -101,6 +103,7 @@ void sc_stats_clear_solver(sc_stats *st)
     st->lcp_split_fallbacks = 0;
     st->lcp_block_fallbacks = 0;
     st->lcp_nan_islands = 0;
+    st->lcp_inelastic = 0;
     st->lcp_residual = 0;
     st->lcp_outer_residual = 0;
     st->substeps = 0;

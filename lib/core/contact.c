@@ -755,6 +755,49 @@ static int push_out(sc_arena *a, const row *rows, const int *nsel, int nn, const
     return rc;
 }
 
+/* An elastic answer may add kinetic energy beyond this share of the
+ * island's (before or after the substep's forces, whichever is more):
+ * Newton's restitution applied at several contacts at once can, and on
+ * near-opposed contacts (a part pinched inside another) it turned a
+ * 4 m/s approach into 27 m/s (docs/DESIGN.md section 11). Single
+ * collisions under gravity gain at most about g h / v, far below this. */
+#define ELASTIC_GAIN_MAX 0.05
+
+/* Kinetic energy of movable body b at velocities v, w (world frame), from
+ * what an island solve reads (inv_mass, iw: a remote node's bodies carry
+ * no more, docs/DESIGN.md 7.1). */
+static double kinetic(const sc_body *b, const double v[3], const double w[3])
+{
+    double I[9], iw[3];
+    double rot = 0;
+    if (m3_inverse(I, b->iw)) {
+        m3_mulv(iw, I, w);
+        rot = 0.5 * v3_dot(w, iw);
+    }
+    return 0.5 * v3_dot(v, v) / b->inv_mass + rot;
+}
+
+/* The island's movable bodies, ascending, into ids (2 nc at most);
+ * returns how many. */
+static int island_bodies(const sc_body *bodies, const sc_contact *c, const int *ci, int nc,
+                         int *ids)
+{
+    int n = 0;
+    for (int k = 0; k < nc; k++) {
+        const sc_contact *ck = &c[ci[k]];
+        if (movable(&bodies[ck->body_a]))
+            ids[n++] = ck->body_a;
+        if (movable(&bodies[ck->body_b]))
+            ids[n++] = ck->body_b;
+    }
+    qsort(ids, (size_t)n, sizeof *ids, cmp_int);
+    int m = 0;
+    for (int i = 0; i < n; i++)
+        if (m == 0 || ids[i] != ids[m - 1])
+            ids[m++] = ids[i];
+    return m;
+}
+
 int sc_island_solve(sc_arena *arena, sc_body *bodies, sc_contact *c, const int *ci, int nc,
                     double h, const sc_contact_params *p, sc_solve_info *info)
 {
@@ -782,12 +825,15 @@ int sc_island_solve(sc_arena *arena, sc_body *bodies, sc_contact *c, const int *
     int *nsel = findex ? sc_arena_alloc(arena, n * sizeof *nsel) : NULL;
     int *sel = nsel ? sc_arena_alloc(arena, n * sizeof *sel) : NULL;
     int *cstart = sel ? sc_arena_alloc(arena, (size_t)nc * sizeof *cstart) : NULL;
+    double *vpre_k = cstart ? sc_arena_alloc(arena, (size_t)nc * sizeof *vpre_k) : NULL;
+    int *bid = NULL;                /* the island's bodies (elastic answers) */
+    double *saved = NULL;           /* their velocities before the solve */
     int rc = SC_ENOMEM;
-    if (!cstart)
+    if (!vpre_k)
         goto out;
     double *q = buf, *lo = buf + n, *hi = buf + 2 * n, *mu = buf + 3 * n, *z = buf + 4 * n,
            *w = buf + 5 * n, *off = buf + 6 * n;
-    int r = 0, nn = 0, friction = 0, finite = 1;
+    int r = 0, nn = 0, friction = 0, finite = 1, elastic = 0;
     for (int k = 0; k < nc; k++) {
         sc_contact *ck = &c[ci[k]];
         const sc_body *A_ = &bodies[ck->body_a], *B_ = &bodies[ck->body_b];
@@ -802,6 +848,8 @@ int sc_island_solve(sc_arena *arena, sc_body *bodies, sc_contact *c, const int *
          * collides only if its approach closes the gap within h */
         int collide = vpre < -p->bounce_speed && -ck->depth < -fmin(vpre, speed) * h;
         info->collisions += collide;
+        vpre_k[k] = collide && e > 0 ? vpre : NAN;
+        elastic |= collide && e > 0;
         /* only movable bodies are written: static and sleeping ones are
          * shared by islands solved concurrently */
         if (collide && movable(A_))
@@ -854,6 +902,29 @@ int sc_island_solve(sc_arena *arena, sc_body *bodies, sc_contact *c, const int *
         rc = SC_OK;
         goto impulses;
     }
+    /* an elastic answer is checked for energy it adds (ELASTIC_GAIN_MAX):
+     * the island's bodies and their energy before the solve */
+    int nb = 0, split0 = split;
+    double ke_ref = 0;
+    if (elastic) {
+        bid = sc_arena_alloc(arena, 2 * (size_t)nc * sizeof *bid);
+        saved = bid ? sc_arena_alloc(arena, 12 * (size_t)nc * sizeof *saved) : NULL;
+        if (!saved) {
+            rc = SC_ENOMEM;
+            goto out;
+        }
+        nb = island_bodies(bodies, c, ci, nc, bid);
+        double ke = 0, ke0 = 0;
+        for (int i = 0; i < nb; i++) {
+            const sc_body *b = &bodies[bid[i]];
+            memcpy(&saved[6 * i], b->v, sizeof b->v);
+            memcpy(&saved[6 * i + 3], b->w, sizeof b->w);
+            ke += kinetic(b, b->v, b->w);
+            ke0 += kinetic(b, b->v0, b->w0);
+        }
+        ke_ref = fmax(ke, ke0);
+    }
+solve_again:
     if (!split) {
         build_a(rows, NULL, nrows, A);
         /* small islands start cold: a few pivots, and the answer does not
@@ -920,6 +991,34 @@ int sc_island_solve(sc_arena *arena, sc_body *bodies, sc_contact *c, const int *
             goto out;
     }
 
+    if (elastic) {
+        double ke = 0;
+        for (int i = 0; i < nb; i++)
+            ke += kinetic(&bodies[bid[i]], bodies[bid[i]].v, bodies[bid[i]].w);
+        if (ke > (1 + ELASTIC_GAIN_MAX) * ke_ref + 1e-12) {
+            /* solved again without restitution (counted): the velocity
+             * LCP is then a projection and takes energy out */
+            info->inelastic++;
+            elastic = 0;
+            for (int i = 0; i < nb; i++) {
+                memcpy(bodies[bid[i]].v, &saved[6 * i], sizeof bodies[bid[i]].v);
+                memcpy(bodies[bid[i]].w, &saved[6 * i + 3], sizeof bodies[bid[i]].w);
+            }
+            for (int k = 0; k < nc; k++) {
+                int r0 = cstart[k];
+                if (!isnan(vpre_k[k])) {
+                    double speed = q[r0] - off[r0];
+                    q[r0] = vpre_k[k];
+                    off[r0] = q[r0] - speed;
+                }
+            }
+            for (int i = 0; i < nrows; i++)
+                z[i] = 0;
+            split = split0;
+            goto solve_again;
+        }
+    }
+
     /* split impulse: push deep contacts out by pseudo velocities */
     int deep = 0;
     for (int k = 0; k < nc; k++)
@@ -936,6 +1035,9 @@ impulses:
             v3_madd(ck->impulse, ck->impulse, rows[j].jb, z[j]);
     }
 out:
+    sc_arena_free(arena, saved);
+    sc_arena_free(arena, bid);
+    sc_arena_free(arena, vpre_k);
     sc_arena_free(arena, cstart);
     sc_arena_free(arena, sel);
     sc_arena_free(arena, nsel);

@@ -67,15 +67,39 @@ struct sc_shape {
     double *face_plane;       /* 4 per face: outward unit normal, offset */
     int *face_start;          /* face f: face_vert[face_start[f] .. face_start[f + 1]) */
     int *face_vert;           /* corner indices, counter-clockwise seen from out */
+    unsigned char *face_inner; /* a mesh's convex piece: 1 for each face inside
+                                  the mesh (on another piece); NULL if none */
+    /* meshes: convex pieces the colliders use instead of the triangles
+     * (docs/DESIGN.md 3.3); npieces 0 if none. Piece k is the hull of
+     * piece_count[k] points of piece_pts (shape frame), which the hash and
+     * the wire cover. pieces[k] is built about its points' mean (ODE's
+     * dConvex needs its origin inside), which piece_ball[4k..] holds
+     * (shape frame), then the piece's bounding radius about it. */
+    int npieces;
+    struct sc_shape **pieces;
+    double *piece_ball;
+    double *piece_pts;
+    int *piece_count;
+    int npiece_pts;
 };
+
+/* The points a mesh's convex pieces are built from: piece k is the hull
+ * of count[k] points, 3 doubles each, taken in order from pts. */
+typedef struct sc_piece_set {
+    const double *pts;
+    const int *count;
+    int n;
+} sc_piece_set;
 
 /* A builder's mesh moved so its centre of mass is the origin; takes
  * ownership of xyz and tri. NULL on error (sc_last_error()). */
-sc_shape *sc_shape_mesh_centered(double *xyz, int nverts, int *tri, int ntris);
+sc_shape *sc_shape_mesh_centered(double *xyz, int nverts, int *tri, int ntris,
+                                 const sc_piece_set *pieces);
 /* A shape from the content its hash covers (received by a daemon); the
  * arrays are copied. NULL on error (sc_last_error()). */
 sc_shape *sc_shape_rebuild(int kind, double radius, const double half[3], const double plane[4],
-                           const double *xyz, int nverts, const int *tri, int ntris);
+                           const double *xyz, int nverts, const int *tri, int ntris,
+                           const sc_piece_set *pieces);
 
 /* ODE: process-wide initialisation (once) and the calling thread's ODE data
  * (idempotent, cheap); both needed before any ODE collision call. */
@@ -145,6 +169,8 @@ typedef struct sc_solve_info {
     int block_fallbacks;            /* block solves that failed: projected
                                        Gauss-Seidel on the block instead */
     int nan_islands;                /* islands with non-finite data: no impulse */
+    int inelastic;                  /* islands whose elastic answer added energy:
+                                       solved again with e = 0 */
     int sweeps_max;                 /* most outer sweeps of one split island */
     int unconverged;                /* split islands that stopped at max_sweeps */
     int diverged;                   /* split islands whose sweeps diverged (ended

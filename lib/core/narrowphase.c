@@ -254,6 +254,21 @@ static int mesh_plane(const sc_shape *m, const sc_pose *pm, const sc_shape *pl,
     return k;
 }
 
+/* 1 if dir (world) is the outward normal of an inner face of s (a mesh
+ * piece's face inside the mesh, shape.c), within about 2.5 degrees. */
+static int inner_normal(const sc_shape *s, const sc_pose *p, const double dir[3])
+{
+    if (!s->face_inner)
+        return 0;
+    double R[9], local[3];
+    q_to_m3(R, p->quat);
+    m3_tmulv(local, R, dir);
+    for (int f = 0; f < s->nfaces; f++)
+        if (s->face_inner[f] && v3_dot(local, &s->face_plane[4 * f]) > 0.999)
+            return 1;
+    return 0;
+}
+
 /* The n contacts in c reduced to a well-spread few, at most max of them
  * copied to out; returns how many. */
 static int emit(sc_contact *c, int n, double merge, sc_contact *out, int max)
@@ -266,6 +281,59 @@ static int emit(sc_contact *c, int n, double merge, sc_contact *out, int max)
     if (n > 0)
         memcpy(out, c, (size_t)n * sizeof *out);
     return n;
+}
+
+/* Shape k of s's collision pieces (s itself if it has none), its pose q
+ * in the world (a piece's frame is offset in s's) and its bounding radius
+ * about q's origin. */
+static const sc_shape *piece_at(const sc_shape *s, const sc_pose *p, int k, sc_pose *q,
+                                double *r)
+{
+    *q = *p;
+    if (s->npieces == 0) {
+        *r = s->bound_r;
+        return s;
+    }
+    const double *ball = &s->piece_ball[4 * k];
+    q_rotate(q->pos, p->quat, ball);
+    v3_add(q->pos, q->pos, p->pos);
+    *r = ball[3];
+    return s->pieces[k];
+}
+
+/* A pair where one shape or both have convex pieces: every pair of pieces
+ * whose balls overlap, collided as convex shapes (concurrently: no
+ * trimesh lock unless the other is a mesh without pieces), the contacts
+ * together reduced to the pair's manifold. */
+#define PIECE_BUF 64
+static int collide_pieces(sc_np_ctx *ctx, const sc_shape *a, const sc_pose *pa,
+                          const sc_shape *b, const sc_pose *pb, double merge, sc_contact *out,
+                          int max)
+{
+    sc_contact c[PIECE_BUF + SC_MAX_PAIR_CONTACTS];
+    int n = 0;
+    int na = a->npieces ? a->npieces : 1, nb = b->npieces ? b->npieces : 1;
+    for (int i = 0; i < na; i++) {
+        sc_pose qa;
+        double ra;
+        const sc_shape *sa = piece_at(a, pa, i, &qa, &ra);
+        for (int j = 0; j < nb; j++) {
+            sc_pose qb;
+            double rb;
+            const sc_shape *sb = piece_at(b, pb, j, &qb, &rb);
+            double d[3];
+            v3_sub(d, qa.pos, qb.pos);
+            if (v3_dot(d, d) > (ra + rb) * (ra + rb))
+                continue;
+            int k = sc_np_collide(ctx, sa, &qa, sb, &qb, &c[n], SC_MAX_PAIR_CONTACTS);
+            if (k < 0)
+                return k;
+            n += k;
+            if (n > PIECE_BUF)
+                n = sc_manifold_reduce(c, n, merge);
+        }
+    }
+    return emit(c, n, merge, out, max);
 }
 
 int sc_np_collide(sc_np_ctx *ctx, const sc_shape *a, const sc_pose *pa, const sc_shape *b,
@@ -288,6 +356,8 @@ int sc_np_collide(sc_np_ctx *ctx, const sc_shape *a, const sc_pose *pa, const sc
                                           : mesh_plane(a, pa, b, pb, 0, c, merge);
         return emit(c, n, merge, out, max);
     }
+    if (a->npieces || b->npieces)
+        return collide_pieces(ctx, a, pa, b, pb, merge, out, max);
     const sc_ode *o = ctx->ode;
     if (sc_ode_is_private(o))
         o->dAllocateODEDataForThread(dAllocateMaskAll);
@@ -325,6 +395,14 @@ int sc_np_collide(sc_np_ctx *ctx, const sc_shape *a, const sc_pose *pa, const sc
         int k = sc_poly_clip(a, pa, b, pb, deepest, clip, RAW_CONTACTS);
         if (k > 0)
             return emit(clip, k, merge, out, max);
+        /* a mesh piece's inner face is no way out: push out through the
+         * shallowest outer face instead, or not at all */
+        double back[3];
+        v3_scale(back, c[0].normal, -1);
+        if (inner_normal(a, pa, c[0].normal) || inner_normal(b, pb, back)) {
+            k = sc_poly_clip(a, pa, b, pb, INFINITY, clip, RAW_CONTACTS);
+            return k > 0 ? emit(clip, k, merge, out, max) : 0;
+        }
     }
     return emit(c, n, merge, out, max);
 }

@@ -47,6 +47,7 @@ void sc_poly_free(sc_shape *s)
     free(s->face_plane);
     free(s->face_start);
     free(s->face_vert);
+    free(s->face_inner);
     s->face_xyz = s->face_plane = NULL;
     s->face_start = s->face_vert = NULL;
     s->nfaces = s->nface_xyz = 0;
@@ -250,6 +251,8 @@ static int best_face(const sc_shape *s, const double R[9], const double dir[3])
     int best = 0;
     double bc = -2;
     for (int f = 0; f < s->nfaces; f++) {
+        if (s->face_inner && s->face_inner[f])
+            continue;
         double c = v3_dot(local, &s->face_plane[4 * f]);
         if (c > bc) {
             bc = c;
@@ -261,7 +264,7 @@ static int best_face(const sc_shape *s, const double R[9], const double dir[3])
 
 /* Separating-axis test over the face normals of s (pose Rs, ps) against
  * the corners of o (Ro, po): the least penetration along one of them (< 0:
- * apart), that face in *face. */
+ * apart), that face in *face. A mesh piece's inner faces are left out. */
 static double least_face_depth(const sc_shape *s, const double Rs[9], const double ps[3],
                                const sc_shape *o, const double Ro[9], const double po[3],
                                int *face)
@@ -269,6 +272,8 @@ static double least_face_depth(const sc_shape *s, const double Rs[9], const doub
     double best = INFINITY;
     *face = 0;
     for (int f = 0; f < s->nfaces; f++) {
+        if (s->face_inner && s->face_inner[f])
+            continue;                    /* not a surface: nothing is pushed out there */
         const double *pl = &s->face_plane[4 * f];
         double nw[3], nl[3];
         m3_mulv(nw, Rs, pl);

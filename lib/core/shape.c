@@ -34,6 +34,12 @@ static void shape_free(sc_shape *s)
     free(s->ode_planes);
     free(s->ode_polys);
     sc_poly_free(s);
+    for (int k = 0; s->pieces && k < s->npieces; k++)
+        sc_shape_release(s->pieces[k]);
+    free(s->pieces);
+    free(s->piece_ball);
+    free(s->piece_pts);
+    free(s->piece_count);
     free(s);
 }
 
@@ -58,6 +64,11 @@ static void shape_hash(sc_shape *s)
     if (s->xyz) {
         h = fnv1a(h, s->xyz, (size_t)s->nverts * 3 * sizeof *s->xyz);
         h = fnv1a(h, s->tri, (size_t)s->ntris * 3 * sizeof *s->tri);
+    }
+    if (s->npieces > 0) {     /* shapes without pieces keep their hashes */
+        h = fnv1a(h, &s->npieces, sizeof s->npieces);
+        h = fnv1a(h, s->piece_count, (size_t)s->npieces * sizeof *s->piece_count);
+        h = fnv1a(h, s->piece_pts, (size_t)s->npiece_pts * 3 * sizeof *s->piece_pts);
     }
     s->hash = h;
 }
@@ -225,8 +236,160 @@ static int indices_ok(int nverts, const int *tri, int ntris)
     return 1;
 }
 
-/* Takes ownership of xyz and tri (freed on failure). */
-static sc_shape *mesh_shape_take(int kind, double *xyz, int nverts, int *tri, int ntris)
+/* 1 if point x (mesh frame) is strictly inside piece j of s. */
+static int in_piece(const sc_shape *s, int j, const double x[3])
+{
+    const sc_shape *c = s->pieces[j];
+    double p[3];
+    v3_sub(p, x, &s->piece_ball[4 * j]);
+    for (int g = 0; g < c->nfaces; g++)
+        if (!(v3_dot(&c->face_plane[4 * g], p) - c->face_plane[4 * g + 3] < 0))
+            return 0;
+    return 1;
+}
+
+/* Marks the faces of each piece that lie inside the mesh's solid: where a
+ * point just outside the face (its centre and its corners drawn a tenth
+ * towards the centre, moved out by a millionth of the bounding radius) is
+ * inside another piece, all of them. Nothing is pushed out through such a
+ * face (polyhedron.c, narrowphase.c): the shaft's face inside a bolt's
+ * head, or the cuts between a nut's pieces, would otherwise be the
+ * shallowest way out of a piece for a body that dug in next to them. */
+static int mark_inner_faces(sc_shape *s)
+{
+    double off = 1e-6 * s->bound_r;
+    for (int k = 0; k < s->npieces; k++) {
+        sc_shape *c = s->pieces[k];
+        const double *ball = &s->piece_ball[4 * k];
+        if (c->nfaces == 0)
+            continue;
+        c->face_inner = calloc((size_t)c->nfaces, 1);
+        if (!c->face_inner)
+            return SC_ENOMEM;
+        int any = 0;
+        for (int f = 0; f < c->nfaces; f++) {
+            const double *pl = &c->face_plane[4 * f];
+            int n = c->face_start[f + 1] - c->face_start[f];
+            double mid[3] = { 0, 0, 0 };
+            for (int i = 0; i < n; i++)
+                v3_add(mid, mid, &c->face_xyz[3 * c->face_vert[c->face_start[f] + i]]);
+            v3_scale(mid, mid, 1.0 / n);
+            int inner = 1;
+            for (int i = -1; i < n && inner; i++) {
+                double x[3];
+                if (i < 0) {
+                    v3_copy(x, mid);
+                } else {
+                    const double *v = &c->face_xyz[3 * c->face_vert[c->face_start[f] + i]];
+                    for (int d = 0; d < 3; d++)
+                        x[d] = v[d] + 0.1 * (mid[d] - v[d]);
+                }
+                v3_madd(x, x, pl, off);
+                v3_add(x, x, ball);
+                int in = 0;
+                for (int j = 0; j < s->npieces && !in; j++)
+                    in = j != k && in_piece(s, j, x);
+                inner = in;
+            }
+            c->face_inner[f] = (unsigned char)inner;
+            any |= inner;
+        }
+        if (!any) {
+            free(c->face_inner);
+            c->face_inner = NULL;
+        }
+    }
+    return SC_OK;
+}
+
+/* The most points one piece of ps has. */
+static int piece_max_pts(const sc_piece_set *ps)
+{
+    int m = 0;
+    for (int k = 0; k < ps->n; k++)
+        m = ps->count[k] > m ? ps->count[k] : m;
+    return m;
+}
+
+/* The convex pieces of mesh s from ps, each point moved by -shift (NULL:
+ * not moved). Every point must be finite and inside the mesh's bounding
+ * box and sphere (a piece outside them would be missed by the broad phase
+ * or be a mistake); every piece must have a solid hull. On error the
+ * shape keeps what was built, for shape_free(). */
+static int attach_pieces(sc_shape *s, const sc_piece_set *ps, const double *shift)
+{
+    if (!ps)
+        return SC_OK;
+    if (ps->n < 1 || !ps->pts || !ps->count || s->kind != SC_SHAPE_MESH)
+        return SC_EINVAL;
+    if (ps->n > SC_MESH_MAX_PIECES)
+        return SC_ETOOBIG;
+    long total = 0;
+    for (int k = 0; k < ps->n; k++) {
+        if (ps->count[k] < 4)
+            return SC_EINVAL;
+        total += ps->count[k];
+        if (total > SC_MESH_MAX_VERTS)
+            return SC_ETOOBIG;
+    }
+    s->piece_pts = sc_alloc_array((size_t)total * 3, sizeof *s->piece_pts);
+    s->piece_count = sc_alloc_array((size_t)ps->n, sizeof *s->piece_count);
+    s->piece_ball = sc_alloc_array((size_t)ps->n * 4, sizeof *s->piece_ball);
+    s->pieces = calloc((size_t)ps->n, sizeof *s->pieces);
+    if (!s->piece_pts || !s->piece_count || !s->piece_ball || !s->pieces)
+        return SC_ENOMEM;
+    s->npieces = ps->n;
+    s->npiece_pts = (int)total;
+    memcpy(s->piece_count, ps->count, (size_t)ps->n * sizeof *ps->count);
+    double lo[3] = { INFINITY, INFINITY, INFINITY }, hi[3] = { -INFINITY, -INFINITY, -INFINITY };
+    for (int i = 0; i < s->nverts; i++)
+        for (int d = 0; d < 3; d++) {
+            lo[d] = fmin(lo[d], s->xyz[3 * i + d]);
+            hi[d] = fmax(hi[d], s->xyz[3 * i + d]);
+        }
+    double tol = 1e-9 * s->bound_r;
+    for (long i = 0; i < total; i++) {
+        double *p = &s->piece_pts[3 * i];
+        for (int d = 0; d < 3; d++) {
+            p[d] = ps->pts[3 * i + d] - (shift ? shift[d] : 0);
+            if (!isfinite(p[d]) || p[d] < lo[d] - tol || p[d] > hi[d] + tol)
+                return SC_EINVAL;
+        }
+        if (v3_len(p) > s->bound_r + tol)
+            return SC_EINVAL;
+    }
+    /* ODE's dConvex wants its origin inside: each piece is built about
+     * the mean of its points (inside its hull), which piece_ball keeps */
+    double *q = sc_alloc_array((size_t)piece_max_pts(ps) * 3, sizeof *q);
+    if (!q)
+        return SC_ENOMEM;
+    const double *p = s->piece_pts;
+    int rc = SC_OK;
+    for (int k = 0; k < ps->n && rc == SC_OK; p += 3 * ps->count[k], k++) {
+        double *ball = &s->piece_ball[4 * k];
+        v3_set(ball, 0, 0, 0);
+        for (int i = 0; i < ps->count[k]; i++)
+            v3_add(ball, ball, &p[3 * i]);
+        v3_scale(ball, ball, 1.0 / ps->count[k]);
+        for (int i = 0; i < ps->count[k]; i++)
+            v3_sub(&q[3 * i], &p[3 * i], ball);
+        sc_shape *c = s->pieces[k] = sc_shape_convex(q, ps->count[k]);
+        if (!c) {
+            rc = sc_last_error() == SC_ENOMEM ? SC_ENOMEM : SC_EINVAL;
+            break;
+        }
+        ball[3] = c->bound_r;
+    }
+    free(q);
+    if (rc == SC_OK)
+        rc = mark_inner_faces(s);
+    return rc;
+}
+
+/* Takes ownership of xyz and tri (freed on failure); ps: convex pieces
+ * (NULL: none), moved by -shift like the vertices were. */
+static sc_shape *mesh_shape_take(int kind, double *xyz, int nverts, int *tri, int ntris,
+                                 const sc_piece_set *ps, const double *shift)
 {
     sc_mass_props mp;
     int rc = indices_ok(nverts, tri, ntris) ? compact_vertices(xyz, &nverts, tri, ntris)
@@ -251,6 +414,8 @@ static sc_shape *mesh_shape_take(int kind, double *xyz, int nverts, int *tri, in
     rc = build_ode_data(s);
     if (rc == SC_OK)
         rc = sc_poly_build(s);
+    if (rc == SC_OK)
+        rc = attach_pieces(s, ps, shift);
     if (rc != SC_OK) {
         shape_free(s);
         sc_set_error(rc);
@@ -262,7 +427,7 @@ static sc_shape *mesh_shape_take(int kind, double *xyz, int nverts, int *tri, in
 
 /* A mesh shape of kind from copies of the caller's arrays. */
 static sc_shape *mesh_shape_copy(int kind, const double *xyz, int nverts, const int *tri,
-                                 int ntris)
+                                 int ntris, const sc_piece_set *ps)
 {
     if (!xyz || !tri || nverts <= 0 || ntris <= 0) {
         sc_set_error(SC_EINVAL);
@@ -282,12 +447,23 @@ static sc_shape *mesh_shape_copy(int kind, const double *xyz, int nverts, const 
     }
     memcpy(v, xyz, (size_t)nverts * 3 * sizeof *v);
     memcpy(t, tri, (size_t)ntris * 3 * sizeof *t);
-    return mesh_shape_take(kind, v, nverts, t, ntris);
+    return mesh_shape_take(kind, v, nverts, t, ntris, ps, NULL);
 }
 
 SC_API sc_shape *sc_shape_mesh(const double *xyz, int nverts, const int *tri, int ntris)
 {
-    return mesh_shape_copy(SC_SHAPE_MESH, xyz, nverts, tri, ntris);
+    return mesh_shape_copy(SC_SHAPE_MESH, xyz, nverts, tri, ntris, NULL);
+}
+
+SC_API sc_shape *sc_shape_mesh_pieces(const double *xyz, int nverts, const int *tri, int ntris,
+                                      const double *pts, const int *counts, int npieces)
+{
+    if (!pts || !counts || npieces < 1) {
+        sc_set_error(SC_EINVAL);
+        return NULL;
+    }
+    sc_piece_set ps = { pts, counts, npieces };
+    return mesh_shape_copy(SC_SHAPE_MESH, xyz, nverts, tri, ntris, &ps);
 }
 
 SC_API sc_shape *sc_shape_convex(const double *xyz, int npoints)
@@ -299,12 +475,13 @@ SC_API sc_shape *sc_shape_convex(const double *xyz, int npoints)
         sc_set_error(rc);
         return NULL;
     }
-    return mesh_shape_take(SC_SHAPE_CONVEX, v, nv, t, nt);
+    return mesh_shape_take(SC_SHAPE_CONVEX, v, nv, t, nt, NULL, NULL);
 }
 
 /* Internal: a mesh made by a builder, moved so that its centre of mass is
  * the origin (then a body's pose is the pose of its centre of mass). */
-sc_shape *sc_shape_mesh_centered(double *xyz, int nverts, int *tri, int ntris)
+sc_shape *sc_shape_mesh_centered(double *xyz, int nverts, int *tri, int ntris,
+                                 const sc_piece_set *pieces)
 {
     sc_mass_props mp;
     int rc = indices_ok(nverts, tri, ntris) ? sc_mesh_check(xyz, nverts, tri, ntris, &mp)
@@ -312,7 +489,8 @@ sc_shape *sc_shape_mesh_centered(double *xyz, int nverts, int *tri, int ntris)
     if (rc == SC_OK)
         for (int i = 0; i < nverts; i++)
             v3_sub(&xyz[3 * i], &xyz[3 * i], mp.com);
-    return mesh_shape_take(SC_SHAPE_MESH, xyz, nverts, tri, ntris);
+    return mesh_shape_take(SC_SHAPE_MESH, xyz, nverts, tri, ntris, pieces,
+                           rc == SC_OK ? mp.com : NULL);
 }
 
 SC_API int sc_shape_kind(const sc_shape *s)
@@ -333,6 +511,11 @@ SC_API int sc_shape_mass_props(const sc_shape *s, sc_mass_props *out)
         return SC_ENOTSUP;
     *out = s->mp;
     return SC_OK;
+}
+
+SC_API int sc_shape_pieces(const sc_shape *s)
+{
+    return s ? s->npieces : 0;
 }
 
 SC_API double sc_shape_bounding_radius(const sc_shape *s)
@@ -370,8 +553,13 @@ SC_API void sc_shape_release(sc_shape *s)
 /* Internal: a shape from the content its hash covers (a shape received by
  * a daemon, cluster_msg.c); xyz and tri are copied. NULL on error. */
 sc_shape *sc_shape_rebuild(int kind, double radius, const double half[3], const double plane[4],
-                           const double *xyz, int nverts, const int *tri, int ntris)
+                           const double *xyz, int nverts, const int *tri, int ntris,
+                           const sc_piece_set *pieces)
 {
+    if (pieces && kind != SC_SHAPE_MESH) {
+        sc_set_error(SC_EINVAL);
+        return NULL;
+    }
     switch (kind) {
     case SC_SHAPE_SPHERE:
         return sc_shape_sphere(radius);
@@ -394,7 +582,7 @@ sc_shape *sc_shape_rebuild(int kind, double radius, const double half[3], const 
     }
     case SC_SHAPE_CONVEX:
     case SC_SHAPE_MESH:
-        return mesh_shape_copy(kind, xyz, nverts, tri, ntris);
+        return mesh_shape_copy(kind, xyz, nverts, tri, ntris, pieces);
     default:
         sc_set_error(SC_EINVAL);
         return NULL;

@@ -117,7 +117,7 @@ static void mb_annulus(mesh_builder *mb, int outer, int no, int inner, int ni, i
     }
 }
 
-static sc_shape *mb_finish(mesh_builder *mb)
+static sc_shape *mb_finish(mesh_builder *mb, const sc_piece_set *pieces)
 {
     if (mb->failed) {
         free(mb->xyz);
@@ -125,7 +125,48 @@ static sc_shape *mb_finish(mesh_builder *mb)
         sc_set_error(mb->failed);
         return NULL;
     }
-    return sc_shape_mesh_centered(mb->xyz, mb->nv, mb->tri, mb->nt);
+    return sc_shape_mesh_centered(mb->xyz, mb->nv, mb->tri, mb->nt, pieces);
+}
+
+/* Convex pieces as prisms along z: each a polygon (x, y pairs) extruded
+ * from z0 to z1; the points go to pts, 2 * n a piece. */
+#define PIECE_MAX_PTS 512
+typedef struct piece_builder {
+    double pts[3 * PIECE_MAX_PTS];
+    int count[32];
+    int n, np;
+} piece_builder;
+
+static void pb_prism(piece_builder *pb, const double *xy, int n, double z0, double z1)
+{
+    SC_ASSERT(pb->n < 32 && pb->np + 2 * n <= PIECE_MAX_PTS);
+    for (int h = 0; h < 2; h++)
+        for (int i = 0; i < n; i++) {
+            double *p = &pb->pts[3 * pb->np++];
+            p[0] = xy[2 * i];
+            p[1] = xy[2 * i + 1];
+            p[2] = h ? z1 : z0;
+        }
+    pb->count[pb->n++] = 2 * n;
+}
+
+/* A ring's vertex i as mb_ring() places it (the same bits). */
+static void ring_xy(double *xy, int n, double r, int i)
+{
+    double a = 0 + 2 * M_PI * i / n;
+    xy[0] = r * cos(a);
+    xy[1] = r * sin(a);
+}
+
+/* Where the ray from the axis at angle a leaves the hexagon of
+ * circumradius r whose first corner is at angle 0. */
+static void hexagon_at(double *xy, double r, double a)
+{
+    int k = (int)floor(a / (M_PI / 3));
+    double mid = (k + 0.5) * (M_PI / 3);      /* the edge's normal */
+    double d = r * cos(M_PI / 6) / cos(a - mid);
+    xy[0] = d * cos(a);
+    xy[1] = d * sin(a);
 }
 
 SC_API sc_shape *sc_shape_uv_sphere(double r, int slices, int stacks)
@@ -152,7 +193,7 @@ SC_API sc_shape *sc_shape_uv_sphere(double r, int slices, int stacks)
     int south = mb_vertex(&mb, 0, 0, -r);
     for (int j = 0; j < slices; j++)
         mb_tri(&mb, south, prev + (j + 1) % slices, prev + j);
-    return mb_finish(&mb);
+    return mb_finish(&mb, NULL);
 }
 
 SC_API sc_shape *sc_shape_bolt(void)
@@ -171,7 +212,17 @@ SC_API sc_shape *sc_shape_bolt(void)
         prev = ring;
     }
     mb_cap(&mb, prev, BOLT_SEGS, 1);
-    return mb_finish(&mb);
+    /* pieces: the head's prism and the shaft's */
+    piece_builder pb = { .n = 0 };
+    double xy[2 * BOLT_SEGS];
+    for (int i = 0; i < 6; i++)
+        ring_xy(&xy[2 * i], 6, BOLT_HEAD_R, i);
+    pb_prism(&pb, xy, 6, z0, z1);
+    for (int i = 0; i < BOLT_SEGS; i++)
+        ring_xy(&xy[2 * i], BOLT_SEGS, BOLT_SHAFT_R, i);
+    pb_prism(&pb, xy, BOLT_SEGS, z1, z2);
+    sc_piece_set ps = { pb.pts, pb.count, pb.n };
+    return mb_finish(&mb, &ps);
 }
 
 SC_API sc_shape *sc_shape_nut(void)
@@ -194,5 +245,25 @@ SC_API sc_shape *sc_shape_nut(void)
     }
     mb_annulus(&mb, out0, 6, in0, NUT_SEGS, 0);        /* bottom face */
     mb_annulus(&mb, out_prev, 6, in_prev, NUT_SEGS, 1); /* top face */
-    return mb_finish(&mb);
+    /* pieces: one per edge of the hole, out to the hexagon along the rays
+     * through the edge's ends (with the hexagon's corner between them, if
+     * any); each is convex: its inner side is a single edge */
+    piece_builder pb = { .n = 0 };
+    for (int j = 0; j < NUT_SEGS; j++) {
+        double a0 = 2 * M_PI * j / NUT_SEGS, a1 = 2 * M_PI * (j + 1) / NUT_SEGS;
+        double xy[2 * 5];
+        int n = 0;
+        ring_xy(&xy[2 * n++], NUT_SEGS, NUT_HOLE_R, j);
+        ring_xy(&xy[2 * n++], NUT_SEGS, NUT_HOLE_R, (j + 1) % NUT_SEGS);
+        hexagon_at(&xy[2 * n++], NUT_R, a1 - 1e-12);
+        for (int c = 5; c >= 0; c--) {
+            double ac = 2 * M_PI * c / 6;
+            if (ac > a0 + 1e-9 && ac < a1 - 1e-9)
+                ring_xy(&xy[2 * n++], 6, NUT_R, c);
+        }
+        hexagon_at(&xy[2 * n++], NUT_R, a0 + 1e-12);
+        pb_prism(&pb, xy, n, 0, NUT_H);
+    }
+    sc_piece_set ps = { pb.pts, pb.count, pb.n };
+    return mb_finish(&mb, &ps);
 }

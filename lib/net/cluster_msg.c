@@ -458,7 +458,11 @@ int sc_msg_shape_encode(const sc_shape *s, uint8_t **out, size_t *len)
                         .nidx = mesh ? 3 * s->ntris : 0,
                         .tri = mesh ? (int32_t *)s->tri : NULL,
                         .kind = (int8_t)s->kind,
-                        .radius = s->radius };
+                        .radius = s->radius,
+                        .npcoords = 3 * s->npiece_pts,
+                        .pxyz = s->piece_pts,
+                        .npieces = s->npieces,
+                        .pcount = (int32_t *)s->piece_count };
     memcpy(m.half, s->half, sizeof m.half);
     memcpy(m.plane, s->plane, sizeof m.plane);
     int n = sclcm_shape_t_encoded_size(&m);
@@ -480,18 +484,28 @@ int sc_msg_shape_decode(const void *buf, size_t len, sc_shape **out)
         return SC_EINVAL;
     *out = NULL;
     const uint8_t *p = buf;
-    /* the two array lengths on the raw bytes: each a multiple of 3 within
-     * the mesh limits, and together exactly the message */
-    if (!p || len < SHAPE_NC_AT + 4 + 4 + SHAPE_TAIL || len > SC_MSG_MAX_PAYLOAD)
+    /* the four array lengths on the raw bytes: coordinates and indices
+     * each a multiple of 3 within the mesh limits, pieces within theirs,
+     * and together exactly the message */
+    if (!p || len < SHAPE_NC_AT + 4 + 4 + SHAPE_TAIL + 4 + 4 || len > SC_MSG_MAX_PAYLOAD)
         return SC_EFORMAT;
     int64_t nc = be32(p + SHAPE_NC_AT);
     if (nc < 0 || nc % 3 || nc > 3 * (int64_t)SC_MESH_MAX_VERTS ||
-        (size_t)nc * 8 > len - (SHAPE_NC_AT + 4 + 4 + SHAPE_TAIL))
+        (size_t)nc * 8 > len - (SHAPE_NC_AT + 4 + 4 + SHAPE_TAIL + 4 + 4))
         return SC_EFORMAT;
     size_t ni_at = SHAPE_NC_AT + 4 + (size_t)nc * 8;
     int64_t ni = be32(p + ni_at);
     if (ni < 0 || ni % 3 || ni > 3 * (int64_t)SC_MESH_MAX_TRIS ||
-        (size_t)ni * 4 != len - (ni_at + 4 + SHAPE_TAIL))
+        (size_t)ni * 4 > len - (ni_at + 4 + SHAPE_TAIL + 4 + 4))
+        return SC_EFORMAT;
+    size_t npc_at = ni_at + 4 + (size_t)ni * 4 + SHAPE_TAIL;
+    int64_t npc = be32(p + npc_at);
+    if (npc < 0 || npc % 3 || npc > 3 * (int64_t)SC_MESH_MAX_VERTS ||
+        (size_t)npc * 8 > len - (npc_at + 4 + 4))
+        return SC_EFORMAT;
+    size_t np_at = npc_at + 4 + (size_t)npc * 8;
+    int64_t np = be32(p + np_at);
+    if (np < 0 || np > SC_MESH_MAX_PIECES || (size_t)np * 4 != len - (np_at + 4))
         return SC_EFORMAT;
     sclcm_shape_t m;
     memset(&m, 0, sizeof m);
@@ -506,8 +520,18 @@ int sc_msg_shape_decode(const void *buf, size_t len, sc_shape **out)
             ok = ok && isfinite(m.plane[i]);
         for (int64_t i = 0; ok && i < nc; i++)
             ok = isfinite(m.xyz[i]);
+        /* pieces: none, or counts that add up to the points sent (each
+         * count's own bounds are sc_shape_rebuild()'s) */
+        int64_t sum = 0;
+        for (int64_t k = 0; ok && k < np; k++) {
+            ok = m.pcount[k] > 0 && m.pcount[k] <= npc / 3;
+            sum += ok ? m.pcount[k] : 0;
+        }
+        ok = ok && (np > 0 ? sum == npc / 3 : npc == 0);
+        sc_piece_set ps = { m.pxyz, m.pcount, (int)np };
         sc_shape *s = ok ? sc_shape_rebuild(m.kind, m.radius, m.half, m.plane, m.xyz,
-                                            (int)(nc / 3), m.tri, (int)(ni / 3))
+                                            (int)(nc / 3), m.tri, (int)(ni / 3),
+                                            np > 0 ? &ps : NULL)
                          : NULL;
         /* every field as sent: none the kind ignores may differ */
         if (s && s->hash == (uint64_t)m.hash && !memcmp(&s->radius, &m.radius, sizeof m.radius) &&

@@ -35,7 +35,7 @@
  *             messages i64, pivots i64, failures, regularised, lemke,
  *             collisions, split, split_fallbacks, blocks, block_fallbacks,
  *             nan_islands, sweeps_max, unconverged, solves, diverged,
- *             cold_starts i32, residual_exact, residual_split f64,
+ *             cold_starts, inelastic i32, residual_exact, residual_split f64,
  *             then per pair: n u8 and n contacts (COLLIDE), toi f64 (TOI);
  *             (ISLAND) contacts u32, per member: x f64[3], q f64[4], v, w
  *             f64[3], collided i32, per contact in the unit's contact order:
@@ -72,7 +72,7 @@
 
 #include "unit_wire.h"
 
-#define WIRE_VERSION 5
+#define WIRE_VERSION 6
 #define MAGIC_UNIT 0x55574353u        /* "SCWU" */
 #define MAGIC_RESULT 0x52574353u      /* "SCWR" */
 #define MAX_PAIRS (1 << 16)
@@ -827,7 +827,7 @@ void sc_wire_unit_free(sc_wire_unit *wu)
 /* The solve's counters (sc_solve_info), field by field: every int of it (a
  * field added there must be added here; test_unit_wire compares whole
  * infos of a local and a remote run). */
-#define INFO_INTS 14
+#define INFO_INTS 15
 
 static void info_ints(sc_solve_info *info, int *f[INFO_INTS])
 {
@@ -835,7 +835,8 @@ static void info_ints(sc_solve_info *info, int *f[INFO_INTS])
                           &info->collisions,      &info->split,       &info->split_fallbacks,
                           &info->blocks,          &info->block_fallbacks,
                           &info->nan_islands,     &info->sweeps_max,  &info->unconverged,
-                          &info->solves,          &info->diverged,    &info->cold_starts };
+                          &info->solves,          &info->diverged,    &info->cold_starts,
+                          &info->inelastic };
     memcpy(f, p, sizeof p);
 }
 
@@ -873,7 +874,7 @@ static void get_info(rbuf *r, sc_solve_info *info)
 #define STAT_F64 (SC_STAGE_COUNT + 6)
 #define STAT_LONGS 6
 #define STAT_SIZES 2
-#define STAT_INTS 18
+#define STAT_INTS 19
 
 typedef struct stat_ptrs {
     double *d[STAT_F64];
@@ -896,7 +897,8 @@ static void stat_fields(sc_stats *s, stat_ptrs *p)
                           &s->lcp_unconverged, &s->lcp_diverged,    &s->lcp_cold_starts,
                           &s->lcp_regularised, &s->lcp_split_fallbacks, &s->lcp_nan_islands,
                           &s->substeps,       &s->backups,          &s->backup_regions,
-                          &s->backup_bodies,  &s->spec_contacts,    &s->spec_rounds };
+                          &s->backup_bodies,  &s->spec_contacts,    &s->spec_rounds,
+                          &s->lcp_inelastic };
     _Static_assert(sizeof d / sizeof d[0] == STAT_F64 - SC_STAGE_COUNT, "stat doubles");
     memcpy(&p->d[SC_STAGE_COUNT], d, sizeof d);
     memcpy(p->l, l, sizeof l);
