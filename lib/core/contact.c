@@ -9,6 +9,9 @@
  * faster than bounce_speed) or 0 for a resting contact (the paper's contact
  * state). Coulomb friction adds two tangent rows per contact bounded by
  * +-mu p_n (a boxed LCP, findex as in ODE). Both go to our Dantzig solver.
+ * In the local time-of-impact mode an island whose collisions are all
+ * between touching bodies solves them first and its resting contacts
+ * after (impacts(), below).
  *
  * Small islands (up to split_contacts contacts) are one exact LCP. Larger
  * ones, a pile, are split into blocks of whole pairs, each block an exact
