@@ -9,6 +9,9 @@
  * faster than bounce_speed) or 0 for a resting contact (the paper's contact
  * state). Coulomb friction adds two tangent rows per contact bounded by
  * +-mu p_n (a boxed LCP, findex as in ODE). Both go to our Dantzig solver.
+ * In the local time-of-impact mode an island whose collisions are all
+ * between touching bodies solves them first and its resting contacts
+ * after (impacts(), below).
  *
  * Small islands (up to split_contacts contacts) are one exact LCP. Larger
  * ones, a pile, are split into blocks of whole pairs, each block an exact
@@ -755,12 +758,206 @@ static int push_out(sc_arena *a, const row *rows, const int *nsel, int nn, const
     return rc;
 }
 
+/* One LCP over an island's rows, its impulses applied to the bodies'
+ * velocities: exact (with the staggered and block fallbacks) or, split,
+ * by blocks. buf holds q, lo, hi, mu, z, w and off (n = nrows doubles
+ * each); z is the warm start (used when warm) and returns the impulses. */
+static int solve_rows(sc_arena *arena, sc_body *bodies, row *rows, int nrows,
+                      const int *nsel, int nn, const int *cstart, int nc, double *A, double *buf,
+                      const int *findex, int *sel, int friction, int split, int warm, double h,
+                      const sc_contact_params *p, sc_solve_info *info)
+{
+    size_t n = (size_t)nrows;
+    double *q = buf, *lo = buf + n, *hi = buf + 2 * n, *mu = buf + 3 * n, *z = buf + 4 * n,
+           *w = buf + 5 * n, *off = buf + 6 * n;
+    int rc = SC_OK;
+    if (!split) {
+        build_a(rows, NULL, nrows, A);
+        /* small islands start cold: a few pivots, and the answer does not
+         * depend on the last frame's (the same bits as before warm starts) */
+        rc = solve(arena, nrows, A, q, lo, hi, friction ? findex : NULL, mu, z, w, info,
+                   (warm && nc > WARM_MIN_CONTACTS && !p->cold ? SOLVE_WARM : 0) |
+                       (p->inject & SC_INJECT_COUPLED ? SOLVE_FAIL : 0));
+        if (rc == SC_OK && friction && adds_energy(A, nrows, q, off, z)) {
+            /* a coupled friction answer that adds kinetic energy (seen on a
+             * bolt wedged in a nut's hole: near-opposed normals squeezing
+             * with hundreds of N s, friction bounded by them): an LCP
+             * answer, but not physics; the staggered solve cannot do it */
+            rc = SC_ENUMERIC;
+        }
+        if (rc == SC_OK) {
+            for (int i = 0; i < nrows; i++)
+                apply(&rows[i], z[i], bodies, 0, h);
+        } else if (rc != SC_ENOMEM && rc != SC_EINVAL) {
+            int fail_st = (p->inject & SC_INJECT_STAGGERED) != 0;
+            for (int i = 0; i < nrows; i++)
+                z[i] = 0;
+            if (friction) {
+                /* The friction fixed point can fail (pivot limit,
+                 * ill-conditioned near-duplicate rows). Then stagger:
+                 * normals alone (a PSD LCP the pivoting solves), then the
+                 * tangents as a boxed LCP with the bounds fixed at +-mu p_n.
+                 * Exact for each half, the coupling of friction back into
+                 * the normals is lost for this substep: counted in
+                 * sc_stats.lcp_fallbacks, never silent. */
+                info->failures++;
+                double *sbuf = sc_arena_alloc(arena, 6 * n * sizeof *sbuf);
+                rc = SC_ENOMEM;
+                if (sbuf) {
+                    memcpy(sbuf, q, n * sizeof *q);
+                    memset(sbuf + 5 * n, 0, n * sizeof *sbuf);
+                    rc = staggered(arena, rows, nrows, nsel, nn, findex, mu, bodies, A, sbuf,
+                                   sel, info, fail_st);
+                    memcpy(z, sbuf + 5 * n, n * sizeof *z);   /* what it applied */
+                    sc_arena_free(arena, sbuf);
+                }
+            }
+            if (rc != SC_OK && rc != SC_ENOMEM) {
+                /* last resort: blocks, from what the staggered solve
+                 * applied (in z), taken back off the bodies first: the
+                 * block solve applies its start itself */
+                info->split_fallbacks++;
+                split = 1;
+                for (int i = 0; i < nrows; i++)
+                    if (z[i] != 0)
+                        apply(&rows[i], -z[i], bodies, 0, 0);
+            }
+        }
+        if (rc != SC_OK && !split)
+            return rc;
+    }
+    if (split) {
+        info->split++;
+        gs_problem pb = { .off = off, .lo = lo, .hi = hi, .mu = mu,
+                          .findex = friction ? findex : NULL, .cold = p->cold };
+        if (p->cold || !warm)
+            memset(z, 0, n * sizeof *z);
+        rc = solve_split(arena, rows, nrows, cstart, nc, &pb, z, bodies, 0, h, p, p->tol, info);
+    }
+    return rc;
+
+}
+
+/* The island's movable bodies, each once (sorted), into *out from the
+ * arena: their count, or SC_ENOMEM. */
+static int island_movable(sc_arena *a, const sc_body *bodies, const sc_contact *c, const int *ci,
+                          int nc, int **out)
+{
+    int *ids = sc_arena_alloc(a, (size_t)(2 * nc) * sizeof *ids);
+    if (!ids)
+        return SC_ENOMEM;
+    int m = 0;
+    for (int k = 0; k < nc; k++) {
+        if (movable(&bodies[c[ci[k]].body_a]))
+            ids[m++] = c[ci[k]].body_a;
+        if (movable(&bodies[c[ci[k]].body_b]))
+            ids[m++] = c[ci[k]].body_b;
+    }
+    qsort(ids, (size_t)m, sizeof *ids, cmp_int);
+    int u = 0;
+    for (int i = 0; i < m; i++)
+        if (u == 0 || ids[u - 1] != ids[i])
+            ids[u++] = ids[i];
+    *out = ids;
+    return u;
+}
+
+/* The target of a row that does not touch at the impacts: no impulse. */
+#define NOT_TOUCHING 1e12
+
+/* The collisions of an island of touching bodies (coll[k]: contact k
+ * collides; e = 0 when inelastic) as impulses at the substep's start, on
+ * the velocities before the external forces (v0, w0): colliding rows to
+ * -e times their approach, resting ones to no approach, speculative ones
+ * (a gap: not touching) no impulse. Each body's v0, w0 then become its velocities
+ * after the impacts, its v, w those plus what the external forces add
+ * over h, and buf is set up for the substep's resting solve over every
+ * row (the last solve's impulses its warm start): the resting contacts
+ * take the forces after the impacts, and the positions integrate by the
+ * trapezoid rule from the velocities after them.
+ *
+ * Why: as one LCP of collisions and resting contacts, a colliding row's
+ * target J u' = -e v_pre + (J u* - J u0) counts the other body's gravity
+ * as if it fell freely, and the body flies from the substep's start at
+ * u' - g h / 2. A cube bouncing off a resting stack so gained g h each
+ * bounce and hopped for ever at g h / (1 - e) = 0.196 m/s (e = 0.5, 100
+ * Hz), above the bounce speed; and a body that a collision hit while it
+ * rested on another rose by g h^2 / 2 (0.49 mm) in that substep. */
+static int impacts(sc_arena *arena, sc_body *bodies, const sc_contact *c, const int *ci, int nc,
+                   row *rows, int nrows, int *nsel, const int *cstart, const int *coll, double *A,
+                   double *buf, const int *findex, int *sel, int friction, int split,
+                   int inelastic, double h, const sc_contact_params *p, sc_solve_info *info)
+{
+    size_t n = (size_t)nrows;
+    double *q = buf, *z = buf + 4 * n, *off = buf + 6 * n;
+    int *mb = NULL;
+    int nb = island_movable(arena, bodies, c, ci, nc, &mb);
+    if (nb < 0)
+        return nb;
+    double *du = sc_arena_alloc(arena, (size_t)nb * 6 * sizeof *du);
+    double *zw = du ? sc_arena_alloc(arena, n * sizeof *zw) : NULL;
+    if (!zw) {
+        sc_arena_free(arena, du);
+        sc_arena_free(arena, mb);
+        return SC_ENOMEM;
+    }
+    memcpy(zw, z, n * sizeof *z);
+    /* the velocities before the forces, what the forces add kept in du */
+    for (int i = 0; i < nb; i++) {
+        sc_body *b = &bodies[mb[i]];
+        v3_sub(&du[6 * i], b->v, b->v0);
+        v3_sub(&du[6 * i + 3], b->w, b->w0);
+        v3_copy(b->v, b->v0);
+        v3_copy(b->w, b->w0);
+    }
+    for (int k = 0; k < nc; k++) {
+        const sc_contact *ck = &c[ci[k]];
+        double e = inelastic ? 0
+                             : fmax(bodies[ck->body_a].restitution, bodies[ck->body_b].restitution);
+        for (int r = cstart[k]; r < (k + 1 < nc ? cstart[k + 1] : nrows); r++) {
+            double s = row_speed(&rows[r], bodies, 0);
+            if (r > cstart[k])
+                off[r] = 0;                 /* friction */
+            else if (coll[k])
+                off[r] = e * s;
+            else
+                off[r] = ck->depth < 0 ? NOT_TOUCHING : 0;
+            q[r] = s + off[r];
+            z[r] = 0;
+        }
+    }
+    int rc = solve_rows(arena, bodies, rows, nrows, nsel, nc, cstart, nc, A, buf, findex, sel,
+                        friction, split, 0, h, p, info);
+    for (int i = 0; i < nb; i++) {
+        sc_body *b = &bodies[mb[i]];
+        v3_copy(b->v0, b->v);
+        v3_copy(b->w0, b->w);
+        v3_add(b->v, b->v, &du[6 * i]);
+        v3_add(b->w, b->w, &du[6 * i + 3]);
+        if (b->collided == 2)
+            b->collided = 1;        /* no flight from the start: v0 is after the impacts */
+    }
+    for (int k = 0; k < nc; k++) {
+        double gap = fmax(-c[ci[k]].depth, 0.0);
+        for (int r = cstart[k]; r < (k + 1 < nc ? cstart[k + 1] : nrows); r++) {
+            double s = row_speed(&rows[r], bodies, 0);
+            off[r] = r > cstart[k] ? 0 : gap / h;
+            q[r] = s + off[r];
+        }
+    }
+    memcpy(z, zw, n * sizeof *z);
+    sc_arena_free(arena, zw);
+    sc_arena_free(arena, du);
+    sc_arena_free(arena, mb);
+    return rc;
+}
+
 /* An elastic answer may add kinetic energy beyond this share of the
  * island's (before or after the substep's forces, whichever is more):
  * Newton's restitution applied at several contacts at once can, and on
  * near-opposed contacts (a part pinched inside another) it turned a
- * 4 m/s approach into 27 m/s (docs/DESIGN.md section 11). Single
- * collisions under gravity gain at most about g h / v, far below this. */
+ * 4 m/s approach into 27 m/s (docs/DESIGN.md 3.5). Single collisions
+ * under gravity gain at most about g h / v, far below this. */
 #define ELASTIC_GAIN_MAX 0.05
 
 /* Kinetic energy of movable body b at velocities v, w (world frame), from
@@ -777,25 +974,33 @@ static double kinetic(const sc_body *b, const double v[3], const double w[3])
     return 0.5 * v3_dot(v, v) / b->inv_mass + rot;
 }
 
-/* The island's movable bodies, ascending, into ids (2 nc at most);
- * returns how many. */
-static int island_bodies(const sc_body *bodies, const sc_contact *c, const int *ci, int nc,
-                         int *ids)
+/* What an island's solve changes on its movable bodies (velocities before
+ * and after the forces, the collision mark), kept so that it can be solved
+ * again: 13 doubles a body. */
+static void bodies_keep(const sc_body *bodies, const int *ids, int nb, double *keep)
 {
-    int n = 0;
-    for (int k = 0; k < nc; k++) {
-        const sc_contact *ck = &c[ci[k]];
-        if (movable(&bodies[ck->body_a]))
-            ids[n++] = ck->body_a;
-        if (movable(&bodies[ck->body_b]))
-            ids[n++] = ck->body_b;
+    for (int i = 0; i < nb; i++) {
+        const sc_body *b = &bodies[ids[i]];
+        double *k = &keep[13 * i];
+        v3_copy(k, b->v);
+        v3_copy(k + 3, b->w);
+        v3_copy(k + 6, b->v0);
+        v3_copy(k + 9, b->w0);
+        k[12] = b->collided;
     }
-    qsort(ids, (size_t)n, sizeof *ids, cmp_int);
-    int m = 0;
-    for (int i = 0; i < n; i++)
-        if (m == 0 || ids[i] != ids[m - 1])
-            ids[m++] = ids[i];
-    return m;
+}
+
+static void bodies_restore(sc_body *bodies, const int *ids, int nb, const double *keep)
+{
+    for (int i = 0; i < nb; i++) {
+        sc_body *b = &bodies[ids[i]];
+        const double *k = &keep[13 * i];
+        v3_copy(b->v, k);
+        v3_copy(b->w, k + 3);
+        v3_copy(b->v0, k + 6);
+        v3_copy(b->w0, k + 9);
+        b->collided = (int)k[12];
+    }
 }
 
 int sc_island_solve(sc_arena *arena, sc_body *bodies, sc_contact *c, const int *ci, int nc,
@@ -825,19 +1030,24 @@ int sc_island_solve(sc_arena *arena, sc_body *bodies, sc_contact *c, const int *
     int *nsel = findex ? sc_arena_alloc(arena, n * sizeof *nsel) : NULL;
     int *sel = nsel ? sc_arena_alloc(arena, n * sizeof *sel) : NULL;
     int *cstart = sel ? sc_arena_alloc(arena, (size_t)nc * sizeof *cstart) : NULL;
-    double *vpre_k = cstart ? sc_arena_alloc(arena, (size_t)nc * sizeof *vpre_k) : NULL;
-    int *bid = NULL;                /* the island's bodies (elastic answers) */
-    double *saved = NULL;           /* their velocities before the solve */
+    int *coll = cstart ? sc_arena_alloc(arena, (size_t)nc * sizeof *coll) : NULL;
+    int *bid = NULL;                /* an elastic island's bodies, */
+    double *keep = NULL;            /* what its solve changes on them */
     int rc = SC_ENOMEM;
-    if (!vpre_k)
+    if (!coll)
         goto out;
     double *q = buf, *lo = buf + n, *hi = buf + 2 * n, *mu = buf + 3 * n, *z = buf + 4 * n,
-           *w = buf + 5 * n, *off = buf + 6 * n;
-    int r = 0, nn = 0, friction = 0, finite = 1, elastic = 0;
+           *off = buf + 6 * n;
+    int r, nn, friction, finite, ncollide, nspecc, elastic, inelastic = 0, nb = 0;
+    double ke_ref = 0;
+rows_again:
+    r = nn = friction = ncollide = nspecc = elastic = 0;
+    finite = 1;
     for (int k = 0; k < nc; k++) {
         sc_contact *ck = &c[ci[k]];
         const sc_body *A_ = &bodies[ck->body_a], *B_ = &bodies[ck->body_b];
-        double e = fmax(A_->restitution, B_->restitution);
+        /* solved again without restitution: see ELASTIC_GAIN_MAX */
+        double e = inelastic ? 0 : fmax(A_->restitution, B_->restitution);
         double m = sqrt(A_->friction * B_->friction);
         int rn = r;
         cstart[k] = r;
@@ -847,9 +1057,11 @@ int sc_island_solve(sc_arena *arena, sc_body *bodies, sc_contact *c, const int *
         /* a speculative contact (depth < 0: a gap, docs/DESIGN.md 3.4)
          * collides only if its approach closes the gap within h */
         int collide = vpre < -p->bounce_speed && -ck->depth < -fmin(vpre, speed) * h;
-        info->collisions += collide;
-        vpre_k[k] = collide && e > 0 ? vpre : NAN;
+        info->collisions += collide && !inelastic;
         elastic |= collide && e > 0;
+        coll[k] = collide;
+        ncollide += collide;
+        nspecc += collide && ck->depth < 0;
         /* only movable bodies are written: static and sleeping ones are
          * shared by islands solved concurrently */
         if (collide && movable(A_))
@@ -902,95 +1114,42 @@ int sc_island_solve(sc_arena *arena, sc_body *bodies, sc_contact *c, const int *
         rc = SC_OK;
         goto impulses;
     }
-    /* an elastic answer is checked for energy it adds (ELASTIC_GAIN_MAX):
-     * the island's bodies and their energy before the solve */
-    int nb = 0, split0 = split;
-    double ke_ref = 0;
+    /* the local mode: an island's collisions first, then its resting
+     * contacts (impacts()); not where a speculative row collides: it
+     * bounces at the substep's start, (1 + e) g early, with the velocity
+     * it had there, which keeps the energy, and as one LCP with the
+     * resting rows (the Table 1 box ended at peak 1.0023 of its energy
+     * with the impacts first; moving those bodies to the time the gap
+     * closes put later collisions of the substep into resting rows) */
+    /* an elastic answer is checked for energy it adds: the island's
+     * bodies and their energy before the solve */
     if (elastic) {
-        bid = sc_arena_alloc(arena, 2 * (size_t)nc * sizeof *bid);
-        saved = bid ? sc_arena_alloc(arena, 12 * (size_t)nc * sizeof *saved) : NULL;
-        if (!saved) {
+        nb = island_movable(arena, bodies, c, ci, nc, &bid);
+        keep = nb >= 0 ? sc_arena_alloc(arena, 13 * (size_t)(nb > 0 ? nb : 1) * sizeof *keep)
+                       : NULL;
+        if (!keep) {
             rc = SC_ENOMEM;
             goto out;
         }
-        nb = island_bodies(bodies, c, ci, nc, bid);
+        bodies_keep(bodies, bid, nb, keep);
         double ke = 0, ke0 = 0;
         for (int i = 0; i < nb; i++) {
             const sc_body *b = &bodies[bid[i]];
-            memcpy(&saved[6 * i], b->v, sizeof b->v);
-            memcpy(&saved[6 * i + 3], b->w, sizeof b->w);
             ke += kinetic(b, b->v, b->w);
             ke0 += kinetic(b, b->v0, b->w0);
         }
         ke_ref = fmax(ke, ke0);
     }
-solve_again:
-    if (!split) {
-        build_a(rows, NULL, nrows, A);
-        /* small islands start cold: a few pivots, and the answer does not
-         * depend on the last frame's (the same bits as before warm starts) */
-        rc = solve(arena, nrows, A, q, lo, hi, friction ? findex : NULL, mu, z, w, info,
-                   (nc > WARM_MIN_CONTACTS && !p->cold ? SOLVE_WARM : 0) |
-                       (p->inject & SC_INJECT_COUPLED ? SOLVE_FAIL : 0));
-        if (rc == SC_OK && friction && adds_energy(A, nrows, q, off, z)) {
-            /* a coupled friction answer that adds kinetic energy (seen on a
-             * bolt wedged in a nut's hole: near-opposed normals squeezing
-             * with hundreds of N s, friction bounded by them): an LCP
-             * answer, but not physics; the staggered solve cannot do it */
-            rc = SC_ENUMERIC;
-        }
-        if (rc == SC_OK) {
-            for (int i = 0; i < nrows; i++)
-                apply(&rows[i], z[i], bodies, 0, h);
-        } else if (rc != SC_ENOMEM && rc != SC_EINVAL) {
-            int fail_st = (p->inject & SC_INJECT_STAGGERED) != 0;
-            for (int i = 0; i < nrows; i++)
-                z[i] = 0;
-            if (friction) {
-                /* The friction fixed point can fail (pivot limit,
-                 * ill-conditioned near-duplicate rows). Then stagger:
-                 * normals alone (a PSD LCP the pivoting solves), then the
-                 * tangents as a boxed LCP with the bounds fixed at +-mu p_n.
-                 * Exact for each half, the coupling of friction back into
-                 * the normals is lost for this substep: counted in
-                 * sc_stats.lcp_fallbacks, never silent. */
-                info->failures++;
-                double *sbuf = sc_arena_alloc(arena, 6 * n * sizeof *sbuf);
-                rc = SC_ENOMEM;
-                if (sbuf) {
-                    memcpy(sbuf, q, n * sizeof *q);
-                    memset(sbuf + 5 * n, 0, n * sizeof *sbuf);
-                    rc = staggered(arena, rows, nrows, nsel, nn, findex, mu, bodies, A, sbuf,
-                                   sel, info, fail_st);
-                    memcpy(z, sbuf + 5 * n, n * sizeof *z);   /* what it applied */
-                    sc_arena_free(arena, sbuf);
-                }
-            }
-            if (rc != SC_OK && rc != SC_ENOMEM) {
-                /* last resort: blocks, from what the staggered solve
-                 * applied (in z), taken back off the bodies first: the
-                 * block solve applies its start itself */
-                info->split_fallbacks++;
-                split = 1;
-                for (int i = 0; i < nrows; i++)
-                    if (z[i] != 0)
-                        apply(&rows[i], -z[i], bodies, 0, 0);
-            }
-        }
-        if (rc != SC_OK && !split)
-            goto out;
-    }
-    if (split) {
-        info->split++;
-        gs_problem pb = { .off = off, .lo = lo, .hi = hi, .mu = mu,
-                          .findex = friction ? findex : NULL, .cold = p->cold };
-        if (p->cold)
-            memset(z, 0, n * sizeof *z);
-        rc = solve_split(arena, rows, nrows, cstart, nc, &pb, z, bodies, 0, h, p, p->tol, info);
+    if (p->impact_first && ncollide > 0 && nspecc == 0) {
+        rc = impacts(arena, bodies, c, ci, nc, rows, nrows, nsel, cstart, coll, A, buf, findex, sel,
+                     friction, split, inelastic, h, p, info);
         if (rc != SC_OK)
             goto out;
     }
-
+    rc = solve_rows(arena, bodies, rows, nrows, nsel, nn, cstart, nc, A, buf, findex, sel, friction,
+                    split, 1, h, p, info);
+    if (rc != SC_OK)
+        goto out;
     if (elastic) {
         double ke = 0;
         for (int i = 0; i < nb; i++)
@@ -999,26 +1158,15 @@ solve_again:
             /* solved again without restitution (counted): the velocity
              * LCP is then a projection and takes energy out */
             info->inelastic++;
-            elastic = 0;
-            for (int i = 0; i < nb; i++) {
-                memcpy(bodies[bid[i]].v, &saved[6 * i], sizeof bodies[bid[i]].v);
-                memcpy(bodies[bid[i]].w, &saved[6 * i + 3], sizeof bodies[bid[i]].w);
-            }
-            for (int k = 0; k < nc; k++) {
-                int r0 = cstart[k];
-                if (!isnan(vpre_k[k])) {
-                    double speed = q[r0] - off[r0];
-                    q[r0] = vpre_k[k];
-                    off[r0] = q[r0] - speed;
-                }
-            }
-            for (int i = 0; i < nrows; i++)
-                z[i] = 0;
-            split = split0;
-            goto solve_again;
+            inelastic = 1;
+            bodies_restore(bodies, bid, nb, keep);
+            sc_arena_free(arena, keep);
+            sc_arena_free(arena, bid);
+            keep = NULL;
+            bid = NULL;
+            goto rows_again;
         }
     }
-
     /* split impulse: push deep contacts out by pseudo velocities */
     int deep = 0;
     for (int k = 0; k < nc; k++)
@@ -1035,9 +1183,9 @@ impulses:
             v3_madd(ck->impulse, ck->impulse, rows[j].jb, z[j]);
     }
 out:
-    sc_arena_free(arena, saved);
+    sc_arena_free(arena, keep);
     sc_arena_free(arena, bid);
-    sc_arena_free(arena, vpre_k);
+    sc_arena_free(arena, coll);
     sc_arena_free(arena, cstart);
     sc_arena_free(arena, sel);
     sc_arena_free(arena, nsel);

@@ -143,6 +143,11 @@ typedef struct sc_contact_params {
     int max_sweeps;                 /* outer sweeps at most */
     int cold;                       /* benchmarks: no warm starts (every solve
                                        from z = 0) */
+    int impact_first;               /* 1: an island's collisions are solved
+                                       first, at the substep's start, then its
+                                       resting contacts under the forces (the
+                                       local mode, docs/DESIGN.md 3.4); 0: one
+                                       LCP of both (the paper's, world mode) */
     int inject;                     /* tests only: SC_INJECT_* faults */
 } sc_contact_params;
 

@@ -19,7 +19,8 @@
  *   ISLAND unit (consecutive islands, each solved on its own): bodies u32,
  *             members u32, contacts u32, islands u32, h, bounce_speed, slop,
  *             baumgarte, tol f64, split_contacts, block_contacts, max_sweeps,
- *             cold i32, per island: members u32, contacts u32; per body: see
+ *             cold i32, impact_first i32, per island: members u32, contacts
+ *             u32; per body: see
  *             put_body(), per contact: a contact (local body indices) and its
  *             impulse f64[3] (the warm start)
  *   GROUP unit (a motion group's whole frame, group.c): bodies u32,
@@ -72,7 +73,7 @@
 
 #include "unit_wire.h"
 
-#define WIRE_VERSION 6
+#define WIRE_VERSION 6       /* 6: island units carry impact_first, results inelastic */
 #define MAGIC_UNIT 0x55574353u        /* "SCWU" */
 #define MAGIC_RESULT 0x52574353u      /* "SCWR" */
 #define MAX_PAIRS (1 << 16)
@@ -385,7 +386,8 @@ static int params_ok(const sc_contact_params *p)
            p->slop >= 0 && isfinite(p->baumgarte) && p->baumgarte >= 0 && isfinite(p->tol) &&
            p->tol >= 0 && p->split_contacts >= 0 && p->block_contacts >= 1 &&
            p->block_contacts <= MAX_CONTACTS && p->max_sweeps >= 1 &&
-           p->max_sweeps <= MAX_SWEEPS && (p->cold == 0 || p->cold == 1) && p->inject == 0;
+           p->max_sweeps <= MAX_SWEEPS && (p->cold == 0 || p->cold == 1) &&
+           (p->impact_first == 0 || p->impact_first == 1) && p->inject == 0;
 }
 
 static void write_island(wbuf *w, const void *job_, const void *im_)
@@ -404,6 +406,7 @@ static void write_island(wbuf *w, const void *job_, const void *im_)
     put_i32(w, p->block_contacts);
     put_i32(w, p->max_sweeps);
     put_i32(w, p->cold);
+    put_i32(w, p->impact_first);
     const sc_islands *is = job->islands;
     for (int i = im->first; i < im->first + im->nisl; i++) {
         put(w, (uint64_t)(is->body_start[i + 1] - is->body_start[i]), 4);
@@ -647,6 +650,7 @@ static int decode_island(rbuf *r, sc_wire_unit *wu)
     p.block_contacts = get_i32(r);
     p.max_sweeps = get_i32(r);
     p.cold = get_i32(r);
+    p.impact_first = get_i32(r);
     if (r->bad || nm < 1 || nm > m || m > MAX_BODIES || nc > MAX_CONTACTS || nisl < 1 ||
         nisl > nm || !(head[0] > 0) || !params_ok(&p) ||
         r->len - r->n != (size_t)nisl * 8 + (size_t)m * BODY_BYTES +
