@@ -373,50 +373,72 @@ static void test_local_mode_holds_a_fast_landing_without_backing_up(void **state
 
 /* The state machine: free -> colliding -> contact -> asleep; a sleeping
  * body is woken by a body hitting it and by a push. */
-static void test_states_sleep_and_wake(void **state)
+/* A box settled asleep on the floor (returned in *a), a second box
+ * dropped on its edge, off centre, and 100 frames stepped: returns how
+ * far the first moved along x. keep_awake: the first gets a zero force
+ * every frame (awake all along); *woke: whether it ever woke. */
+static sc_world *knock(int mode, int keep_awake, int *a, double *moved, int *woke)
 {
-    (void)state;
     /* boxes: a ball knocked sideways would roll forever (no rolling
      * resistance), a box stops by friction */
-    sc_world *w = world_with_plane(0, 1, 0.5, 0.5);
+    sc_world *w = world_with_plane_mode(0, 1, 0.5, 0.5, mode);
     sc_shape *s = sc_shape_box(0.1, 0.1, 0.1);
     sc_body_desc d = sc_body_desc_default();
     d.shape = s;
     d.pos[2] = 0.5;
-    int a = sc_body_add(w, &d);
-    assert_int_equal(sc_body_state(w, a), SC_FREE);
+    *a = sc_body_add(w, &d);
+    assert_int_equal(sc_body_state(w, *a), SC_FREE);
     int seen[4] = { 0 };
     for (int n = 0; n < 300; n++) {
         assert_int_equal(sc_world_step(w, DT), SC_OK);
-        int st = sc_body_state(w, a);
+        int st = sc_body_state(w, *a);
         assert_true(st >= SC_FREE && st <= SC_ASLEEP);
         seen[st] = 1;
     }
     assert_true(seen[SC_FREE] && seen[SC_COLLIDING] && seen[SC_CONTACT] && seen[SC_ASLEEP]);
-    assert_int_equal(sc_body_state(w, a), SC_ASLEEP);
+    assert_int_equal(sc_body_state(w, *a), SC_ASLEEP);
     assert_true(sc_world_at_rest(w));
-    /* a second box falls on its edge, off centre: the sleeper wakes and is
-     * knocked; then both settle and sleep */
     d.pos[2] = 0.6;
     d.pos[0] = 0.12;
     d.quat[0] = cos(0.3);
     d.quat[2] = sin(0.3);
-    int b = sc_body_add(w, &d);
+    sc_body_add(w, &d);
     assert_false(sc_world_at_rest(w));
-    int woke = 0;
-    double p0[3], p1[3];
-    sc_body_get_pose(w, a, p0, NULL);
+    double p0[3], p1[3], zero[3] = { 0, 0, 0 };
+    sc_body_get_pose(w, *a, p0, NULL);
+    *woke = 0;
     for (int n = 0; n < 100; n++) {
+        if (keep_awake)
+            assert_int_equal(sc_body_apply_force(w, *a, zero, NULL), SC_OK);
         assert_int_equal(sc_world_step(w, DT), SC_OK);
-        woke |= sc_body_state(w, a) != SC_ASLEEP;
+        *woke |= sc_body_state(w, *a) != SC_ASLEEP;
     }
-    sc_body_get_pose(w, a, p1, NULL);
+    sc_body_get_pose(w, *a, p1, NULL);
+    *moved = p1[0] - p0[0];
+    sc_shape_release(s);
+    return w;
+}
+
+/* A body falls, collides, rests and sleeps; a box falling on it wakes it,
+ * and moves it as it moves an awake one: sleep changes nothing (the
+ * world-wide mode once solved the woken sleeper without its floor and
+ * shoved it 48 mm where an awake one stays put); then both settle and
+ * sleep, and a push wakes a sleeper. */
+static void sleep_and_wake(int mode)
+{
+    int a, woke, woke_awake;
+    double moved, moved_awake;
+    sc_world *w = knock(mode, 0, &a, &moved, &woke);
+    sc_world_destroy(knock(mode, 1, &a, &moved_awake, &woke_awake));
+    print_message("%s: a sleeper hit moved %.3f mm, an awake box %.3f mm\n",
+                  mode == SC_TOI_LOCAL ? "local" : "world", 1e3 * moved, 1e3 * moved_awake);
     assert_true(woke);
-    assert_true(fabs(p1[0] - p0[0]) > 1e-3);      /* it was moved */
+    assert_true(fabs(moved - moved_awake) < 1e-3);
     for (int n = 0; n < 1000 && !sc_world_at_rest(w); n++)
         assert_int_equal(sc_world_step(w, DT), SC_OK);
     assert_true(sc_world_at_rest(w));
     /* a push wakes a sleeper */
+    int b = a + 1;
     double f[3] = { 5, 0, 0 };
     assert_int_equal(sc_body_apply_force(w, b, f, NULL), SC_OK);
     assert_int_not_equal(sc_body_state(w, b), SC_ASLEEP);
@@ -424,8 +446,14 @@ static void test_states_sleep_and_wake(void **state)
     double v[3];
     sc_body_get_velocity(w, b, v, NULL);
     assert_true(v[0] > 0);
-    sc_shape_release(s);
     sc_world_destroy(w);
+}
+
+static void test_states_sleep_and_wake(void **state)
+{
+    (void)state;
+    sleep_and_wake(SC_TOI_WORLD);
+    sleep_and_wake(SC_TOI_LOCAL);
 }
 
 /* The paper's experiment at N = 50: energy never grows by more than 1 %,

@@ -264,10 +264,11 @@ int sc_spec_touch(sc_frame *f, const sc_body *saved, const sc_contact *c0, int n
  * contacts first. */
 int sc_spec_merge(sc_frame_state *st, const sc_contact *c0, int n0, sc_spec_list *spec);
 /* Step 4: pairs and contacts of the current state into f->st->contacts
- * (sleepers they touch woken). */
+ * (sleepers they touch woken, and detected again with their pairs). */
 int sc_detect(sc_frame *f);
-/* A sleeping body in contact c[0 .. n) with a movable one wakes up. */
-void sc_wake_touched(sc_body *bodies, const sc_contact *c, int n);
+/* A sleeping body in contact c[0 .. n) with a movable one wakes up;
+ * returns how many woke. */
+int sc_wake_touched(sc_body *bodies, const sc_contact *c, int n);
 /* Step 3: u* = u + h (g + F/m) (keeping u in v0/w0); positions after the
  * contact solve. */
 void sc_apply_forces(sc_frame *f, double h);
