@@ -293,11 +293,13 @@ static void test_worlds_come_and_go(void **state)
 /* A frame is a value: the state of a world copied out and stepped by
  * sc_frame_step() on the serial executor, with a scratch of its own, ends
  * in the same bits as the world stepped on its worker threads. */
-static void frame_value_case(int groups)
+static void frame_value_case(int groups, int mode)
 {
     sc_world_config c = sc_world_config_default();
     c.workers = 2;
     c.motion_groups = groups;
+    c.toi_mode = mode;
+    groups |= mode == SC_TOI_LOCAL;       /* the local mode steps by groups */
     sc_world *w = sc_world_create(&c);
     assert_non_null(w);
     assert_int_equal(sc_scene_bolts_nuts(w, BODIES, 3), SC_OK);
@@ -350,13 +352,14 @@ static void frame_value_case(int groups)
 static void test_frame_is_a_value(void **state)
 {
     (void)state;
-    frame_value_case(0);
+    frame_value_case(0, SC_TOI_WORLD);
 }
 
 static void test_group_frame_is_a_value(void **state)
 {
     (void)state;
-    frame_value_case(1);
+    frame_value_case(1, SC_TOI_WORLD);
+    frame_value_case(0, SC_TOI_LOCAL);
 }
 
 /* Per-frame scratch stops allocating: after the first frames the world's

@@ -102,16 +102,19 @@ hb1=$(python3 -c 'import json,sys; r = json.load(open(sys.argv[1])); print(r["ha
 check "run bin, three workers" 0 "$tool" run bin --bodies 40 --frames 120 --workers 3 --json
 hb3=$(python3 -c 'import json,sys; print(json.load(open(sys.argv[1]))["hash"])' "$dir/out")
 [ -n "$hb1" ] && [ "$hb1" = "$hb3" ] || { echo "FAIL: run bin: hash '$hb1' (split) on 1 worker, $hb3 on 3"; fail=1; }
-# the time of impact: world (default) and local, the same bits on 1 and 3
+# the time of impact: world (default, and profile's) and local, the same bits on 1 and 3
 # threads in local mode too, back-ups and speculative contacts reported
 check "run bin --toi local, one worker" 0 "$tool" run bin --bodies 40 --frames 60 --workers 1 --toi local --json
 hl1=$(python3 -c 'import json,sys; r = json.load(open(sys.argv[1]))["toi"]; print(json.load(open(sys.argv[1]))["hash"] if r["mode"] == "local" and r["speculative_contacts"] > 0 and r["max_frame_backups"] >= 0 else "")' "$dir/out")
 check "run bin --toi local, three workers" 0 "$tool" run bin --bodies 40 --frames 60 --workers 3 --toi local --json
 hl3=$(python3 -c 'import json,sys; print(json.load(open(sys.argv[1]))["hash"])' "$dir/out")
 [ -n "$hl1" ] && [ "$hl1" = "$hl3" ] || { echo "FAIL: run bin --toi local: hash '$hl1' on 1 worker, $hl3 on 3"; fail=1; }
-check "run --toi world" 0 "$tool" run bolts --bodies 12 --frames 40
+check "run --toi world" 0 "$tool" run bolts --bodies 12 --frames 40 --toi world
 grep -q "^  time of impact (world): back-ups [0-9.]* a frame (most [0-9]*), speculative contacts 0$" "$dir/out" ||
     { echo "FAIL: run: no time of impact line"; cat "$dir/out"; fail=1; }
+check "profile, world-wide by default" 0 "$tool" profile bolts --bodies 12 --frames 20 --json
+python3 -c 'import json,sys; sys.exit(json.load(open(sys.argv[1]))["toi_mode"] != "world")' "$dir/out" ||
+    { echo "FAIL: profile: not the paper's world-wide mode"; cat "$dir/out"; fail=1; }
 check "run --toi sideways" 2 "$tool" run bolts --toi sideways
 one_line "run --toi sideways" "--toi takes world or local"
 check "run --island-split -1" 2 "$tool" run bolts --island-split -1
