@@ -162,6 +162,22 @@ static double row_dot(const double *M, const double *z, int n, int i)
     return s;
 }
 
+/* row_dot() and w_scale() in one pass over the row (the same sums in the
+ * same order, so the same bits): w_i - q_i, and S_i into *scale. */
+static double row_dot_scale(const double *M, const double *q, const double *z, int n, int i,
+                            double *scale)
+{
+    const double *row = M + (size_t)i * n;
+    double d = 0, sc = fabs(q[i]);
+    for (int j = 0; j < n; j++) {
+        double t = row[j] * z[j];
+        d += t;
+        sc += fabs(t);
+    }
+    *scale = sc;
+    return d;
+}
+
 static int all_finite(const double *v, size_t n)
 {
     for (size_t i = 0; i < n; i++)
@@ -433,8 +449,9 @@ static void refresh(lcp *s)
     for (int k = 0; k < m; k++)
         s->z[idx[k]] = zc[k] + res[k];
     for (int i = 0; i < n; i++) {
-        s->w[i] = s->q[i] + row_dot(s->M, s->z, n, i);
-        s->wtol[i] = LCP_DRIVE * s->eps_n * w_scale(s->M, s->q, s->z, n, i);
+        double scale;
+        s->w[i] = s->q[i] + row_dot_scale(s->M, s->q, s->z, n, i, &scale);
+        s->wtol[i] = LCP_DRIVE * s->eps_n * scale;
     }
 }
 
@@ -632,8 +649,9 @@ static int verify(int n, const double *M, const double *q, const double *lo,
     for (int i = 0; i < n; i++)
         zs = fmax(zs, fabs(z[i]));
     for (int i = 0; i < n; i++) {
-        w[i] = q[i] + row_dot(M, z, n, i);
-        double tol = LCP_VERIFY * eps_n * w_scale(M, q, z, n, i);
+        double scale;
+        w[i] = q[i] + row_dot_scale(M, q, z, n, i, &scale);
+        double tol = LCP_VERIFY * eps_n * scale;
         double wp = fmax(w[i], 0), wm = fmax(-w[i], 0), v = 0;
         if (!isfinite(z[i]) || !isfinite(w[i]) || z[i] < lo[i] || z[i] > hi[i])
             v = INFINITY;

@@ -301,38 +301,78 @@ static const sc_shape *piece_at(const sc_shape *s, const sc_pose *p, int k, sc_p
     return s->pieces[k];
 }
 
+/* The pieces of s (s itself if it has none) that can reach a ball at c of
+ * radius r: their shapes, poses and radii into sh, q, rad (at most max);
+ * returns how many. */
+static int pieces_near(const sc_shape *s, const sc_pose *p, const double c[3], double r,
+                       const sc_shape **sh, sc_pose *q, double *rad, int max)
+{
+    int n = s->npieces ? s->npieces : 1, m = 0;
+    for (int k = 0; k < n && m < max; k++) {
+        sh[m] = piece_at(s, p, k, &q[m], &rad[m]);
+        double d[3];
+        v3_sub(d, q[m].pos, c);
+        if (v3_dot(d, d) <= (rad[m] + r) * (rad[m] + r))
+            m++;
+    }
+    return m;
+}
+
 /* A pair where one shape or both have convex pieces: every pair of pieces
  * whose balls overlap, collided as convex shapes (concurrently: no
  * trimesh lock unless the other is a mesh without pieces), the contacts
- * together reduced to the pair's manifold. */
+ * together reduced to the pair's manifold. Each side's pieces are placed
+ * once and first culled against the other's bounding sphere. */
 #define PIECE_BUF 64
+#define PIECE_NEAR 64
 static int collide_pieces(sc_np_ctx *ctx, const sc_shape *a, const sc_pose *pa,
                           const sc_shape *b, const sc_pose *pb, double merge, sc_contact *out,
                           int max)
 {
     sc_contact c[PIECE_BUF + SC_MAX_PAIR_CONTACTS];
+    const sc_shape *sa[PIECE_NEAR], *sb[PIECE_NEAR];
+    sc_pose qa[PIECE_NEAR], qb[PIECE_NEAR];
+    double ra[PIECE_NEAR], rb[PIECE_NEAR];
     int n = 0;
     int na = a->npieces ? a->npieces : 1, nb = b->npieces ? b->npieces : 1;
-    for (int i = 0; i < na; i++) {
-        sc_pose qa;
-        double ra;
-        const sc_shape *sa = piece_at(a, pa, i, &qa, &ra);
-        for (int j = 0; j < nb; j++) {
-            sc_pose qb;
-            double rb;
-            const sc_shape *sb = piece_at(b, pb, j, &qb, &rb);
+    if (na > PIECE_NEAR || nb > PIECE_NEAR) {
+        /* many pieces: placed pair by pair */
+        for (int i = 0; i < na; i++) {
+            sc_pose pi;
+            double ri;
+            const sc_shape *si = piece_at(a, pa, i, &pi, &ri);
+            for (int j = 0; j < nb; j++) {
+                sc_pose pj;
+                double rj, d[3];
+                const sc_shape *sj = piece_at(b, pb, j, &pj, &rj);
+                v3_sub(d, pi.pos, pj.pos);
+                if (v3_dot(d, d) > (ri + rj) * (ri + rj))
+                    continue;
+                int k = sc_np_collide(ctx, si, &pi, sj, &pj, &c[n], SC_MAX_PAIR_CONTACTS);
+                if (k < 0)
+                    return k;
+                n += k;
+                if (n > PIECE_BUF)
+                    n = sc_manifold_reduce(c, n, merge);
+            }
+        }
+        return emit(c, n, merge, out, max);
+    }
+    int ma = pieces_near(a, pa, pb->pos, b->bound_r, sa, qa, ra, PIECE_NEAR);
+    int mb = pieces_near(b, pb, pa->pos, a->bound_r, sb, qb, rb, PIECE_NEAR);
+    for (int i = 0; i < ma; i++)
+        for (int j = 0; j < mb; j++) {
             double d[3];
-            v3_sub(d, qa.pos, qb.pos);
-            if (v3_dot(d, d) > (ra + rb) * (ra + rb))
+            v3_sub(d, qa[i].pos, qb[j].pos);
+            if (v3_dot(d, d) > (ra[i] + rb[j]) * (ra[i] + rb[j]))
                 continue;
-            int k = sc_np_collide(ctx, sa, &qa, sb, &qb, &c[n], SC_MAX_PAIR_CONTACTS);
+            int k = sc_np_collide(ctx, sa[i], &qa[i], sb[j], &qb[j], &c[n], SC_MAX_PAIR_CONTACTS);
             if (k < 0)
                 return k;
             n += k;
             if (n > PIECE_BUF)
                 n = sc_manifold_reduce(c, n, merge);
         }
-    }
     return emit(c, n, merge, out, max);
 }
 
