@@ -66,6 +66,7 @@ LAYER_test_cluster := api
 LAYER_bench_broadphase := core
 LAYER_bench_lcp := core
 LAYER_bench_toi := core
+LAYER_bench_pieces := core
 LAYER_bench_cluster := api
 LAYER_bench_drop := core
 LAYER_bench_islands := api

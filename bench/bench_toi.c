@@ -41,14 +41,11 @@
 #define MARGIN 0.01          /* the inflated queries' "closer than" */
 #define MAXQ 4096
 
-static uint64_t seed;
+static unsigned long long seed;
 
 static double rnd(void)   /* splitmix64, [-1, 1) */
 {
-    uint64_t z = (seed += 0x9e3779b97f4a7c15ull);
-    z = (z ^ (z >> 30)) * 0xbf58476d1ce4e5b9ull;
-    z = (z ^ (z >> 27)) * 0x94d049bb133111ebull;
-    return 2.0 * (double)((z ^ (z >> 31)) >> 11) * 0x1.0p-53 - 1.0;
+    return bench_rnd(&seed);
 }
 
 static void rnd_dir(double u[3])

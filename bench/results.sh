@@ -11,6 +11,8 @@
 #       QuickStep / dWorldStep against simcluster, same bodies and walls
 #   (g) island size against solve time on that pile: bench_islands (cold
 #       and warm Dantzig, split)
+#   (h) the parts' narrow phase: bench_pieces, triangle meshes against
+#       convex pieces
 # Each section has the exact command, its output and, where docs/DESIGN.md section 10 sets a
 # target, a line computed here from the figures (met, or missed by how much).
 # The prose that cannot be computed is bench/RESULTS.notes.md, included at
@@ -131,7 +133,9 @@ if [ $quick -eq 1 ]; then
     steal_args="-p fg,busy -r 1"
     pile_args="-S bin -r 1 -T 0.3 -b 10 -e qscl 200"
     island_args="-n 50 -t 0.5 -k 1 -r 1 -b 2"
+    pieces_args="-r 1 -n 50"
 else
+    pieces_args="-r 7 -n 1000"
     frames=5000
     drop_args=
     # daemons 0, 1, 2, 4, ... below ncpu - 1, and ncpu - 1 (the master's
@@ -448,6 +452,21 @@ w "solves; a bucket that ran out of its wall budget says \"capped\"."
 run g_islands "$B/bench/bench_islands" $island_args
 w ""
 w "No target for these (a table to read, for the choice of island_split)."
+
+# ---- (h) the parts' narrow phase ----
+w ""
+w "## (h) The parts' narrow phase: triangle meshes against convex pieces"
+w ""
+w "The bolt and nut collide as convex pieces (2 and 16; docs/DESIGN.md 3.3)."
+w "bench/bench_pieces.c times sc_np_collide on the same seeded pair queries with"
+w "the meshes as triangles (ODE's trimesh collider) and as pieces, on one thread:"
+w "first poses whose bounding spheres overlap, then shallow ones (0.5 mm into"
+w "touching), and says where the two find contacts, and how their deepest"
+w "depths and normals differ."
+# shellcheck disable=SC2086 # the arguments are words
+run h_pieces "$B/bench/bench_pieces" $pieces_args
+w ""
+w "No target for these (the narrow phase's share of a frame is in (a) and (f))."
 
 # ---- the file ----
 t_end=$(date +%s)
