@@ -69,6 +69,18 @@ static sc_shape *plain(const sc_shape *s)
     return sc_shape_mesh(xyz, nv, tri, nt);
 }
 
+/* a and b turned at random, both at the origin; u: a random direction. */
+static void random_query(query *q, double u[3])
+{
+    do {
+        v3_set(u, rnd(), rnd(), rnd());
+    } while (v3_len(u) < 0.1 || v3_len(u) > 1);
+    v3_normalize(u);
+    memset(q, 0, sizeof *q);
+    rnd_quat(q->a.quat);
+    rnd_quat(q->b.quat);
+}
+
 /* The deepest contact's depth of a and b at q (0 when apart). */
 static double depth_at(sc_np_ctx *ctx, const sc_shape *a, const sc_shape *b, const query *q)
 {
@@ -87,13 +99,7 @@ static void make_shallow(sc_np_ctx *ctx, const sc_shape *a, const sc_shape *b, q
 {
     for (int i = 0; i < n; i++) {
         double u[3];
-        do {
-            v3_set(u, rnd(), rnd(), rnd());
-        } while (v3_len(u) < 0.1 || v3_len(u) > 1);
-        v3_normalize(u);
-        memset(&q[i], 0, sizeof q[i]);
-        rnd_quat(q[i].a.quat);
-        rnd_quat(q[i].b.quat);
+        random_query(&q[i], u);
         double lo = 0, hi = a->bound_r + b->bound_r;   /* touching at lo, apart at hi */
         for (int it = 0; it < 40; it++) {
             double mid = 0.5 * (lo + hi);
@@ -111,13 +117,7 @@ static void make_queries(const sc_shape *a, const sc_shape *b, query *q, int n)
 {
     for (int i = 0; i < n; i++) {
         double u[3];
-        do {
-            v3_set(u, rnd(), rnd(), rnd());
-        } while (v3_len(u) < 0.1 || v3_len(u) > 1);
-        v3_normalize(u);
-        memset(&q[i], 0, sizeof q[i]);
-        rnd_quat(q[i].a.quat);
-        rnd_quat(q[i].b.quat);
+        random_query(&q[i], u);
         v3_scale(q[i].b.pos, u, (a->bound_r + b->bound_r) * (0.65 + 0.35 * rnd()));
     }
 }

@@ -603,10 +603,8 @@ static void test_a_box_astride_a_nut_piece_cut_is_pushed_up(void **state)
 static void test_mesh_pieces_collide_as_the_whole(void **state)
 {
     (void)state;
-    static const double xyz[] = { 0, 0, 0, 2, 0, 0, 2, 3, 0, 0, 3, 0,
-                                  0, 0, 4, 2, 0, 4, 2, 3, 4, 0, 3, 4 };
-    static const int tri[] = { 0, 2, 1, 0, 3, 2, 4, 5, 6, 4, 6, 7, 0, 1, 5, 0, 5, 4,
-                               1, 2, 6, 1, 6, 5, 2, 3, 7, 2, 7, 6, 3, 0, 4, 3, 4, 7 };
+    /* a 2 x 3 x 4 block as a triangle mesh (its hull's triangles), and
+     * the same cut at z = 2 into two boxes of corners */
     double pts[48];
     for (int h = 0; h < 2; h++)
         for (int i = 0; i < 8; i++) {
@@ -614,9 +612,18 @@ static void test_mesh_pieces_collide_as_the_whole(void **state)
             pts[24 * h + 3 * i + 1] = i & 2 ? 3 : 0;
             pts[24 * h + 3 * i + 2] = 2 * h + (i & 4 ? 2 : 0);
         }
+    double corners[24];
+    memcpy(corners, pts, 12 * sizeof *corners);          /* z = 0 */
+    memcpy(corners + 12, pts + 36, 12 * sizeof *corners); /* z = 4 */
+    sc_shape *hull = sc_shape_convex(corners, 8);
+    const double *xyz;
+    const int *tri;
+    int nv, nt;
+    assert_non_null(hull);
+    assert_int_equal(sc_shape_mesh_data(hull, &xyz, &nv, &tri, &nt), SC_OK);
     int counts[2] = { 8, 8 };
-    sc_shape *whole = sc_shape_mesh(xyz, 8, tri, 12),
-             *cut = sc_shape_mesh_pieces(xyz, 8, tri, 12, pts, counts, 2),
+    sc_shape *whole = sc_shape_mesh(xyz, nv, tri, nt),
+             *cut = sc_shape_mesh_pieces(xyz, nv, tri, nt, pts, counts, 2),
              *box = sc_shape_box(0.3, 0.3, 0.3);
     assert_true(whole && cut && box);
     sc_pose m = at(0, 0, 0), b = at(1, 1.5, 4 + 0.3 - 0.001);
@@ -626,6 +633,7 @@ static void test_mesh_pieces_collide_as_the_whole(void **state)
     assert_int_equal(kc, kw);
     assert_normals(cc, kc, 0, 0, 1, 1e-9);
     assert_true(fabs(max_depth(cc, kc) - max_depth(cw, kw)) < 1e-12);
+    sc_shape_release(hull);
     sc_shape_release(whole);
     sc_shape_release(cut);
     sc_shape_release(box);

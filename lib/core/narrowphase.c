@@ -301,18 +301,25 @@ static const sc_shape *piece_at(const sc_shape *s, const sc_pose *p, int k, sc_p
     return s->pieces[k];
 }
 
+/* A piece placed in the world: its shape, pose and bounding radius. */
+typedef struct placed_piece {
+    const sc_shape *s;
+    sc_pose q;
+    double r;
+} placed_piece;
+
 /* The pieces of s (s itself if it has none) that can reach a ball at c of
- * radius r: their shapes, poses and radii into sh, q, rad (at most max);
- * returns how many. */
+ * radius r, placed, into out; returns how many. */
 static int pieces_near(const sc_shape *s, const sc_pose *p, const double c[3], double r,
-                       const sc_shape **sh, sc_pose *q, double *rad, int max)
+                       placed_piece *out)
 {
     int n = s->npieces ? s->npieces : 1, m = 0;
-    for (int k = 0; k < n && m < max; k++) {
-        sh[m] = piece_at(s, p, k, &q[m], &rad[m]);
+    for (int k = 0; k < n; k++) {
+        placed_piece *pp = &out[m];
+        pp->s = piece_at(s, p, k, &pp->q, &pp->r);
         double d[3];
-        v3_sub(d, q[m].pos, c);
-        if (v3_dot(d, d) <= (rad[m] + r) * (rad[m] + r))
+        v3_sub(d, pp->q.pos, c);
+        if (v3_dot(d, d) <= (pp->r + r) * (pp->r + r))
             m++;
     }
     return m;
@@ -324,56 +331,39 @@ static int pieces_near(const sc_shape *s, const sc_pose *p, const double c[3], d
  * together reduced to the pair's manifold. Each side's pieces are placed
  * once and first culled against the other's bounding sphere. */
 #define PIECE_BUF 64
-#define PIECE_NEAR 64
+#define PIECE_STACK 64
 static int collide_pieces(sc_np_ctx *ctx, const sc_shape *a, const sc_pose *pa,
                           const sc_shape *b, const sc_pose *pb, double merge, sc_contact *out,
                           int max)
 {
     sc_contact c[PIECE_BUF + SC_MAX_PAIR_CONTACTS];
-    const sc_shape *sa[PIECE_NEAR], *sb[PIECE_NEAR];
-    sc_pose qa[PIECE_NEAR], qb[PIECE_NEAR];
-    double ra[PIECE_NEAR], rb[PIECE_NEAR];
-    int n = 0;
+    placed_piece stack[PIECE_STACK], *pp = stack;
     int na = a->npieces ? a->npieces : 1, nb = b->npieces ? b->npieces : 1;
-    if (na > PIECE_NEAR || nb > PIECE_NEAR) {
-        /* many pieces: placed pair by pair */
-        for (int i = 0; i < na; i++) {
-            sc_pose pi;
-            double ri;
-            const sc_shape *si = piece_at(a, pa, i, &pi, &ri);
-            for (int j = 0; j < nb; j++) {
-                sc_pose pj;
-                double rj, d[3];
-                const sc_shape *sj = piece_at(b, pb, j, &pj, &rj);
-                v3_sub(d, pi.pos, pj.pos);
-                if (v3_dot(d, d) > (ri + rj) * (ri + rj))
-                    continue;
-                int k = sc_np_collide(ctx, si, &pi, sj, &pj, &c[n], SC_MAX_PAIR_CONTACTS);
-                if (k < 0)
-                    return k;
-                n += k;
-                if (n > PIECE_BUF)
-                    n = sc_manifold_reduce(c, n, merge);
-            }
-        }
-        return emit(c, n, merge, out, max);
-    }
-    int ma = pieces_near(a, pa, pb->pos, b->bound_r, sa, qa, ra, PIECE_NEAR);
-    int mb = pieces_near(b, pb, pa->pos, a->bound_r, sb, qb, rb, PIECE_NEAR);
-    for (int i = 0; i < ma; i++)
-        for (int j = 0; j < mb; j++) {
-            double d[3];
-            v3_sub(d, qa[i].pos, qb[j].pos);
-            if (v3_dot(d, d) > (ra[i] + rb[j]) * (ra[i] + rb[j]))
+    if (na + nb > PIECE_STACK &&
+        !(pp = sc_arena_alloc(&ctx->arena, (size_t)(na + nb) * sizeof *pp)))
+        return SC_ENOMEM;
+    placed_piece *qa = pp, *qb = pp + na;
+    int ma = pieces_near(a, pa, pb->pos, b->bound_r, qa);
+    int mb = pieces_near(b, pb, pa->pos, a->bound_r, qb);
+    int n = 0, rc = SC_OK;
+    for (int i = 0; i < ma && rc == SC_OK; i++)
+        for (int j = 0; j < mb && rc == SC_OK; j++) {
+            double d[3], r = qa[i].r + qb[j].r;
+            v3_sub(d, qa[i].q.pos, qb[j].q.pos);
+            if (v3_dot(d, d) > r * r)
                 continue;
-            int k = sc_np_collide(ctx, sa[i], &qa[i], sb[j], &qb[j], &c[n], SC_MAX_PAIR_CONTACTS);
+            int k = sc_np_collide(ctx, qa[i].s, &qa[i].q, qb[j].s, &qb[j].q, &c[n],
+                                  SC_MAX_PAIR_CONTACTS);
             if (k < 0)
-                return k;
-            n += k;
+                rc = k;
+            else
+                n += k;
             if (n > PIECE_BUF)
                 n = sc_manifold_reduce(c, n, merge);
         }
-    return emit(c, n, merge, out, max);
+    if (pp != stack)
+        sc_arena_free(&ctx->arena, pp);
+    return rc == SC_OK ? emit(c, n, merge, out, max) : rc;
 }
 
 int sc_np_collide(sc_np_ctx *ctx, const sc_shape *a, const sc_pose *pa, const sc_shape *b,
