@@ -19,7 +19,7 @@
  *             work.
  *   With -t local the frames run by motion groups in the local time-of-
  *             impact mode (-g: motion groups in the world mode), so that most
- *             units are groups' whole frames; the messages per frame (units
+ *             units are groups' whole frames; the messages per frame and daemon (units
  *             out, results in) are counted, and the groups' units whose
  *             results were in when the pile's frame ended (piped/fr).
  *   -S bin    the dense bin (sc_scene_bin) instead of the drop.
@@ -197,8 +197,9 @@ static int run(int n, int k, double seconds, result *r)
     r->comm_ms = 1e3 * comm / frames;
     r->wait_ms = 1e3 * wait / frames;
     r->local_ms = 1e3 * local / frames;
-    r->msgs_out = (double)msgs_out / frames;
-    r->msgs_in = (double)msgs_in / frames;
+    /* messages a frame and daemon */
+    r->msgs_out = (double)msgs_out / frames / (k > 0 ? k : 1);
+    r->msgs_in = (double)msgs_in / frames / (k > 0 ? k : 1);
     r->piped = (double)piped / frames;
     r->hash = sc_world_hash(w);
     sc_world_destroy(w);
@@ -216,7 +217,7 @@ static void scaling(int n, const int *ks, int nk, int runs, double seconds)
            dedicated ? ", daemons --dedicated --no-idle-priority" : "");
     printf("%8s %9s %9s %8s %9s %12s %10s %10s %10s %10s %9s %9s %9s %6s\n", "daemons",
            "wall s", "RT factor", "speedup", "remote %", "recomp/frame", "late/frame",
-           "jobs ms/fr", "wait ms/fr", "comm ms/fr", "msg out/fr", "msg in/fr", "piped/fr",
+           "jobs ms/fr", "wait ms/fr", "comm ms/fr", "out/fr/dmn", "in/fr/dmn", "piped/fr",
            "bits");
     double base = 0;
     uint64_t h0 = 0;
