@@ -280,8 +280,13 @@ static void take_result(sc_cluster *c, sc_msg_work *r)
     u->time_s = sec / (threads > 0 ? threads : 1);
     dj->done++;
     dj->compute_s += u->time_s;
-    if (c->recv_us > dj->last_us)
-        dj->last_us = c->recv_us;
+    /* when it was there for the master: read now for the current job
+     * (after the calling thread's own units: the round trip the scheduler
+     * must weigh), at the kernel's arrival stamp for a started one (read
+     * only after the jobs run in between) */
+    int64_t at = cj->started ? c->recv_us : realtime_us();
+    if (at > dj->last_us)
+        dj->last_us = at;
     c->stats->remote_units++;
 }
 
@@ -540,8 +545,7 @@ static int remote_wait(sc_node *n, double *cpu_s)
     if (outstanding(c, r->slot) > 0)
         recompute(c, d, r->slot);
     else if (dj->sent > 0) {
-        /* from the send to the last result's arrival (the kernel's stamp:
-         * a started job's results are read only after other jobs), less
+        /* from the send to the last result's arrival (take_result), less
          * the work */
         double o = 1e-6 * (double)(dj->last_us - dj->submit_us) - dj->compute_s;
         if (o < 0)
