@@ -19,11 +19,16 @@
  *             work.
  *   With -t local the frames run by motion groups in the local time-of-
  *             impact mode (-g: motion groups in the world mode), so that most
- *             units are groups' whole frames; the messages per frame (units
- *             out, results in) are counted.
+ *             units are groups' whole frames; the messages per frame and daemon (units
+ *             out, results in) are counted, and the groups' units whose
+ *             results were in when the pile's frame ended (piped/fr).
+ *   -S bin    the dense bin (sc_scene_bin) instead of the drop.
+ *   -D        scaling's daemons run --dedicated --no-idle-priority (a CPU
+ *             set aside for the cluster: on a shared machine the others'
+ *             load would otherwise make them offer little and run last).
  * usage: bench_cluster [-r RUNS] [-s SECONDS] [-n BODIES] [-d 0,1,2,...]
  *                      [-x DAEMON] [-u LCM-URL] [-p scaling,fg,busy]
- *                      [-t world|local] [-g]
+ *                      [-t world|local] [-g] [-S drop|bin] [-D]
  * The daemon binary defaults to daemon/simclusterd next to this bench's
  * build directory (build/bench/../daemon/simclusterd). */
 #include <errno.h>
@@ -50,6 +55,8 @@
 static char url[160], key_path[64], daemon_bin[512];
 static int ncpu;
 static int toi_mode = SC_TOI_WORLD, groups;     /* the worlds' (-t, -g) */
+static int bin_scene;                           /* -S bin: sc_scene_bin */
+static int dedicated;                           /* -D: scaling's daemons --dedicated */
 
 static double median(double *x, int n)
 {
@@ -92,10 +99,15 @@ static pid_t start_daemon(int id, int cpu, double threshold, int idle_priority)
         const char *argv[20] = { daemon_bin, "--url", url, "--key", key_path, "--threads", "1",
                                  "--node-id", idbuf, "--busy-threshold", thr, "--heartbeat",
                                  "0.1", NULL };
-        if (!idle_priority) {
-            argv[13] = "--no-idle-priority";
-            argv[14] = NULL;
+        int a = 13;
+        if (!idle_priority)
+            argv[a++] = "--no-idle-priority";
+        if (dedicated && idle_priority) {
+            /* a CPU set aside for the cluster: all idle, normal priority */
+            argv[a++] = "--dedicated";
+            argv[a++] = "--no-idle-priority";
         }
+        argv[a] = NULL;
         execv(daemon_bin, (char **)argv);
         _exit(127);
     }
@@ -122,7 +134,7 @@ static sc_world *make_world(int n, int cluster)
         c.key_file = key_path;
     }
     sc_world *w = sc_world_create(&c);
-    if (!w || sc_scene_bolts_nuts(w, n, 1) < 0) {
+    if (!w || (bin_scene ? sc_scene_bin(w, n, 1) : sc_scene_bolts_nuts(w, n, 1)) < 0) {
         fprintf(stderr, "bench_cluster: %s\n", sc_strerror(sc_last_error()));
         exit(1);
     }
@@ -142,7 +154,7 @@ static int wait_daemons(sc_world *w, int k)
 }
 
 typedef struct result {
-    double wall, remote, recomputed, comm_ms, late, wait_ms, local_ms, msgs_out, msgs_in;
+    double wall, remote, recomputed, comm_ms, late, wait_ms, local_ms, msgs_out, msgs_in, piped;
     uint64_t hash;
 } result;
 
@@ -155,7 +167,7 @@ static int run(int n, int k, double seconds, result *r)
         return -1;
     }
     int frames = (int)(seconds / DT + 0.5);
-    long units = 0, remote = 0, recomputed = 0, late = 0, msgs_out = 0, msgs_in = 0;
+    long units = 0, remote = 0, recomputed = 0, late = 0, msgs_out = 0, msgs_in = 0, piped = 0;
     double comm = 0, wait = 0, local = 0;
     double t0 = now_s();
     for (int f = 0; f < frames; f++) {
@@ -176,6 +188,7 @@ static int run(int n, int k, double seconds, result *r)
         local += st.makespan_s;
         msgs_out += st.unit_messages;
         msgs_in += st.result_messages;
+        piped += st.pipelined_units;
     }
     r->wall = now_s() - t0;
     r->remote = units ? (double)remote / (double)units : 0;
@@ -184,8 +197,10 @@ static int run(int n, int k, double seconds, result *r)
     r->comm_ms = 1e3 * comm / frames;
     r->wait_ms = 1e3 * wait / frames;
     r->local_ms = 1e3 * local / frames;
-    r->msgs_out = (double)msgs_out / frames;
-    r->msgs_in = (double)msgs_in / frames;
+    /* messages a frame and daemon */
+    r->msgs_out = (double)msgs_out / frames / (k > 0 ? k : 1);
+    r->msgs_in = (double)msgs_in / frames / (k > 0 ? k : 1);
+    r->piped = (double)piped / frames;
     r->hash = sc_world_hash(w);
     sc_world_destroy(w);
     return 0;
@@ -193,15 +208,17 @@ static int run(int n, int k, double seconds, result *r)
 
 static void scaling(int n, const int *ks, int nk, int runs, double seconds)
 {
-    printf("\nscaling: %d bolts/nuts, %.2f s simulated, 1 local worker + k one-thread "
-           "daemons, medians of %d runs%s\n",
-           n, seconds, runs,
+    printf("\nscaling: %d bolts/nuts %s, %.2f s simulated, 1 local worker + k one-thread "
+           "daemons, medians of %d runs%s%s\n",
+           n, bin_scene ? "in the bin" : "dropped", seconds, runs,
            toi_mode == SC_TOI_LOCAL ? ", local time of impact (motion groups)"
            : groups                 ? ", motion groups"
-                                    : "");
-    printf("%8s %9s %9s %8s %9s %12s %10s %10s %10s %10s %9s %9s %6s\n", "daemons", "wall s",
-           "RT factor", "speedup", "remote %", "recomp/frame", "late/frame", "jobs ms/fr",
-           "wait ms/fr", "comm ms/fr", "msg out/fr", "msg in/fr", "bits");
+                                    : "",
+           dedicated ? ", daemons --dedicated --no-idle-priority" : "");
+    printf("%8s %9s %9s %8s %9s %12s %10s %10s %10s %10s %9s %9s %9s %6s\n", "daemons",
+           "wall s", "RT factor", "speedup", "remote %", "recomp/frame", "late/frame",
+           "jobs ms/fr", "wait ms/fr", "comm ms/fr", "out/fr/dmn", "in/fr/dmn", "piped/fr",
+           "bits");
     double base = 0;
     uint64_t h0 = 0;
     for (int i = 0; i < nk; i++) {
@@ -212,7 +229,7 @@ static void scaling(int n, const int *ks, int nk, int runs, double seconds)
         for (int j = 0; j < k; j++)
             pid[j] = start_daemon(100 + j, ncpu > 1 ? 1 + j % (ncpu - 1) : 0, 1.0, 1);
         double wall[MAX_RUNS], rem[MAX_RUNS], rc[MAX_RUNS], comm[MAX_RUNS], late[MAX_RUNS],
-            wait[MAX_RUNS], jobs[MAX_RUNS], mout[MAX_RUNS], min[MAX_RUNS];
+            wait[MAX_RUNS], jobs[MAX_RUNS], mout[MAX_RUNS], min[MAX_RUNS], piped[MAX_RUNS];
         int same = 1, ok = 1;
         for (int r = 0; r < runs && ok; r++) {
             result res;
@@ -229,6 +246,7 @@ static void scaling(int n, const int *ks, int nk, int runs, double seconds)
             jobs[r] = res.local_ms;
             mout[r] = res.msgs_out;
             min[r] = res.msgs_in;
+            piped[r] = res.piped;
             if (k == 0 && r == 0)
                 h0 = res.hash;
             same = same && res.hash == h0;
@@ -246,10 +264,11 @@ static void scaling(int n, const int *ks, int nk, int runs, double seconds)
             snprintf(sp, sizeof sp, "%.2f", base / m);
             snprintf(bits, sizeof bits, "%s", same ? "same" : "DIFF");
         }
-        printf("%8d %9.3f %9.3f %8s %9.1f %12.2f %10.2f %10.1f %10.1f %10.1f %10.1f %9.1f %6s\n",
+        printf("%8d %9.3f %9.3f %8s %9.1f %12.2f %10.2f %10.1f %10.1f %10.1f %10.1f %9.1f %9.1f "
+               "%6s\n",
                k, m, seconds / m, sp, median(rem, runs), median(rc, runs), median(late, runs),
                median(jobs, runs), median(wait, runs), median(comm, runs), median(mout, runs),
-               median(min, runs), bits);
+               median(min, runs), median(piped, runs), bits);
         fflush(stdout);
     }
 }
@@ -435,6 +454,11 @@ int main(int argc, char **argv)
         } else if (!strcmp(argv[i], "-t") && i + 1 < argc &&
                    (!strcmp(argv[i + 1], "world") || !strcmp(argv[i + 1], "local"))) {
             toi_mode = !strcmp(argv[++i], "local") ? SC_TOI_LOCAL : SC_TOI_WORLD;
+        } else if (!strcmp(argv[i], "-S") && i + 1 < argc &&
+                   (!strcmp(argv[i + 1], "drop") || !strcmp(argv[i + 1], "bin"))) {
+            bin_scene = !strcmp(argv[++i], "bin");
+        } else if (!strcmp(argv[i], "-D")) {
+            dedicated = 1;
         } else if (!strcmp(argv[i], "-g")) {
             groups = 1;
         } else if (!strcmp(argv[i], "-d") && i + 1 < argc) {
@@ -444,7 +468,7 @@ int main(int argc, char **argv)
         } else {
             fprintf(stderr, "usage: bench_cluster [-r RUNS] [-s SECONDS] [-n BODIES] "
                             "[-d 0,1,2,...] [-x DAEMON] [-u LCM-URL] [-p scaling,fg,busy] "
-                            "[-t world|local] [-g]\n");
+                            "[-t world|local] [-g] [-S drop|bin] [-D]\n");
             return 2;
         }
     }

@@ -387,6 +387,9 @@ typedef struct sc_stats {
     long result_messages;     /* sealed messages of results received (a daemon
                                  thread sends what it has done together), last
                                  frame */
+    long pipelined_units;     /* motion groups' units sent to daemons before the
+                                 pile's frame whose results were in when it
+                                 ended (computed while it ran), last frame */
     /* per-frame scratch (a stack arena that grows to its high-water mark) */
     size_t arena_bytes;       /* high-water mark of the frame's arena, bytes
                                  (since the world was created) */

@@ -18,9 +18,14 @@
 #      replayed during a run are refused as stale, no duplicate, hash H
 #   h  a second daemon with daemon 1's id: both daemons log it, the master
 #      counts and names it, hash H
+#   p  a pile in a bin with lone spheres above it, by motion groups (--toi
+#      local): the spheres' group units go to the daemons while the pile
+#      steps on the master and are back when it ends (piped > 0), hash Hp;
+#      then daemon 2 stopped (SIGSTOP) a third into such a run: hash Hp,
+#      its units recomputed
 #   d  a CPU hog next to one daemon: it says "owner busy" within 2 s and gets
 #      no units from 1 s after that; hash H
-# (e, f, g, h run before d so that no daemon is still owner-busy from d's hog.)
+# (e, f, g, h, p run before d so that no daemon is still owner-busy from d's hog.)
 # Needs root and `ip netns`, else it says SKIPPED and exits 0. Prints a
 # PASS or FAIL line per check and ends with "cluster: N passed, M failed".
 #
@@ -56,6 +61,7 @@ FRAMES=150
 F_FRAMES=300        # f: 3 s
 D_BODIES=60         # d: 5 s, units all the way (at rest at ~4.7 s)
 D_FRAMES=500
+P_BODIES=40         # p: a bin of 40 parts and 24 spheres, 1.5 s
 SEED=7
 MASTER_LIMIT=40     # s; a run here takes a few
 ncpu=$(nproc)
@@ -437,6 +443,38 @@ verdict "h: both daemons log the duplicate id" \
 verdict "h: same hash with a duplicate id (${h:-none}), exit $rc" 'run_ok $rc "$h"'
 kill -TERM $duppid
 wait $duppid 2>/dev/null
+
+# ---- p: group units out while a pile steps on the master ----
+P="--scene pile --toi local --bodies $P_BODIES --frames $FRAMES"
+"$RUN" $P --seed $SEED >"$dir/p0.out" 2>&1
+Hp=$(hash_of "$dir/p0.out")
+master "$dir/p1.out" $P --wait-daemons 2
+rc=$?
+h=$(hash_of "$dir/p1.out")
+piped=$(total "$dir/p1.out" piped)
+echo "    p: $(summary "$dir/p1.out")"
+verdict "p: group units back from daemons while the pile ran (piped ${piped:-?})" \
+    '[ "${piped:-0}" -gt 0 ]'
+verdict "p: a pile and daemons, same hash as locally (${h:-none}, ${Hp:-none}), exit $rc" \
+    '[ $rc -eq 0 ] && [ -n "$Hp" ] && [ "$h" = "$Hp" ]'
+Tp=$(sed -n 's/^wall \([^ ]*\).*/\1/p' "$dir/p1.out")
+: >"$dir/p2.out"
+master_bg "$dir/p2.out" $P --wait-daemons 2 --trace
+first_frame "$dir/p2.out"
+sleep "$(awk -v t="${Tp:-1}" 'BEGIN { printf "%.3f", t / 3 }')"
+alive=0
+kill -0 $mpid 2>/dev/null && alive=1
+kill -STOP "$(dpid 2)"
+at=$(grep '^frame ' "$dir/p2.out" | tail -n 1 | cut -d' ' -f2)
+wait $mpid
+rc=$?
+kill -CONT "$(dpid 2)"
+h=$(hash_of "$dir/p2.out")
+rec=$(total "$dir/p2.out" recomputed)
+echo "    p: daemon 2 stopped after frame ${at:-?} of $FRAMES; $(summary "$dir/p2.out")"
+verdict "p: the master was running when the daemon stopped" '[ $alive -eq 1 ]'
+verdict "p: a daemon stopped mid-run, same hash (${h:-none}), exit $rc, recomputed ${rec:-?}" \
+    '[ $rc -eq 0 ] && [ -n "$Hp" ] && [ "$h" = "$Hp" ] && [ "${rec:-0}" -gt 0 ]'
 
 # ---- d: the owner of daemon 1's CPU gets busy ----
 if [ "$ncpu" -ge 2 ]; then

@@ -6,14 +6,19 @@
  * counters summed over the frames.
  *   usage: cluster_run [--url URL] [--key FILE] [--bodies N] [--seed S]
  *                      [--frames F] [--workers W] [--deadline S] [--trace]
- *                      [--wait-daemons K] [--realtime]
+ *                      [--wait-daemons K] [--realtime] [--toi world|local]
+ *                      [--scene drop|pile]
+ * --toi local steps by motion groups (sc_world_config.toi_mode); --scene
+ * pile is a bin of N parts (sc_scene_bin) with 24 lone spheres falling
+ * high above it: a pile and small groups beside it, whose units go out
+ * while the pile steps here (sc_stats.pipelined_units, "piped").
  * --realtime paces the frames at DT = 10 ms of wall time each, as an
  * interactive program would (a frame that takes longer is not made up).
  * Output (stdout): with --trace one line per frame
  *   frame F wall S daemons D busy B remote R recomputed C late L
  * then
  *   hash HHHHHHHHHHHHHHHH
- *   remote R recomputed C late L dropped D stale S misaddressed M duplicates U
+ *   remote R recomputed C late L dropped D stale S misaddressed M duplicates U piped P
  *   duplicate node id ID        (only when two running daemons share one)
  *   wall S frames F
  * Exit status: 0, 1 when the world cannot be made or a step fails (or the
@@ -83,7 +88,8 @@ static int usage(FILE *f, int status)
 {
     fprintf(f, "usage: cluster_run [--url URL] [--key FILE] [--bodies N (30)] [--seed S (1)]\n"
                "                   [--frames F (150)] [--workers W (1)] [--deadline S]\n"
-               "                   [--trace] [--wait-daemons K] [--realtime]\n");
+               "                   [--trace] [--wait-daemons K] [--realtime]\n"
+               "                   [--toi world|local] [--scene drop|pile]\n");
     return status;
 }
 
@@ -95,12 +101,13 @@ int main(int argc, char **argv)
         { "frames", required_argument, NULL, 'f' },   { "workers", required_argument, NULL, 'w' },
         { "deadline", required_argument, NULL, 'd' }, { "trace", no_argument, NULL, 't' },
         { "wait-daemons", required_argument, NULL, 'W' }, { "realtime", no_argument, NULL, 'r' },
+        { "toi", required_argument, NULL, 'T' },      { "scene", required_argument, NULL, 'S' },
         { "help", no_argument, NULL, 'h' },           { NULL, 0, NULL, 0 }
     };
     const char *url = NULL, *key = NULL;
     long bodies = 30, seed = 1, frames = 150, workers = 1, wait = 0;
     double deadline = 0;
-    int trace = 0, realtime = 0, c, li = 0;
+    int trace = 0, realtime = 0, c, li = 0, toi = SC_TOI_WORLD, pile = 0;
     while ((c = getopt_long(argc, argv, "", opts, &li)) != -1) {
         int ok = 1;
         switch (c) {
@@ -114,6 +121,14 @@ int main(int argc, char **argv)
         case 't': trace = 1; break;
         case 'r': realtime = 1; break;
         case 'W': ok = parse_long(optarg, 0, SC_MAX_DAEMONS, &wait); break;
+        case 'T':
+            ok = !strcmp(optarg, "world") || !strcmp(optarg, "local");
+            toi = !strcmp(optarg, "local") ? SC_TOI_LOCAL : SC_TOI_WORLD;
+            break;
+        case 'S':
+            ok = !strcmp(optarg, "drop") || !strcmp(optarg, "pile");
+            pile = !strcmp(optarg, "pile");
+            break;
         case 'h': return usage(stdout, 0);
         default: return usage(stderr, 2);
         }
@@ -130,12 +145,25 @@ int main(int argc, char **argv)
     cfg.cluster = url;
     cfg.key_file = key;
     cfg.cluster_deadline_s = deadline;
+    cfg.toi_mode = toi;
     sc_world *w = sc_world_create(&cfg);
     if (!w) {
         fprintf(stderr, "cluster_run: world: %s\n", sc_strerror(sc_last_error()));
         return 1;
     }
-    int rc = sc_scene_bolts_nuts(w, (int)bodies, (uint64_t)seed);
+    int rc = pile ? sc_scene_bin(w, (int)bodies, (uint64_t)seed)
+                  : sc_scene_bolts_nuts(w, (int)bodies, (uint64_t)seed);
+    sc_body_desc d = sc_body_desc_default();
+    d.shape = rc == SC_OK && pile ? sc_shape_sphere(0.01) : NULL;
+    d.mass = 0.03;
+    for (int i = 0; d.shape && i < 24 && rc == SC_OK; i++) {
+        d.pos[0] = -0.1 + 0.04 * (i % 6);
+        d.pos[1] = -0.1 + 0.04 * (i / 6);
+        d.pos[2] = 10 + 0.05 * i;
+        int id = sc_body_add(w, &d);
+        rc = id < 0 ? id : SC_OK;
+    }
+    sc_shape_release(d.shape);
     if (rc != SC_OK) {
         fprintf(stderr, "cluster_run: scene: %s\n", sc_strerror(rc));
         sc_world_destroy(w);
@@ -146,7 +174,7 @@ int main(int argc, char **argv)
         return 1;
     }
 
-    long remote = 0, recomputed = 0, late = 0;
+    long remote = 0, recomputed = 0, late = 0, piped = 0;
     sc_stats st;
     memset(&st, 0, sizeof st);
     double t0 = now_s();
@@ -161,6 +189,7 @@ int main(int argc, char **argv)
         remote += st.remote_units;
         recomputed += st.recomputed_units;
         late += st.late_results;
+        piped += st.pipelined_units;
         if (trace) {
             printf("frame %ld wall %.3f daemons %d busy %d remote %ld recomputed %ld late %ld\n",
                    f, now_s() - t0, st.daemons, st.daemons_busy, st.remote_units,
@@ -175,8 +204,8 @@ int main(int argc, char **argv)
     sc_world_stats(w, &st);
     printf("hash %016llx\n", (unsigned long long)sc_world_hash(w));
     printf("remote %ld recomputed %ld late %ld dropped %ld stale %ld misaddressed %ld "
-           "duplicates %ld\n", remote, recomputed, late, st.dropped_messages, st.dropped_stale,
-           st.dropped_misaddressed, st.duplicate_nodes);
+           "duplicates %ld piped %ld\n", remote, recomputed, late, st.dropped_messages,
+           st.dropped_stale, st.dropped_misaddressed, st.duplicate_nodes, piped);
     if (st.duplicate_nodes)
         printf("duplicate node id %016llx\n", (unsigned long long)st.duplicate_node);
     printf("wall %.3f frames %ld\n", wall, f);

@@ -31,6 +31,7 @@ static char url[128];
 static int groups;              /* motion groups for the worlds made */
 static int toi_mode = SC_TOI_WORLD;                  /* their time of impact */
 static int island_split = SC_ISLAND_SPLIT_DEFAULT;   /* theirs */
+static int pile_scene;          /* a pile in a bin, lone spheres above it */
 static uint8_t key[SC_KEY_BYTES];
 static char key_path[64];
 
@@ -94,7 +95,24 @@ static sc_world *make_world(int cluster, const char *keyfile)
     }
     sc_world *w = sc_world_create(&c);
     assert_non_null(w);
-    assert_int_equal(sc_scene_bolts_nuts(w, BODIES, 11), SC_OK);
+    if (!pile_scene) {
+        assert_int_equal(sc_scene_bolts_nuts(w, BODIES, 11), SC_OK);
+        return w;
+    }
+    /* a pile (one group with most of the work) and lone spheres high
+     * above it, falling side by side (a group each) */
+    assert_int_equal(sc_scene_bin(w, 40, 11), SC_OK);
+    sc_body_desc d = sc_body_desc_default();
+    d.shape = sc_shape_sphere(0.01);
+    assert_non_null(d.shape);
+    d.mass = 0.03;
+    for (int i = 0; i < 24; i++) {
+        d.pos[0] = -0.1 + 0.04 * (i % 6);
+        d.pos[1] = -0.1 + 0.04 * (i / 6);
+        d.pos[2] = 10 + 0.05 * i;
+        assert_true(sc_body_add(w, &d) >= 0);
+    }
+    sc_shape_release(d.shape);
     return w;
 }
 
@@ -305,6 +323,59 @@ static void test_a_daemon_that_stops_in_local_toi_mode_changes_nothing(void **st
     toi_mode = SC_TOI_LOCAL;
     test_a_daemon_that_stops_changes_nothing(state);
     toi_mode = SC_TOI_WORLD;
+}
+
+/* With a pile, the other groups' units go to the daemons before the pile
+ * steps here and come back while it runs (sc_stats.pipelined_units), and
+ * the bits are the local run's; a daemon stopped part-way, with group
+ * units out to it while a pile runs, changes nothing either (its units
+ * are recomputed here after the deadline). */
+static void groups_while_the_pile_runs(int stop)
+{
+    toi_mode = SC_TOI_LOCAL;
+    pile_scene = 1;
+    uint64_t h0 = local_hash();
+    daemon_thread d;
+    start_daemon(&d, stop ? 0x2201 : 0x2101, 1);
+    sc_world *w = make_world(1, key_path);
+    sc_cluster_force(w->cluster);   /* this test's own load is not an owner's */
+    wait_daemons(w, 1);
+    long piped = 0, piped_before = 0, recomputed = 0;
+    for (int f = 0; f < FRAMES; f++) {
+        if (stop && f == FRAMES / 2)
+            stop_daemon(&d, NULL);
+        assert_int_equal(sc_world_step(w, 0.01), SC_OK);
+        sc_stats st;
+        sc_world_stats(w, &st);
+        piped += st.pipelined_units;
+        recomputed += st.recomputed_units;
+        if (f < FRAMES / 2)
+            piped_before = piped;
+    }
+    uint64_t h = sc_world_hash(w);
+    if (!stop)
+        stop_daemon(&d, NULL);
+    printf("  group units back while the pile ran %ld (%ld before the stop), recomputed %ld\n",
+           piped, piped_before, recomputed);
+    toi_mode = SC_TOI_WORLD;
+    pile_scene = 0;
+    assert_true(h == h0);
+    assert_true(piped_before > 0);
+    if (stop)
+        assert_true(recomputed > 0);
+    sc_world_destroy(w);
+}
+
+static void test_daemons_step_groups_while_the_pile_runs(void **state)
+{
+    (void)state;
+    groups_while_the_pile_runs(0);
+}
+
+static void test_a_daemon_stopped_while_the_pile_runs_changes_nothing(void **state)
+{
+    (void)state;
+    groups_while_the_pile_runs(1);
 }
 
 static void test_wrong_key_daemon_is_never_used(void **state)
@@ -628,6 +699,8 @@ int main(void)
         cmocka_unit_test(test_split_islands_on_daemons_give_the_same_bits),
         cmocka_unit_test(test_a_daemon_that_stops_changes_nothing),
         cmocka_unit_test(test_a_daemon_that_stops_in_local_toi_mode_changes_nothing),
+        cmocka_unit_test(test_daemons_step_groups_while_the_pile_runs),
+        cmocka_unit_test(test_a_daemon_stopped_while_the_pile_runs_changes_nothing),
         cmocka_unit_test(test_wrong_key_daemon_is_never_used),
         cmocka_unit_test(test_cluster_wait_counts_daemons),
         cmocka_unit_test(test_hostile_messages_are_dropped),

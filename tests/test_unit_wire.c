@@ -419,8 +419,9 @@ static sc_unit island_unit(const sc_islands *is, int i, int n)
 
 /* The solver settings the island units are solved with: frame.c's; every
  * island of more than two contacts split into blocks (sweeps from the warm
- * start); the same without warm starts; one sweep at most (unconverged). */
-#define NSETTINGS 4
+ * start); the same without warm starts; one sweep at most (unconverged);
+ * the local mode's impacts first (which writes v0, w0: they come back). */
+#define NSETTINGS 5
 static sc_contact_params setting(int k)
 {
     sc_contact_params p = params;
@@ -436,6 +437,8 @@ static sc_contact_params setting(int k)
         p.max_sweeps = 1;
         p.tol = 0;
     }
+    if (k == 4)
+        p.impact_first = 1;
     return p;
 }
 
@@ -1217,7 +1220,7 @@ static void test_result_for_another_unit_is_a_format_error(void **state)
     const size_t pivots = 24, counters = pivots + 8, ncont = counters + 60 + 16;
     assert_int_equal(rlen, ncont + 4 +
                                (size_t)(ij.is.body_start[big + 1] - ij.is.body_start[big]) *
-                                   (13 * 8 + 4) +
+                                   (19 * 8 + 4) +
                                (size_t)ui.count * 24);
     size_t nb = (size_t)s->w->st.nbodies, ncb = (size_t)ij.nc * sizeof *ij.cr;
     sc_body *bodies_before = malloc(nb * sizeof *bodies_before);

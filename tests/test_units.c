@@ -253,6 +253,45 @@ static void test_latency_keeps_small_jobs_home(void **state)
     fake_latency = 0;
 }
 
+/* A node still busy with a started job's units (sc_exec.start: a frame's
+ * motion groups out while the pile runs) is ready only when that is
+ * predicted done: a job in between goes to it only where it would still
+ * finish sooner; and a home node counted busy (the pile's predicted time)
+ * sends a started job's units out. */
+static void test_busy_nodes_get_work_only_where_it_still_pays(void **state)
+{
+    (void)state;
+    sc_node n0 = { &fake_ops, 0 }, n1 = { &fake_ops, 1 };
+    sc_node *nodes[2] = { &n0, &n1 };
+    sc_sched s;
+    assert_int_equal(sc_sched_init(&s, 2), SC_OK);
+    s.use_models = 0;
+    fake_latency = 0;
+    double cost[4] = { 1, 1, 1, 1 };
+    sc_unit u[4];
+    /* units of 1 s; node 1 busy for 10 s more: all four stay home */
+    make_units(u, cost, 4);
+    s.nodes[1].busy_until = sc_wall_now() + 10;
+    assert_int_equal(sc_sched_assign(&s, nodes, u, 4), SC_OK);
+    assert_int_equal(s.start[2] - s.start[1], 0);
+    /* busy for 2 s: the fourth unit would finish at 4 s home, 3 s there */
+    make_units(u, cost, 4);
+    s.nodes[1].busy_until = sc_wall_now() + 2;
+    assert_int_equal(sc_sched_assign(&s, nodes, u, 4), SC_OK);
+    assert_int_equal(s.start[2] - s.start[1], 1);
+    /* free again: an even split */
+    make_units(u, cost, 4);
+    s.nodes[1].busy_until = 0;
+    assert_int_equal(sc_sched_assign(&s, nodes, u, 4), SC_OK);
+    assert_int_equal(s.start[2] - s.start[1], 2);
+    /* the home node busy for 10 s (a pile): everything goes out */
+    make_units(u, cost, 4);
+    s.nodes[0].busy_until = sc_wall_now() + 10;
+    assert_int_equal(sc_sched_assign(&s, nodes, u, 4), SC_OK);
+    assert_int_equal(s.start[2] - s.start[1], 4);
+    sc_sched_free(&s);
+}
+
 static void test_bad_worker_counts(void **state)
 {
     (void)state;
@@ -403,6 +442,7 @@ int main(void)
         cmocka_unit_test(test_speed_is_learned_and_slow_nodes_get_less),
         cmocka_unit_test(test_cost_model_is_fitted),
         cmocka_unit_test(test_latency_keeps_small_jobs_home),
+        cmocka_unit_test(test_busy_nodes_get_work_only_where_it_still_pays),
         cmocka_unit_test(test_bad_worker_counts),
         cmocka_unit_test(test_worlds_come_and_go),
         cmocka_unit_test(test_frame_is_a_value),

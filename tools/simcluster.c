@@ -558,6 +558,7 @@ static int record_finish(recorder *r)
 typedef struct totals {
     long frames, units, remote, recomputed, late;
     long msgs_out, msgs_in;     /* sealed messages of units sent, results received */
+    long piped;                 /* group units back while the pile ran */
     long overlaps;              /* body pairs overlapping where they were placed */
     int auth_warned;            /* the warning about another key was given */
     long over_budget;           /* frames whose step took more than DT of wall time */
@@ -638,6 +639,7 @@ static int simulate(const options *o, sc_world *w, totals *t, int progress, reco
         t->comm += st.comm_s;
         t->msgs_out += st.unit_messages;
         t->msgs_in += st.result_messages;
+        t->piped += st.pipelined_units;
         if (st.duplicate_nodes > t->duplicates) {
             /* two running daemons with one id: said once per pair */
             t->duplicates = st.duplicate_nodes;
@@ -815,7 +817,7 @@ static int run_cmd(int argc, char **argv)
                "\"late_results\": %ld, \"dropped_messages\": %ld, \"dropped_auth\": %ld, "
                "\"dropped_stale\": %ld, "
                "\"dropped_misaddressed\": %ld, \"duplicate_nodes\": %ld, \"comm_s\": %.4f, "
-               "\"unit_messages\": %ld, \"result_messages\": %ld, "
+               "\"unit_messages\": %ld, \"result_messages\": %ld, \"pipelined_units\": %ld, "
                "\"frames_over_budget\": %ld, \"max_frame_s\": %.4f, \"initial_overlaps\": %ld, "
                "\"solver\": {\"island_split\": %d, \"solves\": %ld, \"split\": %ld, "
                "\"blocks\": %ld, \"pivots\": %ld, \"max_frame_pivots\": %ld, "
@@ -832,7 +834,8 @@ static int run_cmd(int argc, char **argv)
                t.rest_s, t.peak_energy, t.max_pen, t.units, st.daemons, t.remote, t.recomputed,
                t.late, st.dropped_messages, st.dropped_auth, st.dropped_stale,
                st.dropped_misaddressed,
-               st.duplicate_nodes, t.comm, t.msgs_out, t.msgs_in, t.over_budget, t.max_frame, t.overlaps,
+               st.duplicate_nodes, t.comm, t.msgs_out, t.msgs_in, t.piped, t.over_budget, t.max_frame,
+               t.overlaps,
                island_split, t.solves, t.split, t.blocks, t.pivots, t.max_pivots, t.staggered,
                t.split_fb, t.block_fb, t.nan, t.inelastic, t.unconverged, t.max_sweeps, t.residual,
                t.outer_residual, t.substeps, t.max_substeps,
@@ -879,11 +882,15 @@ static int run_cmd(int argc, char **argv)
                    "duplicate daemon ids %ld",
                    st.dropped_auth, st.dropped_stale, st.dropped_misaddressed,
                    st.duplicate_nodes);
-        if (o.cluster && t.frames)
-            printf("\n  cluster messages a frame: %.2f of units out, %.2f of results in; "
-                   "communication %.2f ms a frame",
-                   (double)t.msgs_out / (double)t.frames, (double)t.msgs_in / (double)t.frames,
-                   1e3 * t.comm / (double)t.frames);
+        if (o.cluster && t.frames) {
+            /* per daemon: over those in use now (at least one) */
+            double nd = st.daemons > 1 ? st.daemons : 1, fr = (double)t.frames;
+            printf("\n  cluster messages a frame: %.2f of units out, %.2f of results in "
+                   "(a daemon: %.2f, %.2f); communication %.2f ms a frame; group units "
+                   "back while the pile ran %.2f a frame",
+                   (double)t.msgs_out / fr, (double)t.msgs_in / fr, (double)t.msgs_out / fr / nd,
+                   (double)t.msgs_in / fr / nd, 1e3 * t.comm / fr, (double)t.piped / fr);
+        }
         printf("\n  state hash %016llx\n", hash);
         if (t.interrupted)
             printf("  interrupted by %s after frame %ld\n", signal_name(t.interrupted),

@@ -330,6 +330,7 @@ SC_API int sc_world_step(sc_world *w, double dt)
     st->remote_wait_s = 0;
     st->unit_messages = 0;
     st->result_messages = 0;
+    st->pipelined_units = 0;
     if (w->cluster)
         sc_cluster_frame(w->cluster);
     int rc = sc_arena_reset(&w->scr.arena);

@@ -95,6 +95,15 @@ typedef struct sc_exec sc_exec;
 struct sc_exec {
     int (*run)(sc_exec *ex, sc_job *job, int stage, sc_stats *st);
     int (*width)(const sc_exec *ex);   /* nodes it can run units on */
+    /* A job in two halves (NULL: only run()): start() assigns the units
+     * and sends the remote nodes theirs at once, the local nodes' waiting
+     * for finish(), which runs them, collects the rest and returns as
+     * run() would. In between the caller may run() other jobs on ex (not
+     * start another); local nodes are taken as busy for home_busy_s
+     * first, so units go remote only where that still finishes sooner.
+     * After a start() that failed, finish() is not called. */
+    int (*start)(sc_exec *ex, sc_job *job, double home_busy_s);
+    int (*finish)(sc_exec *ex, sc_job *job, int stage, sc_stats *st);
 };
 /* The serial executor: every job as one unit on the calling thread, with
  * its narrow-phase context np. */

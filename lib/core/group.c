@@ -34,11 +34,13 @@
 #include "vecmath.h"
 
 #define REACH_MARGIN 2e-3     /* m added to every body's reach */
-#define BIG_GROUP 0.5         /* share of the awake bodies that makes a pile */
+#define BIG_GROUP 0.5         /* share of the awake bodies, or of the groups'
+                                 work, that makes a pile */
 #define WIRE_GROUP_HEADER 400 /* bytes: unit and result headers, settings, figures */
 #define WIRE_GROUP_BODY 496   /* per body out */
 #define WIRE_GROUP_MEMBER 288 /* per member's state back */
 #define WIRE_GROUP_CONTACT 88 /* per contact, with its impulse */
+#define PILE_KEEP 0.5         /* moving average of the pile's frame time */
 
 /* A group's frame runs on a copy of its bodies: this holds the copy and a
  * frame scratch of its own, kept between frames (one per thread that runs
@@ -53,6 +55,8 @@ typedef struct sc_group_scratch {
     sc_broadphase *gbp;             /* the parent's: reach spheres */
     sc_pair *gpairs;
     int gpair_cap;
+    double pile_s;                  /* the parent's: wall seconds of the last
+                                       piles' frames (moving average) */
 } sc_group_scratch;
 
 static sc_group_scratch *group_scratch_create(void)
@@ -403,6 +407,13 @@ static int merge_contacts(sc_arena *a, sc_frame_state *st, const sc_group_out *o
     return SC_OK;
 }
 
+/* What group k's frame costs: its bodies, and its contacts of the last
+ * frame (work per substep). */
+static double group_cost(const sc_groups *g, int k)
+{
+    return (g->start[k + 1] - g->start[k]) + 4.0 * (g->cstart[k + 1] - g->cstart[k]);
+}
+
 /* The groups' frames, with the groups built in g. */
 static int step_groups(const sc_frame_config *cfg, sc_frame_state *st, double dt,
                        sc_frame_scratch *scr, sc_exec *ex, sc_stats *stats, sc_groups *g)
@@ -420,14 +431,22 @@ static int step_groups(const sc_frame_config *cfg, sc_frame_state *st, double dt
     int awake = 0;
     for (int i = 0; i < st->nbodies; i++)
         awake += g->active[i];
-    /* a pile: on the calling thread, its jobs over every node */
+    /* a pile: on the calling thread, its jobs over every node. It holds
+     * more than half the awake bodies, or more than half the work (as a
+     * unit would cost: a group of a few hundred bodies in contact can
+     * outweigh hundreds of lone falling bodies, and as one unit it would
+     * bound the frame); a group is one or the other on any executor, the
+     * same bits */
     int big = -1;
+    double total = 0;
+    for (int k = 0; k < ng; k++)
+        total += group_cost(g, k);
     for (int k = 0; k < ng && ex->width(ex) > 1; k++)
-        if (g->start[k + 1] - g->start[k] > BIG_GROUP * awake)
+        if ((g->start[k + 1] - g->start[k] > BIG_GROUP * awake ||
+             group_cost(g, k) > BIG_GROUP * total) &&
+            (big < 0 || group_cost(g, k) > group_cost(g, big)))
             big = k;
     int rc = SC_OK;
-    if (big >= 0)
-        group_frame(&gj, scr->groups, big, ex);
     /* the others: one unit each */
     int nu = 0;
     for (int k = 0; k < ng; k++) {
@@ -440,8 +459,7 @@ static int step_groups(const sc_frame_config *cfg, sc_frame_state *st, double dt
         u->first = k;
         u->count = nm;
         u->islands = 1;
-        /* bodies, and their contacts of the last frame (work per substep) */
-        u->cost = nm + 4.0 * nc;
+        u->cost = group_cost(g, k);
         u->feat[0] = 1;
         u->feat[1] = nm;
         u->feat[2] = nc;
@@ -450,16 +468,34 @@ static int step_groups(const sc_frame_config *cfg, sc_frame_state *st, double dt
         u->bytes = WIRE_GROUP_HEADER + WIRE_GROUP_BODY * (size_t)(nm + g->nstatics) +
                    WIRE_GROUP_MEMBER * (size_t)nm + 2 * WIRE_GROUP_CONTACT * (size_t)nc;
     }
-    if (nu > 0) {
-        sc_job job = {
-            .kind = SC_UNIT_GROUP,
-            .units = units,
-            .nunits = nu,
-            .group = &gj,
-            .run_group = sc_group_unit_run,
-        };
-        rc = ex->run(ex, &job, -1, stats);
+    sc_job job = {
+        .kind = SC_UNIT_GROUP,
+        .units = units,
+        .nunits = nu,
+        .group = &gj,
+        .run_group = sc_group_unit_run,
+    };
+    /* With a pile, the other groups' units go out to remote nodes before
+     * it and are collected after it, so that daemons step them while this
+     * thread steps the pile (the local nodes' share waits until then: the
+     * scheduler counts them busy for the pile's predicted time). Units
+     * read only the groups' own members and the static bodies, which the
+     * pile does not write, and write only their own, so the order changes
+     * nothing. */
+    int started = 0;
+    if (nu > 0 && big >= 0 && ex->start) {
+        rc = ex->start(ex, &job, scr->groups->pile_s);
+        started = rc == SC_OK;
     }
+    if (big >= 0 && rc == SC_OK) {
+        double t0 = sc_wall_now();
+        group_frame(&gj, scr->groups, big, ex);
+        double t = sc_wall_now() - t0;
+        sc_group_scratch *ps = scr->groups;
+        ps->pile_s = ps->pile_s > 0 ? PILE_KEEP * ps->pile_s + (1 - PILE_KEEP) * t : t;
+    }
+    if (nu > 0 && rc == SC_OK)
+        rc = started ? ex->finish(ex, &job, -1, stats) : ex->run(ex, &job, -1, stats);
     for (int k = 0; k < ng; k++) {
         sc_stats_add_frame(stats, &out[k].stats);
         if (out[k].rc != SC_OK && rc == SC_OK)

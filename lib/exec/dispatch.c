@@ -112,51 +112,54 @@ static int nodes_width(const sc_exec *ex)
     return ((const sc_exec_nodes *)ex)->nnodes;
 }
 
-/* A job on the nodes: cut, cost, assign, submit, wait, learn, and account
- * it in st (stage CPU of the other nodes, makespan). */
-static int nodes_run(sc_exec *ex, sc_job *job, int stage, sc_stats *st)
+/* Cut a job into units (GROUP jobs come cut). */
+static int cut(sc_exec_nodes *x, sc_job *job)
 {
-    sc_exec_nodes *x = (sc_exec_nodes *)ex;
-    double t0 = sc_wall_now();
-    int nnodes = x->nnodes;
-    int rc = SC_OK;
     if (job->kind == SC_UNIT_ISLAND)
-        rc = island_units(x, job);
-    else if (job->kind != SC_UNIT_GROUP)    /* group units come made */
-        rc = pair_units(x, job, x->nlocal + (x->prov.ctx ? x->prov.available(x->prov.ctx) : 0));
-    if (rc != SC_OK)
-        return rc;
-    if (job->nunits == 0)
-        return SC_OK;
-    sc_sched *s = &x->sched;
-    sc_node **nodes = x->nodes;
-    rc = sc_sched_assign(s, nodes, job->units, job->nunits);
-    if (rc != SC_OK)
-        return rc;
-    if (x->prov.ctx && (rc = x->prov.job_begin(x->prov.ctx, job)) != SC_OK)
-        return rc;
-    double t1 = sc_wall_now();
-    /* every list is in place before any node can look for more */
-    for (int k = 0; k < nnodes; k++) {
-        int cnt = s->start[k + 1] - s->start[k];
-        if (cnt > 0)
-            rc = nodes[k]->ops->submit(nodes[k], job, &s->assigned[s->start[k]], cnt);
+        return island_units(x, job);
+    if (job->kind != SC_UNIT_GROUP)
+        return pair_units(x, job, x->nlocal + (x->prov.ctx ? x->prov.available(x->prov.ctx) : 0));
+    return SC_OK;
+}
+
+/* Submit nodes [k0, k1) their lists (assigned[start[k] .. start[k + 1])). */
+static void submit_nodes(sc_exec_nodes *x, const sc_job *job, const int *assigned,
+                         const int *start, int k0, int k1)
+{
+    for (int k = k0; k < k1; k++) {
+        int cnt = start[k + 1] - start[k];
+        int rc = cnt > 0 ? x->nodes[k]->ops->submit(x->nodes[k], job, &assigned[start[k]], cnt)
+                         : SC_OK;
         SC_ASSERT(rc == SC_OK);
+        (void)rc;
     }
+}
+
+/* Wait for every node with a list; the CPU seconds of the nodes but the
+ * calling thread. */
+static double wait_nodes(sc_exec_nodes *x, const int *start)
+{
     double cpu_others = 0;
-    for (int k = 0; k < nnodes; k++) {
-        if (s->start[k + 1] == s->start[k])
+    for (int k = 0; k < x->nnodes; k++) {
+        if (start[k + 1] == start[k])
             continue;
         double cpu = 0;
-        nodes[k]->ops->wait(nodes[k], &cpu);
+        x->nodes[k]->ops->wait(x->nodes[k], &cpu);
         if (k > 0)
             cpu_others += cpu;
     }
-    if (x->prov.ctx)
-        x->prov.job_end(x->prov.ctx);
+    return cpu_others;
+}
+
+/* After a job: learn from it and account it in st (stage CPU of the other
+ * nodes, makespan, scheduling time, the first unit error). */
+static int account(sc_exec_nodes *x, sc_job *job, int stage, sc_stats *st, double cpu_others,
+                   double makespan_s, double sched_s)
+{
     double t2 = sc_wall_now();
     double bound = 0;
-    sc_sched_observe(s, job->units, job->nunits, &bound);
+    int rc = SC_OK;
+    sc_sched_observe(&x->sched, job->units, job->nunits, &bound);
     /* CPU of the other nodes is CPU of this stage too (Table 1); group
      * units count their own */
     if (stage >= 0) {
@@ -164,7 +167,7 @@ static int nodes_run(sc_exec *ex, sc_job *job, int stage, sc_stats *st)
         st->stage_total_s[stage] += cpu_others;
     }
     st->units += job->nunits;
-    st->makespan_s += t2 - t1;
+    st->makespan_s += makespan_s;
     st->makespan_bound_s += bound;
     for (int i = 0; i < job->nunits; i++) {
         const sc_unit *u = &job->units[i];
@@ -176,8 +179,105 @@ static int nodes_run(sc_exec *ex, sc_job *job, int stage, sc_stats *st)
         if (u->rc != SC_OK && rc == SC_OK)
             rc = u->rc;    /* the first in unit order: the same for any assignment */
     }
-    st->sched_s += (t1 - t0) + (sc_wall_now() - t2);
+    st->sched_s += sched_s + (sc_wall_now() - t2);
     return rc;
+}
+
+/* A job on the nodes: cut, cost, assign, submit, wait, learn, and account
+ * it in st (stage CPU of the other nodes, makespan). */
+static int nodes_run(sc_exec *ex, sc_job *job, int stage, sc_stats *st)
+{
+    sc_exec_nodes *x = (sc_exec_nodes *)ex;
+    double t0 = sc_wall_now();
+    int rc = cut(x, job);
+    if (rc != SC_OK || job->nunits == 0)
+        return rc;
+    sc_sched *s = &x->sched;
+    rc = sc_sched_assign(s, x->nodes, job->units, job->nunits);
+    if (rc != SC_OK)
+        return rc;
+    if (x->prov.ctx && (rc = x->prov.job_begin(x->prov.ctx, job)) != SC_OK)
+        return rc;
+    double t1 = sc_wall_now();
+    /* every list is in place before any node can look for more */
+    submit_nodes(x, job, s->assigned, s->start, 0, x->nnodes);
+    double cpu_others = wait_nodes(x, s->start);
+    if (x->prov.ctx)
+        x->prov.job_end(x->prov.ctx);
+    return account(x, job, stage, st, cpu_others, sc_wall_now() - t1, t1 - t0);
+}
+
+/* start(): assign with the local nodes busy for home_busy_s, send the
+ * remote nodes their units now and park the job with the provider; the
+ * local lists wait for finish(). The assignment is kept here (the
+ * scheduler's lists serve the jobs run in between), and the remote nodes
+ * are marked busy until their predicted finish, so that those jobs send
+ * them only what still finishes sooner there. When no remote node gets a
+ * unit, finish() runs the job as run() would. */
+static int nodes_start(sc_exec *ex, sc_job *job, double home_busy_s)
+{
+    sc_exec_nodes *x = (sc_exec_nodes *)ex;
+    SC_ASSERT(!x->pend.job);
+    double t0 = sc_wall_now();
+    int rc = cut(x, job);
+    x->pend.job = rc == SC_OK ? job : NULL;
+    x->pend.whole = 1;
+    if (rc != SC_OK || job->nunits == 0 || !x->prov.ctx || x->nnodes == x->nlocal)
+        return rc;
+    sc_sched *s = &x->sched;
+    for (int k = 0; k < x->nlocal; k++)
+        s->nodes[k].busy_until = home_busy_s > 0 ? t0 + home_busy_s : 0;
+    rc = sc_sched_assign(s, x->nodes, job->units, job->nunits);
+    for (int k = 0; k < x->nlocal; k++)
+        s->nodes[k].busy_until = 0;
+    int n = x->nnodes;
+    if (rc == SC_OK && s->start[n] == s->start[x->nlocal])
+        return SC_OK;           /* nothing goes out: all at finish() */
+    if (rc == SC_OK && sc_grow((void **)&x->pend.assigned, &x->pend.assigned_cap, job->nunits,
+                               sizeof *x->pend.assigned, INT_MAX) != SC_OK)
+        rc = SC_ENOMEM;
+    if (rc == SC_OK && (rc = x->prov.job_begin(x->prov.ctx, job)) == SC_OK)
+        x->pend.whole = 0;
+    if (rc != SC_OK) {
+        x->pend.job = NULL;
+        return rc;
+    }
+    memcpy(x->pend.assigned, s->assigned, (size_t)job->nunits * sizeof *x->pend.assigned);
+    memcpy(x->pend.start, s->start, (size_t)(n + 1) * sizeof *x->pend.start);
+    for (int k = 0; k < n; k++)
+        x->pend.cap[k] = s->nodes[k].job_cap;
+    double t1 = sc_wall_now();
+    submit_nodes(x, job, x->pend.assigned, x->pend.start, x->nlocal, n);
+    x->prov.job_park(x->prov.ctx);
+    double t2 = sc_wall_now();
+    for (int k = x->nlocal; k < n; k++)
+        if (x->pend.start[k + 1] > x->pend.start[k])
+            s->nodes[k].busy_until = t1 + s->nodes[k].ready;
+    x->pend.submit_s = t2 - t1;
+    x->pend.sched_s = t1 - t0;
+    return SC_OK;
+}
+
+static int nodes_finish(sc_exec *ex, sc_job *job, int stage, sc_stats *st)
+{
+    sc_exec_nodes *x = (sc_exec_nodes *)ex;
+    SC_ASSERT(x->pend.job == job);
+    x->pend.job = NULL;
+    if (x->pend.whole)
+        return nodes_run(ex, job, stage, st);
+    sc_sched *s = &x->sched;
+    int n = x->nnodes;
+    x->prov.job_resume(x->prov.ctx, job);
+    double t1 = sc_wall_now();
+    submit_nodes(x, job, x->pend.assigned, x->pend.start, 0, x->nlocal);
+    double cpu_others = wait_nodes(x, x->pend.start);
+    x->prov.job_end(x->prov.ctx);
+    for (int k = 0; k < n; k++) {
+        s->nodes[k].busy_until = 0;
+        s->nodes[k].job_cap = x->pend.cap[k];   /* what it offered for this job */
+    }
+    return account(x, job, stage, st, cpu_others, x->pend.submit_s + sc_wall_now() - t1,
+                   x->pend.sched_s);
 }
 
 int sc_exec_nodes_init(sc_exec_nodes *x, int nlocal, int extra)
@@ -185,8 +285,14 @@ int sc_exec_nodes_init(sc_exec_nodes *x, int nlocal, int extra)
     memset(x, 0, sizeof *x);
     x->base.run = nodes_run;
     x->base.width = nodes_width;
+    x->base.start = nodes_start;
+    x->base.finish = nodes_finish;
     x->cap = nlocal + extra;
     x->nodes = sc_calloc_array((size_t)x->cap, sizeof *x->nodes);
+    x->pend.start = sc_calloc_array((size_t)x->cap + 1, sizeof *x->pend.start);
+    x->pend.cap = sc_calloc_array((size_t)x->cap, sizeof *x->pend.cap);
+    if (!x->pend.start || !x->pend.cap)
+        return SC_ENOMEM;
     x->pool = sc_local_pool_create();
     int rc = x->nodes && x->pool ? sc_sched_init(&x->sched, x->cap) : SC_ENOMEM;
     for (int k = 0; k < nlocal && rc == SC_OK; k++) {
@@ -216,5 +322,8 @@ void sc_exec_nodes_free(sc_exec_nodes *x)
     sc_local_pool_destroy(x->pool);
     sc_sched_free(&x->sched);
     free(x->units);
+    free(x->pend.assigned);
+    free(x->pend.start);
+    free(x->pend.cap);
     memset(x, 0, sizeof *x);
 }

@@ -71,6 +71,10 @@ typedef struct sc_sched_node {
     double job_speed, job_latency;  /* for the current job's assignment */
     double job_tr0, job_tr1;        /* transfer: seconds fixed, per byte */
     double job_cap;                 /* capacity offered in the current job */
+    double busy_until;              /* wall clock (sc_wall_now) until which it is
+                                       predicted busy with a started job's units
+                                       (0: free); its ready time in a job begins
+                                       there */
 } sc_sched_node;
 typedef struct sc_sched {
     int nnodes;
@@ -100,11 +104,16 @@ void sc_sched_observe(sc_sched *s, const sc_unit *units, int n, double *bound_s)
 /* Something that adds nodes of its own to an executor (the cluster): told
  * around every job run on the nodes (after assignment, before the first
  * submit; after the last wait), and asked how many of its nodes can take
- * work now (for cutting pair jobs). */
+ * work now (for cutting pair jobs). A started job (sc_exec.start) is
+ * parked after its remote submits, so that other jobs can begin and end
+ * meanwhile (its results are still taken as they come), and resumed
+ * before its waits. */
 typedef struct sc_node_provider {
     int (*job_begin)(void *ctx, const sc_job *job);
     void (*job_end)(void *ctx);
     int (*available)(void *ctx);
+    void (*job_park)(void *ctx);
+    void (*job_resume)(void *ctx, const sc_job *job);
     void *ctx;
 } sc_node_provider;
 
@@ -120,6 +129,13 @@ typedef struct sc_exec_nodes {
     sc_unit *units;                 /* jobs' units, grown and kept */
     int unit_cap;
     int private_ode;                /* local nodes on a private ODE copy */
+    struct {                        /* a job between start() and finish() */
+        sc_job *job;
+        int whole;                  /* nothing sent: run() it at finish() */
+        int *assigned, assigned_cap, *start;   /* its per-node lists */
+        double *cap;                /* per node: the capacity it offered */
+        double submit_s, sched_s;
+    } pend;
 } sc_exec_nodes;
 /* nlocal local nodes and room for extra more (a provider's): SC_OK or
  * SC_ENOMEM (then sc_exec_nodes_free() still applies). */

@@ -130,9 +130,11 @@ int sc_sched_assign(sc_sched *s, sc_node *const *nodes, sc_unit *units, int n)
             nmeasured++;
         }
     double fallback = nmeasured ? sum / nmeasured : 1.0;
+    double now = sc_wall_now();
     for (int k = 0; k < s->nnodes; k++) {
         sc_sched_node *nd = &s->nodes[k];
-        nd->ready = 0;
+        /* a node still busy with a started job's units is ready later */
+        nd->ready = nd->busy_until > now ? nd->busy_until - now : 0;
         nd->job_cap = k == 0                     ? s->home_capacity
                       : !nodes[k]->ops->capacity ? 1.0
                                                  : nodes[k]->ops->capacity(nodes[k], kind);

@@ -30,6 +30,7 @@
 #include <stdlib.h>
 #include <string.h>
 #include <sys/socket.h>
+#include <sys/time.h>
 #include <sys/uio.h>
 #include <time.h>
 #include <unistd.h>
@@ -279,6 +280,9 @@ SC_API int sc_bus_open(const char *url, sc_bus **out, char *why, size_t why_len)
     step = "SO_RXQ_OVFL";
     if (setsockopt(b->rfd, SOL_SOCKET, SO_RXQ_OVFL, &one, sizeof one) != 0)
         goto fail;
+    /* the kernel's arrival stamp of each datagram (best effort): a message
+     * read late, after other work, still tells when it came */
+    (void)setsockopt(b->rfd, SOL_SOCKET, SO_TIMESTAMP, &one, sizeof one);
     b->n.rcvbuf_bytes = set_rcvbuf(b->rfd, u.rcvbuf);
     step = "bind";
     if (bind(b->rfd, (const struct sockaddr *)&b->group, sizeof b->group) != 0)
@@ -611,11 +615,18 @@ int sc_bus_feed(sc_bus *b, const uint8_t *d, size_t len, uint32_t addr, uint16_t
     return deliver(b, s, d + at, len - at, recv_us);
 }
 
-/* The kernel's count of datagrams it dropped for this socket, from a
- * received message's control data. */
-static void note_kernel_drops(sc_bus *b, struct msghdr *mh)
+/* The kernel's count of datagrams it dropped for this socket, and the
+ * datagram's arrival stamp (*recv_us, real-time microseconds; left as it
+ * is without one), from a received message's control data. */
+static void note_kernel_drops(sc_bus *b, struct msghdr *mh, int64_t *recv_us)
 {
     for (struct cmsghdr *c = CMSG_FIRSTHDR(mh); c; c = CMSG_NXTHDR(mh, c)) {
+        if (c->cmsg_level == SOL_SOCKET && c->cmsg_type == SCM_TIMESTAMP &&
+            c->cmsg_len >= CMSG_LEN(sizeof(struct timeval))) {
+            struct timeval tv;
+            memcpy(&tv, CMSG_DATA(c), sizeof tv);
+            *recv_us = (int64_t)tv.tv_sec * 1000000 + tv.tv_usec;
+        }
         if (c->cmsg_level == SOL_SOCKET && c->cmsg_type == SO_RXQ_OVFL &&
             c->cmsg_len >= CMSG_LEN(sizeof(uint32_t))) {
             uint32_t v;
@@ -647,7 +658,7 @@ SC_API int sc_bus_handle(sc_bus *b, double timeout_s)
         struct iovec iov = { b->dgram, sizeof b->dgram };
         union {
             struct cmsghdr align;
-            char buf[CMSG_SPACE(sizeof(uint32_t)) + 64];
+            char buf[CMSG_SPACE(sizeof(uint32_t)) + CMSG_SPACE(sizeof(struct timeval)) + 64];
         } ctl;
         struct msghdr mh = { .msg_name = &from, .msg_namelen = sizeof from, .msg_iov = &iov,
                              .msg_iovlen = 1, .msg_control = ctl.buf,
@@ -660,14 +671,15 @@ SC_API int sc_bus_handle(sc_bus *b, double timeout_s)
                 break;
             return SC_EIO;
         }
-        note_kernel_drops(b, &mh);
+        int64_t recv_us = real_us();
+        note_kernel_drops(b, &mh, &recv_us);
         if ((mh.msg_flags & MSG_TRUNC) || (size_t)r > SC_BUS_DGRAM_MAX) {
             b->n.datagrams++;
             b->n.malformed++;   /* longer than any LCM datagram */
             continue;
         }
         handed += sc_bus_feed(b, b->dgram, (size_t)r, ntohl(from.sin_addr.s_addr),
-                              ntohs(from.sin_port), mono_now(), real_us());
+                              ntohs(from.sin_port), mono_now(), recv_us);
     }
     if (!handed)
         expire(b, mono_now());

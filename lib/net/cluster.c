@@ -65,12 +65,28 @@ typedef struct daemon_slot {
     sc_msg_announce a;
     double heard, missed_at;
     double overhead;            /* s per job beyond its threads' compute time */
-    /* the current job */
+} daemon_slot;
+
+/* A daemon's share of one job. */
+typedef struct slot_job {
     int sent, done;
     int64_t submit_us, last_us;  /* real-time clock (the bus's receive stamps) */
     double t_submit;
     double compute_s;
-} daemon_slot;
+} slot_job;
+
+/* A job whose units are out: the current one (begun, not yet ended), and
+ * a started one parked meanwhile (sc_exec.start: a frame's motion groups
+ * while the pile runs); results of both are taken as they come. */
+typedef struct cluster_job {
+    const sc_job *job;
+    int64_t serial;
+    uint8_t *out;               /* per unit: OUT_* */
+    int out_cap;
+    int started;                /* parked once: its round trip held other jobs */
+    double local_done;          /* when the first remote wait began */
+    slot_job d[SC_MAX_DAEMONS];
+} cluster_job;
 
 typedef struct remote_node {
     sc_node base;
@@ -93,12 +109,9 @@ struct sc_cluster {
     daemon_slot d[SC_MAX_DAEMONS];
     remote_node node[SC_MAX_DAEMONS];
     double deadline_s;
-    /* the current job */
-    const sc_job *job;
-    int64_t serial;
-    uint8_t *out;               /* per unit: OUT_* */
-    int out_cap;
-    double local_done;          /* when the first remote wait began */
+    cluster_job jobs[2];
+    cluster_job *cur, *parked;  /* the current job, a started one parked */
+    int64_t serial;             /* of the last job begun */
     sc_np_ctx *np;              /* recomputation on the calling thread */
     int force;                  /* benchmarks: idle fraction and owner-busy ignored */
     uint8_t *buf;
@@ -243,8 +256,12 @@ static void stale_announce(sc_cluster *c, const void *buf, size_t len)
 
 static void take_result(sc_cluster *c, sc_msg_work *r)
 {
-    const sc_job *job = c->job;
-    if (!job || r->frame != c->serial || r->unit >= job->nunits || c->out[r->unit] != OUT_SENT) {
+    cluster_job *cj = NULL;
+    for (int j = 0; j < 2; j++)
+        if (c->jobs[j].job && c->jobs[j].serial == r->frame)
+            cj = &c->jobs[j];
+    const sc_job *job = cj ? cj->job : NULL;
+    if (!job || r->unit >= job->nunits || cj->out[r->unit] != OUT_SENT) {
         c->late++;              /* an old job, taken already, or recomputed */
         c->stats->late_results++;
         return;
@@ -256,14 +273,20 @@ static void take_result(sc_cluster *c, sc_msg_work *r)
         c->guard.dropped_format++;    /* it will be recomputed */
         return;
     }
-    c->out[r->unit] = OUT_DONE;
+    slot_job *dj = &cj->d[k];
+    cj->out[r->unit] = OUT_DONE;
     double sec = r->compute_us * 1e-6;
-    int threads = d->a.cores < d->sent ? d->a.cores : d->sent;
+    int threads = d->a.cores < dj->sent ? d->a.cores : dj->sent;
     u->time_s = sec / (threads > 0 ? threads : 1);
-    d->done++;
-    d->compute_s += u->time_s;
-    if (c->recv_us > d->last_us)
-        d->last_us = c->recv_us;
+    dj->done++;
+    dj->compute_s += u->time_s;
+    /* when it was there for the master: read now for the current job
+     * (after the calling thread's own units: the round trip the scheduler
+     * must weigh), at the kernel's arrival stamp for a started one (read
+     * only after the jobs run in between) */
+    int64_t at = cj->started ? c->recv_us : realtime_us();
+    if (at > dj->last_us)
+        dj->last_us = at;
     c->stats->remote_units++;
 }
 
@@ -406,7 +429,7 @@ static int add_unit(sc_cluster *c, daemon_slot *d, const sc_job *job, int idx)
     if (rc != SC_OK)
         return rc;
     sc_wire_unit_pack(job, u, c->buf, n);
-    sc_msg_work w = { c->serial, idx, c->buf, n, 0 };
+    sc_msg_work w = { c->cur->serial, idx, c->buf, n, 0 };
     uint8_t *p;
     size_t len;
     rc = sc_msg_work_encode(SC_MSG_UNIT, &w, &p, &len);
@@ -435,14 +458,15 @@ static int remote_submit(sc_node *n, const sc_job *job, const int *units, int co
     remote_node *r = (remote_node *)n;
     sc_cluster *c = r->c;
     daemon_slot *d = &c->d[r->slot];
+    slot_job *dj = &c->cur->d[r->slot];
     double t0 = sc_wall_now();
-    d->submit_us = d->last_us = realtime_us();
-    d->t_submit = t0;
+    dj->submit_us = dj->last_us = realtime_us();
+    dj->t_submit = t0;
     c->batch_len = 0;
     for (int i = 0; i < count; i++) {
         /* a unit that cannot be sent is computed here, in wait() */
-        c->out[units[i]] = OUT_SENT;
-        d->sent++;
+        c->cur->out[units[i]] = OUT_SENT;
+        dj->sent++;
         add_unit(c, d, job, units[i]);
     }
     flush(c, d);
@@ -452,11 +476,12 @@ static int remote_submit(sc_node *n, const sc_job *job, const int *units, int co
 
 static void recompute(sc_cluster *c, daemon_slot *d, int k)
 {
-    const sc_job *job = c->job;
+    cluster_job *cj = c->cur;
+    const sc_job *job = cj->job;
     int missed = 0;
     for (int i = 0; i < job->nunits; i++) {
         sc_unit *u = &job->units[i];
-        if (c->out[i] != OUT_SENT || u->node != c->first_node + k)
+        if (cj->out[i] != OUT_SENT || u->node != c->first_node + k)
             continue;
         if (!c->np)
             c->np = sc_np_create();
@@ -468,7 +493,7 @@ static void recompute(sc_cluster *c, daemon_slot *d, int k)
         }
         u->time_s = sc_wall_now() - t0;
         u->node = 0;            /* it taught us about this thread, not the daemon */
-        c->out[i] = OUT_LOCAL;
+        cj->out[i] = OUT_LOCAL;
         c->stats->recomputed_units++;
         missed++;
     }
@@ -480,9 +505,10 @@ static void recompute(sc_cluster *c, daemon_slot *d, int k)
  * recomputed. */
 static int outstanding(const sc_cluster *c, int k)
 {
+    const cluster_job *cj = c->cur;
     int n = 0;
-    for (int i = 0; i < c->job->nunits; i++)
-        n += c->out[i] == OUT_SENT && c->job->units[i].node == c->first_node + k;
+    for (int i = 0; i < cj->job->nunits; i++)
+        n += cj->out[i] == OUT_SENT && cj->job->units[i].node == c->first_node + k;
     return n;
 }
 
@@ -491,19 +517,25 @@ static int remote_wait(sc_node *n, double *cpu_s)
     remote_node *r = (remote_node *)n;
     sc_cluster *c = r->c;
     daemon_slot *d = &c->d[r->slot];
+    cluster_job *cj = c->cur;
+    slot_job *dj = &cj->d[r->slot];
     double now = sc_wall_now();
-    if (c->local_done == 0)
-        c->local_done = now;
-    /* the scheduler's own estimate of this daemon's work, twice, or the
-     * configured deadline after the local nodes finished */
+    if (cj->local_done == 0)
+        cj->local_done = now;
+    /* the scheduler's own estimate of this daemon's work (behind what a
+     * started job gave it), twice, or the configured deadline after the
+     * local nodes finished */
     double predicted = d->overhead;
-    for (int i = 0; i < c->job->nunits; i++)
-        if (c->job->units[i].node == n->id)
-            predicted += c->job->units[i].predict_s;
-    double deadline = c->local_done + c->deadline_s;
+    for (int i = 0; i < cj->job->nunits; i++)
+        if (cj->job->units[i].node == n->id)
+            predicted += cj->job->units[i].predict_s;
+    double busy = c->sched->nodes[n->id].busy_until - dj->t_submit;
+    if (!cj->started && busy > 0)
+        predicted += busy;
+    double deadline = cj->local_done + c->deadline_s;
     double cap = MAX_WAIT_DEADLINES * c->deadline_s;
-    if (d->t_submit + fmin(2 * predicted, cap) > deadline)
-        deadline = d->t_submit + fmin(2 * predicted, cap);
+    if (dj->t_submit + fmin(2 * predicted, cap) > deadline)
+        deadline = dj->t_submit + fmin(2 * predicted, cap);
     double t_wait = sc_wall_now();
     /* what is still out is read from the units, not from d's counts: a
      * restart of the daemon heard meanwhile resets its slot (a new epoch),
@@ -512,15 +544,16 @@ static int remote_wait(sc_node *n, double *cpu_s)
         pump(c, deadline - now);
     if (outstanding(c, r->slot) > 0)
         recompute(c, d, r->slot);
-    else if (d->sent > 0) {
-        /* from the send to the last result's arrival, less the work */
-        double o = 1e-6 * (double)(d->last_us - d->submit_us) - d->compute_s;
+    else if (dj->sent > 0) {
+        /* from the send to the last result's arrival (take_result), less
+         * the work */
+        double o = 1e-6 * (double)(dj->last_us - dj->submit_us) - dj->compute_s;
         if (o < 0)
             o = 0;
         d->overhead = d->overhead > 0 ? OVERHEAD_KEEP * d->overhead + (1 - OVERHEAD_KEEP) * o : o;
     }
     c->stats->remote_wait_s += sc_wall_now() - t_wait;
-    *cpu_s = d->compute_s;
+    *cpu_s = dj->compute_s;
     return SC_OK;
 }
 
@@ -555,6 +588,8 @@ static const sc_node_ops remote_ops = {
 static int prov_begin(void *ctx, const sc_job *job);
 static void prov_end(void *ctx);
 static int prov_available(void *ctx);
+static void prov_park(void *ctx);
+static void prov_resume(void *ctx, const sc_job *job);
 
 int sc_cluster_create(sc_exec_nodes *x, sc_stats *stats, const sc_frame_state *st,
                       const char *url, const char *key_file, double deadline_s,
@@ -599,7 +634,8 @@ int sc_cluster_create(sc_exec_nodes *x, sc_stats *stats, const sc_frame_state *s
         c->node[k] = (remote_node){ { &remote_ops, first_node + k }, c, k };
         sc_exec_nodes_add(x, &c->node[k].base);
     }
-    x->prov = (sc_node_provider){ prov_begin, prov_end, prov_available, c };
+    x->prov = (sc_node_provider){ prov_begin, prov_end, prov_available, prov_park, prov_resume,
+                                  c };
     *out = c;
     return SC_OK;
 }
@@ -610,7 +646,8 @@ void sc_cluster_destroy(sc_cluster *c)
         return;
     sc_bus_close(c->bus);
     sc_np_destroy(c->np);
-    free(c->out);
+    free(c->jobs[0].out);
+    free(c->jobs[1].out);
     free(c->buf);
     free(c->batch);
     free(c);
@@ -663,28 +700,51 @@ static int prov_available(void *ctx)
 static int prov_begin(void *ctx, const sc_job *job)
 {
     sc_cluster *c = ctx;
-    if (job->nunits > c->out_cap) {
-        uint8_t *o = realloc(c->out, (size_t)job->nunits);
+    /* the slot the parked job (if any) does not hold */
+    cluster_job *cj = c->parked == &c->jobs[0] ? &c->jobs[1] : &c->jobs[0];
+    if (job->nunits > cj->out_cap) {
+        uint8_t *o = realloc(cj->out, (size_t)job->nunits);
         if (!o)
             return SC_ENOMEM;
-        c->out = o;
-        c->out_cap = job->nunits;
+        cj->out = o;
+        cj->out_cap = job->nunits;
     }
-    memset(c->out, OUT_NONE, (size_t)job->nunits);
-    c->job = job;
-    c->serial++;
-    c->local_done = 0;
+    memset(cj->out, OUT_NONE, (size_t)job->nunits);
     for (int k = 0; k < SC_MAX_DAEMONS; k++) {
-        daemon_slot *d = &c->d[k];
         /* a daemon judged slow to answer gets no work and so no chance to
          * show otherwise (its first job waited for shapes, say): while it
          * idles its latency decays and it is tried again */
-        if (d->sent == 0)
-            d->overhead *= OVERHEAD_IDLE_DECAY;
-        d->sent = d->done = 0;
-        d->compute_s = 0;
+        if (cj->d[k].sent == 0)
+            c->d[k].overhead *= OVERHEAD_IDLE_DECAY;
     }
+    memset(cj->d, 0, sizeof cj->d);
+    cj->job = job;
+    cj->serial = ++c->serial;
+    cj->started = 0;
+    cj->local_done = 0;
+    c->cur = cj;
     return SC_OK;
+}
+
+static void prov_park(void *ctx)
+{
+    sc_cluster *c = ctx;
+    SC_ASSERT(c->cur && !c->parked);
+    c->parked = c->cur;
+    c->parked->started = 1;
+    c->cur = NULL;
+}
+
+static void prov_resume(void *ctx, const sc_job *job)
+{
+    sc_cluster *c = ctx;
+    SC_ASSERT(c->parked && c->parked->job == job && !c->cur);
+    c->cur = c->parked;
+    c->parked = NULL;
+    /* what came back while other jobs ran (nobody may have read the bus) */
+    pump(c, 0);
+    for (int i = 0; i < job->nunits; i++)
+        c->stats->pipelined_units += c->cur->out[i] == OUT_DONE;
 }
 
 void sc_cluster_force(sc_cluster *c)
@@ -694,7 +754,9 @@ void sc_cluster_force(sc_cluster *c)
 
 static void prov_end(void *ctx)
 {
-    ((sc_cluster *)ctx)->job = NULL;
+    sc_cluster *c = ctx;
+    c->cur->job = NULL;
+    c->cur = NULL;
 }
 
 /* ---- sc_cluster_wait: heartbeats and challenges ---- */

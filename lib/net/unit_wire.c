@@ -38,8 +38,8 @@
  *             nan_islands, sweeps_max, unconverged, solves, diverged,
  *             cold_starts, inelastic i32, residual_exact, residual_split f64,
  *             then per pair: n u8 and n contacts (COLLIDE), toi f64 (TOI);
- *             (ISLAND) contacts u32, per member: x f64[3], q f64[4], v, w
- *             f64[3], collided i32, per contact in the unit's contact order:
+ *             (ISLAND) contacts u32, per member: x f64[3], q f64[4], v, w,
+ *             v0, w0 f64[3], collided i32, per contact in the unit's contact order:
  *             impulse f64[3] (this solve's);
  *             (GROUP) the frame's figures that sc_stats_add_frame() merges
  *             (stat_fields(): f64s, i64s, u64s, i32s), per member in the
@@ -73,7 +73,7 @@
 
 #include "unit_wire.h"
 
-#define WIRE_VERSION 6       /* 6: island units carry impact_first, results inelastic */
+#define WIRE_VERSION 6       /* 6: island units carry impact_first, results inelastic, v0, w0 */
 #define MAGIC_UNIT 0x55574353u        /* "SCWU" */
 #define MAGIC_RESULT 0x52574353u      /* "SCWR" */
 #define MAX_PAIRS (1 << 16)
@@ -246,9 +246,11 @@ static void write_pairs(wbuf *w, const void *job_, const void *u_)
 /* The doubles of a body sc_island_solve() reads or writes (contact.c:
  * movable() reads inv_mass and state; rows x and iw; mu and e friction and
  * restitution; speeds and tangents v, w, v0, w0; it writes v, w, x, q and
- * collided), then state and collided. A result carries fields 2-5 back. */
+ * collided, and v0, w0 where it solves the impacts first: the integration
+ * then starts from them), then state and collided. A result carries fields
+ * 2-7 back (x, q, v, w, v0, w0). */
 #define NBODY_F64 10
-#define MEMBER_F64 2, 6
+#define MEMBER_F64 2, 8
 static const int body_n[NBODY_F64] = { 1, 9, 3, 4, 3, 3, 3, 3, 1, 1 };
 
 static void body_fields(sc_body *b, double *f[NBODY_F64])
