@@ -242,9 +242,10 @@ typedef struct sc_world_config {
                                  from last frame's impulses (piles); 0: every
                                  island one exact LCP (the paper's method);
                                  default 16 */
-    int toi_mode;             /* SC_TOI_WORLD (default): the paper's world-wide
-                                 back-up (motion_groups decides on regions);
-                                 SC_TOI_LOCAL: motion groups
+    int toi_mode;             /* SC_TOI_WORLD: the paper's world-wide
+                                 back-up (motion_groups decides on regions;
+                                 simcluster profile's Table 1);
+                                 SC_TOI_LOCAL (default): motion groups
                                  (regions: bodies that can meet within the
                                  frame); a pair that got too deep enters the
                                  substep's LCP again as speculative contacts

@@ -541,13 +541,13 @@ static void test_toi_mode_must_be_one_of_the_two(void **state)
 {
     (void)state;
     sc_world_config c = sc_world_config_default();
-    assert_int_equal(c.toi_mode, SC_TOI_WORLD);
+    assert_int_equal(c.toi_mode, SC_TOI_LOCAL);
     c.toi_mode = 2;
     assert_null(sc_world_create(&c));
     assert_int_equal(sc_last_error(), SC_EINVAL);
     c.toi_mode = -1;
     assert_null(sc_world_create(&c));
-    c.toi_mode = SC_TOI_LOCAL;
+    c.toi_mode = SC_TOI_WORLD;
     sc_world *w = sc_world_create(&c);
     assert_non_null(w);
     sc_world_destroy(w);

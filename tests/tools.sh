@@ -102,7 +102,7 @@ hb1=$(python3 -c 'import json,sys; r = json.load(open(sys.argv[1])); print(r["ha
 check "run bin, three workers" 0 "$tool" run bin --bodies 40 --frames 120 --workers 3 --json
 hb3=$(python3 -c 'import json,sys; print(json.load(open(sys.argv[1]))["hash"])' "$dir/out")
 [ -n "$hb1" ] && [ "$hb1" = "$hb3" ] || { echo "FAIL: run bin: hash '$hb1' (split) on 1 worker, $hb3 on 3"; fail=1; }
-# the time of impact: world (default, and profile's) and local, the same bits on 1 and 3
+# the time of impact: local (run's default) and world (profile's), the same bits on 1 and 3
 # threads in local mode too, back-ups and speculative contacts reported
 check "run bin --toi local, one worker" 0 "$tool" run bin --bodies 40 --frames 60 --workers 1 --toi local --json
 hl1=$(python3 -c 'import json,sys; r = json.load(open(sys.argv[1]))["toi"]; print(json.load(open(sys.argv[1]))["hash"] if r["mode"] == "local" and r["speculative_contacts"] > 0 and r["max_frame_backups"] >= 0 else "")' "$dir/out")
@@ -112,6 +112,9 @@ hl3=$(python3 -c 'import json,sys; print(json.load(open(sys.argv[1]))["hash"])' 
 check "run --toi world" 0 "$tool" run bolts --bodies 12 --frames 40 --toi world
 grep -q "^  time of impact (world): back-ups [0-9.]* a frame (most [0-9]*), speculative contacts 0$" "$dir/out" ||
     { echo "FAIL: run: no time of impact line"; cat "$dir/out"; fail=1; }
+check "run, local by default" 0 "$tool" run bolts --bodies 12 --frames 40
+grep -q "^  time of impact (local): back-ups [0-9.]* a frame (most [0-9]*), speculative contacts [0-9]*$" "$dir/out" ||
+    { echo "FAIL: run: not local by default"; cat "$dir/out"; fail=1; }
 check "profile, world-wide by default" 0 "$tool" profile bolts --bodies 12 --frames 20 --json
 python3 -c 'import json,sys; sys.exit(json.load(open(sys.argv[1]))["toi_mode"] != "world")' "$dir/out" ||
     { echo "FAIL: profile: not the paper's world-wide mode"; cat "$dir/out"; fail=1; }

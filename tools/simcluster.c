@@ -33,8 +33,8 @@ static const char run_help[] =
     "  --workers W --groups --cluster URL --key FILE --deadline S --json\n"
     "  --wait-daemons K (before the first frame, at most 10 s)\n"
     "  --island-split N (islands of more contacts solved as blocks; 0: exact)\n"
-    "  --toi world|local (time of impact: the paper's world-wide back-up, the\n"
-    "    default; or motion groups with speculative contacts)\n"
+    "  --toi local|world (time of impact: motion groups with speculative\n"
+    "    contacts, run's default; or the paper's world-wide back-up, profile's)\n"
     "profile only: --chart PNG (CPU by stage beside the paper's, by gnuplot)\n";
 static const char run_only_help[] =
     "run only: --record LOG (an LCM log of every frame, for simcluster-view)\n"

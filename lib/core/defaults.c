@@ -15,7 +15,7 @@ SC_API sc_world_config sc_world_config_default(void)
     c.broadphase = SC_BROADPHASE_AUTO;
     c.contact_tol_m = 1e-3;
     c.island_split = SC_ISLAND_SPLIT_DEFAULT;
-    c.toi_mode = SC_TOI_WORLD;    /* until the local mode keeps the 50-part drop within 1 mm (docs/DESIGN.md 3.4) */
+    c.toi_mode = SC_TOI_LOCAL;
     c.internal_cookie = SC_CONFIG_COOKIE;
     return c;
 }
