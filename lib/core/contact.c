@@ -702,6 +702,25 @@ static int solve_split(sc_arena *a, row *rows, int nrows, const int *cstart, int
  * their rows alone take more memory than a frame should. */
 #define SPLIT_MAX_ROWS (1 << 20)
 
+/* An exact normal-only LCP over rows nr[0 .. m) (its matrix from the
+ * arena), its impulses z applied to the bodies' velocities (pseudo: to
+ * their pseudo velocities, over h). */
+static int exact_normals(sc_arena *a, const row *nr, int m, const double *q, double *z,
+                         double *w, sc_body *bodies, int pseudo, double h, sc_solve_info *info)
+{
+    size_t mm = (size_t)m;
+    double *A = sc_arena_alloc(a, mm * mm * sizeof *A);
+    if (!A)
+        return SC_ENOMEM;
+    build_a(nr, NULL, m, A);
+    int rc = solve(a, m, A, q, NULL, NULL, NULL, NULL, z, w, info, 0);
+    sc_arena_free(a, A);
+    if (rc == SC_OK)
+        for (int k = 0; k < m; k++)
+            apply(&nr[k], z[k], bodies, pseudo, h);
+    return rc;
+}
+
 /* The push-out of deep contacts: a normal-only LCP on pseudo velocities
  * (target: remove baumgarte of the depth past slop in h), exact for small
  * islands, by blocks for split ones or when the exact solve fails. */
@@ -735,17 +754,8 @@ static int push_out(sc_arena *a, const row *rows, const int *nsel, int nn, const
     }
     int rc = SC_ETOOMANY;
     if (!split) {
-        double *A = sc_arena_alloc(a, n * n * sizeof *A);
-        rc = A ? SC_OK : SC_ENOMEM;
-        if (A) {
-            build_a(nr, NULL, nn, A);
-            rc = solve(a, nn, A, q, NULL, NULL, NULL, NULL, z, w, info, 0);
-            sc_arena_free(a, A);
-        }
-        if (rc == SC_OK)
-            for (int k = 0; k < nn; k++)
-                apply(&nr[k], z[k], bodies, 1, h);
-        else if (rc != SC_ENOMEM)
+        rc = exact_normals(a, nr, nn, q, z, w, bodies, 1, h, info);
+        if (rc != SC_OK && rc != SC_ENOMEM)
             for (int k = 0; k < nn; k++)
                 z[k] = 0;
     }
@@ -1187,19 +1197,8 @@ static int rebound(sc_arena *a, sc_body *bodies, const sc_contact *c, const int 
         v3_copy(&keep[6 * i + 3], bodies[ids[i]].w);
     }
     rc = SC_ETOOMANY;
-    if (!split) {
-        size_t mm = (size_t)m;
-        double *A = sc_arena_alloc(a, mm * mm * sizeof *A);
-        rc = A ? SC_OK : SC_ENOMEM;
-        if (A) {
-            build_a(nr, NULL, m, A);
-            rc = solve(a, m, A, q, NULL, NULL, NULL, NULL, zr, w, info, 0);
-            sc_arena_free(a, A);
-        }
-        if (rc == SC_OK)
-            for (int k = 0; k < m; k++)
-                apply(&nr[k], zr[k], bodies, 0, 0);
-    }
+    if (!split)
+        rc = exact_normals(a, nr, m, q, zr, w, bodies, 0, 0, info);
     if (rc != SC_OK && rc != SC_ENOMEM) {
         gs_problem pb = { .off = q, .lo = lo, .hi = hi, .cold = 1 };
         for (int k = 0; k < m; k++) {
