@@ -239,6 +239,10 @@ void sc_poly_free(sc_shape *s);
  * clipped by its sides; up to max points, each with its own depth, normals
  * from a to b. Returns 0 (keep the collider's contacts) when a shape has
  * no faces, is too big, or an edge-edge axis is clearly shallower. */
+/* 1 if a face plane of a or b (inner faces of a mesh's pieces included)
+ * has all the other's corners beyond it: apart for sure; 0 when none does
+ * (touching, or parted only along an edge-edge axis), or either lacks faces. */
+int sc_poly_apart(const sc_shape *a, const sc_pose *pa, const sc_shape *b, const sc_pose *pb);
 int sc_poly_clip(const sc_shape *a, const sc_pose *pa, const sc_shape *b, const sc_pose *pb,
                  double depth, sc_contact *out, int max);
 

@@ -352,6 +352,11 @@ static int collide_pieces(sc_np_ctx *ctx, const sc_shape *a, const sc_pose *pa,
             v3_sub(d, qa[i].q.pos, qb[j].q.pos);
             if (v3_dot(d, d) > r * r)
                 continue;
+            /* most pieces whose balls overlap are apart (94 % in a bin):
+             * a face plane that parts them says so faster than ODE's
+             * collider finds no contact */
+            if (sc_poly_apart(qa[i].s, &qa[i].q, qb[j].s, &qb[j].q))
+                continue;
             int k = sc_np_collide(ctx, qa[i].s, &qa[i].q, qb[j].s, &qb[j].q, &c[n],
                                   SC_MAX_PAIR_CONTACTS);
             if (k < 0)

@@ -290,6 +290,37 @@ static double least_face_depth(const sc_shape *s, const double Rs[9], const doub
     return best;
 }
 
+/* 1 if a face plane of s (pose Rs, ps), inner ones included, has every
+ * corner of o beyond it. */
+static int face_separates(const sc_shape *s, const double Rs[9], const double ps[3],
+                          const sc_shape *o, const double Ro[9], const double po[3])
+{
+    for (int f = 0; f < s->nfaces; f++) {
+        const double *pl = &s->face_plane[4 * f];
+        double nw[3], nl[3];
+        m3_mulv(nw, Rs, pl);
+        m3_tmulv(nl, Ro, nw);
+        double lim = pl[3] + v3_dot(nw, ps) - v3_dot(nw, po);
+        int apart = 1;
+        for (int v = 0; v < o->nface_xyz && apart; v++)
+            apart = v3_dot(nl, &o->face_xyz[3 * v]) > lim;
+        if (apart)
+            return 1;
+    }
+    return 0;
+}
+
+int sc_poly_apart(const sc_shape *a, const sc_pose *pa, const sc_shape *b, const sc_pose *pb)
+{
+    if (a->nfaces == 0 || b->nfaces == 0)
+        return 0;
+    double Ra[9], Rb[9];
+    q_to_m3(Ra, pa->quat);
+    q_to_m3(Rb, pb->quat);
+    return face_separates(a, Ra, pa->pos, b, Rb, pb->pos) ||
+           face_separates(b, Rb, pb->pos, a, Ra, pa->pos);
+}
+
 /* Face f of s in world coordinates into p (3 per point); returns the count. */
 static int face_world(const sc_shape *s, const double R[9], const double pos[3], int f,
                       double *p)
