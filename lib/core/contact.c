@@ -1159,7 +1159,7 @@ static int rebound(sc_arena *a, sc_body *bodies, const sc_contact *c, const int 
     int nb = island_movable(a, bodies, c, ci, nc, &ids);
     if (nb < 0)
         return nb;
-    double *keep = sc_arena_alloc(a, 6 * (size_t)(nb > 0 ? nb : 1) * sizeof *keep);
+    double *keep = sc_arena_alloc(a, KEEP * (size_t)(nb > 0 ? nb : 1) * sizeof *keep);
     double *buf = keep ? sc_arena_alloc(a, 5 * n * sizeof *buf) : NULL;
     int *cs = buf ? sc_arena_alloc(a, n * sizeof *cs) : NULL;
     row *nr = cs ? sc_arena_alloc(a, n * sizeof *nr) : NULL;
@@ -1192,10 +1192,7 @@ static int rebound(sc_arena *a, sc_body *bodies, const sc_contact *c, const int 
     rc = SC_OK;
     if (nbounce == 0)
         goto out;
-    for (int i = 0; i < nb; i++) {
-        v3_copy(&keep[6 * i], bodies[ids[i]].v);
-        v3_copy(&keep[6 * i + 3], bodies[ids[i]].w);
-    }
+    bodies_keep(bodies, ids, nb, keep);
     rc = SC_ETOOMANY;
     if (!split)
         rc = exact_normals(a, nr, m, q, zr, w, bodies, 0, 0, info);
@@ -1212,9 +1209,9 @@ static int rebound(sc_arena *a, sc_body *bodies, const sc_contact *c, const int 
     for (int i = 0; i < nb; i++) {
         const sc_body *b = &bodies[ids[i]];
         double d[6];
-        v3_sub(d, b->v, &keep[6 * i]);
-        v3_sub(d + 3, b->w, &keep[6 * i + 3]);
-        k0 += kinetic(b, &keep[6 * i], &keep[6 * i + 3]);
+        v3_sub(d, b->v, &keep[KEEP * i]);
+        v3_sub(d + 3, b->w, &keep[KEEP * i + 3]);
+        k0 += kinetic(b, &keep[KEEP * i], &keep[KEEP * i + 3]);
         k1 += kinetic(b, b->v, b->w);
         kd += kinetic(b, d, d + 3);
     }
@@ -1223,12 +1220,12 @@ static int rebound(sc_arena *a, sc_body *bodies, const sc_contact *c, const int 
     for (int i = 0; i < nb && rc == SC_OK; i++) {
         sc_body *b = &bodies[ids[i]];
         double u[6];
-        v3_sub(u, &keep[6 * i], b->v);
-        v3_sub(u + 3, &keep[6 * i + 3], b->w);
+        v3_sub(u, &keep[KEEP * i], b->v);
+        v3_sub(u + 3, &keep[KEEP * i + 3], b->w);
         for (int j = 0; j < 6; j++)
             u[j] *= share;
-        v3_madd(b->v, &keep[6 * i], u, -1);
-        v3_madd(b->w, &keep[6 * i + 3], u + 3, -1);
+        v3_madd(b->v, &keep[KEEP * i], u, -1);
+        v3_madd(b->w, &keep[KEEP * i + 3], u + 3, -1);
         if (u[0] != 0 || u[1] != 0 || u[2] != 0 || u[3] != 0 || u[4] != 0 || u[5] != 0)
             move_body(b, u, b->collided == 2 ? h : 0.5 * h);
     }

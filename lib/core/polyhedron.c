@@ -262,6 +262,17 @@ static int best_face(const sc_shape *s, const double R[9], const double dir[3])
     return best;
 }
 
+/* The least projection of o's corners (rotation Ro) on world direction
+ * nw, in o's frame; it stops at the first that brings it to stop or below. */
+static double corners_min(const sc_shape *o, const double Ro[9], const double nw[3], double stop)
+{
+    double nl[3], lo = INFINITY;
+    m3_tmulv(nl, Ro, nw);               /* the direction in o's frame */
+    for (int v = 0; v < o->nface_xyz && !(lo <= stop); v++)
+        lo = fmin(lo, v3_dot(nl, &o->face_xyz[3 * v]));
+    return lo;
+}
+
 /* Separating-axis test over the face normals of s (pose Rs, ps) against
  * the corners of o (Ro, po): the least penetration along one of them (< 0:
  * apart), that face in *face. A mesh piece's inner faces are left out. */
@@ -275,12 +286,9 @@ static double least_face_depth(const sc_shape *s, const double Rs[9], const doub
         if (s->face_inner && s->face_inner[f])
             continue;                    /* not a surface: nothing is pushed out there */
         const double *pl = &s->face_plane[4 * f];
-        double nw[3], nl[3];
+        double nw[3];
         m3_mulv(nw, Rs, pl);
-        m3_tmulv(nl, Ro, nw);            /* the normal in o's frame */
-        double lo = INFINITY;
-        for (int v = 0; v < o->nface_xyz; v++)
-            lo = fmin(lo, v3_dot(nl, &o->face_xyz[3 * v]));
+        double lo = corners_min(o, Ro, nw, -INFINITY);
         double depth = pl[3] + v3_dot(nw, ps) - (lo + v3_dot(nw, po));
         if (depth < best) {
             best = depth;
@@ -297,14 +305,10 @@ static int face_separates(const sc_shape *s, const double Rs[9], const double ps
 {
     for (int f = 0; f < s->nfaces; f++) {
         const double *pl = &s->face_plane[4 * f];
-        double nw[3], nl[3];
+        double nw[3];
         m3_mulv(nw, Rs, pl);
-        m3_tmulv(nl, Ro, nw);
         double lim = pl[3] + v3_dot(nw, ps) - v3_dot(nw, po);
-        int apart = 1;
-        for (int v = 0; v < o->nface_xyz && apart; v++)
-            apart = v3_dot(nl, &o->face_xyz[3 * v]) > lim;
-        if (apart)
+        if (corners_min(o, Ro, nw, lim) > lim)
             return 1;
     }
     return 0;
