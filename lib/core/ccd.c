@@ -579,6 +579,6 @@ int sc_ccd_separation(const sc_shape *a, const sc_pose *pa, const sc_shape *b,
             v3_copy(out->n, f);
         }
     }
-    out->dist = out->gap = fmin(out->gap, 0);
+    out->dist = out->gap = min_d(out->gap, 0);
     return SC_OK;
 }

@@ -56,8 +56,8 @@ void sc_stats_add_solve(sc_stats *st, const sc_solve_info *info)
     st->lcp_block_fallbacks += info->block_fallbacks;
     st->lcp_nan_islands += info->nan_islands;
     st->lcp_inelastic += info->inelastic;
-    st->lcp_residual = fmax(st->lcp_residual, info->residual_exact);
-    st->lcp_outer_residual = fmax(st->lcp_outer_residual, info->residual_split);
+    st->lcp_residual = max_d(st->lcp_residual, info->residual_exact);
+    st->lcp_outer_residual = max_d(st->lcp_outer_residual, info->residual_split);
 }
 
 void sc_stats_add_solver(sc_stats *s, const sc_stats *g)
@@ -77,8 +77,8 @@ void sc_stats_add_solver(sc_stats *s, const sc_stats *g)
     s->lcp_block_fallbacks += g->lcp_block_fallbacks;
     s->lcp_nan_islands += g->lcp_nan_islands;
     s->lcp_inelastic += g->lcp_inelastic;
-    s->lcp_residual = fmax(s->lcp_residual, g->lcp_residual);
-    s->lcp_outer_residual = fmax(s->lcp_outer_residual, g->lcp_outer_residual);
+    s->lcp_residual = max_d(s->lcp_residual, g->lcp_residual);
+    s->lcp_outer_residual = max_d(s->lcp_outer_residual, g->lcp_outer_residual);
     if (g->substeps > s->substeps)
         s->substeps = g->substeps;
     s->backups += g->backups;
@@ -123,7 +123,7 @@ void sc_stats_add_frame(sc_stats *s, const sc_stats *g)
     s->pairs += g->pairs;
     s->islands += g->islands;
     sc_stats_add_solver(s, g);
-    s->max_penetration = fmax(s->max_penetration, g->max_penetration);
+    s->max_penetration = max_d(s->max_penetration, g->max_penetration);
     s->collider_warnings += g->collider_warnings;
     s->units += g->units;
     s->sched_s += g->sched_s;

@@ -134,7 +134,7 @@ static void build_a(const row *rows, const int *sel, int n, double *A)
     }
     double dmax = 0;
     for (int i = 0; i < n; i++)
-        dmax = fmax(dmax, A[i * n + i]);
+        dmax = max_d(dmax, A[i * n + i]);
     for (int i = 0; i < n; i++)
         A[i * n + i] += COMPLIANCE * dmax;
 }
@@ -174,19 +174,19 @@ static int solve(sc_arena *a, int n, double *A, const double *q, const double *l
     info->pivots += li.pivots;
     info->lemke += li.lemke;
     if (rc == SC_OK)
-        info->residual_exact = fmax(info->residual_exact, li.residual);
+        info->residual_exact = max_d(info->residual_exact, li.residual);
     if (rc == SC_OK || rc == SC_EINVAL || rc == SC_ENOMEM)
         return rc;
     double dmax = 0;
     for (int i = 0; i < n; i++)
-        dmax = fmax(dmax, A[i * n + i]);
+        dmax = max_d(dmax, A[i * n + i]);
     for (int i = 0; i < n; i++)
         A[i * n + i] += 1e-9 * dmax + 1e-300;
     rc = lcp_call(a, n, A, q, lo, hi, findex, mu, z, w, &li, 0);
     info->pivots += li.pivots;
     if (rc == SC_OK) {
         info->regularised++;
-        info->residual_exact = fmax(info->residual_exact, li.residual);
+        info->residual_exact = max_d(info->residual_exact, li.residual);
     }
     return rc;
 }
@@ -424,7 +424,7 @@ static int row_project(const gs_problem *pb, const blocks *bl, const double *z,
     double lo, hi;
     row_bounds(pb, z, r, &lo, &hi);
     double w = local_speed(&pb->rows[r], u) + pb->off[r];
-    *zn = fmin(fmax(z[r] - w / d, lo), hi);
+    *zn = min_d(max_d(z[r] - w / d, lo), hi);
     return 1;
 }
 
@@ -514,7 +514,7 @@ static double rows_residual(const gs_problem *pb, const blocks *bl, const double
     for (int r = r0; r < r1; r++) {
         double zn;
         if (row_project(pb, bl, z, u, r, &zn))
-            res = fmax(res, fabs(z[r] - zn) * bl->diag[r]);
+            res = max_d(res, fabs(z[r] - zn) * bl->diag[r]);
     }
     return res;
 }
@@ -586,7 +586,7 @@ static int block_gs(sc_arena *a, const gs_problem *pb, const blocks *bl, double 
         return SC_OK;
     info->sweeps_max = sweeps > info->sweeps_max ? sweeps : info->sweeps_max;
     info->unconverged += res > tol && !diverged;
-    info->residual_split = fmax(info->residual_split, res);
+    info->residual_split = max_d(info->residual_split, res);
     return SC_OK;
 }
 
@@ -743,9 +743,9 @@ static int push_out(sc_arena *a, const row *rows, const int *nsel, int nn, const
         /* what the velocities just solved do not already take out: a
          * sphere leaving the floor after a bounce is not lifted as well
          * (that lift, against gravity, gained the Table 1 box energy) */
-        double target = p->baumgarte * fmax(c[ci[k]].depth - p->slop, 0.0) / h;
-        q[k] = -fmax(target - fmax(row_speed(&rows[nsel[k]], bodies, 0), 0.0), 0.0);
-        qmax = fmax(qmax, -q[k]);
+        double target = p->baumgarte * max_d(c[ci[k]].depth - p->slop, 0.0) / h;
+        q[k] = -max_d(target - max_d(row_speed(&rows[nsel[k]], bodies, 0), 0.0), 0.0);
+        qmax = max_d(qmax, -q[k]);
         nr[k] = rows[nsel[k]];
         cs[k] = k;
         lo[k] = 0;
@@ -761,7 +761,7 @@ static int push_out(sc_arena *a, const row *rows, const int *nsel, int nn, const
     }
     if (rc != SC_OK && rc != SC_ENOMEM) {
         gs_problem pb = { .off = q, .lo = lo, .hi = hi, .cold = p->cold, .pseudo = 1 };
-        rc = solve_split(a, nr, nn, cs, nn, &pb, z, bodies, 1, h, p, fmax(p->tol, 1e-3 * qmax),
+        rc = solve_split(a, nr, nn, cs, nn, &pb, z, bodies, 1, h, p, max_d(p->tol, 1e-3 * qmax),
                          info);
     }
     sc_arena_free(a, nr);
@@ -885,7 +885,7 @@ static double energy_share(double k0, double k1, double kd, double cap)
     if (!(k1 > cap) || !(kd > 0))
         return 1;
     double l = k1 - k0 - kd, d = l * l - 4 * kd * (k0 - cap);
-    return k0 < cap && d > 0 ? fmin(fmax((-l + sqrt(d)) / (2 * kd), 0.0), 1.0) : 0;
+    return k0 < cap && d > 0 ? min_d(max_d((-l + sqrt(d)) / (2 * kd), 0.0), 1.0) : 0;
 }
 
 /* The kinetic energy a movable body may have at the substep's end: what
@@ -960,7 +960,7 @@ static int impacts(sc_arena *arena, sc_body *bodies, const sc_contact *c, const 
     for (int k = 0; k < nc; k++) {
         const sc_contact *ck = &c[ci[k]];
         double e = inelastic ? 0
-                             : fmax(bodies[ck->body_a].restitution, bodies[ck->body_b].restitution);
+                             : max_d(bodies[ck->body_a].restitution, bodies[ck->body_b].restitution);
         for (int r = cstart[k]; r < (k + 1 < nc ? cstart[k + 1] : nrows); r++) {
             double s = row_speed(&rows[r], bodies, 0);
             if (r > cstart[k])
@@ -985,7 +985,7 @@ static int impacts(sc_arena *arena, sc_body *bodies, const sc_contact *c, const 
             b->collided = 1;        /* no flight from the start: v0 is after the impacts */
     }
     for (int k = 0; k < nc; k++) {
-        double gap = fmax(-c[ci[k]].depth, 0.0);
+        double gap = max_d(-c[ci[k]].depth, 0.0);
         for (int r = cstart[k]; r < (k + 1 < nc ? cstart[k + 1] : nrows); r++) {
             double s = row_speed(&rows[r], bodies, 0);
             off[r] = r > cstart[k] ? 0 : gap / h;
@@ -1081,15 +1081,15 @@ static double touch(double vpre, double speed, double a_lin, double gap, double 
                     double *pull, double *t)
 {
     double a = (speed - vpre) / h;
-    double vt = sqrt(fmax(vpre * vpre - 2 * a * gap, 0.0));
-    *t = vt - vpre > 0 ? fmin(2 * gap / (vt - vpre), h) : h;
+    double vt = sqrt(max_d(vpre * vpre - 2 * a * gap, 0.0));
+    *t = vt - vpre > 0 ? min_d(2 * gap / (vt - vpre), h) : h;
     double T = h - *t;
     double v = e * vt + a * T - 0.5 * (1 + e) * 2 * (a - a_lin) * T;
     if (!(e * vt * T + 0.5 * a * T * T > 0)) {
         v = 0;
-        *pull = fmax(gap - 0.5 * a * h * h, 0.0);
+        *pull = max_d(gap - 0.5 * a * h * h, 0.0);
     } else {
-        *pull = fmax(*t * (v - speed), 0.0);
+        *pull = max_d(*t * (v - speed), 0.0);
     }
     return v;
 }
@@ -1172,13 +1172,13 @@ static int rebound(sc_arena *a, sc_body *bodies, const sc_contact *c, const int 
         const sc_contact *ck = &c[ci[k]];
         const row *rw = &rows[cstart[k]];
         double s = row_speed(rw, bodies, 0), zk = z[cstart[k]];
-        double e = fmax(bodies[ck->body_a].restitution, bodies[ck->body_b].restitution);
+        double e = max_d(bodies[ck->body_a].restitution, bodies[ck->body_b].restitution);
         double took = -(s - a_entry(rw, rw) * zk);
         if (ck->depth < 0 && !coll[k] && zk > 0 && e > 0 && took > p->bounce_speed) {
             q[m] = s - e * took;
             nbounce++;
         } else if ((ck->depth >= 0 || zk > 0) && s >= -p->bounce_speed) {
-            q[m] = fmax(s, 0.0);
+            q[m] = max_d(s, 0.0);
         } else {
             continue;
         }
@@ -1255,7 +1255,7 @@ static void first_touches(const sc_contact *c, const int *ci, int nc, const int 
         for (k1 = k0; k1 < nc && c[ci[k1]].body_a == c[ci[k0]].body_a &&
                       c[ci[k1]].body_b == c[ci[k0]].body_b; k1++)
             if (coll[k1] && c[ci[k1]].depth < 0)
-                tmin = fmin(tmin, pull[nc + k1]);
+                tmin = min_d(tmin, pull[nc + k1]);
         for (int k = k0; k < k1; k++) {
             if (!(coll[k] && c[ci[k]].depth < 0) || (pull[nc + k] - tmin) * pull[2 * nc + k] <= slop)
                 continue;
@@ -1312,7 +1312,7 @@ rows_again:
         sc_contact *ck = &c[ci[k]];
         const sc_body *A_ = &bodies[ck->body_a], *B_ = &bodies[ck->body_b];
         /* solved again without restitution: see ELASTIC_GAIN_MAX */
-        double e = inelastic ? 0 : fmax(A_->restitution, B_->restitution);
+        double e = inelastic ? 0 : max_d(A_->restitution, B_->restitution);
         double m = sqrt(A_->friction * B_->friction);
         int rn = r;
         cstart[k] = r;
@@ -1321,7 +1321,7 @@ rows_again:
         double speed = row_speed(&rows[r], bodies, 0);
         /* a speculative contact (depth < 0: a gap, docs/DESIGN.md 3.4)
          * collides only if its approach closes the gap within h */
-        int collide = vpre < -p->bounce_speed && -ck->depth < -fmin(vpre, speed) * h;
+        int collide = vpre < -p->bounce_speed && -ck->depth < -min_d(vpre, speed) * h;
         int held = collide && ck->depth < 0;
         info->collisions += collide && !inelastic;
         elastic |= collide && e > 0;
@@ -1339,11 +1339,11 @@ rows_again:
          * w = A p + (1 + e) v_pre. A resting contact absorbs the forces. */
         /* a speculative resting contact lets the bodies close its gap
          * within h but no more */
-        q[r] = collide ? (1 + e) * vpre : speed + fmax(-ck->depth, 0.0) / h;
+        q[r] = collide ? (1 + e) * vpre : speed + max_d(-ck->depth, 0.0) / h;
         if (held) {
             q[r] = speed - touch(vpre, speed, row_lin_accel(&rows[r], bodies, h), -ck->depth, e, h,
                                  &pull[k], &pull[nc + k]);
-            pull[2 * nc + k] = sqrt(fmax(vpre * vpre - 2 * (speed - vpre) / h * -ck->depth, 0.0));
+            pull[2 * nc + k] = sqrt(max_d(vpre * vpre - 2 * (speed - vpre) / h * -ck->depth, 0.0));
             pull[3 * nc + k] = 0.5 * (vpre + speed) - ck->depth / h;
         }
         off[r] = q[r] - speed;
@@ -1352,7 +1352,7 @@ rows_again:
         findex[r] = -1;
         mu[r] = 0;
         /* warm start: last solve's impulse on this contact, projected */
-        z[r] = fmax(v3_dot(ck->impulse, ck->normal), 0.0);
+        z[r] = max_d(v3_dot(ck->impulse, ck->normal), 0.0);
         nsel[nn++] = r;
         r++;
         if (m > 0) {
@@ -1368,7 +1368,7 @@ rows_again:
                 findex[r] = rn;
                 mu[r] = m;
                 double b = m * z[rn];
-                z[r] = fmin(fmax(v3_dot(ck->impulse, t[j]), -b), b);
+                z[r] = min_d(max_d(v3_dot(ck->impulse, t[j]), -b), b);
             }
             friction = 1;
         }
@@ -1413,7 +1413,7 @@ rows_again:
             ke += kinetic(b, b->v, b->w);
             ke0 += kinetic(b, b->v0, b->w0);
         }
-        ke_ref = fmax(ke, ke0);
+        ke_ref = max_d(ke, ke0);
     }
     if (p->impact_first && ncollide > 0 && nspecc == 0) {
         rc = impacts(arena, bodies, c, ci, nc, rows, nrows, nsel, cstart, coll, A, buf, findex, sel,

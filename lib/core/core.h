@@ -16,6 +16,12 @@
 #include "simcluster.h"
 #include "arena.h"
 
+/* fmax() and fmin() with the same result for every input (NaN and signed
+ * zeros included: the first operand on a tie, the other one where one is
+ * NaN), inline: the libm calls were 8 % of a pile's CPU. */
+static inline double max_d(double a, double b) { return a >= b || (b != b && a == a) ? a : b; }
+static inline double min_d(double a, double b) { return a <= b || (b != b && a == a) ? a : b; }
+
 /* Internal invariants only, never bad input (that gets an SC_E* code). */
 #define SC_ASSERT(c) assert(c)
 

@@ -133,7 +133,7 @@ static void match_impulses(const sc_frame_state *st, const sc_contact *old, int 
                              (old[j0].body_a == c->body_a && old[j0].body_b < c->body_b)))
             j0++;
         double ra = st->bodies[c->body_a].shape->bound_r, rb = st->bodies[c->body_b].shape->bound_r;
-        double r = 0.1 * fmin(ra, rb);
+        double r = 0.1 * min_d(ra, rb);
         int best = -1;
         double bd = r * r;
         for (int j = j0; j < nold && old[j].body_a == c->body_a && old[j].body_b == c->body_b; j++) {
@@ -217,7 +217,7 @@ static int narrowphase(sc_frame *f, int npairs)
         const sc_contact *c = &uc[(size_t)i * SC_MAX_PAIR_CONTACTS];
         for (int k = 0; k < ncontact[i]; k++) {
             st->contacts[st->ncontacts++] = c[k];
-            maxpen = fmax(maxpen, c[k].depth);
+            maxpen = max_d(maxpen, c[k].depth);
         }
     }
     if (rc == SC_OK && taken)

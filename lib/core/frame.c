@@ -196,7 +196,7 @@ static int substeps(sc_frame *f, double dt, sc_body *saved, unsigned char *touch
                  * substep's start, which does not move) */
                 backups++;
                 sub_backups++;
-                h = fmax(frac * h, 1e-6 * dt);
+                h = max_d(frac * h, 1e-6 * dt);
             }
             rc = sc_spec_merge(st, c0, n0, &spec);
             f->stats->spec_contacts += spec.n;
@@ -217,7 +217,7 @@ static int substeps(sc_frame *f, double dt, sc_body *saved, unsigned char *touch
                 memcpy(st->contacts, c0, (size_t)n0 * sizeof *c0);
             st->ncontacts = n0;
             backups++;
-            h = fmax(frac * h, 1e-6 * dt);
+            h = max_d(frac * h, 1e-6 * dt);
             rc = substep(f, h, is, touched);
             if (rc == SC_OK)
                 rc = sc_detect(f);

@@ -264,7 +264,7 @@ static void face_plane(hull *h, int f)
     v3_sub(bc, c, b);
     v3_sub(ca, a, c);
     double lab = v3_dot(ab, ab), lbc = v3_dot(bc, bc), lca = v3_dot(ca, ca);
-    double lmax = fmax(lab, fmax(lbc, lca));
+    double lmax = max_d(lab, max_d(lbc, lca));
     if (lab >= lbc && lab >= lca) {          /* at c: (a - c) x (b - c) */
         v3_scale(t, bc, -1);
         v3_cross(n, ca, t);
@@ -536,7 +536,7 @@ static int hull_setup(hull *h, const double *pts, int n)
     double m = 0, lo[3] = { INFINITY, INFINITY, INFINITY };
     double hi[3] = { -INFINITY, -INFINITY, -INFINITY };
     for (size_t i = 0; i < 3 * (size_t)n; i++)
-        m = fmax(m, fabs(pts[i]));
+        m = max_d(m, fabs(pts[i]));
     if (!(m > 0))
         return SC_EDEGENERATE;               /* all points at the origin */
     int e;
@@ -554,8 +554,8 @@ static int hull_setup(hull *h, const double *pts, int n)
     for (size_t i = 0; i < 3 * (size_t)n; i++) {
         double q = ldexp(pts[i], -e);
         h->p[i] = q;
-        lo[i % 3] = fmin(lo[i % 3], q);
-        hi[i % 3] = fmax(hi[i % 3], q);
+        lo[i % 3] = min_d(lo[i % 3], q);
+        hi[i % 3] = max_d(hi[i % 3], q);
     }
     double c[3], ext[3];
     for (int k = 0; k < 3; k++) {
@@ -1082,8 +1082,8 @@ static int has_tiny_triangle(const hull *h)
     for (int f = 0; f < h->nf; f++)
         for (int i = 0; i < 3 && h->f[f].alive; i++)
             for (int k = 0; k < 3; k++) {
-                lo[k] = fmin(lo[k], pt(h, h->f[f].v[i])[k]);
-                hi[k] = fmax(hi[k], pt(h, h->f[f].v[i])[k]);
+                lo[k] = min_d(lo[k], pt(h, h->f[f].v[i])[k]);
+                hi[k] = max_d(hi[k], pt(h, h->f[f].v[i])[k]);
             }
     double ext[3];
     v3_sub(ext, hi, lo);

@@ -97,7 +97,7 @@ int sc_frame_earliest_impact(sc_frame *f, const sc_body *saved, const sc_contact
     if (rc == SC_OK && job.npairs > 0) {
         rc = f->ex->run(f->ex, &job, SC_STAGE_TOI, f->stats);
         for (int i = 0; rc == SC_OK && i < job.npairs; i++)
-            *frac = fmin(*frac, job.toi[i]);
+            *frac = min_d(*frac, job.toi[i]);
         toi_job_free(f, &job);
     }
     sc_stage_add(f->stats, SC_STAGE_TOI, t0);
@@ -170,7 +170,7 @@ static int spec_add(sc_spec_list *spec, const sc_contact *c0, int j0, int j1,
  * normals within acos(SAME_NORMAL)). */
 static double near_of(const sc_frame *f, int a, int b)
 {
-    return 0.1 * fmin(f->st->bodies[a].shape->bound_r, f->st->bodies[b].shape->bound_r);
+    return 0.1 * min_d(f->st->bodies[a].shape->bound_r, f->st->bodies[b].shape->bound_r);
 }
 
 /* The run of pair (a, b) in the pair-sorted c[0 .. n): its first index,
@@ -203,9 +203,9 @@ static double pair_limit(const sc_contact *c0, int n0, int a, int b, double tol,
     double d0 = -1;
     int j1;
     for (int j = pair_run(c0, n0, a, b, &j1); j < j1; j++)
-        d0 = fmax(d0, c0[j].depth);
+        d0 = max_d(d0, c0[j].depth);
     *touching = d0 >= 0;
-    return d0 < 0 ? tol : fmax(tol, d0 + 0.01 * tol);
+    return d0 < 0 ? tol : max_d(tol, d0 + 0.01 * tol);
 }
 
 /* Whether a pair with contacts s[0 .. n) at the substep's start is only
@@ -243,7 +243,7 @@ static int pushed_in(const sc_frame *f, const sc_body *saved, const sc_contact *
             v3_add(v, v, wr);
             vrel += (side ? 1 : -1) * v3_dot(v, s[k].normal);
         }
-        reach = fmax(reach, -vrel * h);
+        reach = max_d(reach, -vrel * h);
     }
     /* the same test as contact.c's for a colliding speculative row: what
      * is held here bounces there */
@@ -296,7 +296,7 @@ int sc_spec_sort_out(sc_frame *f, const sc_body *saved, const sc_contact *c0, in
         double d1 = 0;
         for (k1 = k0; k1 < st->ncontacts && st->contacts[k1].body_a == a &&
                       st->contacts[k1].body_b == b; k1++)
-            d1 = fmax(d1, st->contacts[k1].depth);
+            d1 = max_d(d1, st->contacts[k1].depth);
         int touching;
         double limit = pair_limit(c0, n0, a, b, tol, &touching);
         if (!(d1 > limit))
@@ -305,7 +305,7 @@ int sc_spec_sort_out(sc_frame *f, const sc_body *saved, const sc_contact *c0, in
         sc_pose a0, b0;
         sc_body_pose(&saved[a], &a0);
         sc_body_pose(&saved[b], &b0);
-        double feature = fmin(sc_toi_feature(sa), sc_toi_feature(sb));
+        double feature = min_d(sc_toi_feature(sa), sc_toi_feature(sb));
         double sweep = sc_toi_sweep(sa, &a0, &f->poses[a]) + sc_toi_sweep(sb, &b0, &f->poses[b]);
         if (sweep > 0.5 * feature || d1 > SPEC_DEPTH * feature) {
             for (int k = k0; k < k1; k++)
@@ -412,7 +412,7 @@ int sc_spec_touch(sc_frame *f, const sc_body *saved, const sc_contact *c0, int n
         for (int k = 0; k < ncontact[i]; k++) {
             s[k] = to_start(&uc[(size_t)i * SC_MAX_PAIR_CONTACTS + k], &q->a0, &q->b0, &q->a1,
                             &q->b1);
-            gap = fmin(gap, -s[k].depth);
+            gap = min_d(gap, -s[k].depth);
         }
         /* too far to bounce early, or pushed in: it backs up, unless the
          * substep already backed up (then it is held where it ended) */

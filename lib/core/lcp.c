@@ -239,7 +239,7 @@ static double direction(lcp *s, int d, int dir, int *null_dir, double *dzmax)
     double big = 1.0;
     for (int k = 0; k < m; k++) {
         s->dzc[k] *= dir;
-        big = fmax(big, fabs(s->dzc[k]));
+        big = max_d(big, fabs(s->dzc[k]));
     }
     *dzmax = big;
     for (int i = 0; i < n; i++) {
@@ -257,7 +257,7 @@ static double direction(lcp *s, int d, int dir, int *null_dir, double *dzmax)
 
 static void consider(step *best, int ev, int who, double t, int to_hi)
 {
-    t = fmax(t, 0.0);   /* rounding can put a value a hair past its bound */
+    t = max_d(t, 0.0);   /* rounding can put a value a hair past its bound */
     if (t < best->t) {
         best->ev = ev;
         best->who = who;
@@ -462,7 +462,7 @@ static int drop_out_of_bounds(lcp *s)
     int dropped = 0;
     double zmax = 0;
     for (int i = 0; i < s->n; i++)
-        zmax = fmax(zmax, fabs(s->z[i]));
+        zmax = max_d(zmax, fabs(s->z[i]));
     double tz = LCP_DRIVE * s->eps_n * zmax;
     for (int k = s->f.m - 1; k >= 0; k--) {
         int i = s->f.idx[k];
@@ -474,7 +474,7 @@ static int drop_out_of_bounds(lcp *s)
                 return SC_ENUMERIC;
             dropped++;
         } else {
-            s->z[i] = fmin(fmax(s->z[i], s->lo[i]), s->hi[i]);
+            s->z[i] = min_d(max_d(s->z[i], s->lo[i]), s->hi[i]);
             s->w[i] = 0;
         }
     }
@@ -576,7 +576,7 @@ static int pivot_warm(lcp *s, const double *prevlo, const double *prevhi)
         else if (s->st[i] == ST_HI)
             s->z[i] = s->hi[i];
         else
-            s->z[i] = fmin(fmax(s->z[i], s->lo[i]), s->hi[i]);
+            s->z[i] = min_d(max_d(s->z[i], s->lo[i]), s->hi[i]);
     }
     for (int k = 0; k < m; k++) {
         int i = order[k];
@@ -647,21 +647,21 @@ static int verify(int n, const double *M, const double *q, const double *lo,
     double zs = DBL_MIN, worst = 0;
     int ok = 1;
     for (int i = 0; i < n; i++)
-        zs = fmax(zs, fabs(z[i]));
+        zs = max_d(zs, fabs(z[i]));
     for (int i = 0; i < n; i++) {
         double scale;
         w[i] = q[i] + row_dot_scale(M, q, z, n, i, &scale);
         double tol = LCP_VERIFY * eps_n * scale;
-        double wp = fmax(w[i], 0), wm = fmax(-w[i], 0), v = 0;
+        double wp = max_d(w[i], 0), wm = max_d(-w[i], 0), v = 0;
         if (!isfinite(z[i]) || !isfinite(w[i]) || z[i] < lo[i] || z[i] > hi[i])
             v = INFINITY;
         if (wp > 0)
-            v = fmax(v, isinf(lo[i]) ? wp : fmin(wp, (z[i] - lo[i]) * wp / zs));
+            v = max_d(v, isinf(lo[i]) ? wp : min_d(wp, (z[i] - lo[i]) * wp / zs));
         if (wm > 0)
-            v = fmax(v, isinf(hi[i]) ? wm : fmin(wm, (hi[i] - z[i]) * wm / zs));
+            v = max_d(v, isinf(hi[i]) ? wm : min_d(wm, (hi[i] - z[i]) * wm / zs));
         if (!(v <= tol))
             ok = 0;
-        worst = fmax(worst, v);
+        worst = max_d(worst, v);
     }
     *residual = worst;
     return ok;
@@ -745,7 +745,7 @@ static int solve_fixed(work *wk, const double *q, const double *lo, const double
         memcpy(wk->phi, wk->bhi, (size_t)n * sizeof(double));
     }
     for (int i = 0; i < n; i++) {
-        wk->shift[i] = fmin(fmax(0.0, lo[i]), hi[i]);
+        wk->shift[i] = min_d(max_d(0.0, lo[i]), hi[i]);
         wk->blo[i] = lo[i] - wk->shift[i];
         wk->bhi[i] = hi[i] - wk->shift[i];
         shifted |= wk->shift[i] != 0;
@@ -765,13 +765,13 @@ static int solve_fixed(work *wk, const double *q, const double *lo, const double
     if ((warm || guess) && rc != SC_OK && rc != SC_ENOMEM)
         rc = pivot_all(s);   /* the warm start lost its way: start afresh */
     for (int i = 0; i < n; i++)
-        z[i] = fmin(fmax(s->z[i] + wk->shift[i], lo[i]), hi[i]);
+        z[i] = min_d(max_d(s->z[i] + wk->shift[i], lo[i]), hi[i]);
     int ok = verify(n, s->M, q, lo, hi, z, w, s->eps_n, residual);
     if (guess && rc == SC_OK && !ok) {
         /* a guessed start that ends just outside the tolerance: afresh */
         rc = pivot_all(s);
         for (int i = 0; i < n; i++)
-            z[i] = fmin(fmax(s->z[i] + wk->shift[i], lo[i]), hi[i]);
+            z[i] = min_d(max_d(s->z[i] + wk->shift[i], lo[i]), hi[i]);
         ok = verify(n, s->M, q, lo, hi, z, w, s->eps_n, residual);
     }
     if (rc == SC_OK && !ok)
@@ -901,14 +901,14 @@ static int verify_coupled(work *wk, const double *q, const double *lo, const dou
     const int n = wk->s.n;
     for (int i = 0; i < n; i++)
         if (findex[i] < 0)
-            z[i] = fmin(fmax(z[i], lo[i]), hi[i]);
+            z[i] = min_d(max_d(z[i], lo[i]), hi[i]);
     friction_bounds(n, lo, hi, findex, mu, z, wk->lo, wk->hi);
     double zs = 0;
     for (int i = 0; i < n; i++)
-        zs = fmax(zs, fabs(z[i]));
+        zs = max_d(zs, fabs(z[i]));
     int ok = 1;
     for (int i = 0; i < n; i++) {
-        double c = fmin(fmax(z[i], wk->lo[i]), wk->hi[i]);
+        double c = min_d(max_d(z[i], wk->lo[i]), wk->hi[i]);
         if (fabs(c - z[i]) > LCP_VERIFY * wk->s.eps_n * zs)
             ok = 0;
         z[i] = c;

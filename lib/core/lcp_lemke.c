@@ -60,7 +60,7 @@ static void pivot(lemke *lk, int r, int c)
      * tie exactly for the lexicographic rule to see them */
     double big = 0;
     for (int i = 0; i < lk->n; i++)
-        big = fmax(big, fabs(lk->rhs[i]));
+        big = max_d(big, fabs(lk->rhs[i]));
     for (int i = 0; i < lk->n; i++)
         if (fabs(lk->rhs[i]) <= 64.0 * (lk->n + 1.0) * DBL_EPSILON * big)
             lk->rhs[i] = 0;
@@ -81,7 +81,7 @@ static double key_scale(const lemke *lk, int i, int c)
     const double *ti = row(lk, i);
     double big = fabs(lk->rhs[i]);
     for (int j = 0; j < lk->n; j++) {
-        /* fmax() of finite magnitudes, without libm's call in this
+        /* max_d() of finite magnitudes, without libm's call in this
          * O(n^2)-a-pivot loop (3.5 % of a bin's instructions) */
         double v = fabs(ti[j]);
         big = v > big ? v : big;
@@ -96,7 +96,7 @@ static int lex_less(const lemke *lk, int a, int b, int c)
     double sa = key_scale(lk, a, c), sb = key_scale(lk, b, c);
     for (int j = -1; j < lk->n; j++) {
         double x = key(lk, a, j, c, sa), y = key(lk, b, j, c, sb);
-        if (fabs(x - y) > LEMKE_NOISE * fmax(fabs(x), fabs(y)))
+        if (fabs(x - y) > LEMKE_NOISE * max_d(fabs(x), fabs(y)))
             return x < y;
     }
     return a < b;
@@ -108,7 +108,7 @@ static int leaving_row(const lemke *lk, int c)
     const int n = lk->n, z0 = 2 * n;
     double cmax = 0;
     for (int i = 0; i < n; i++)
-        cmax = fmax(cmax, fabs(row(lk, i)[c]));
+        cmax = max_d(cmax, fabs(row(lk, i)[c]));
     double ptol = 64.0 * (n + 1.0) * DBL_EPSILON * cmax;
     int best = -1;
     for (int i = 0; i < n; i++) {
@@ -122,7 +122,7 @@ static int leaving_row(const lemke *lk, int c)
         if (lk->basis[i] != z0 || row(lk, i)[c] <= ptol)
             continue;
         double x = lk->rhs[i] / row(lk, i)[c], y = lk->rhs[best] / row(lk, best)[c];
-        if (x <= y + 1e-12 * fmax(fabs(x), fabs(y)))
+        if (x <= y + 1e-12 * max_d(fabs(x), fabs(y)))
             best = i;
     }
     return best;
@@ -206,7 +206,7 @@ int sc_lcp_lemke(int n, const double *M, const double *q, double *z, long max_pi
         z[i] = 0;
     for (int i = 0; i < n; i++)
         if (lk.basis[i] >= n && lk.basis[i] < 2 * n)
-            z[lk.basis[i] - n] = fmax(lk.rhs[i], 0.0);
+            z[lk.basis[i] - n] = max_d(lk.rhs[i], 0.0);
     if (rc == SC_OK)
         polish(n, M, q, z, &lk);
     free(lk.t);

@@ -23,7 +23,7 @@ int sc_manifold_reduce(sc_contact *c, int n, double merge_dist)
             continue;
         if (v3_normalize(c[i].normal) == 0)
             continue;
-        c[i].depth = fmax(c[i].depth, 0.0) + 0.0;   /* + 0.0: no -0 */
+        c[i].depth = max_d(c[i].depth, 0.0) + 0.0;   /* + 0.0: no -0 */
         int dup = -1;
         for (int j = 0; j < m && dup < 0; j++)
             if (v3_dist(c[j].pos, c[i].pos) <= merge_dist && v3_dot(c[j].normal, c[i].normal) > 0.99)

@@ -111,8 +111,8 @@ int sc_mesh_check(const double *xyz, int nverts, const int *tri, int ntris, sc_m
         if (!sc_finite3(p))
             return SC_EINVAL;
         for (int k = 0; k < 3; k++) {
-            lo[k] = fmin(lo[k], p[k]);
-            hi[k] = fmax(hi[k], p[k]);
+            lo[k] = min_d(lo[k], p[k]);
+            hi[k] = max_d(hi[k], p[k]);
             ref[k] += p[k] / nverts;
         }
     }

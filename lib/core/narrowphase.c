@@ -382,7 +382,7 @@ int sc_np_collide(sc_np_ctx *ctx, const sc_shape *a, const sc_pose *pa, const sc
         return 0;
     int ra, rb;
     choose_reps(a, b, &ra, &rb);
-    double size = fmin(a->bound_r, b->bound_r);
+    double size = min_d(a->bound_r, b->bound_r);
     double merge = 1e-3 * (isfinite(size) ? size : 1);
     if ((ra == REP_TRIMESH && b->kind == SC_SHAPE_PLANE) ||
         (rb == REP_TRIMESH && a->kind == SC_SHAPE_PLANE)) {   /* no ODE needed */
@@ -425,7 +425,7 @@ int sc_np_collide(sc_np_ctx *ctx, const sc_shape *a, const sc_pose *pa, const sc
     if (ra == REP_CONVEX || rb == REP_CONVEX) {
         double deepest = 0;
         for (int i = 0; i < n; i++)
-            deepest = fmax(deepest, c[i].depth);
+            deepest = max_d(deepest, c[i].depth);
         sc_contact clip[RAW_CONTACTS];
         int k = sc_poly_clip(a, pa, b, pb, deepest, clip, RAW_CONTACTS);
         if (k > 0)

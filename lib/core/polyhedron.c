@@ -269,7 +269,7 @@ static double corners_min(const sc_shape *o, const double Ro[9], const double nw
     double nl[3], lo = INFINITY;
     m3_tmulv(nl, Ro, nw);               /* the direction in o's frame */
     for (int v = 0; v < o->nface_xyz && !(lo <= stop); v++)
-        lo = fmin(lo, v3_dot(nl, &o->face_xyz[3 * v]));
+        lo = min_d(lo, v3_dot(nl, &o->face_xyz[3 * v]));
     return lo;
 }
 
@@ -376,8 +376,8 @@ int sc_poly_clip(const sc_shape *a, const sc_pose *pa, const sc_shape *b, const 
     double da = least_face_depth(a, Ra, pa->pos, b, Rb, pb->pos, &fa);
     double db = least_face_depth(b, Rb, pb->pos, a, Ra, pa->pos, &fb);
     int ref_is_a = da <= db;
-    double dref = fmin(da, db);
-    if (!(dref <= FACE_PREFER * depth + 1e-9 * fmin(a->bound_r, b->bound_r)))
+    double dref = min_d(da, db);
+    if (!(dref <= FACE_PREFER * depth + 1e-9 * min_d(a->bound_r, b->bound_r)))
         return 0;
     const sc_shape *rs = ref_is_a ? a : b, *is = ref_is_a ? b : a;
     const double *rR = ref_is_a ? Ra : Rb, *iR = ref_is_a ? Rb : Ra;

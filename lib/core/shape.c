@@ -101,7 +101,7 @@ SC_API sc_shape *sc_shape_box(double hx, double hy, double hz)
         sc_set_error(SC_EINVAL);
         return NULL;
     }
-    if (fmin(hx, fmin(hy, hz)) < SC_MIN_LENGTH || fmax(hx, fmax(hy, hz)) > SC_MAX_LENGTH) {
+    if (min_d(hx, min_d(hy, hz)) < SC_MIN_LENGTH || max_d(hx, max_d(hy, hz)) > SC_MAX_LENGTH) {
         sc_set_error(SC_ELIMIT);
         return NULL;
     }
@@ -344,8 +344,8 @@ static int attach_pieces(sc_shape *s, const sc_piece_set *ps, const double *shif
     double lo[3] = { INFINITY, INFINITY, INFINITY }, hi[3] = { -INFINITY, -INFINITY, -INFINITY };
     for (int i = 0; i < s->nverts; i++)
         for (int d = 0; d < 3; d++) {
-            lo[d] = fmin(lo[d], s->xyz[3 * i + d]);
-            hi[d] = fmax(hi[d], s->xyz[3 * i + d]);
+            lo[d] = min_d(lo[d], s->xyz[3 * i + d]);
+            hi[d] = max_d(hi[d], s->xyz[3 * i + d]);
         }
     double tol = 1e-9 * s->bound_r;
     for (long i = 0; i < total; i++) {
@@ -409,7 +409,7 @@ static sc_shape *mesh_shape_take(int kind, double *xyz, int nverts, int *tri, in
     s->ntris = ntris;
     s->mp = mp;
     for (int i = 0; i < nverts; i++)
-        s->bound_r = fmax(s->bound_r, v3_len(&xyz[3 * i]));
+        s->bound_r = max_d(s->bound_r, v3_len(&xyz[3 * i]));
     s->convex = kind == SC_SHAPE_CONVEX || mesh_is_convex(s);
     rc = build_ode_data(s);
     if (rc == SC_OK)

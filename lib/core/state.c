@@ -31,7 +31,7 @@ void sc_update_states(sc_frame *f, const sc_islands *is, const unsigned char *to
     for (int k = 0; k < is->count; k++) {
         double rest = INFINITY;
         for (int j = is->body_start[k]; j < is->body_start[k + 1]; j++)
-            rest = fmin(rest, f->st->bodies[is->bodies[j]].rest_s);
+            rest = min_d(rest, f->st->bodies[is->bodies[j]].rest_s);
         if (rest < SLEEP_TIME)
             continue;
         for (int j = is->body_start[k]; j < is->body_start[k + 1]; j++) {

@@ -74,7 +74,7 @@ double sc_toi_feature(const sc_shape *s)
 {
     switch (s->kind) {
     case SC_SHAPE_SPHERE: return s->radius;
-    case SC_SHAPE_BOX: return fmin(s->half[0], fmin(s->half[1], s->half[2]));
+    case SC_SHAPE_BOX: return min_d(s->half[0], min_d(s->half[1], s->half[2]));
     case SC_SHAPE_PLANE: return INFINITY;
     default: return 0.25 * s->bound_r;
     }
@@ -87,8 +87,8 @@ static int sample_count(const sc_shape *a, const sc_pose *a0, const sc_pose *a1,
                         double t0)
 {
     double sweep = (sc_toi_sweep(a, a0, a1) + sc_toi_sweep(b, b0, b1)) * (1 - t0);
-    double step = fmax(0.5 * fmin(sc_toi_feature(a), sc_toi_feature(b)), tol_m);
-    return (int)fmin(fmax(ceil(sweep / step), 1), TOI_MAX_SAMPLES);
+    double step = max_d(0.5 * min_d(sc_toi_feature(a), sc_toi_feature(b)), tol_m);
+    return (int)min_d(max_d(ceil(sweep / step), 1), TOI_MAX_SAMPLES);
 }
 
 /* The sampling search for the first touch after t0 (apart at t0): samples
@@ -278,7 +278,7 @@ int sc_toi_ca_before_ctx(sc_np_ctx *ctx, const sc_shape *a, const sc_pose *a0,
         double rate = ca_rate(&m, s.n);
         if (!(rate > 0))
             return 0;     /* nothing closes the gap along n */
-        double next = fmin(now + (s.gap + CA_LAND * tol_m) / rate, 1);
+        double next = min_d(now + (s.gap + CA_LAND * tol_m) / rate, 1);
         rc = ca_at(a, a0, a1, b, b0, b1, next, s.n, &pa, &pb, &sn);
         if (rc < 0)
             return rc;
@@ -294,7 +294,7 @@ int sc_toi_ca_before_ctx(sc_np_ctx *ctx, const sc_shape *a, const sc_pose *a0,
          * penetration query: in a head-on approach it is the depth) */
         double depth = sn.dist < 0 ? -sn.dist : -sc_ccd_gap(a, &pa, b, &pb, s.n);
         if (depth < CA_SHALLOW * tol_m && next < 1) {
-            double deeper = fmin(now + (s.gap + CA_REFINE * tol_m) / rate, 1);
+            double deeper = min_d(now + (s.gap + CA_REFINE * tol_m) / rate, 1);
             sc_ccd_sep sd;
             rc = ca_at(a, a0, a1, b, b0, b1, deeper, s.n, &pa, &pb, &sd);
             if (rc < 0)
@@ -390,8 +390,8 @@ int sc_toi_ca_deepen_before_ctx(sc_np_ctx *ctx, const sc_shape *a, const sc_pose
         double rate = ca_rate(&m, s.n);
         if (!(rate > 0))
             return 0;
-        double room = fmax(s.gap + limit_m, CA_DEEP_STEP * limit_m);
-        double next = fmin(now + room / rate, 1);
+        double room = max_d(s.gap + limit_m, CA_DEEP_STEP * limit_m);
+        double next = min_d(now + room / rate, 1);
         sc_pose_lerp(&pa, a0, a1, next);
         sc_pose_lerp(&pb, b0, b1, next);
         if ((rc = ca_deep_at(a, &pa, b, &pb, s.n, limit_m, &sn)) < 0)

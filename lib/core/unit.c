@@ -52,7 +52,7 @@ static int run_toi(sc_np_ctx *np, const sc_job *job, const sc_unit *u)
             return hit;
         job->toi[i] = hit == 1 ? t : 1;
         if (!p->exact)
-            best = fmin(best, job->toi[i]);
+            best = min_d(best, job->toi[i]);
     }
     return SC_OK;
 }
