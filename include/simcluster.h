@@ -290,8 +290,10 @@ enum {
 };
 
 typedef struct sc_stats {
-    double stage_s[SC_STAGE_COUNT];        /* CPU seconds, last frame */
-    double stage_total_s[SC_STAGE_COUNT];  /* CPU seconds, all frames */
+    /* seconds by stage: the thread's CPU time in world mode, its time in
+     * the stage by the monotonic clock in local mode (docs/DESIGN.md 3.1) */
+    double stage_s[SC_STAGE_COUNT];        /* last frame */
+    double stage_total_s[SC_STAGE_COUNT];  /* all frames */
     long frames;              /* frames stepped */
     int bodies;               /* bodies in the world */
     int pairs;                /* broad-phase pairs, last frame */

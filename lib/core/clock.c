@@ -39,6 +39,18 @@ void sc_stage_add(sc_stats *st, int stage, double t0)
     st->stage_total_s[stage] += dt;
 }
 
+double sc_stage_now(const sc_frame *f)
+{
+    return f->cfg->toi_mode == SC_TOI_LOCAL ? sc_wall_now() : sc_cpu_now();
+}
+
+void sc_stage_since(sc_frame *f, int stage, double t0)
+{
+    double dt = sc_stage_now(f) - t0;
+    f->stats->stage_s[stage] += dt;
+    f->stats->stage_total_s[stage] += dt;
+}
+
 void sc_stats_add_solve(sc_stats *st, const sc_solve_info *info)
 {
     st->lcp_solves += info->solves;

@@ -60,11 +60,11 @@ static int substep(sc_frame *f, double h, sc_islands *is, unsigned char *touched
     sc_frame_state *st = f->st;
     int n = st->nbodies;
     sc_apply_forces(f, h);
-    double t0 = sc_cpu_now();
+    double t0 = sc_stage_now(f);
     for (int i = 0; i < n; i++)
         f->active[i] = sc_body_movable(&st->bodies[i]);
     int rc = sc_islands_build(&f->scr->arena, n, f->active, st->contacts, st->ncontacts, is);
-    sc_stage_add(f->stats, SC_STAGE_ISLANDS, t0);
+    sc_stage_since(f, SC_STAGE_ISLANDS, t0);
     if (rc != SC_OK)
         return rc;
     memset(touched, 0, (size_t)n);
@@ -73,7 +73,7 @@ static int substep(sc_frame *f, double h, sc_islands *is, unsigned char *touched
         touched[st->contacts[k].body_b] = 1;
     }
     /* step 7: one work unit per island (islands share no movable body) */
-    t0 = sc_cpu_now();
+    t0 = sc_stage_now(f);
     sc_contact_params params = sc_frame_contact_params(f->cfg);
     sc_job job = {
         .kind = SC_UNIT_ISLAND,
@@ -84,13 +84,13 @@ static int substep(sc_frame *f, double h, sc_islands *is, unsigned char *touched
         .params = &params,
     };
     rc = f->ex->run(f->ex, &job, SC_STAGE_LCP, f->stats);
-    sc_stage_add(f->stats, SC_STAGE_LCP, t0);
+    sc_stage_since(f, SC_STAGE_LCP, t0);
     f->stats->islands = is->count;
     if (rc != SC_OK)
         return rc;
-    t0 = sc_cpu_now();
+    t0 = sc_stage_now(f);
     sc_integrate_positions(f, h);
-    sc_stage_add(f->stats, SC_STAGE_INTEGRATE, t0);
+    sc_stage_since(f, SC_STAGE_INTEGRATE, t0);
     for (int i = 0; i < n; i++) {
         sc_body *b = &st->bodies[i];
         if (sc_body_movable(b) && (!sc_finite3(b->x) || !sc_finite3(b->v) || !sc_finite3(b->w)))

@@ -225,6 +225,15 @@ typedef struct sc_frame {
 sc_contact_params sc_frame_contact_params(const sc_frame_config *cfg);
 /* Adding the CPU time since t0 to a Table 1 row of f's figures. */
 void sc_stage_add(sc_stats *st, int stage, double t0);
+/* The clock a frame's stages time themselves with (sc_stats.stage_s): the
+ * thread's CPU time in world mode (Table 1 is CPU by stage; a few dozen
+ * reads a frame), the monotonic clock in local mode, where every motion
+ * group's frame times its stages: a thread CPU read is a system call
+ * (0.3-0.9 us here) and the 1000-part drop made 8 900 a frame
+ * (docs/DESIGN.md 3.1). sc_stage_since() adds the time since t0 (of this
+ * clock) to stage. */
+double sc_stage_now(const sc_frame *f);
+void sc_stage_since(sc_frame *f, int stage, double t0);
 /* One island solve's figures into the frame's (sc_stats.lcp_*). */
 void sc_stats_add_solve(sc_stats *st, const sc_solve_info *info);
 /* The solver figures of s2 (a motion group's frame) into s. */

@@ -90,7 +90,7 @@ static void toi_job_free(sc_frame *f, sc_job *job)
 int sc_frame_earliest_impact(sc_frame *f, const sc_body *saved, const sc_contact *c0, int n0,
                              const unsigned char *fast, double *frac)
 {
-    double t0 = sc_cpu_now();
+    double t0 = sc_stage_now(f);
     *frac = 1;
     sc_job job;
     int rc = toi_job(f, saved, c0, n0, fast, 0, &job);
@@ -100,7 +100,7 @@ int sc_frame_earliest_impact(sc_frame *f, const sc_body *saved, const sc_contact
             *frac = min_d(*frac, job.toi[i]);
         toi_job_free(f, &job);
     }
-    sc_stage_add(f->stats, SC_STAGE_TOI, t0);
+    sc_stage_since(f, SC_STAGE_TOI, t0);
     return rc;
 }
 
@@ -347,14 +347,14 @@ static int hold_at_end(sc_frame *f, const sc_body *saved, const sc_contact *c0, 
 int sc_spec_touch(sc_frame *f, const sc_body *saved, const sc_contact *c0, int n0, double h,
                   sc_spec_list *spec, unsigned char *fast, int *nfast, int hold)
 {
-    double t0 = sc_cpu_now();
+    double t0 = sc_stage_now(f);
     sc_arena *ar = &f->scr->arena;
     const sc_frame_state *st = f->st;
     sc_job tj;
     int rc = toi_job(f, saved, c0, n0, fast, 1, &tj);
     int np = tj.npairs, ntouch = 0;
     if (rc != SC_OK || np == 0) {
-        sc_stage_add(f->stats, SC_STAGE_TOI, t0);
+        sc_stage_since(f, SC_STAGE_TOI, t0);
         return rc;
     }
     /* a pair already held by speculative contacts that still got too
@@ -442,7 +442,7 @@ int sc_spec_touch(sc_frame *f, const sc_body *saved, const sc_contact *c0, int n
     sc_arena_free(ar, uc);
     sc_arena_free(ar, cp);
     toi_job_free(f, &tj);
-    sc_stage_add(f->stats, SC_STAGE_TOI, t0);
+    sc_stage_since(f, SC_STAGE_TOI, t0);
     return rc == SC_OK ? ntouch : rc;
 }
 
