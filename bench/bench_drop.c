@@ -3,12 +3,22 @@
  * scene simulated by
  *   quick  ODE dWorldQuickStep, 20 iterations
  *   step   ODE dWorldStep (its Dantzig-type LCP)
- *   sc1    simcluster, sc_world_step on a default world with workers = 1
+ *   sc1    simcluster, sc_world_step with toi_mode = SC_TOI_WORLD (the paper's
+ *          world-wide back-up), workers = 1
  *   scN    the same with workers = every online CPU (the embedded default)
  *   sl1    simcluster with toi_mode = SC_TOI_LOCAL (speculative contacts,
  *          local back-ups; docs/DESIGN.md 3.4), workers = 1
+ *   slN    the same with workers = every online CPU: the library's default
+ *          world (local mode, embedded workers)
+ *   quickAD ODE dWorldQuickStep with ODE's auto-disable on (its default
+ *          thresholds: a body still for 10 steps under 0.01 linear and
+ *          angular is disabled; pairs whose bodies are all disabled or
+ *          static are not collided, as ODE's demos do): ODE's own sleep,
+ *          the peer to compare with ours, which sleeps too
  * at 100 Hz for up to 10 s of simulated time (-T), stopping early when
- * every body is at rest, or when a run's wall time passes the budget (-b,
+ * every body is at rest (unless -F: a full run to -T, the rest time still
+ * recorded as the start of the last rest that held to the end), or when a
+ * run's wall time passes the budget (-b,
  * default 30 s). The budget bounds the default run: a 1000-body drop
  * takes minutes of wall per run, so it is cut short and says "not at rest
  * within the cap".
@@ -92,9 +102,10 @@
  * up to NMARK evenly spaced frames). Where a peer exploded, crashed or
  * failed, the line says so instead of giving ratios.
  *
- * usage: bench_drop [-S drop|bin] [-r runs] [-T sim_seconds]
+ * usage: bench_drop [-S drop|bin] [-r runs] [-T sim_seconds] [-F]
  *                   [-b wall_budget_s] [-s seed] [-e engines] [N ...]
- *   engines: any of q (quick), s (step), 1 (sc1), n (scN), l (sl1), c (= 1n);
+ *   engines: any of q (quick), a (quickAD), s (step), 1 (sc1), n (scN),
+ *   l (sl1), L (slN), c (= 1n);
  *   default qsc.  N: body counts (1..100000), default 10 50 200 1000
  *   (drop) or 50 200 (bin) */
 #include <errno.h>
@@ -133,14 +144,14 @@
 enum { SCENE_DROP, SCENE_BIN };
 static int scene_kind = SCENE_DROP;
 
-enum { ENG_QUICK, ENG_STEP, ENG_SC1, ENG_SCN, ENG_SL1, ENG_COUNT };
-static const char *eng_name[ENG_COUNT] = { "quick", "step", "sc1", "scN", "sl1" };
-static const char eng_key[ENG_COUNT] = { 'q', 's', '1', 'n', 'l' };
-static int eng_threads[ENG_COUNT] = { 1, 1, 1, 1, 1 };   /* scN's set in main */
-/* ours: sc1, scN and sl1 (the local time-of-impact mode) */
+enum { ENG_QUICK, ENG_QAD, ENG_STEP, ENG_SC1, ENG_SCN, ENG_SL1, ENG_SLN, ENG_COUNT };
+static const char *eng_name[ENG_COUNT] = { "quick", "quickAD", "step", "sc1", "scN", "sl1", "slN" };
+static const char eng_key[ENG_COUNT] = { 'q', 'a', 's', '1', 'n', 'l', 'L' };
+static int eng_threads[ENG_COUNT] = { 1, 1, 1, 1, 1, 1, 1 };   /* scN's, slN's set in main */
+/* ours: sc1, scN (world mode), sl1 and slN (the local time-of-impact mode) */
 static int is_ours(int eng)
 {
-    return eng == ENG_SC1 || eng == ENG_SCN || eng == ENG_SL1;
+    return eng == ENG_SC1 || eng == ENG_SCN || eng == ENG_SL1 || eng == ENG_SLN;
 }
 
 enum { END_TIME, END_REST, END_EXPLODED, END_BUDGET, END_ERROR, END_CRASH };
@@ -192,6 +203,7 @@ typedef struct scene {
 static double sim_limit_s = 10.0;
 static double budget_s = 30.0;
 static long mark_stride = 1;     /* frames between marks, set in main */
+static int full_run = 0;         /* -F: run to sim_limit_s whatever rests */
 
 /* ---- the scene, read back from simcluster ---- */
 
@@ -343,12 +355,14 @@ static int watch_frame(watch *wt, double t, double e, double pen, int all_rest, 
     wt->epeak = fmax(wt->epeak, e);
     if (!all_rest) {
         wt->rest_since = -1;
+        r->rest_s = -1;           /* a full run: that rest did not last */
     } else {
         if (wt->rest_since < 0)
             wt->rest_since = t;
         if (t - wt->rest_since >= REST_HOLD_S - 1e-9) {
             r->rest_s = wt->rest_since;
-            return END_REST;
+            if (!full_run)
+                return END_REST;
         }
     }
     return t >= sim_limit_s - 1e-9 ? END_TIME : -1;
@@ -382,6 +396,9 @@ static void near_callback(void *ctx, dGeomID o1, dGeomID o2)
     dBodyID b1 = dGeomGetBody(o1), b2 = dGeomGetBody(o2);
     if (!b1 && !b2)
         return;
+    /* auto-disable (quickAD): nothing to do between sleepers and walls */
+    if ((!b1 || !dBodyIsEnabled(b1)) && (!b2 || !dBodyIsEnabled(b2)))
+        return;
     dContact c[MAX_PAIR_CONTACTS];
     memset(c, 0, sizeof c);
     int n = dCollide(o1, o2, MAX_PAIR_CONTACTS, &c[0].geom, sizeof c[0]);
@@ -404,10 +421,11 @@ static void set_last_transform(dGeomID g)
     dGeomTriMeshSetLastTransform(g, m);
 }
 
-static int ode_build(ode_sim *s, const scene *sc)
+static int ode_build(ode_sim *s, const scene *sc, int auto_disable)
 {
     memset(s, 0, sizeof *s);
     s->world = dWorldCreate();
+    dWorldSetAutoDisableFlag(s->world, auto_disable);   /* ODE's default thresholds */
     dWorldSetGravity(s->world, 0, 0, -G);
     dWorldSetQuickStepNumIterations(s->world, QUICK_ITERS);
     s->space = dHashSpaceCreate(0);
@@ -520,11 +538,11 @@ static void ode_free(ode_sim *s)
     free(s->kind);
 }
 
-static void run_ode(const scene *sc, int quick, result *r)
+static void run_ode(const scene *sc, int quick, int auto_disable, result *r)
 {
     ode_sim s;
     dRandSetSeed(0);                      /* QuickStep's row shuffling */
-    if (ode_build(&s, sc) != 0) {
+    if (ode_build(&s, sc, auto_disable) != 0) {
         r->end = END_ERROR;
         r->code = -1;
         ode_free(&s);
@@ -662,9 +680,10 @@ static void run_child(const scene *sc, int eng, result *r)
         /* a single step far beyond the budget is killed */
         alarm((unsigned)(budget_s + 300));
         if (is_ours(eng))
-            run_sc(sc, eng_threads[eng], eng == ENG_SL1 ? SC_TOI_LOCAL : SC_TOI_WORLD, r);
+            run_sc(sc, eng_threads[eng],
+                   eng == ENG_SL1 || eng == ENG_SLN ? SC_TOI_LOCAL : SC_TOI_WORLD, r);
         else
-            run_ode(sc, eng == ENG_QUICK, r);
+            run_ode(sc, eng != ENG_STEP, eng == ENG_QAD, r);
         ssize_t k = write(fd[1], r, sizeof *r);
         _exit(k == (ssize_t)sizeof *r ? 0 : 1);
     }
@@ -707,7 +726,12 @@ static int cmp_rtf(const void *a, const void *b)
 static void describe_end(const result *r, char *buf, size_t len)
 {
     switch (r->end) {
-    case END_TIME: snprintf(buf, len, "ran %.1f s: not at rest within the cap", r->sim_s); break;
+    case END_TIME:
+        if (r->rest_s >= 0)
+            snprintf(buf, len, "ran %.1f s (-F), at rest from %.2f s", r->sim_s, r->rest_s);
+        else
+            snprintf(buf, len, "ran %.1f s: not at rest within the cap", r->sim_s);
+        break;
     case END_REST: snprintf(buf, len, "at rest"); break;
     case END_EXPLODED: snprintf(buf, len, "exploded at t = %.2f s", r->sim_s); break;
     case END_BUDGET:
@@ -728,7 +752,7 @@ static void print_row(int n, int eng, int runs, const result *r)
     char end[128], rest[32];
     describe_end(r, end, sizeof end);
     if (r->end == END_CRASH) {
-        printf("%6d  %-6s %3d %4d  %9s %8s %9s %9s %10s %9s %10s  %s\n", n, eng_name[eng],
+        printf("%6d  %-7s %3d %4d  %9s %8s %9s %9s %10s %9s %10s  %s\n", n, eng_name[eng],
                eng_threads[eng], runs, "-", "-", "-", "-", "-", "-", "-", end);
         return;
     }
@@ -736,7 +760,7 @@ static void print_row(int n, int eng, int runs, const result *r)
         snprintf(rest, sizeof rest, "%.2f", r->rest_s);
     else
         snprintf(rest, sizeof rest, "none");
-    printf("%6d  %-6s %3d %4d  %9.3f %8.2f %9.3f %9.4f %10.4g %9s %10.3g  %s\n", n,
+    printf("%6d  %-7s %3d %4d  %9.3f %8.2f %9.3f %9.4f %10.4g %9s %10.3g  %s\n", n,
            eng_name[eng], eng_threads[eng], runs, r->wall_s, r->sim_s, rtf(r), r->epeak / r->e0,
            r->max_pen, rest, r->vmax, end);
 }
@@ -800,13 +824,13 @@ static void ratio_cell(double ours, double peer)
 /* One line of ratios, ours over peer; o and p are engine indices. */
 static void print_ratios(int o, int p, const result *ours, const result *peer)
 {
-    char pair[16], end[128];
+    char pair[24], end[128];
     snprintf(pair, sizeof pair, "%s / %s", eng_name[o], eng_name[p]);
     const result *bad = broken(peer) ? peer : broken(ours) ? ours : NULL;
     if (bad) {
         int who = bad == peer ? p : o;
         describe_end(bad, end, sizeof end);
-        printf("    %-12s %s %s", pair, eng_name[who], end);
+        printf("    %-15s %s %s", pair, eng_name[who], end);
         if (bad->end == END_EXPLODED)
             printf(" (energy %.3gx the initial)", bad->epeak / bad->e0);
         printf(": no ratios\n");
@@ -814,7 +838,7 @@ static void print_ratios(int o, int p, const result *ours, const result *peer)
     }
     double span, ra = NAN, rb = NAN;
     common_rtf(ours, peer, &span, &ra, &rb);
-    printf("    %-12s %8.2f", pair, span);
+    printf("    %-15s %8.2f", pair, span);
     ratio_cell(ra, rb);
     ratio_cell(ours->epeak / ours->e0, peer->epeak / peer->e0);
     ratio_cell(ours->max_pen, peer->max_pen);
@@ -846,7 +870,7 @@ static void print_walls(int n, const scene *sc)
 static void usage(void)
 {
     fprintf(stderr, "usage: bench_drop [-S drop|bin] [-r runs] [-T sim_seconds] "
-                    "[-b wall_budget_s] [-s seed] [-e qs1nlc] [N ...]\n");
+                    "[-F] [-b wall_budget_s] [-s seed] [-e qas1nlLc] [N ...]\n");
     exit(2);
 }
 
@@ -856,7 +880,7 @@ int main(int argc, char **argv)
     uint64_t seed = 1;
     const char *engines = "qsc";
     int opt;
-    while ((opt = getopt(argc, argv, "S:r:T:b:s:e:h")) != -1) {
+    while ((opt = getopt(argc, argv, "S:r:T:Fb:s:e:h")) != -1) {
         switch (opt) {
         case 'S':
             if (strcmp(optarg, "drop") == 0)
@@ -868,6 +892,7 @@ int main(int argc, char **argv)
             break;
         case 'r': runs_opt = atoi(optarg); break;
         case 'T': sim_limit_s = atof(optarg); break;
+        case 'F': full_run = 1; break;
         case 'b': budget_s = atof(optarg); break;
         case 's': seed = strtoull(optarg, NULL, 0); break;
         case 'e': engines = optarg; break;
@@ -875,7 +900,7 @@ int main(int argc, char **argv)
         }
     }
     if (runs_opt < 0 || runs_opt > MAX_RUNS || !(sim_limit_s > 0) || !(budget_s > 0) ||
-        sim_limit_s > 1e6 || budget_s > 1e6 || strspn(engines, "qs1nlc") != strlen(engines))
+        sim_limit_s > 1e6 || budget_s > 1e6 || strspn(engines, "qas1nlLc") != strlen(engines))
         usage();
     int ns[64], nn = 0;
     for (int i = optind; i < argc && nn < 64; i++) {
@@ -901,6 +926,7 @@ int main(int argc, char **argv)
                  ((e == ENG_SC1 || e == ENG_SCN) && strchr(engines, 'c') != NULL);
     long cpus = sysconf(_SC_NPROCESSORS_ONLN);
     eng_threads[ENG_SCN] = cpus < 1 ? 1 : cpus > SC_MAX_WORKERS ? SC_MAX_WORKERS : (int)cpus;
+    eng_threads[ENG_SLN] = eng_threads[ENG_SCN];
     long frames_max = (long)ceil(sim_limit_s / DT - 1e-9);
     mark_stride = (frames_max + NMARK - 1) / NMARK;
     if (mark_stride < 1)
@@ -918,17 +944,19 @@ int main(int argc, char **argv)
                                    : "bolt/nut drop (-S drop, sc_scene_bolts_nuts)",
            sc_shape_triangles(bolt), sc_shape_triangles(nut), BOUNCE, MU, DT, sim_limit_s,
            budget_s, (unsigned long long)seed);
-    printf("quick: ODE dWorldQuickStep (%d iterations); step: ODE dWorldStep; ODE (%s): trimesh "
+    printf("quick: ODE dWorldQuickStep (%d iterations); quickAD: the same with ODE's "
+           "auto-disable; step: ODE dWorldStep; ODE (%s): trimesh "
            "in dHashSpace, <= %d contacts a pair, Bounce|Approx1, bounce_vel %.1f m/s, "
            "default ERP/CFM\n",
            QUICK_ITERS, dGetConfiguration(), MAX_PAIR_CONTACTS, BOUNCE_VEL);
-    printf("sc1: simcluster, default world, workers = 1; scN: workers = %d (every online CPU); "
-           "sl1: toi_mode local, workers = 1\n",
-           eng_threads[ENG_SCN]);
+    printf("sc1: simcluster, toi_mode world, workers = 1; scN: workers = %d (every online CPU); "
+           "sl1: toi_mode local (the default), workers = 1; slN: local, workers = %d%s\n",
+           eng_threads[ENG_SCN], eng_threads[ENG_SLN],
+           full_run ? "; -F: every run goes to -T" : "");
     printf("rest: all bodies < %.0f cm/s and < %.1f rad/s for %.1f s; "
            "explosion: NaN or energy > %.0fx initial\n\n",
            REST_V * 100, REST_W, REST_HOLD_S, EXPLODE_FACTOR);
-    printf("%6s  %-6s %3s %4s  %9s %8s %9s %9s %10s %9s %10s  %s\n", "N", "engine", "thr", "runs",
+    printf("%6s  %-7s %3s %4s  %9s %8s %9s %9s %10s %9s %10s  %s\n", "N", "engine", "thr", "runs",
            "wall s", "sim s", "RT factor", "Epeak/E0", "max pen m", "rest at s", "vmax end",
            "end");
     for (int t = 0; t < nn; t++) {
@@ -961,10 +989,12 @@ int main(int argc, char **argv)
             fflush(stdout);
         }
         /* ours over each peer, and scN over sc1 */
-        static const int pairs[][2] = { { ENG_SC1, ENG_QUICK }, { ENG_SCN, ENG_QUICK },
-                                        { ENG_SL1, ENG_QUICK }, { ENG_SC1, ENG_STEP },
-                                        { ENG_SCN, ENG_STEP },  { ENG_SL1, ENG_STEP },
-                                        { ENG_SCN, ENG_SC1 },   { ENG_SL1, ENG_SC1 } };
+        static const int pairs[][2] = {
+            { ENG_SC1, ENG_QUICK }, { ENG_SCN, ENG_QUICK }, { ENG_SL1, ENG_QUICK },
+            { ENG_SLN, ENG_QUICK }, { ENG_SL1, ENG_QAD },   { ENG_SLN, ENG_QAD },
+            { ENG_SC1, ENG_STEP },  { ENG_SCN, ENG_STEP },  { ENG_SL1, ENG_STEP },
+            { ENG_SLN, ENG_STEP },  { ENG_SCN, ENG_SC1 },   { ENG_SL1, ENG_SC1 },
+            { ENG_SLN, ENG_SL1 } };
         int header = 0;
         for (size_t i = 0; i < sizeof pairs / sizeof pairs[0]; i++) {
             int o = pairs[i][0], p = pairs[i][1];
@@ -972,7 +1002,7 @@ int main(int argc, char **argv)
                 continue;
             if (!header) {
                 printf("  ratios at N = %d (RT factor over the simulated span both runs reached):\n"
-                       "    %-12s %8s %10s %10s %10s %10s\n",
+                       "    %-15s %8s %10s %10s %10s %10s\n",
                        n, "pair", "span s", "RT factor", "Epeak/E0", "max pen", "rest time");
                 header = 1;
             }
