@@ -313,14 +313,24 @@ typedef struct placed_piece {
 static int pieces_near(const sc_shape *s, const sc_pose *p, const double c[3], double r,
                        placed_piece *out)
 {
-    int n = s->npieces ? s->npieces : 1, m = 0;
-    for (int k = 0; k < n; k++) {
-        placed_piece *pp = &out[m];
+    if (s->npieces == 0) {
+        out[0].s = piece_at(s, p, 0, &out[0].q, &out[0].r);
+        return 1;
+    }
+    /* the ball in s's frame: a piece is placed only if it reaches it */
+    double R[9], d[3], cl[3];
+    q_to_m3(R, p->quat);
+    v3_sub(d, c, p->pos);
+    m3_tmulv(cl, R, d);
+    int m = 0;
+    for (int k = 0; k < s->npieces; k++) {
+        const double *ball = &s->piece_ball[4 * k];
+        double e[3], reach = ball[3] + r;
+        v3_sub(e, ball, cl);
+        if (v3_dot(e, e) > reach * reach)
+            continue;
+        placed_piece *pp = &out[m++];
         pp->s = piece_at(s, p, k, &pp->q, &pp->r);
-        double d[3];
-        v3_sub(d, pp->q.pos, c);
-        if (v3_dot(d, d) <= (pp->r + r) * (pp->r + r))
-            m++;
     }
     return m;
 }
