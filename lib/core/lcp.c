@@ -123,6 +123,9 @@ typedef struct lcp {
     sc_ldu f;
     double eps_n;                /* (n + 1) DBL_EPSILON */
     long pivots, max_pivots;
+    int clamped;                 /* drop_out_of_bounds() moved a z of C */
+    int settled;                 /* the last finish() left every index valid
+                                    and every z as its last refresh() had it */
 } lcp;
 
 typedef struct step {
@@ -456,11 +459,13 @@ static void refresh(lcp *s)
 }
 
 /* Take out of C every index whose refreshed z is beyond a bound (at that
- * bound now); returns how many, or SC_ENUMERIC. */
+ * bound now), clamp the others into theirs; returns how many left, or
+ * SC_ENUMERIC. */
 static int drop_out_of_bounds(lcp *s)
 {
     int dropped = 0;
     double zmax = 0;
+    s->clamped = 0;
     for (int i = 0; i < s->n; i++)
         zmax = max_d(zmax, fabs(s->z[i]));
     double tz = LCP_DRIVE * s->eps_n * zmax;
@@ -474,7 +479,9 @@ static int drop_out_of_bounds(lcp *s)
                 return SC_ENUMERIC;
             dropped++;
         } else {
-            s->z[i] = min_d(max_d(s->z[i], s->lo[i]), s->hi[i]);
+            double c = min_d(max_d(s->z[i], s->lo[i]), s->hi[i]);
+            s->clamped |= c != s->z[i];
+            s->z[i] = c;
             s->w[i] = 0;
         }
     }
@@ -503,11 +510,14 @@ static int finish(lcp *s)
             if (rc != SC_OK)
                 return rc;
         }
-        if (!driven)
+        if (!driven) {
+            s->settled = !s->clamped;
             return SC_OK;
+        }
         sweeps++;
     }
     refresh(s);
+    s->settled = 0;
     return SC_OK;   /* verify() has the last word */
 }
 
@@ -533,18 +543,27 @@ static int pivot_all(lcp *s)
 }
 
 /* The end of a warm pass: repair what the start broke, then drive the
- * unseen indices as in a first pass. */
+ * unseen indices as in a first pass. An unseen index that settles where
+ * it stands without a pivot and without joining C (a separating contact
+ * at its bound 0, say) changes no z and no factor. So when the first
+ * finish() ended with every index valid and z as its refresh computed it
+ * (no clamp of a z of C), a second one would refresh to the same values
+ * and find nothing to do: it is only run when some drive moved something
+ * or the first did not end so (same answer, one O(n^2) refresh less). */
 static int warm_finish(lcp *s)
 {
     const int n = s->n;
-    int rc = finish(s);
+    int rc = finish(s), moved = 0;
     for (int d = 0; d < n && rc == SC_OK; d++) {
         if (s->st[d] != ST_UNSEEN)
             continue;
+        long pivots = s->pivots;
+        int m = s->f.m;
         s->w[d] = s->q[d] + row_dot(s->M, s->z, n, d);
         rc = drive(s, d);
+        moved |= s->pivots != pivots || s->f.m != m;
     }
-    return rc == SC_OK ? finish(s) : rc;
+    return rc == SC_OK && (moved || !s->settled) ? finish(s) : rc;
 }
 
 /* A pass that starts from the sets of the previous one (friction rounds,
