@@ -115,6 +115,9 @@ typedef struct lcp {
     double *dw;                  /* dw by index (free indices only) */
     double *rowabs;              /* sum_j |M_ij| */
     double *wtol;                /* drive tolerance of each settled index */
+    double *wv, *wsc, *zref;     /* the last refresh(): w = M z + q and S_i
+                                    of every index, at z = zref */
+    int wv_ok;                   /* wv, wsc, zref hold one of this pass */
     double *tmp;                 /* n scratch */
     signed char *st;             /* ST_* by index */
     long *mark;                  /* pivot stamp: index passed over */
@@ -428,7 +431,9 @@ static int drive(lcp *s, int d)
 
 /* Recompute z_C from scratch, M_CC z_C = -(q_C + M_{C,N} z_N), with one
  * step of iterative refinement, then every w = M z + q: this removes the
- * drift of the incremental updates. Also sets every drive tolerance. */
+ * drift of the incremental updates. Also sets every drive tolerance, and
+ * keeps w and S_i with the z they belong to: when the answer is that z,
+ * verify() needs no second O(n^2) pass (solve_fixed()). */
 static void refresh(lcp *s)
 {
     const int n = s->n, m = s->f.m;
@@ -453,9 +458,12 @@ static void refresh(lcp *s)
         s->z[idx[k]] = zc[k] + res[k];
     for (int i = 0; i < n; i++) {
         double scale;
-        s->w[i] = s->q[i] + row_dot_scale(s->M, s->q, s->z, n, i, &scale);
+        s->w[i] = s->wv[i] = s->q[i] + row_dot_scale(s->M, s->q, s->z, n, i, &scale);
+        s->wsc[i] = scale;
         s->wtol[i] = LCP_DRIVE * s->eps_n * scale;
     }
+    memcpy(s->zref, s->z, (size_t)n * sizeof(double));
+    s->wv_ok = 1;
 }
 
 /* Take out of C every index whose refreshed z is beyond a bound (at that
@@ -651,26 +659,32 @@ static int pivot_guess(lcp *s)
 
 /* ---- verification -------------------------------------------------------- */
 
+/* w = M z + q and S_i = |q_i| + sum_j |M_ij z_j| of every index. */
+static void w_all(int n, const double *M, const double *q, const double *z, double *w,
+                  double *sc)
+{
+    for (int i = 0; i < n; i++)
+        w[i] = q[i] + row_dot_scale(M, q, z, n, i, &sc[i]);
+}
+
 /* Largest violation (in units of w) of the boxed conditions by (z, w) and
  * whether each index is within its tolerance tol_i = LCP_VERIFY (n+1) eps
- * S_i, S_i = |q_i| + sum_j |M_ij z_j| (the rounding bound of w_i scaled up).
- * For index i with zs = max_j |z_j|:
+ * S_i, S_i = sc[i] = |q_i| + sum_j |M_ij z_j| (the rounding bound of w_i
+ * scaled up); w and sc must be those of z (w_all()). For index i with
+ * zs = max_j |z_j|:
  *   w_i > 0 is allowed only at z_i = lo_i: violation min(w_i, (z_i-lo_i) w_i / zs);
  *   w_i < 0 only at z_i = hi_i:          min(-w_i, (hi_i-z_i)(-w_i) / zs);
  * for the standard LCP this is exactly w_i >= -tol_i and z_i w_i <= tol_i zs.
- * z outside [lo, hi] or anything not finite fails. */
-static int verify(int n, const double *M, const double *q, const double *lo,
-                  const double *hi, const double *z, double *w, double eps_n,
-                  double *residual)
+ * z outside [lo, hi] or anything not finite fails. O(n). */
+static int check(int n, const double *lo, const double *hi, const double *z, const double *w,
+                 const double *sc, double eps_n, double *residual)
 {
     double zs = DBL_MIN, worst = 0;
     int ok = 1;
     for (int i = 0; i < n; i++)
         zs = max_d(zs, fabs(z[i]));
     for (int i = 0; i < n; i++) {
-        double scale;
-        w[i] = q[i] + row_dot_scale(M, q, z, n, i, &scale);
-        double tol = LCP_VERIFY * eps_n * scale;
+        double tol = LCP_VERIFY * eps_n * sc[i];
         double wp = max_d(w[i], 0), wm = max_d(-w[i], 0), v = 0;
         if (!isfinite(z[i]) || !isfinite(w[i]) || z[i] < lo[i] || z[i] > hi[i])
             v = INFINITY;
@@ -686,12 +700,23 @@ static int verify(int n, const double *M, const double *q, const double *lo,
     return ok;
 }
 
+/* The final check of an answer against the original data: w = M z + q
+ * (into w, S_i into sc) recomputed from z, then check(). */
+static int verify(int n, const double *M, const double *q, const double *lo,
+                  const double *hi, const double *z, double *w, double *sc, double eps_n,
+                  double *residual)
+{
+    w_all(n, M, q, z, w, sc);
+    return check(n, lo, hi, z, w, sc, eps_n, residual);
+}
+
 /* ---- workspace ----------------------------------------------------------- */
 
 typedef struct work {
     void *mem;
     lcp s;
     double *lo, *hi, *shift, *qs, *blo, *bhi, *plo, *phi, *zfix, *zprev, *kmat;
+    double *vsc;                 /* S_i of the w of the last verify() */
 } work;
 
 static int symmetric(int n, const double *M)
@@ -704,11 +729,11 @@ static int symmetric(int n, const double *M)
 }
 
 /* One allocation for everything a call needs (nothing is allocated in the
- * pivot loop): 17 vectors, kmat (n x n, friction only), two stamp arrays,
+ * pivot loop): 21 vectors, kmat (n x n, friction only), two stamp arrays,
  * the factorisation, the set of each index. */
 static int work_init(sc_arena *arena, work *wk, int n, const double *M, int friction)
 {
-    enum { VECS = 17 };
+    enum { VECS = 21 };
     int sym = symmetric(n, M);
     size_t nd = (size_t)n, nn = nd * nd;
     if (nd > SIZE_MAX / sizeof(double) / (nd + VECS) / 4)
@@ -721,8 +746,9 @@ static int work_init(sc_arena *arena, work *wk, int n, const double *M, int fric
     double *p = wk->mem;
     lcp *s = &wk->s;
     double **vec[VECS] = { &s->z, &s->w, &s->dzc, &s->dw, &s->rowabs, &s->wtol, &s->tmp,
-                           &wk->lo, &wk->hi, &wk->shift, &wk->qs, &wk->blo,
-                           &wk->bhi, &wk->plo, &wk->phi, &wk->zfix, &wk->zprev };
+                           &s->wv, &s->wsc, &s->zref, &wk->lo, &wk->hi, &wk->shift,
+                           &wk->qs, &wk->blo, &wk->bhi, &wk->plo, &wk->phi, &wk->zfix,
+                           &wk->zprev, &wk->vsc };
     for (int v = 0; v < VECS; v++, p += nd)
         *vec[v] = p;
     wk->kmat = friction ? p : NULL;
@@ -738,6 +764,7 @@ static int work_init(sc_arena *arena, work *wk, int n, const double *M, int fric
     s->eps_n = (n + 1.0) * DBL_EPSILON;
     s->pivots = 0;
     s->run = 0;
+    s->wv_ok = 0;
     for (int i = 0; i < n; i++) {
         s->left_run[i] = -1;
         double a = 0;
@@ -746,6 +773,27 @@ static int work_init(sc_arena *arena, work *wk, int n, const double *M, int fric
         s->rowabs[i] = a;
     }
     return SC_OK;
+}
+
+/* verify() of an answer z of solve_fixed(). When z is the z of the last
+ * refresh() of the pass and nothing was shifted (so that refresh's q was
+ * the original q), that refresh's w and S_i are the ones verify() would
+ * compute: the same sums of the same numbers, so the same bits (a zero's
+ * sign in z changes no sum: it starts at +0 and x + -0 = x). Only the O(n)
+ * check() is left then; w and wk->vsc are set either way. */
+static int verify_answer(work *wk, int shifted, const double *q, const double *lo,
+                         const double *hi, const double *z, double *w, double *residual)
+{
+    const lcp *s = &wk->s;
+    const int n = s->n;
+    int same = s->wv_ok && !shifted;
+    for (int i = 0; i < n && same; i++)
+        same = z[i] == s->zref[i];
+    if (!same)
+        return verify(n, s->M, q, lo, hi, z, w, wk->vsc, s->eps_n, residual);
+    memcpy(w, s->wv, (size_t)n * sizeof(double));
+    memcpy(wk->vsc, s->wsc, (size_t)n * sizeof(double));
+    return check(n, lo, hi, z, w, wk->vsc, s->eps_n, residual);
 }
 
 /* Solve for fixed bounds lo <= hi: shift z by c = clamp(0, lo, hi) so that
@@ -774,6 +822,7 @@ static int solve_fixed(work *wk, const double *q, const double *lo, const double
     s->q = wk->qs;
     s->lo = wk->blo;
     s->hi = wk->bhi;
+    s->wv_ok = 0;
     int guess = 0;
     if (start == START_GUESS)
         for (int i = 0; i < n; i++) {
@@ -785,13 +834,13 @@ static int solve_fixed(work *wk, const double *q, const double *lo, const double
         rc = pivot_all(s);   /* the warm start lost its way: start afresh */
     for (int i = 0; i < n; i++)
         z[i] = min_d(max_d(s->z[i] + wk->shift[i], lo[i]), hi[i]);
-    int ok = verify(n, s->M, q, lo, hi, z, w, s->eps_n, residual);
+    int ok = verify_answer(wk, shifted, q, lo, hi, z, w, residual);
     if (guess && rc == SC_OK && !ok) {
         /* a guessed start that ends just outside the tolerance: afresh */
         rc = pivot_all(s);
         for (int i = 0; i < n; i++)
             z[i] = min_d(max_d(s->z[i] + wk->shift[i], lo[i]), hi[i]);
-        ok = verify(n, s->M, q, lo, hi, z, w, s->eps_n, residual);
+        ok = verify_answer(wk, shifted, q, lo, hi, z, w, residual);
     }
     if (rc == SC_OK && !ok)
         rc = SC_ENUMERIC;
@@ -838,7 +887,7 @@ static int dantzig(sc_arena *arena, int n, const double *M, const double *q, int
         /* a singular principal block the principal form cannot pass:
          * Lemke's method can (see lcp_lemke.c) */
         rc = sc_lcp_lemke(n, M, q, z, wk.s.pivots + LCP_MAX_PIVOTS(n), &wk.s.pivots);
-        int ok = verify(n, M, q, wk.lo, wk.hi, z, w, wk.s.eps_n, &residual);
+        int ok = verify(n, M, q, wk.lo, wk.hi, z, w, wk.vsc, wk.s.eps_n, &residual);
         if (rc == SC_OK && !ok)
             rc = SC_ENUMERIC;
         lemke = 1;
@@ -912,15 +961,22 @@ static void friction_bounds(int n, const double *lo, const double *hi, const int
 
 /* Check a candidate against the friction bounds it implies itself. z is
  * clamped into them first (friction rows after their normals); a clamp by
- * more than rounding fails. */
+ * more than rounding fails. have_w: w and wk->vsc are those of z (the
+ * last verify() was of this z); if the clamps move nothing they still
+ * are, and only the bounds changed: check() alone, O(n), the same result
+ * as a full verify(). */
 static int verify_coupled(work *wk, const double *q, const double *lo, const double *hi,
                           const int *findex, const double *mu, double *z, double *w,
-                          double *residual)
+                          double *residual, int have_w)
 {
     const int n = wk->s.n;
+    int moved = 0;
     for (int i = 0; i < n; i++)
-        if (findex[i] < 0)
-            z[i] = min_d(max_d(z[i], lo[i]), hi[i]);
+        if (findex[i] < 0) {
+            double c = min_d(max_d(z[i], lo[i]), hi[i]);
+            moved |= c != z[i];
+            z[i] = c;
+        }
     friction_bounds(n, lo, hi, findex, mu, z, wk->lo, wk->hi);
     double zs = 0;
     for (int i = 0; i < n; i++)
@@ -930,9 +986,12 @@ static int verify_coupled(work *wk, const double *q, const double *lo, const dou
         double c = min_d(max_d(z[i], wk->lo[i]), wk->hi[i]);
         if (fabs(c - z[i]) > LCP_VERIFY * wk->s.eps_n * zs)
             ok = 0;
+        moved |= c != z[i];
         z[i] = c;
     }
-    return verify(n, wk->s.M, q, wk->lo, wk->hi, z, w, wk->s.eps_n, residual) && ok;
+    if (have_w && !moved)
+        return check(n, wk->lo, wk->hi, z, w, wk->vsc, wk->s.eps_n, residual) && ok;
+    return verify(n, wk->s.M, q, wk->lo, wk->hi, z, w, wk->vsc, wk->s.eps_n, residual) && ok;
 }
 
 /* Friction polish: with the sets of the last pass (C, at lower / upper
@@ -1010,11 +1069,11 @@ static int solve_friction(work *wk, const double *q, const double *lo, const dou
         if (rc != SC_OK)
             return rc;
         memcpy(zprev, z, (size_t)n * sizeof(double));
-        if (verify_coupled(wk, q, lo, hi, findex, mu, z, w, residual))
+        if (verify_coupled(wk, q, lo, hi, findex, mu, z, w, residual, 1))
             return SC_OK;
         memcpy(z, zprev, (size_t)n * sizeof(double));
         if (friction_polish(wk, q, findex, mu, z) == SC_OK &&
-            verify_coupled(wk, q, lo, hi, findex, mu, z, w, residual))
+            verify_coupled(wk, q, lo, hi, findex, mu, z, w, residual, 0))
             return SC_OK;
         memcpy(z, zprev, (size_t)n * sizeof(double));
     }
@@ -1101,7 +1160,7 @@ static int friction_lemke(work *wk, const double *q, const double *lo, const dou
     if (rc == SC_OK) {
         for (int i = 0; i < n; i++)
             z[i] = findex[i] >= 0 ? x[col[i]] - x[col[i] + nf] : x[col[i]];
-        if (!verify_coupled(wk, q, lo, hi, findex, mu, z, w, residual))
+        if (!verify_coupled(wk, q, lo, hi, findex, mu, z, w, residual, 0))
             rc = SC_ENUMERIC;
     }
     free(mem);
