@@ -713,33 +713,27 @@ static int verify(int n, const double *M, const double *q, const double *lo,
 /* ---- workspace ----------------------------------------------------------- */
 
 typedef struct work {
-    void *mem;
+    void *mem, *fmem;
     lcp s;
     double *lo, *hi, *shift, *qs, *blo, *bhi, *plo, *phi, *zfix, *zprev, *kmat;
     double *vsc;                 /* S_i of the w of the last verify() */
 } work;
 
-static int symmetric(int n, const double *M)
-{
-    for (int i = 0; i < n; i++)
-        for (int j = 0; j < i; j++)
-            if (M[(size_t)i * n + j] != M[(size_t)j * n + i])
-                return 0;
-    return 1;
-}
-
-/* One allocation for everything a call needs (nothing is allocated in the
- * pivot loop): 21 vectors, kmat (n x n, friction only), two stamp arrays,
- * the factorisation, the set of each index. */
+/* Everything a call needs in two allocations (nothing is allocated in the
+ * pivot loop): 21 vectors, kmat (n x n, friction only), two stamp arrays
+ * and the set of each index in mem, the factorisation (whose size depends
+ * on whether M is symmetric) in fmem. One pass over M finds its row sums
+ * |M_i.|, whether it is symmetric and whether it is finite (SC_EINVAL if
+ * not): the O(n^2) each call pays once. */
 static int work_init(sc_arena *arena, work *wk, int n, const double *M, int friction)
 {
     enum { VECS = 21 };
-    int sym = symmetric(n, M);
     size_t nd = (size_t)n, nn = nd * nd;
     if (nd > SIZE_MAX / sizeof(double) / (nd + VECS) / 4)
         return SC_ENOMEM;
     size_t bytes = (VECS * nd + (friction ? nn : 0)) * sizeof(double) +
-                   2 * nd * sizeof(long) + sc_ldu_size(n, sym) + nd;
+                   2 * nd * sizeof(long) + nd;
+    wk->fmem = NULL;
     wk->mem = sc_arena_alloc(arena, bytes);
     if (!wk->mem)
         return SC_ENOMEM;
@@ -756,23 +750,45 @@ static int work_init(sc_arena *arena, work *wk, int n, const double *M, int fric
     _Static_assert(_Alignof(long) <= _Alignof(double), "stamps follow doubles");
     s->mark = (long *)(void *)p;
     s->left_run = s->mark + nd;
-    char *c = (char *)(s->left_run + nd);
-    sc_ldu_init(&s->f, n, sym, c);
-    s->st = (signed char *)(c + sc_ldu_size(n, sym));
+    s->st = (signed char *)(s->left_run + nd);
+    int sym = 1, finite = 1;
+    for (int i = 0; i < n; i++) {
+        const double *row = M + (size_t)i * n;
+        double a = 0;
+        for (int j = 0; j < i; j++) {
+            a += fabs(row[j]);
+            sym &= row[j] == M[(size_t)j * n + i];
+        }
+        for (int j = i; j < n; j++)
+            a += fabs(row[j]);
+        s->rowabs[i] = a;
+        finite &= isfinite(a);   /* a NaN or inf entry makes the sum one */
+    }
+    if (!finite && !all_finite(M, nn)) {   /* else finite entries overflowed the sum */
+        sc_arena_free(arena, wk->mem);
+        return SC_EINVAL;
+    }
+    wk->fmem = sc_arena_alloc(arena, sc_ldu_size(n, sym));
+    if (!wk->fmem) {
+        sc_arena_free(arena, wk->mem);
+        return SC_ENOMEM;
+    }
+    sc_ldu_init(&s->f, n, sym, wk->fmem);
     s->n = n;
     s->M = M;
     s->eps_n = (n + 1.0) * DBL_EPSILON;
     s->pivots = 0;
     s->run = 0;
     s->wv_ok = 0;
-    for (int i = 0; i < n; i++) {
+    for (int i = 0; i < n; i++)
         s->left_run[i] = -1;
-        double a = 0;
-        for (int j = 0; j < n; j++)
-            a += fabs(M[(size_t)i * n + j]);
-        s->rowabs[i] = a;
-    }
     return SC_OK;
+}
+
+static void work_free(sc_arena *arena, work *wk)
+{
+    sc_arena_free(arena, wk->fmem);
+    sc_arena_free(arena, wk->mem);
 }
 
 /* verify() of an answer z of solve_fixed(). When z is the z of the last
@@ -870,7 +886,7 @@ static int dantzig(sc_arena *arena, int n, const double *M, const double *q, int
         return SC_EINVAL;
     if (n == 0)
         return SC_OK;
-    if (!all_finite(M, (size_t)n * (size_t)n) || !all_finite(q, (size_t)n))
+    if (!all_finite(q, (size_t)n))   /* M: work_init() */
         return SC_EINVAL;
     int lemke = 0;
     work wk;
@@ -895,7 +911,7 @@ static int dantzig(sc_arena *arena, int n, const double *M, const double *q, int
     report(info, &wk, residual);
     if (info)
         info->lemke = lemke;    /* never silent: callers can count it */
-    sc_arena_free(arena, wk.mem);
+    work_free(arena, &wk);
     return rc;
 }
 
@@ -1182,8 +1198,8 @@ static int boxed(sc_arena *arena, int n, const double *M, const double *q, const
     int friction = 0;
     for (int i = 0; findex && i < n; i++)
         friction |= findex[i] >= 0;
-    if ((friction && !mu) || !all_finite(M, (size_t)n * (size_t)n) ||
-        !all_finite(q, (size_t)n) || !boxed_args_ok(n, lo, hi, friction ? findex : NULL, mu))
+    if ((friction && !mu) || !all_finite(q, (size_t)n) ||   /* M: work_init() */
+        !boxed_args_ok(n, lo, hi, friction ? findex : NULL, mu))
         return SC_EINVAL;
     work wk;
     int rc = work_init(arena, &wk, n, M, friction);
@@ -1206,7 +1222,7 @@ static int boxed(sc_arena *arena, int n, const double *M, const double *q, const
     report(info, &wk, residual);
     if (info)
         info->lemke = lemke;    /* counted by the callers */
-    sc_arena_free(arena, wk.mem);
+    work_free(arena, &wk);
     return rc;
 }
 
