@@ -115,7 +115,7 @@ typedef struct lcp {
     double *dw;                  /* dw by index (free indices only) */
     double *rowabs;              /* sum_j |M_ij| */
     double *wtol;                /* drive tolerance of each settled index */
-    double *wv, *wsc, *zref;     /* the last refresh(): w = M z + q and S_i
+    double *wv, *wsc, *zref;     /* the last refresh_w(): w = M z + q and S_i
                                     of every index, at z = zref */
     int wv_ok;                   /* wv, wsc, zref hold one of this pass */
     double *tmp;                 /* n scratch */
@@ -128,7 +128,7 @@ typedef struct lcp {
     long pivots, max_pivots;
     int clamped;                 /* drop_out_of_bounds() moved a z of C */
     int settled;                 /* the last finish() left every index valid
-                                    and every z as its last refresh() had it */
+                                    and every z as its last refresh_w() had it */
 } lcp;
 
 typedef struct step {
@@ -297,7 +297,7 @@ static step steps_d_and_c(const lcp *s, int d, int dir, double dwd, double dzmax
 /* A free index whose w is on the wrong side by more than its tolerance:
  * only after a refresh (finish()), until it is driven. Such an index does
  * not block others: only valid indices do. */
-static int invalid(const lcp *s, int i)
+static inline int invalid(const lcp *s, int i)
 {
     double w = s->w[i], tol = s->wtol[i];
     switch (s->st[i]) {
@@ -430,11 +430,9 @@ static int drive(lcp *s, int d)
 /* ---- end game ---------------------------------------------------------- */
 
 /* Recompute z_C from scratch, M_CC z_C = -(q_C + M_{C,N} z_N), with one
- * step of iterative refinement, then every w = M z + q: this removes the
- * drift of the incremental updates. Also sets every drive tolerance, and
- * keeps w and S_i with the z they belong to: when the answer is that z,
- * verify() needs no second O(n^2) pass (solve_fixed()). */
-static void refresh(lcp *s)
+ * step of iterative refinement: this removes the drift of the incremental
+ * updates. O(m n + m^2). */
+static void refresh_z(lcp *s)
 {
     const int n = s->n, m = s->f.m;
     const int *idx = s->f.idx;
@@ -456,6 +454,14 @@ static void refresh(lcp *s)
     sc_ldu_solve(&s->f, res);
     for (int k = 0; k < m; k++)
         s->z[idx[k]] = zc[k] + res[k];
+}
+
+/* Every w = M z + q from scratch, and every drive tolerance. Keeps w and
+ * S_i with the z they belong to: when the answer is that z, verify() needs
+ * no second O(n^2) pass (solve_fixed()). O(n^2). */
+static void refresh_w(lcp *s)
+{
+    const int n = s->n;
     for (int i = 0; i < n; i++) {
         double scale;
         s->w[i] = s->wv[i] = s->q[i] + row_dot_scale(s->M, s->q, s->z, n, i, &scale);
@@ -466,20 +472,30 @@ static void refresh(lcp *s)
     s->wv_ok = 1;
 }
 
+/* How far a refreshed z of C may lie beyond its bound and stay in C. */
+static double c_slack(const lcp *s)
+{
+    double zmax = 0;
+    for (int i = 0; i < s->n; i++)
+        zmax = max_d(zmax, fabs(s->z[i]));
+    return LCP_DRIVE * s->eps_n * zmax;
+}
+
+static int beyond(const lcp *s, int i, double tz)
+{
+    return s->z[i] < s->lo[i] - tz || s->z[i] > s->hi[i] + tz;
+}
+
 /* Take out of C every index whose refreshed z is beyond a bound (at that
  * bound now), clamp the others into theirs; returns how many left, or
  * SC_ENUMERIC. */
-static int drop_out_of_bounds(lcp *s)
+static int drop_out_of_bounds(lcp *s, double tz)
 {
     int dropped = 0;
-    double zmax = 0;
     s->clamped = 0;
-    for (int i = 0; i < s->n; i++)
-        zmax = max_d(zmax, fabs(s->z[i]));
-    double tz = LCP_DRIVE * s->eps_n * zmax;
     for (int k = s->f.m - 1; k >= 0; k--) {
         int i = s->f.idx[k];
-        if (s->z[i] < s->lo[i] - tz || s->z[i] > s->hi[i] + tz) {
+        if (beyond(s, i, tz)) {
             int hi = s->z[i] > s->hi[i];
             s->z[i] = hi ? s->hi[i] : s->lo[i];
             s->st[i] = hi ? ST_HI : ST_LO;
@@ -499,12 +515,21 @@ static int drop_out_of_bounds(lcp *s)
 /* After a pass: refresh, then repair - clamped z beyond a bound leave C,
  * free indices whose refreshed w is off by more than the drive tolerance
  * are driven again (Baraff's "while some a_i < 0" loop, on exact values).
- * Dropping rounds are bounded by |C|; driving rounds by LCP_SWEEPS. */
+ * Dropping rounds are bounded by |C|; driving rounds by LCP_SWEEPS. A
+ * round that drops refreshes z again at once, so its w (O(n^2)) are only
+ * computed when nothing is dropped: before the clamp into the bounds, as
+ * one refresh of z and w would. */
 static int finish(lcp *s)
 {
     for (int sweeps = 0; sweeps < LCP_SWEEPS;) {
-        refresh(s);
-        int dropped = drop_out_of_bounds(s);
+        refresh_z(s);
+        double tz = c_slack(s);
+        int drop = 0;
+        for (int k = 0; k < s->f.m && !drop; k++)
+            drop = beyond(s, s->f.idx[k], tz);
+        if (!drop)
+            refresh_w(s);
+        int dropped = drop_out_of_bounds(s, tz);
         if (dropped < 0)
             return dropped;
         if (dropped > 0)
@@ -524,7 +549,8 @@ static int finish(lcp *s)
         }
         sweeps++;
     }
-    refresh(s);
+    refresh_z(s);
+    refresh_w(s);
     s->settled = 0;
     return SC_OK;   /* verify() has the last word */
 }
@@ -792,7 +818,7 @@ static void work_free(sc_arena *arena, work *wk)
 }
 
 /* verify() of an answer z of solve_fixed(). When z is the z of the last
- * refresh() of the pass and nothing was shifted (so that refresh's q was
+ * refresh_w() of the pass and nothing was shifted (so that its q was
  * the original q), that refresh's w and S_i are the ones verify() would
  * compute: the same sums of the same numbers, so the same bits (a zero's
  * sign in z changes no sum: it starts at +0 and x + -0 = x). Only the O(n)
