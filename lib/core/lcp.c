@@ -28,7 +28,21 @@
  * solves of size m = |C|) plus one back substitution, O(m^2); dw for the
  * free indices is O(n m); moving an index in or out of the factorisation is
  * O(m^2). So a pivot is O(n^2), never the O(m^3) of refactorising M_CC.
- * Memory: one allocation per call, nothing allocated in the pivot loop.
+ * Memory: two allocations per call (the caller's arena), nothing
+ * allocated in the pivot loop.
+ *
+ * Cost per call, besides the pivots (on the small blocks of contact.c,
+ * n <= 18 with a few pivots each, these O(n^2) passes are most of it):
+ * one pass over M for its row sums, symmetry and finiteness
+ * (work_init()); per refresh in finish() O(m n + m^2) for z_C and, when
+ * nothing leaves C, O(n^2) for every w (refresh_z(), refresh_w()). The
+ * final check reuses the last refresh's w when the answer is its z, and
+ * the friction check reuses that when its clamps move nothing, so
+ * verify()'s own O(n^2) pass runs only on answers that changed after it
+ * (shifted boxes, polished or Lemke answers). A warm pass whose unseen
+ * indices all settle where they stand skips its second finish(). Each of
+ * these reuses values computed from the same numbers, so the answer is
+ * the same to the bit as with the passes done again.
  *
  * Singular M_CC (positive semidefinite M: 8 contact points on one box face
  * give 8 rows of rank 3, and any number of contacts on one body rank <= 6).
