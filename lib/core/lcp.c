@@ -28,7 +28,21 @@
  * solves of size m = |C|) plus one back substitution, O(m^2); dw for the
  * free indices is O(n m); moving an index in or out of the factorisation is
  * O(m^2). So a pivot is O(n^2), never the O(m^3) of refactorising M_CC.
- * Memory: one allocation per call, nothing allocated in the pivot loop.
+ * Memory: two allocations per call (the caller's arena), nothing
+ * allocated in the pivot loop.
+ *
+ * Cost per call, besides the pivots (on the small blocks of contact.c,
+ * n <= 18 with a few pivots each, these O(n^2) passes are most of it):
+ * one pass over M for its row sums, symmetry and finiteness
+ * (work_init()); per refresh in finish() O(m n + m^2) for z_C and, when
+ * nothing leaves C, O(n^2) for every w (refresh_z(), refresh_w()). The
+ * final check reuses the last refresh's w when the answer is its z, and
+ * the friction check reuses that when its clamps move nothing, so
+ * verify()'s own O(n^2) pass runs only on answers that changed after it
+ * (shifted boxes, polished or Lemke answers). A warm pass whose unseen
+ * indices all settle where they stand skips its second finish(). Each of
+ * these reuses values computed from the same numbers, so the answer is
+ * the same to the bit as with the passes done again.
  *
  * Singular M_CC (positive semidefinite M: 8 contact points on one box face
  * give 8 rows of rank 3, and any number of contacts on one body rank <= 6).
@@ -115,6 +129,9 @@ typedef struct lcp {
     double *dw;                  /* dw by index (free indices only) */
     double *rowabs;              /* sum_j |M_ij| */
     double *wtol;                /* drive tolerance of each settled index */
+    double *wv, *wsc, *zref;     /* the last refresh_w(): w = M z + q and S_i
+                                    of every index, at z = zref */
+    int wv_ok;                   /* wv, wsc, zref hold one of this pass */
     double *tmp;                 /* n scratch */
     signed char *st;             /* ST_* by index */
     long *mark;                  /* pivot stamp: index passed over */
@@ -123,6 +140,9 @@ typedef struct lcp {
     sc_ldu f;
     double eps_n;                /* (n + 1) DBL_EPSILON */
     long pivots, max_pivots;
+    int clamped;                 /* drop_out_of_bounds() moved a z of C */
+    int settled;                 /* the last finish() left every index valid
+                                    and every z as its last refresh_w() had it */
 } lcp;
 
 typedef struct step {
@@ -291,7 +311,7 @@ static step steps_d_and_c(const lcp *s, int d, int dir, double dwd, double dzmax
 /* A free index whose w is on the wrong side by more than its tolerance:
  * only after a refresh (finish()), until it is driven. Such an index does
  * not block others: only valid indices do. */
-static int invalid(const lcp *s, int i)
+static inline int invalid(const lcp *s, int i)
 {
     double w = s->w[i], tol = s->wtol[i];
     switch (s->st[i]) {
@@ -424,9 +444,9 @@ static int drive(lcp *s, int d)
 /* ---- end game ---------------------------------------------------------- */
 
 /* Recompute z_C from scratch, M_CC z_C = -(q_C + M_{C,N} z_N), with one
- * step of iterative refinement, then every w = M z + q: this removes the
- * drift of the incremental updates. Also sets every drive tolerance. */
-static void refresh(lcp *s)
+ * step of iterative refinement: this removes the drift of the incremental
+ * updates. O(m n + m^2). */
+static void refresh_z(lcp *s)
 {
     const int n = s->n, m = s->f.m;
     const int *idx = s->f.idx;
@@ -448,25 +468,48 @@ static void refresh(lcp *s)
     sc_ldu_solve(&s->f, res);
     for (int k = 0; k < m; k++)
         s->z[idx[k]] = zc[k] + res[k];
-    for (int i = 0; i < n; i++) {
-        double scale;
-        s->w[i] = s->q[i] + row_dot_scale(s->M, s->q, s->z, n, i, &scale);
-        s->wtol[i] = LCP_DRIVE * s->eps_n * scale;
-    }
 }
 
-/* Take out of C every index whose refreshed z is beyond a bound (at that
- * bound now); returns how many, or SC_ENUMERIC. */
-static int drop_out_of_bounds(lcp *s)
+/* Every w = M z + q from scratch, and every drive tolerance. Keeps w and
+ * S_i with the z they belong to: when the answer is that z, verify() needs
+ * no second O(n^2) pass (solve_fixed()). O(n^2). */
+static void refresh_w(lcp *s)
 {
-    int dropped = 0;
+    const int n = s->n;
+    for (int i = 0; i < n; i++) {
+        double scale;
+        s->w[i] = s->wv[i] = s->q[i] + row_dot_scale(s->M, s->q, s->z, n, i, &scale);
+        s->wsc[i] = scale;
+        s->wtol[i] = LCP_DRIVE * s->eps_n * scale;
+    }
+    memcpy(s->zref, s->z, (size_t)n * sizeof(double));
+    s->wv_ok = 1;
+}
+
+/* How far a refreshed z of C may lie beyond its bound and stay in C. */
+static double c_slack(const lcp *s)
+{
     double zmax = 0;
     for (int i = 0; i < s->n; i++)
         zmax = max_d(zmax, fabs(s->z[i]));
-    double tz = LCP_DRIVE * s->eps_n * zmax;
+    return LCP_DRIVE * s->eps_n * zmax;
+}
+
+static int beyond(const lcp *s, int i, double tz)
+{
+    return s->z[i] < s->lo[i] - tz || s->z[i] > s->hi[i] + tz;
+}
+
+/* Take out of C every index whose refreshed z is beyond a bound (at that
+ * bound now), clamp the others into theirs; returns how many left, or
+ * SC_ENUMERIC. */
+static int drop_out_of_bounds(lcp *s, double tz)
+{
+    int dropped = 0;
+    s->clamped = 0;
     for (int k = s->f.m - 1; k >= 0; k--) {
         int i = s->f.idx[k];
-        if (s->z[i] < s->lo[i] - tz || s->z[i] > s->hi[i] + tz) {
+        if (beyond(s, i, tz)) {
             int hi = s->z[i] > s->hi[i];
             s->z[i] = hi ? s->hi[i] : s->lo[i];
             s->st[i] = hi ? ST_HI : ST_LO;
@@ -474,7 +517,9 @@ static int drop_out_of_bounds(lcp *s)
                 return SC_ENUMERIC;
             dropped++;
         } else {
-            s->z[i] = min_d(max_d(s->z[i], s->lo[i]), s->hi[i]);
+            double c = min_d(max_d(s->z[i], s->lo[i]), s->hi[i]);
+            s->clamped |= c != s->z[i];
+            s->z[i] = c;
             s->w[i] = 0;
         }
     }
@@ -484,12 +529,21 @@ static int drop_out_of_bounds(lcp *s)
 /* After a pass: refresh, then repair - clamped z beyond a bound leave C,
  * free indices whose refreshed w is off by more than the drive tolerance
  * are driven again (Baraff's "while some a_i < 0" loop, on exact values).
- * Dropping rounds are bounded by |C|; driving rounds by LCP_SWEEPS. */
+ * Dropping rounds are bounded by |C|; driving rounds by LCP_SWEEPS. A
+ * round that drops refreshes z again at once, so its w (O(n^2)) are only
+ * computed when nothing is dropped: before the clamp into the bounds, as
+ * one refresh of z and w would. */
 static int finish(lcp *s)
 {
     for (int sweeps = 0; sweeps < LCP_SWEEPS;) {
-        refresh(s);
-        int dropped = drop_out_of_bounds(s);
+        refresh_z(s);
+        double tz = c_slack(s);
+        int drop = 0;
+        for (int k = 0; k < s->f.m && !drop; k++)
+            drop = beyond(s, s->f.idx[k], tz);
+        if (!drop)
+            refresh_w(s);
+        int dropped = drop_out_of_bounds(s, tz);
         if (dropped < 0)
             return dropped;
         if (dropped > 0)
@@ -503,11 +557,15 @@ static int finish(lcp *s)
             if (rc != SC_OK)
                 return rc;
         }
-        if (!driven)
+        if (!driven) {
+            s->settled = !s->clamped;
             return SC_OK;
+        }
         sweeps++;
     }
-    refresh(s);
+    refresh_z(s);
+    refresh_w(s);
+    s->settled = 0;
     return SC_OK;   /* verify() has the last word */
 }
 
@@ -533,18 +591,27 @@ static int pivot_all(lcp *s)
 }
 
 /* The end of a warm pass: repair what the start broke, then drive the
- * unseen indices as in a first pass. */
+ * unseen indices as in a first pass. An unseen index that settles where
+ * it stands without a pivot and without joining C (a separating contact
+ * at its bound 0, say) changes no z and no factor. So when the first
+ * finish() ended with every index valid and z as its refresh computed it
+ * (no clamp of a z of C), a second one would refresh to the same values
+ * and find nothing to do: it is only run when some drive moved something
+ * or the first did not end so (same answer, one O(n^2) refresh less). */
 static int warm_finish(lcp *s)
 {
     const int n = s->n;
-    int rc = finish(s);
+    int rc = finish(s), moved = 0;
     for (int d = 0; d < n && rc == SC_OK; d++) {
         if (s->st[d] != ST_UNSEEN)
             continue;
+        long pivots = s->pivots;
+        int m = s->f.m;
         s->w[d] = s->q[d] + row_dot(s->M, s->z, n, d);
         rc = drive(s, d);
+        moved |= s->pivots != pivots || s->f.m != m;
     }
-    return rc == SC_OK ? finish(s) : rc;
+    return rc == SC_OK && (moved || !s->settled) ? finish(s) : rc;
 }
 
 /* A pass that starts from the sets of the previous one (friction rounds,
@@ -632,26 +699,32 @@ static int pivot_guess(lcp *s)
 
 /* ---- verification -------------------------------------------------------- */
 
+/* w = M z + q and S_i = |q_i| + sum_j |M_ij z_j| of every index. */
+static void w_all(int n, const double *M, const double *q, const double *z, double *w,
+                  double *sc)
+{
+    for (int i = 0; i < n; i++)
+        w[i] = q[i] + row_dot_scale(M, q, z, n, i, &sc[i]);
+}
+
 /* Largest violation (in units of w) of the boxed conditions by (z, w) and
  * whether each index is within its tolerance tol_i = LCP_VERIFY (n+1) eps
- * S_i, S_i = |q_i| + sum_j |M_ij z_j| (the rounding bound of w_i scaled up).
- * For index i with zs = max_j |z_j|:
+ * S_i, S_i = sc[i] = |q_i| + sum_j |M_ij z_j| (the rounding bound of w_i
+ * scaled up); w and sc must be those of z (w_all()). For index i with
+ * zs = max_j |z_j|:
  *   w_i > 0 is allowed only at z_i = lo_i: violation min(w_i, (z_i-lo_i) w_i / zs);
  *   w_i < 0 only at z_i = hi_i:          min(-w_i, (hi_i-z_i)(-w_i) / zs);
  * for the standard LCP this is exactly w_i >= -tol_i and z_i w_i <= tol_i zs.
- * z outside [lo, hi] or anything not finite fails. */
-static int verify(int n, const double *M, const double *q, const double *lo,
-                  const double *hi, const double *z, double *w, double eps_n,
-                  double *residual)
+ * z outside [lo, hi] or anything not finite fails. O(n). */
+static int check(int n, const double *lo, const double *hi, const double *z, const double *w,
+                 const double *sc, double eps_n, double *residual)
 {
     double zs = DBL_MIN, worst = 0;
     int ok = 1;
     for (int i = 0; i < n; i++)
         zs = max_d(zs, fabs(z[i]));
     for (int i = 0; i < n; i++) {
-        double scale;
-        w[i] = q[i] + row_dot_scale(M, q, z, n, i, &scale);
-        double tol = LCP_VERIFY * eps_n * scale;
+        double tol = LCP_VERIFY * eps_n * sc[i];
         double wp = max_d(w[i], 0), wm = max_d(-w[i], 0), v = 0;
         if (!isfinite(z[i]) || !isfinite(w[i]) || z[i] < lo[i] || z[i] > hi[i])
             v = INFINITY;
@@ -667,43 +740,49 @@ static int verify(int n, const double *M, const double *q, const double *lo,
     return ok;
 }
 
+/* The final check of an answer against the original data: w = M z + q
+ * (into w, S_i into sc) recomputed from z, then check(). */
+static int verify(int n, const double *M, const double *q, const double *lo,
+                  const double *hi, const double *z, double *w, double *sc, double eps_n,
+                  double *residual)
+{
+    w_all(n, M, q, z, w, sc);
+    return check(n, lo, hi, z, w, sc, eps_n, residual);
+}
+
 /* ---- workspace ----------------------------------------------------------- */
 
 typedef struct work {
-    void *mem;
+    void *mem, *fmem;
     lcp s;
     double *lo, *hi, *shift, *qs, *blo, *bhi, *plo, *phi, *zfix, *zprev, *kmat;
+    double *vsc;                 /* S_i of the w of the last verify() */
 } work;
 
-static int symmetric(int n, const double *M)
-{
-    for (int i = 0; i < n; i++)
-        for (int j = 0; j < i; j++)
-            if (M[(size_t)i * n + j] != M[(size_t)j * n + i])
-                return 0;
-    return 1;
-}
-
-/* One allocation for everything a call needs (nothing is allocated in the
- * pivot loop): 17 vectors, kmat (n x n, friction only), two stamp arrays,
- * the factorisation, the set of each index. */
+/* Everything a call needs in two allocations (nothing is allocated in the
+ * pivot loop): 21 vectors, kmat (n x n, friction only), two stamp arrays
+ * and the set of each index in mem, the factorisation (whose size depends
+ * on whether M is symmetric) in fmem. One pass over M finds its row sums
+ * |M_i.|, whether it is symmetric and whether it is finite (SC_EINVAL if
+ * not): the O(n^2) each call pays once. */
 static int work_init(sc_arena *arena, work *wk, int n, const double *M, int friction)
 {
-    enum { VECS = 17 };
-    int sym = symmetric(n, M);
+    enum { VECS = 21 };
     size_t nd = (size_t)n, nn = nd * nd;
     if (nd > SIZE_MAX / sizeof(double) / (nd + VECS) / 4)
         return SC_ENOMEM;
     size_t bytes = (VECS * nd + (friction ? nn : 0)) * sizeof(double) +
-                   2 * nd * sizeof(long) + sc_ldu_size(n, sym) + nd;
+                   2 * nd * sizeof(long) + nd;
+    wk->fmem = NULL;
     wk->mem = sc_arena_alloc(arena, bytes);
     if (!wk->mem)
         return SC_ENOMEM;
     double *p = wk->mem;
     lcp *s = &wk->s;
     double **vec[VECS] = { &s->z, &s->w, &s->dzc, &s->dw, &s->rowabs, &s->wtol, &s->tmp,
-                           &wk->lo, &wk->hi, &wk->shift, &wk->qs, &wk->blo,
-                           &wk->bhi, &wk->plo, &wk->phi, &wk->zfix, &wk->zprev };
+                           &s->wv, &s->wsc, &s->zref, &wk->lo, &wk->hi, &wk->shift,
+                           &wk->qs, &wk->blo, &wk->bhi, &wk->plo, &wk->phi, &wk->zfix,
+                           &wk->zprev, &wk->vsc };
     for (int v = 0; v < VECS; v++, p += nd)
         *vec[v] = p;
     wk->kmat = friction ? p : NULL;
@@ -711,22 +790,66 @@ static int work_init(sc_arena *arena, work *wk, int n, const double *M, int fric
     _Static_assert(_Alignof(long) <= _Alignof(double), "stamps follow doubles");
     s->mark = (long *)(void *)p;
     s->left_run = s->mark + nd;
-    char *c = (char *)(s->left_run + nd);
-    sc_ldu_init(&s->f, n, sym, c);
-    s->st = (signed char *)(c + sc_ldu_size(n, sym));
+    s->st = (signed char *)(s->left_run + nd);
+    int sym = 1, finite = 1;
+    for (int i = 0; i < n; i++) {
+        const double *row = M + (size_t)i * n;
+        double a = 0;
+        for (int j = 0; j < i; j++) {
+            a += fabs(row[j]);
+            sym &= row[j] == M[(size_t)j * n + i];
+        }
+        for (int j = i; j < n; j++)
+            a += fabs(row[j]);
+        s->rowabs[i] = a;
+        finite &= isfinite(a);   /* a NaN or inf entry makes the sum one */
+    }
+    if (!finite && !all_finite(M, nn)) {   /* else finite entries overflowed the sum */
+        sc_arena_free(arena, wk->mem);
+        return SC_EINVAL;
+    }
+    wk->fmem = sc_arena_alloc(arena, sc_ldu_size(n, sym));
+    if (!wk->fmem) {
+        sc_arena_free(arena, wk->mem);
+        return SC_ENOMEM;
+    }
+    sc_ldu_init(&s->f, n, sym, wk->fmem);
     s->n = n;
     s->M = M;
     s->eps_n = (n + 1.0) * DBL_EPSILON;
     s->pivots = 0;
     s->run = 0;
-    for (int i = 0; i < n; i++) {
+    s->wv_ok = 0;
+    for (int i = 0; i < n; i++)
         s->left_run[i] = -1;
-        double a = 0;
-        for (int j = 0; j < n; j++)
-            a += fabs(M[(size_t)i * n + j]);
-        s->rowabs[i] = a;
-    }
     return SC_OK;
+}
+
+static void work_free(sc_arena *arena, work *wk)
+{
+    sc_arena_free(arena, wk->fmem);
+    sc_arena_free(arena, wk->mem);
+}
+
+/* verify() of an answer z of solve_fixed(). When z is the z of the last
+ * refresh_w() of the pass and nothing was shifted (so that its q was
+ * the original q), that refresh's w and S_i are the ones verify() would
+ * compute: the same sums of the same numbers, so the same bits (a zero's
+ * sign in z changes no sum: it starts at +0 and x + -0 = x). Only the O(n)
+ * check() is left then; w and wk->vsc are set either way. */
+static int verify_answer(work *wk, int shifted, const double *q, const double *lo,
+                         const double *hi, const double *z, double *w, double *residual)
+{
+    const lcp *s = &wk->s;
+    const int n = s->n;
+    int same = s->wv_ok && !shifted;
+    for (int i = 0; i < n && same; i++)
+        same = z[i] == s->zref[i];
+    if (!same)
+        return verify(n, s->M, q, lo, hi, z, w, wk->vsc, s->eps_n, residual);
+    memcpy(w, s->wv, (size_t)n * sizeof(double));
+    memcpy(wk->vsc, s->wsc, (size_t)n * sizeof(double));
+    return check(n, lo, hi, z, w, wk->vsc, s->eps_n, residual);
 }
 
 /* Solve for fixed bounds lo <= hi: shift z by c = clamp(0, lo, hi) so that
@@ -755,6 +878,7 @@ static int solve_fixed(work *wk, const double *q, const double *lo, const double
     s->q = wk->qs;
     s->lo = wk->blo;
     s->hi = wk->bhi;
+    s->wv_ok = 0;
     int guess = 0;
     if (start == START_GUESS)
         for (int i = 0; i < n; i++) {
@@ -766,13 +890,13 @@ static int solve_fixed(work *wk, const double *q, const double *lo, const double
         rc = pivot_all(s);   /* the warm start lost its way: start afresh */
     for (int i = 0; i < n; i++)
         z[i] = min_d(max_d(s->z[i] + wk->shift[i], lo[i]), hi[i]);
-    int ok = verify(n, s->M, q, lo, hi, z, w, s->eps_n, residual);
+    int ok = verify_answer(wk, shifted, q, lo, hi, z, w, residual);
     if (guess && rc == SC_OK && !ok) {
         /* a guessed start that ends just outside the tolerance: afresh */
         rc = pivot_all(s);
         for (int i = 0; i < n; i++)
             z[i] = min_d(max_d(s->z[i] + wk->shift[i], lo[i]), hi[i]);
-        ok = verify(n, s->M, q, lo, hi, z, w, s->eps_n, residual);
+        ok = verify_answer(wk, shifted, q, lo, hi, z, w, residual);
     }
     if (rc == SC_OK && !ok)
         rc = SC_ENUMERIC;
@@ -802,7 +926,7 @@ static int dantzig(sc_arena *arena, int n, const double *M, const double *q, int
         return SC_EINVAL;
     if (n == 0)
         return SC_OK;
-    if (!all_finite(M, (size_t)n * (size_t)n) || !all_finite(q, (size_t)n))
+    if (!all_finite(q, (size_t)n))   /* M: work_init() */
         return SC_EINVAL;
     int lemke = 0;
     work wk;
@@ -819,7 +943,7 @@ static int dantzig(sc_arena *arena, int n, const double *M, const double *q, int
         /* a singular principal block the principal form cannot pass:
          * Lemke's method can (see lcp_lemke.c) */
         rc = sc_lcp_lemke(n, M, q, z, wk.s.pivots + LCP_MAX_PIVOTS(n), &wk.s.pivots);
-        int ok = verify(n, M, q, wk.lo, wk.hi, z, w, wk.s.eps_n, &residual);
+        int ok = verify(n, M, q, wk.lo, wk.hi, z, w, wk.vsc, wk.s.eps_n, &residual);
         if (rc == SC_OK && !ok)
             rc = SC_ENUMERIC;
         lemke = 1;
@@ -827,7 +951,7 @@ static int dantzig(sc_arena *arena, int n, const double *M, const double *q, int
     report(info, &wk, residual);
     if (info)
         info->lemke = lemke;    /* never silent: callers can count it */
-    sc_arena_free(arena, wk.mem);
+    work_free(arena, &wk);
     return rc;
 }
 
@@ -893,15 +1017,22 @@ static void friction_bounds(int n, const double *lo, const double *hi, const int
 
 /* Check a candidate against the friction bounds it implies itself. z is
  * clamped into them first (friction rows after their normals); a clamp by
- * more than rounding fails. */
+ * more than rounding fails. have_w: w and wk->vsc are those of z (the
+ * last verify() was of this z); if the clamps move nothing they still
+ * are, and only the bounds changed: check() alone, O(n), the same result
+ * as a full verify(). */
 static int verify_coupled(work *wk, const double *q, const double *lo, const double *hi,
                           const int *findex, const double *mu, double *z, double *w,
-                          double *residual)
+                          double *residual, int have_w)
 {
     const int n = wk->s.n;
+    int moved = 0;
     for (int i = 0; i < n; i++)
-        if (findex[i] < 0)
-            z[i] = min_d(max_d(z[i], lo[i]), hi[i]);
+        if (findex[i] < 0) {
+            double c = min_d(max_d(z[i], lo[i]), hi[i]);
+            moved |= c != z[i];
+            z[i] = c;
+        }
     friction_bounds(n, lo, hi, findex, mu, z, wk->lo, wk->hi);
     double zs = 0;
     for (int i = 0; i < n; i++)
@@ -911,9 +1042,12 @@ static int verify_coupled(work *wk, const double *q, const double *lo, const dou
         double c = min_d(max_d(z[i], wk->lo[i]), wk->hi[i]);
         if (fabs(c - z[i]) > LCP_VERIFY * wk->s.eps_n * zs)
             ok = 0;
+        moved |= c != z[i];
         z[i] = c;
     }
-    return verify(n, wk->s.M, q, wk->lo, wk->hi, z, w, wk->s.eps_n, residual) && ok;
+    if (have_w && !moved)
+        return check(n, wk->lo, wk->hi, z, w, wk->vsc, wk->s.eps_n, residual) && ok;
+    return verify(n, wk->s.M, q, wk->lo, wk->hi, z, w, wk->vsc, wk->s.eps_n, residual) && ok;
 }
 
 /* Friction polish: with the sets of the last pass (C, at lower / upper
@@ -991,11 +1125,11 @@ static int solve_friction(work *wk, const double *q, const double *lo, const dou
         if (rc != SC_OK)
             return rc;
         memcpy(zprev, z, (size_t)n * sizeof(double));
-        if (verify_coupled(wk, q, lo, hi, findex, mu, z, w, residual))
+        if (verify_coupled(wk, q, lo, hi, findex, mu, z, w, residual, 1))
             return SC_OK;
         memcpy(z, zprev, (size_t)n * sizeof(double));
         if (friction_polish(wk, q, findex, mu, z) == SC_OK &&
-            verify_coupled(wk, q, lo, hi, findex, mu, z, w, residual))
+            verify_coupled(wk, q, lo, hi, findex, mu, z, w, residual, 0))
             return SC_OK;
         memcpy(z, zprev, (size_t)n * sizeof(double));
     }
@@ -1082,7 +1216,7 @@ static int friction_lemke(work *wk, const double *q, const double *lo, const dou
     if (rc == SC_OK) {
         for (int i = 0; i < n; i++)
             z[i] = findex[i] >= 0 ? x[col[i]] - x[col[i] + nf] : x[col[i]];
-        if (!verify_coupled(wk, q, lo, hi, findex, mu, z, w, residual))
+        if (!verify_coupled(wk, q, lo, hi, findex, mu, z, w, residual, 0))
             rc = SC_ENUMERIC;
     }
     free(mem);
@@ -1104,8 +1238,8 @@ static int boxed(sc_arena *arena, int n, const double *M, const double *q, const
     int friction = 0;
     for (int i = 0; findex && i < n; i++)
         friction |= findex[i] >= 0;
-    if ((friction && !mu) || !all_finite(M, (size_t)n * (size_t)n) ||
-        !all_finite(q, (size_t)n) || !boxed_args_ok(n, lo, hi, friction ? findex : NULL, mu))
+    if ((friction && !mu) || !all_finite(q, (size_t)n) ||   /* M: work_init() */
+        !boxed_args_ok(n, lo, hi, friction ? findex : NULL, mu))
         return SC_EINVAL;
     work wk;
     int rc = work_init(arena, &wk, n, M, friction);
@@ -1128,7 +1262,7 @@ static int boxed(sc_arena *arena, int n, const double *M, const double *q, const
     report(info, &wk, residual);
     if (info)
         info->lemke = lemke;    /* counted by the callers */
-    sc_arena_free(arena, wk.mem);
+    work_free(arena, &wk);
     return rc;
 }
 

@@ -90,10 +90,10 @@ static double key_scale(const lemke *lk, int i, int c)
 }
 
 /* Is row a's key lexicographically below row b's for entering column c?
- * The classic anti-cycling rule (ratios tie, then basis inverse rows). */
-static int lex_less(const lemke *lk, int a, int b, int c)
+ * The classic anti-cycling rule (ratios tie, then basis inverse rows).
+ * sa, sb: key_scale() of a and b. */
+static int lex_less(const lemke *lk, int a, double sa, int b, double sb, int c)
 {
-    double sa = key_scale(lk, a, c), sb = key_scale(lk, b, c);
     for (int j = -1; j < lk->n; j++) {
         double x = key(lk, a, j, c, sa), y = key(lk, b, j, c, sb);
         if (fabs(x - y) > LEMKE_NOISE * max_d(fabs(x), fabs(y)))
@@ -111,11 +111,15 @@ static int leaving_row(const lemke *lk, int c)
         cmax = max_d(cmax, fabs(row(lk, i)[c]));
     double ptol = 64.0 * (n + 1.0) * DBL_EPSILON * cmax;
     int best = -1;
+    double sbest = 0;   /* key_scale() of best, kept over the search */
     for (int i = 0; i < n; i++) {
         if (row(lk, i)[c] <= ptol)
             continue;
-        if (best < 0 || lex_less(lk, i, best, c))
+        double si = key_scale(lk, i, c);
+        if (best < 0 || lex_less(lk, i, si, best, sbest, c)) {
             best = i;
+            sbest = si;
+        }
     }
     /* z0 leaves on a tie: the path ends there */
     for (int i = 0; best >= 0 && i < n; i++) {
