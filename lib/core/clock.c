@@ -32,11 +32,16 @@ double sc_wall_now(void)
 
 /* CPU time of the calling thread since t0 into row stage of the frame's
  * figures (Table 1). */
-void sc_stage_add(sc_stats *st, int stage, double t0)
+/* dt seconds into row stage of the frame's figures and of the run's. */
+static void stage_credit(sc_stats *st, int stage, double dt)
 {
-    double dt = sc_cpu_now() - t0;
     st->stage_s[stage] += dt;
     st->stage_total_s[stage] += dt;
+}
+
+void sc_stage_add(sc_stats *st, int stage, double t0)
+{
+    stage_credit(st, stage, sc_cpu_now() - t0);
 }
 
 double sc_stage_now(const sc_frame *f)
@@ -46,9 +51,7 @@ double sc_stage_now(const sc_frame *f)
 
 void sc_stage_since(sc_frame *f, int stage, double t0)
 {
-    double dt = sc_stage_now(f) - t0;
-    f->stats->stage_s[stage] += dt;
-    f->stats->stage_total_s[stage] += dt;
+    stage_credit(f->stats, stage, sc_stage_now(f) - t0);
 }
 
 void sc_stats_add_solve(sc_stats *st, const sc_solve_info *info)
