@@ -166,7 +166,7 @@ typedef struct result {
     double vmax, wmax;           /* fastest body at the last frame, m/s and rad/s */
     /* simcluster's contact solver over the run (sc_stats, every frame) */
     long frames;                 /* frames stepped without error */
-    long solves, split, unconverged, substeps, backups, spec;
+    long solves, split, blocks, shared, unconverged, substeps, backups, spec;
     long fallbacks, split_fallbacks, block_fallbacks, nan_islands, regularised;
     int sweeps_max;
     double outer_res, exact_res; /* largest of any frame, m/s */
@@ -591,6 +591,8 @@ static void solver_add(result *r, const sc_stats *st)
     r->frames++;
     r->solves += st->lcp_solves;
     r->split += st->lcp_split;
+    r->blocks += st->lcp_blocks;
+    r->shared += st->lcp_blocks_shared;
     r->unconverged += st->lcp_unconverged;
     r->substeps += st->substeps;
     r->backups += st->backups;
@@ -776,12 +778,14 @@ static void print_solver(int eng, const result *r)
         return;
     }
     printf("        %s solver: %ld frames, %ld island solves, %ld split (%.1f %%), "
-           "%ld unconverged, sweeps max %d, outer residual max %.3g m/s, exact residual max "
+           "%ld block solves (%ld by helping threads), %ld unconverged, sweeps max %d, "
+           "outer residual max %.3g m/s, exact residual max "
            "%.3g m/s; fallbacks: staggered %ld, blocks %ld, block PGS %ld, NaN islands %ld, "
            "regularised %ld; substeps %.3f a frame, back-ups %.3f a frame (summed over "
            "motion groups), speculative contacts %ld\n",
            eng_name[eng], r->frames, r->solves, r->split,
-           r->solves ? 100.0 * (double)r->split / (double)r->solves : 0.0, r->unconverged,
+           r->solves ? 100.0 * (double)r->split / (double)r->solves : 0.0, r->blocks, r->shared,
+           r->unconverged,
            r->sweeps_max, r->outer_res, r->exact_res, r->fallbacks, r->split_fallbacks,
            r->block_fallbacks, r->nan_islands, r->regularised,
            (double)r->substeps / (double)r->frames, (double)r->backups / (double)r->frames,

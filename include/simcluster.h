@@ -308,6 +308,10 @@ typedef struct sc_stats {
     int lcp_solves;           /* island solves (islands x substeps) */
     int lcp_split;            /* of them, solved as blocks (block Gauss-Seidel) */
     long lcp_blocks;          /* block solves (blocks x sweeps) */
+    long lcp_blocks_shared;   /* of them, solved by a thread that helped the
+                                 island's own (docs/DESIGN.md 11, shared
+                                 blocks; depends on timing, the result
+                                 does not) */
     int lcp_sweeps_max;       /* most outer sweeps of one split solve */
     int lcp_unconverged;      /* split solves that stopped at the sweep limit */
     int lcp_diverged;         /* split solves whose sweeps diverged: ended on

@@ -1,12 +1,14 @@
 /* test_contact.c - the contact solver for piles (lib/core/contact.c;
  * docs/DESIGN.md section 11): every fallback forced and counted with a
- * finite, physical answer; split islands agree with exact ones; warm
- * starts carry the weight from frame to frame.
+ * finite, physical answer; split islands agree with exact ones, and their
+ * blocks give the same bits in any order and on any thread; warm starts
+ * carry the weight from frame to frame.
  *
  * The island is a stack of three boxes on the floor, resting (12 contacts,
  * 36 rows with friction), taken from a world after a few frames and solved
  * with sc_island_solve() on copies of its bodies and contacts. */
 #include <math.h>
+#include <pthread.h>
 #include <setjmp.h>
 #include <stdarg.h>
 #include <stddef.h>
@@ -53,16 +55,16 @@ static sc_world *stack_world(void)
     return w;
 }
 
-/* The stack after a few frames, its bodies at u* for one substep of H. */
-static void stack_make(stack *s)
+/* World w after frames, every contact as one island, its bodies at u*
+ * for one substep of H. */
+static void capture(stack *s, sc_world *w, int frames)
 {
-    s->w = stack_world();
-    for (int f = 0; f < 5; f++)
+    s->w = w;
+    for (int f = 0; f < frames; f++)
         assert_int_equal(sc_world_step(s->w, H), SC_OK);
     sc_frame_state *st = &s->w->st;
     s->nb = st->nbodies;
     s->nc = st->ncontacts;
-    assert_int_equal(s->nc, 4 * LAYERS);
     s->bodies = malloc((size_t)s->nb * sizeof *s->bodies);
     s->c = malloc((size_t)s->nc * sizeof *s->c);
     s->ci = malloc((size_t)s->nc * sizeof *s->ci);
@@ -79,6 +81,25 @@ static void stack_make(stack *s)
     memcpy(s->bodies, st->bodies, (size_t)s->nb * sizeof *s->bodies);
     memcpy(st->bodies, keep, (size_t)s->nb * sizeof *keep);
     free(keep);
+}
+
+/* The stack after a few frames. */
+static void stack_make(stack *s)
+{
+    capture(s, stack_world(), 5);
+    assert_int_equal(s->nc, 4 * LAYERS);
+}
+
+/* A bin of 60 bolts and nuts, piled after 1.2 s. */
+static void pile_make(stack *s)
+{
+    sc_world_config cfg = sc_world_config_default();
+    cfg.workers = 1;
+    sc_world *w = sc_world_create(&cfg);
+    assert_non_null(w);
+    assert_int_equal(sc_scene_bin(w, 60, 1), SC_OK);
+    capture(s, w, 120);
+    assert_true(s->nc > 100);
 }
 
 static void stack_free(stack *s)
@@ -230,6 +251,89 @@ static void test_split_island_agrees_with_the_exact_one(void **state)
     stack_free(&s);
 }
 
+/* Runners that take a colour's blocks in another order or on another
+ * thread, each with an arena of its own (docs/DESIGN.md 11, shared
+ * blocks). */
+typedef struct test_runner {
+    int calls, blocks, threaded;
+    sc_arena arena[2];
+} test_runner;
+
+typedef struct half {
+    sc_block_batch *b;
+    int count;
+    sc_arena *a;
+} half;
+
+static void *odd_blocks(void *arg)
+{
+    half *h = arg;
+    for (int i = 1; i < h->count; i += 2)
+        sc_block_run(h->b, i, h->a, 1);
+    return NULL;
+}
+
+static void test_run(void *ctx, sc_block_batch *b, int count, sc_arena *a)
+{
+    (void)a;
+    test_runner *r = ctx;
+    r->calls++;
+    r->blocks += count;
+    if (!r->threaded) {
+        for (int i = count - 1; i >= 0; i--)
+            sc_block_run(b, i, &r->arena[0], 1);
+        return;
+    }
+    /* odd blocks on a thread, even ones here, at the same time */
+    half h = { b, count, &r->arena[1] };
+    pthread_t t;
+    assert_int_equal(pthread_create(&t, NULL, odd_blocks, &h), 0);
+    for (int i = 0; i < count; i += 2)
+        sc_block_run(b, i, &r->arena[0], 0);
+    assert_int_equal(pthread_join(t, NULL), 0);
+}
+
+/* A split island's colours hold blocks that share no movable body: solved
+ * in reverse order, or half on another thread at the same time, the
+ * answer is the same bits as one after another (were two blocks of a
+ * colour to share a part, the order would show in the bits). The island
+ * is every contact of a 60-part bin. */
+static void test_blocks_of_a_colour_give_the_same_bits_in_any_order_or_thread(void **state)
+{
+    (void)state;
+    stack s;
+    pile_make(&s);
+    sc_body *b0 = malloc((size_t)s.nb * sizeof *b0), *b1 = malloc((size_t)s.nb * sizeof *b1);
+    sc_contact *c0 = malloc((size_t)s.nc * sizeof *c0), *c1 = malloc((size_t)s.nc * sizeof *c1);
+    assert_true(b0 && b1 && c0 && c1);
+    sc_contact_params p = sc_frame_contact_params(&s.w->fcfg);
+    sc_solve_info i0, i1;
+    solve_copy(&s, &p, &i0, b0, c0);
+    assert_true(i0.split >= 1);
+    for (int threaded = 0; threaded < 2; threaded++) {
+        test_runner r = { .threaded = threaded };
+        sc_arena_init(&r.arena[0]);
+        sc_arena_init(&r.arena[1]);
+        sc_contact_params pr = p;
+        pr.runner = (sc_block_runner[]){ { test_run, &r } };
+        solve_copy(&s, &pr, &i1, b1, c1);
+        print_message("%d contacts, %s: %d colours handed out, %d blocks; %d block solves\n",
+                      s.nc, threaded ? "two threads" : "reverse order", r.calls, r.blocks,
+                      i1.blocks);
+        assert_true(r.calls > 10);
+        assert_int_equal(i1.blocks, i0.blocks);
+        assert_int_equal(i1.pivots, i0.pivots);
+        assert_true(i1.blocks_shared > 0 && i1.blocks_shared <= r.blocks);
+        assert_int_equal(i0.blocks_shared, 0);
+        assert_memory_equal(b0, b1, (size_t)s.nb * sizeof *b0);
+        assert_memory_equal(c0, c1, (size_t)s.nc * sizeof *c0);
+        sc_arena_destroy(&r.arena[1]);
+        sc_arena_destroy(&r.arena[0]);
+    }
+    free(c1), free(c0), free(b1), free(b0);
+    stack_free(&s);
+}
+
 /* Contacts persist from frame to frame with their impulses (the warm
  * start): a resting stack's floor contacts carry its weight, and a warm
  * exact solve takes fewer pivots than a cold one on the same island. */
@@ -337,6 +441,7 @@ int main(void)
     const struct CMUnitTest tests[] = {
         cmocka_unit_test(test_each_fallback_is_taken_counted_and_physical),
         cmocka_unit_test(test_split_island_agrees_with_the_exact_one),
+        cmocka_unit_test(test_blocks_of_a_colour_give_the_same_bits_in_any_order_or_thread),
         cmocka_unit_test(test_resting_contacts_keep_their_impulses),
         cmocka_unit_test(test_a_pinched_elastic_body_is_not_thrown),
     };

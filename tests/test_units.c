@@ -76,6 +76,43 @@ static void test_groups_same_bits_for_1_2_3_8_workers(void **state)
     (void)state;
 }
 
+/* A pile of 100 parts in a bin (local time of impact, motion groups, the
+ * default world): its split islands share their blocks with the threads
+ * that are idle (docs/DESIGN.md 11, shared blocks), which depends on
+ * timing; the result does not. */
+static void test_pile_blocks_shared_same_bits_for_1_2_4_workers(void **state)
+{
+    (void)state;
+    const int workers[] = { 1, 2, 4 };
+    uint64_t h[3];
+    for (int i = 0; i < 3; i++) {
+        sc_world_config c = sc_world_config_default();
+        c.workers = workers[i];
+        sc_world *w = sc_world_create(&c);
+        assert_non_null(w);
+        assert_int_equal(sc_scene_bin(w, 100, 3), SC_OK);
+        long blocks = 0, shared = 0, split = 0;
+        for (int f = 0; f < 150; f++) {
+            sc_stats st;
+            assert_int_equal(sc_world_step(w, 0.01), SC_OK);
+            sc_world_stats(w, &st);
+            blocks += st.lcp_blocks;
+            shared += st.lcp_blocks_shared;
+            split += st.lcp_split;
+        }
+        h[i] = sc_world_hash(w);
+        printf("  bin of 100, %d workers: %ld split solves, %ld block solves, %ld by helping "
+               "threads; hash %016llx\n",
+               workers[i], split, blocks, shared, (unsigned long long)h[i]);
+        assert_true(split > 0);
+        if (workers[i] == 1)
+            assert_int_equal(shared, 0);
+        sc_world_destroy(w);
+    }
+    assert_true(h[1] == h[0]);
+    assert_true(h[2] == h[0]);
+}
+
 static void test_same_bits_for_random_assignments(void **state)
 {
     (void)state;
@@ -438,6 +475,7 @@ int main(void)
         cmocka_unit_test(test_same_bits_for_1_2_3_8_workers),
         cmocka_unit_test(test_same_bits_for_random_assignments),
         cmocka_unit_test(test_groups_same_bits_for_1_2_3_8_workers),
+        cmocka_unit_test(test_pile_blocks_shared_same_bits_for_1_2_4_workers),
         cmocka_unit_test(test_longest_first_onto_earliest_finish),
         cmocka_unit_test(test_speed_is_learned_and_slow_nodes_get_less),
         cmocka_unit_test(test_cost_model_is_fitted),

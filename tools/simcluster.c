@@ -568,7 +568,8 @@ typedef struct totals {
     int interrupted;            /* the signal that stopped the run, else 0 */
     long duplicates;            /* duplicate daemon ids reported so far */
     /* the contact solver, summed (or the largest) over the frames */
-    long solves, split, blocks, pivots, staggered, split_fb, block_fb, nan, inelastic, unconverged;
+    long solves, split, blocks, shared, pivots, staggered, split_fb, block_fb, nan, inelastic;
+    long unconverged;
     long substeps, max_pivots, backups, spec;
     int max_sweeps, max_substeps, max_backups;
     double residual, outer_residual;
@@ -651,6 +652,7 @@ static int simulate(const options *o, sc_world *w, totals *t, int progress, reco
         t->solves += st.lcp_solves;
         t->split += st.lcp_split;
         t->blocks += st.lcp_blocks;
+        t->shared += st.lcp_blocks_shared;
         t->pivots += st.lcp_pivots;
         t->max_pivots = st.lcp_pivots > t->max_pivots ? st.lcp_pivots : t->max_pivots;
         t->staggered += st.lcp_fallbacks;
@@ -820,7 +822,7 @@ static int run_cmd(int argc, char **argv)
                "\"unit_messages\": %ld, \"result_messages\": %ld, \"pipelined_units\": %ld, "
                "\"frames_over_budget\": %ld, \"max_frame_s\": %.4f, \"initial_overlaps\": %ld, "
                "\"solver\": {\"island_split\": %d, \"solves\": %ld, \"split\": %ld, "
-               "\"blocks\": %ld, \"pivots\": %ld, \"max_frame_pivots\": %ld, "
+               "\"blocks\": %ld, \"blocks_shared\": %ld, \"pivots\": %ld, \"max_frame_pivots\": %ld, "
                "\"staggered_fallbacks\": %ld, \"split_fallbacks\": %ld, "
                "\"block_fallbacks\": %ld, \"nan_islands\": %ld, \"inelastic_islands\": %ld, "
                "\"unconverged\": %ld, "
@@ -836,7 +838,7 @@ static int run_cmd(int argc, char **argv)
                st.dropped_misaddressed,
                st.duplicate_nodes, t.comm, t.msgs_out, t.msgs_in, t.piped, t.over_budget, t.max_frame,
                t.overlaps,
-               island_split, t.solves, t.split, t.blocks, t.pivots, t.max_pivots, t.staggered,
+               island_split, t.solves, t.split, t.blocks, t.shared, t.pivots, t.max_pivots, t.staggered,
                t.split_fb, t.block_fb, t.nan, t.inelastic, t.unconverged, t.max_sweeps, t.residual,
                t.outer_residual, t.substeps, t.max_substeps,
                o.toi_mode == SC_TOI_LOCAL ? "local" : "world", t.backups, t.max_backups, t.spec,
@@ -858,9 +860,10 @@ static int run_cmd(int argc, char **argv)
                1e3 * t.max_pen);
         if (t.overlaps)
             printf("  body pairs overlapping where placed: %ld (pushed apart)\n", t.overlaps);
-        printf("  contact solves %ld (split into blocks %ld, block solves %ld), pivots %ld "
-               "(most in a frame %ld), substeps %.2f a frame (most %d)\n",
-               t.solves, t.split, t.blocks, t.pivots, t.max_pivots,
+        printf("  contact solves %ld (split into blocks %ld, block solves %ld, %ld of them by "
+               "helping threads), pivots %ld (most in a frame %ld), substeps %.2f a frame "
+               "(most %d)\n",
+               t.solves, t.split, t.blocks, t.shared, t.pivots, t.max_pivots,
                t.frames ? (double)t.substeps / (double)t.frames : 0.0, t.max_substeps);
         printf("  LCP residual at most %.3g m/s (exact), %.3g m/s (split, tolerance %.0e; "
                "%ld stopped at %d sweeps)\n",

@@ -61,6 +61,7 @@ void sc_stats_add_solve(sc_stats *st, const sc_solve_info *info)
     st->lcp_fallbacks += info->failures;
     st->lcp_split += info->split;
     st->lcp_blocks += info->blocks;
+    st->lcp_blocks_shared += info->blocks_shared;
     if (info->sweeps_max > st->lcp_sweeps_max)
         st->lcp_sweeps_max = info->sweeps_max;
     st->lcp_unconverged += info->unconverged;
@@ -82,6 +83,7 @@ void sc_stats_add_solver(sc_stats *s, const sc_stats *g)
     s->lcp_fallbacks += g->lcp_fallbacks;
     s->lcp_split += g->lcp_split;
     s->lcp_blocks += g->lcp_blocks;
+    s->lcp_blocks_shared += g->lcp_blocks_shared;
     if (g->lcp_sweeps_max > s->lcp_sweeps_max)
         s->lcp_sweeps_max = g->lcp_sweeps_max;
     s->lcp_unconverged += g->lcp_unconverged;
@@ -110,6 +112,7 @@ void sc_stats_clear_solver(sc_stats *st)
     st->lcp_fallbacks = 0;
     st->lcp_split = 0;
     st->lcp_blocks = 0;
+    st->lcp_blocks_shared = 0;
     st->lcp_sweeps_max = 0;
     st->lcp_unconverged = 0;
     st->lcp_diverged = 0;

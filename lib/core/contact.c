@@ -37,6 +37,9 @@
 typedef struct row {
     int a, b;                 /* body indices (static or asleep: W = 0) */
     int la, lb;               /* their slots in the island's local velocities */
+    unsigned char ma, mb;     /* movable (W != 0): only their slots are
+                                 written, so blocks of one colour that share
+                                 a static body can run at once */
     double ja[6], jb[6];      /* Jacobian: linear, angular */
     double wa[6], wb[6];      /* W J^T per body */
 } row;
@@ -70,6 +73,8 @@ static void make_row(row *rw, const sc_body *bodies, const sc_contact *c, const 
     rw->a = c->body_a;
     rw->b = c->body_b;
     rw->la = rw->lb = -1;
+    rw->ma = (unsigned char)movable(A);
+    rw->mb = (unsigned char)movable(B);
     row_body(A, ra, d, -1.0, rw->ja, rw->wa);
     row_body(B, rb, d, +1.0, rw->jb, rw->wb);
 }
@@ -100,10 +105,12 @@ static double local_speed(const row *rw, const double *u)
 static void local_apply(const row *rw, double dz, double *u)
 {
     double *ua = &u[6 * rw->la], *ub = &u[6 * rw->lb];
-    for (int k = 0; k < 6; k++) {
-        ua[k] += rw->wa[k] * dz;
-        ub[k] += rw->wb[k] * dz;
-    }
+    if (rw->ma)
+        for (int k = 0; k < 6; k++)
+            ua[k] += rw->wa[k] * dz;
+    if (rw->mb)
+        for (int k = 0; k < 6; k++)
+            ub[k] += rw->wb[k] * dz;
 }
 
 /* A_rs = J_r W J_s^T */
@@ -330,6 +337,14 @@ typedef struct blocks {
     size_t *aoff;
     double *amat;
     double *diag;             /* A_rr of every row */
+    /* colours: no two blocks of one colour share a movable body; a sweep
+     * takes colour after colour, block order[cstart[c]] .. order[cstart[c +
+     * 1] - 1] of colour c, so that a colour's blocks can be solved at once
+     * (docs/DESIGN.md 11, shared blocks); the order is the same for any
+     * runner */
+    int ncolours;
+    int *cstart;              /* count + 1 entries */
+    int *order;               /* count entries */
 } blocks;
 
 /* The problem the blocks iterate on: w = J u + off, bounds lo/hi or, for
@@ -356,16 +371,56 @@ static void row_bounds(const gs_problem *pb, const double *z, int r, double *lo,
     }
 }
 
-/* Split rows at pair boundaries into blocks of about per contacts; rows
- * of one contact are consecutive, cstart[k] the first row of contact k. */
+/* Greedy colouring in block order: colour c takes every block not yet
+ * coloured whose movable bodies no block of colour c has taken (mark[] is
+ * the last colour that took a slot). Static and sleeping bodies are only
+ * read, so they do not part blocks. */
+static void blocks_colour(const row *rows, blocks *bl, int *colour, int *mark, int nslots)
+{
+    int nb = bl->count, left = nb, c = 0;
+    for (int k = 0; k < nb; k++)
+        colour[k] = -1;
+    for (int i = 0; i < nslots; i++)
+        mark[i] = -1;
+    bl->cstart[0] = 0;
+    while (left > 0) {
+        for (int k = 0; k < nb; k++) {
+            if (colour[k] >= 0)
+                continue;
+            int ok = 1;
+            for (int r = bl->bstart[k]; r < bl->bstart[k + 1] && ok; r++)
+                ok = !(rows[r].ma && mark[rows[r].la] == c) &&
+                     !(rows[r].mb && mark[rows[r].lb] == c);
+            if (!ok)
+                continue;
+            colour[k] = c;
+            for (int r = bl->bstart[k]; r < bl->bstart[k + 1]; r++) {
+                if (rows[r].ma)
+                    mark[rows[r].la] = c;
+                if (rows[r].mb)
+                    mark[rows[r].lb] = c;
+            }
+            bl->order[nb - left] = k;
+            left--;
+        }
+        bl->cstart[++c] = nb - left;
+    }
+    bl->ncolours = c;
+}
+
+/* Split rows at pair boundaries into blocks of about per contacts, and
+ * colour them; rows of one contact are consecutive, cstart[k] the first
+ * row of contact k, nslots the island's local velocity slots. */
 static int blocks_build(sc_arena *a, const row *rows, int nrows, const int *cstart, int nc,
-                        int per, blocks *bl)
+                        int per, int nslots, blocks *bl)
 {
     memset(bl, 0, sizeof *bl);
     bl->bstart = sc_arena_alloc(a, (size_t)(nc + 1) * sizeof *bl->bstart);
     bl->aoff = bl->bstart ? sc_arena_alloc(a, (size_t)(nc + 1) * sizeof *bl->aoff) : NULL;
     bl->diag = bl->aoff ? sc_arena_alloc(a, (size_t)nrows * sizeof *bl->diag) : NULL;
-    if (!bl->diag)
+    bl->cstart = bl->diag ? sc_arena_alloc(a, (size_t)(nc + 1) * sizeof *bl->cstart) : NULL;
+    bl->order = bl->cstart ? sc_arena_alloc(a, (size_t)nc * sizeof *bl->order) : NULL;
+    if (!bl->order)
         return SC_ENOMEM;
     int nb = 0, inblock = 0;
     size_t total = 0;
@@ -388,6 +443,14 @@ static int blocks_build(sc_arena *a, const row *rows, int nrows, const int *csta
     total += (size_t)len * (size_t)len;
     bl->bstart[++nb] = nrows;
     bl->count = nb;
+    int *colour = sc_arena_alloc(a, (size_t)nb * sizeof *colour);
+    int *mark = colour ? sc_arena_alloc(a, (size_t)(nslots > 0 ? nslots : 1) * sizeof *mark) : NULL;
+    if (mark)
+        blocks_colour(rows, bl, colour, mark, nslots);
+    sc_arena_free(a, mark);
+    sc_arena_free(a, colour);
+    if (!mark)
+        return SC_ENOMEM;
     bl->amat = sc_arena_alloc(a, total * sizeof *bl->amat);
     if (!bl->amat)
         return SC_ENOMEM;
@@ -404,6 +467,8 @@ static int blocks_build(sc_arena *a, const row *rows, int nrows, const int *csta
 static void blocks_free(sc_arena *a, blocks *bl)
 {
     sc_arena_free(a, bl->amat);
+    sc_arena_free(a, bl->order);
+    sc_arena_free(a, bl->cstart);
     sc_arena_free(a, bl->diag);
     sc_arena_free(a, bl->aoff);
     sc_arena_free(a, bl->bstart);
@@ -529,9 +594,71 @@ static double residual(const gs_problem *pb, const blocks *bl, const double *z, 
  * still checks every row against tol. */
 #define SKIP_SHARE 0.1
 
-/* Block Gauss-Seidel, sweeps alternating forwards and backwards (the
- * symmetric order converges faster on chains and stacks), from z (warm
- * start, already in u) until the residual is at most tol or max_sweeps.
+/* What block_solve() adds to an island's figures. */
+static void block_info_add(sc_solve_info *to, const sc_solve_info *from)
+{
+    to->nan_islands += from->nan_islands;
+    to->blocks += from->blocks;
+    to->blocks_shared += from->blocks_shared;
+    to->pivots += from->pivots;
+    to->lemke += from->lemke;
+    to->regularised += from->regularised;
+    to->block_fallbacks += from->block_fallbacks;
+}
+
+struct sc_block_batch {
+    const gs_problem *pb;
+    const blocks *bl;
+    double *z, *u;
+    int fail;
+    const int *list;          /* the blocks to solve */
+    sc_solve_info *info;      /* per listed block */
+    int *rc;                  /* per listed block */
+};
+
+void sc_block_run(sc_block_batch *b, int i, sc_arena *a, int helper)
+{
+    memset(&b->info[i], 0, sizeof b->info[i]);
+    b->rc[i] = block_solve(a, b->pb, b->bl, b->list[i], b->z, b->u, &b->info[i], b->fail);
+    b->info[i].blocks_shared = helper;
+}
+
+/* One colour of a sweep: its blocks that are not close enough already
+ * (list: room for every block; binfo: with a runner), solved here or, with
+ * a runner, wherever it runs them. Either way each block's solve sees the
+ * same numbers, and the first error in block order is returned. */
+static int colour_solve(sc_arena *a, const gs_problem *pb, const blocks *bl, int c, double *z,
+                        double *u, int fail, double skip, const sc_block_runner *runner,
+                        int *list, sc_solve_info *binfo, int *brc, sc_solve_info *info)
+{
+    int n = 0;
+    for (int j = bl->cstart[c]; j < bl->cstart[c + 1]; j++) {
+        int k = bl->order[j];
+        if (rows_residual(pb, bl, z, u, bl->bstart[k], bl->bstart[k + 1]) > skip)
+            list[n++] = k;
+    }
+    int rc = SC_OK;
+    if (!runner || n < 2) {
+        for (int i = 0; i < n; i++) {
+            int r = block_solve(a, pb, bl, list[i], z, u, info, fail);
+            rc = rc == SC_OK ? r : rc;
+        }
+        return rc;
+    }
+    sc_block_batch b = { .pb = pb, .bl = bl, .z = z, .u = u, .fail = fail, .list = list,
+                         .info = binfo, .rc = brc };
+    runner->run(runner->ctx, &b, n, a);
+    for (int i = 0; i < n; i++) {
+        block_info_add(info, &binfo[i]);
+        rc = rc == SC_OK ? brc[i] : rc;
+    }
+    return rc;
+}
+
+/* Block Gauss-Seidel, sweeps alternating forwards and backwards over the
+ * colours (the symmetric order converges faster on chains and stacks),
+ * from z (warm start, already in u) until the residual is at most tol or
+ * max_sweeps.
  * Gauss-Seidel over frictional blocks is not bound to converge: the best
  * iterate is kept (z and u, nu doubles), and a sweep that leaves the
  * residual DIVERGE times above the best stops the iteration, which then
@@ -542,8 +669,17 @@ static int block_gs(sc_arena *a, const gs_problem *pb, const blocks *bl, double 
                     int nu, const sc_contact_params *p, double tol, sc_solve_info *info)
 {
     size_t nz = (size_t)pb->nrows * sizeof *z, nub = (size_t)nu * sizeof *u;
+    size_t nbl = (size_t)bl->count;
+    const sc_block_runner *runner = p->runner;
     double *zb = sc_arena_alloc(a, nz), *ub = zb ? sc_arena_alloc(a, nub) : NULL;
-    if (!ub) {
+    int *list = ub ? sc_arena_alloc(a, nbl * sizeof *list) : NULL;
+    sc_solve_info *binfo = list && runner ? sc_arena_alloc(a, nbl * sizeof *binfo) : NULL;
+    int *brc = binfo ? sc_arena_alloc(a, nbl * sizeof *brc) : NULL;
+    if (!list || (runner && !brc)) {
+        sc_arena_free(a, brc);
+        sc_arena_free(a, binfo);
+        sc_arena_free(a, list);
+        sc_arena_free(a, ub);
         sc_arena_free(a, zb);
         return SC_ENOMEM;
     }
@@ -553,11 +689,10 @@ static int block_gs(sc_arena *a, const gs_problem *pb, const blocks *bl, double 
     memcpy(ub, u, nub);
     int fail = (p->inject & SC_INJECT_BLOCK) != 0;
     while (res > tol && sweeps < p->max_sweeps && rc == SC_OK) {
-        for (int i = 0; i < bl->count && rc == SC_OK; i++) {
-            int k = sweeps % 2 == 0 ? i : bl->count - 1 - i;
-            if (rows_residual(pb, bl, z, u, bl->bstart[k], bl->bstart[k + 1]) <= SKIP_SHARE * tol)
-                continue;
-            rc = block_solve(a, pb, bl, k, z, u, info, fail);
+        for (int i = 0; i < bl->ncolours && rc == SC_OK; i++) {
+            int c = sweeps % 2 == 0 ? i : bl->ncolours - 1 - i;
+            rc = colour_solve(a, pb, bl, c, z, u, fail, SKIP_SHARE * tol, runner, list, binfo,
+                              brc, info);
         }
         sweeps++;
         res = residual(pb, bl, z, u);
@@ -575,6 +710,9 @@ static int block_gs(sc_arena *a, const gs_problem *pb, const blocks *bl, double 
         memcpy(u, ub, nub);
         res = best;
     }
+    sc_arena_free(a, brc);
+    sc_arena_free(a, binfo);
+    sc_arena_free(a, list);
     sc_arena_free(a, ub);
     sc_arena_free(a, zb);
     if (rc != SC_OK)
@@ -636,8 +774,8 @@ static int solve_split(sc_arena *a, row *rows, int nrows, const int *cstart, int
         return m;
     double *u = sc_arena_alloc(a, (size_t)m * 6 * sizeof *u);
     blocks bl = { 0 };
-    int rc = u ? blocks_build(a, rows, nrows, cstart, nc, p->block_contacts > 0 ? p->block_contacts : 1, &bl)
-               : SC_ENOMEM;
+    int per = p->block_contacts > 0 ? p->block_contacts : 1;
+    int rc = u ? blocks_build(a, rows, nrows, cstart, nc, per, m, &bl) : SC_ENOMEM;
     if (rc == SC_OK) {
         for (int i = 0; i < m; i++) {
             const sc_body *b = &bodies[body[i]];

@@ -137,6 +137,22 @@ typedef struct sc_body {
 
 /* Contact model constants (Baraff's velocity-level LCP, the paper's states)
  * and the solver's settings (docs/DESIGN.md section 11). */
+/* A split island's blocks of one colour (contact.c; no two share a
+ * movable body), to be solved anywhere, in any order: each is solved by
+ * sc_block_run() with scratch from the arena of whoever runs it, and
+ * writes only its own rows and its bodies' local velocities, so the result
+ * is the same bits whoever ran which (docs/DESIGN.md 11, shared blocks). */
+typedef struct sc_block_batch sc_block_batch;
+/* Solve block i of the batch (0 <= i < its count) with scratch from a;
+ * helper: 1 when a thread other than the island's solves it (counted). */
+void sc_block_run(sc_block_batch *b, int i, sc_arena *a, int helper);
+/* Runs blocks [0, count) of a batch (sc_block_run() on each, the calling
+ * thread with arena a) and returns when all are done. */
+typedef struct sc_block_runner {
+    void (*run)(void *ctx, sc_block_batch *b, int count, sc_arena *a);
+    void *ctx;
+} sc_block_runner;
+
 typedef struct sc_contact_params {
     double bounce_speed;            /* m/s: approach faster = collision (restitution),
                                        slower = resting contact (e = 0) */
@@ -155,6 +171,10 @@ typedef struct sc_contact_params {
                                        local mode, docs/DESIGN.md 3.4); 0: one
                                        LCP of both (the paper's, world mode) */
     int inject;                     /* tests only: SC_INJECT_* faults */
+    const sc_block_runner *runner;  /* NULL: a split island's blocks are
+                                       solved one after another; else each
+                                       colour's go to the runner (not sent:
+                                       a daemon sets its own) */
 } sc_contact_params;
 
 /* Faults a test can inject (sc_contact_params.inject), one per fallback. */
@@ -177,6 +197,8 @@ typedef struct sc_solve_info {
     int split_fallbacks;            /* of them, exact islands whose staggered
                                        solve failed too */
     int blocks;                     /* block solves (blocks x sweeps) */
+    long blocks_shared;             /* of blocks, solved by a helping thread
+                                       (depends on timing, the result not) */
     int block_fallbacks;            /* block solves that failed: projected
                                        Gauss-Seidel on the block instead */
     int nan_islands;                /* islands with non-finite data: no impulse */
@@ -220,6 +242,10 @@ int sc_ode_is_private(const sc_ode *o);
 typedef struct sc_np_ctx sc_np_ctx;     /* one per thread: owns ODE geoms */
 /* The thread's scratch arena (island solves), reset by sc_unit_run(). */
 sc_arena *sc_np_arena(sc_np_ctx *ctx);
+/* The runner that shares the thread's split-island blocks with idle
+ * threads (node_local.c), NULL: none (blocks solved one after another). */
+const sc_block_runner *sc_np_runner(const sc_np_ctx *ctx);
+void sc_np_set_runner(sc_np_ctx *ctx, const sc_block_runner *r);
 /* A slot for the thread's motion-group scratch (group.c), freed with the
  * context by free_fn. */
 void **sc_np_scratch(sc_np_ctx *ctx, void (**free_fn)(void *));

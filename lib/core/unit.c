@@ -71,13 +71,17 @@ void sc_unit_run(sc_np_ctx *np, const sc_job *job, sc_unit *u)
         u->rc = run_toi(np, job, u);
         break;
     case SC_UNIT_ISLAND: {
-        /* small islands travel together, each solved on its own */
+        /* small islands travel together, each solved on its own; a split
+         * island shares its blocks with idle threads (the thread's runner,
+         * when it has one): the same bits either way */
         const sc_islands *is = job->islands;
+        sc_contact_params p = *job->params;
+        p.runner = sc_np_runner(np);
         u->rc = SC_OK;
         for (int i = u->first; i < u->first + u->islands && u->rc == SC_OK; i++)
             u->rc = sc_island_solve(arena, job->bodies, job->c, &is->contacts[is->contact_start[i]],
-                                    is->contact_start[i + 1] - is->contact_start[i], job->h,
-                                    job->params, &u->info);
+                                    is->contact_start[i + 1] - is->contact_start[i], job->h, &p,
+                                    &u->info);
         break;
     }
     case SC_UNIT_GROUP:

@@ -15,7 +15,13 @@
  * a while after each batch before it sleeps, and the caller spins before
  * it sleeps waiting for results: jobs of one frame come back to back.
  * Handing work over is atomic; the mutex and condition variables are only
- * for sleeping. */
+ * for sleeping.
+ *
+ * A split island's blocks are shared below the units: a node solving one
+ * publishes each colour's blocks (sc_block_runner), and members of the
+ * pool that are idle or waiting take blocks from it until none is left
+ * (docs/DESIGN.md 11, shared blocks). The publisher takes blocks too, so
+ * nothing waits for a helper that never comes. */
 #include <pthread.h>
 #include <stdatomic.h>
 #include <stdlib.h>
@@ -27,10 +33,21 @@
 
 typedef struct local_node local_node;
 
+/* Members are only added (never moved: idle workers look at them any
+ * time, for blocks), each before n counts it. */
 struct sc_local_pool {
-    local_node **members;
-    int n, cap;
+    local_node *members[SC_MAX_WORKERS];
+    atomic_int n;
+    local_node *home;         /* the calling thread's node, or NULL */
 };
+
+/* One colour of a split island's blocks, published by the node solving
+ * it. */
+typedef struct help_batch {
+    sc_block_batch *b;
+    int count;
+    atomic_int next;          /* the next block to take */
+} help_batch;
 
 struct local_node {
     sc_node base;
@@ -51,11 +68,17 @@ struct local_node {
     atomic_uint started_gen;  /* batches this node has started working on */
     atomic_uint done_gen;     /* batches this node has finished working on */
     atomic_int quit;
-    double cpu_s;             /* CPU seconds of the last batch */
+    _Atomic double cpu_s;     /* CPU seconds of the last batch (atomic: a
+                                 worker that starts after the others took
+                                 all its units still writes it, maybe as
+                                 the next batch is submitted) */
     double t_submit, t_start; /* wall clock: submitted, picked up */
     double latency;           /* EWMA of the wake-up time, 0 = none yet */
     int init_rc;              /* worker thread start-up */
     int started;
+    sc_block_runner runner;   /* its np's: shares its blocks with the pool */
+    _Atomic(help_batch *) help;   /* its published blocks, or NULL */
+    atomic_int helpers;       /* threads looking at help */
 };
 
 sc_local_pool *sc_local_pool_create(void)
@@ -78,7 +101,7 @@ static void stop_thread(local_node *n)
 void sc_local_pool_stop(sc_local_pool *p)
 {
     /* all threads first: a late worker may still be looking at the others */
-    for (int k = 0; p && k < p->n; k++)
+    for (int k = 0; p && k < atomic_load(&p->n); k++)
         stop_thread(p->members[k]);
 }
 
@@ -86,7 +109,6 @@ void sc_local_pool_destroy(sc_local_pool *p)
 {
     if (!p)
         return;
-    free(p->members);
     free(p);
 }
 
@@ -97,13 +119,59 @@ static inline void cpu_relax(void)
 #endif
 }
 
-/* Spin until *v != old or spin_s passed; 1 if it changed. */
-static int spin_until_changed(const atomic_uint *v, unsigned old, double spin_s)
+/* Solve blocks that other members of n's pool published, with n's arena
+ * (n is between units: its arena is free); 1 if it solved any. A helper
+ * counts itself in m->helpers before it reads m->help, and the publisher
+ * takes the batch back before it waits for helpers to reach 0 (both
+ * sequentially consistent), so no helper is left holding a batch that
+ * is gone. */
+static int help_others(local_node *n)
+{
+    sc_local_pool *p = n->pool;
+    int ran = 0, members = p ? atomic_load_explicit(&p->n, memory_order_acquire) : 0;
+    for (int k = 0; k < members; k++) {
+        local_node *m = p->members[k];
+        if (m == n || !atomic_load_explicit(&m->help, memory_order_relaxed))
+            continue;
+        atomic_fetch_add(&m->helpers, 1);
+        help_batch *h = atomic_load(&m->help);
+        int i;
+        while (h && (i = atomic_fetch_add_explicit(&h->next, 1, memory_order_relaxed)) < h->count) {
+            sc_block_run(h->b, i, sc_np_arena(n->np), 1);
+            ran = 1;
+        }
+        atomic_fetch_sub(&m->helpers, 1);
+    }
+    return ran;
+}
+
+/* The runner of node ctx's narrow-phase context: publish the blocks, take
+ * them with the others until none is left, withdraw them and wait for the
+ * helpers still solving one. */
+static void run_blocks(void *ctx, sc_block_batch *b, int count, sc_arena *a)
+{
+    local_node *n = ctx;
+    help_batch h = { .b = b, .count = count };
+    atomic_init(&h.next, 0);
+    atomic_store(&n->help, &h);
+    int i;
+    while ((i = atomic_fetch_add_explicit(&h.next, 1, memory_order_relaxed)) < count)
+        sc_block_run(b, i, a, 0);
+    atomic_store(&n->help, NULL);
+    while (atomic_load(&n->helpers) > 0)
+        cpu_relax();
+}
+
+/* Spin until *v != old or spin_s passed (since the last block n helped
+ * with); 1 if it changed. */
+static int spin_until_changed(local_node *n, const atomic_uint *v, unsigned old, double spin_s)
 {
     double end = sc_wall_now() + spin_s;
     for (int i = 1;; i++) {
         if (atomic_load_explicit(v, memory_order_acquire) != old)
             return 1;
+        if (help_others(n))
+            end = sc_wall_now() + spin_s;
         cpu_relax();
         if ((i & 63) == 0 && sc_wall_now() > end)
             return 0;
@@ -153,8 +221,9 @@ static double run_batch(local_node *n)
     while ((pos = take(n, 0)) >= 0)
         run_one(n, n, pos, &t);
     sc_local_pool *p = n->pool;
-    for (int k = 0; p && k < p->n; k++) {
-        local_node *m = p->members[(n->base.id + 1 + k) % p->n];
+    int members = p ? atomic_load_explicit(&p->n, memory_order_acquire) : 0;
+    for (int k = 0; k < members; k++) {
+        local_node *m = p->members[(n->base.id + 1 + k) % members];
         if (m == n)
             continue;
         while ((pos = take(m, 1)) >= 0)
@@ -169,6 +238,8 @@ static void *worker(void *arg)
     /* the copy of ODE and the context belong to this thread */
     n->ode = sc_ode_acquire();
     n->np = sc_np_create_on(n->ode);
+    if (n->np)
+        sc_np_set_runner(n->np, &n->runner);
     pthread_mutex_lock(&n->lock);
     n->init_rc = n->np ? SC_OK : SC_ENOMEM;
     n->started = 1;
@@ -176,7 +247,7 @@ static void *worker(void *arg)
     pthread_mutex_unlock(&n->lock);
     unsigned seen = 0;
     while (n->np) {
-        if (!spin_until_changed(&n->gen, seen, WORKER_SPIN_S)) {
+        if (!spin_until_changed(n, &n->gen, seen, WORKER_SPIN_S)) {
             pthread_mutex_lock(&n->lock);
             while (atomic_load(&n->gen) == seen && !atomic_load(&n->quit))
                 pthread_cond_wait(&n->go, &n->lock);
@@ -187,7 +258,7 @@ static void *worker(void *arg)
         seen = atomic_load_explicit(&n->gen, memory_order_acquire);
         n->t_start = sc_wall_now();
         atomic_store_explicit(&n->started_gen, seen, memory_order_release);
-        n->cpu_s = run_batch(n);
+        atomic_store_explicit(&n->cpu_s, run_batch(n), memory_order_relaxed);
         atomic_store_explicit(&n->done_gen, seen, memory_order_release);
         pthread_mutex_lock(&n->lock);
         pthread_cond_broadcast(&n->done);
@@ -204,7 +275,7 @@ static int local_submit(sc_node *base, const sc_job *job, const int *units, int 
     local_node *n = (local_node *)base;
     n->job = job;
     n->units = units;
-    n->cpu_s = 0;
+    atomic_store_explicit(&n->cpu_s, 0.0, memory_order_relaxed);
     n->t_submit = sc_wall_now();
     atomic_store_explicit(&n->left, count, memory_order_relaxed);
     atomic_store_explicit(&n->range, (uint64_t)(uint32_t)count << 32, memory_order_release);
@@ -233,13 +304,18 @@ static int local_wait(sc_node *base, double *cpu_s)
     unsigned gen = atomic_load(&n->gen);
     if (n->inline_node && atomic_load(&n->done_gen) != gen) {
         atomic_store(&n->started_gen, gen);
-        n->cpu_s = run_batch(n);
+        atomic_store_explicit(&n->cpu_s, run_batch(n), memory_order_relaxed);
         atomic_store(&n->done_gen, gen);
     }
     if (!finished(n, gen)) {
+        /* the caller, waiting, helps with blocks */
+        local_node *home = n->pool ? n->pool->home : NULL;
         double end = sc_wall_now() + WAITER_SPIN_S;
-        for (int i = 1; !finished(n, gen) && ((i & 63) || sc_wall_now() < end); i++)
+        for (int i = 1; !finished(n, gen) && ((i & 63) || sc_wall_now() < end); i++) {
+            if (home && help_others(home))
+                end = sc_wall_now() + WAITER_SPIN_S;
             cpu_relax();
+        }
         if (!finished(n, gen)) {
             pthread_mutex_lock(&n->lock);
             while (!finished(n, gen))
@@ -248,7 +324,7 @@ static int local_wait(sc_node *base, double *cpu_s)
         }
     }
     int ran = atomic_load(&n->done_gen) == gen;
-    *cpu_s = ran ? n->cpu_s : 0;
+    *cpu_s = ran ? atomic_load_explicit(&n->cpu_s, memory_order_relaxed) : 0;
     if (!n->inline_node && ran) {
         /* there and back: twice the wake-up the worker saw */
         double l = 2 * (n->t_start - n->t_submit);
@@ -297,8 +373,7 @@ static const sc_node_ops local_ops = {
 
 sc_node *sc_node_local_create(sc_local_pool *pool, int id, int inline_node)
 {
-    if (pool && sc_grow((void **)&pool->members, &pool->cap, pool->n + 1,
-                        sizeof *pool->members, SC_MAX_WORKERS) != SC_OK)
+    if (pool && atomic_load(&pool->n) >= SC_MAX_WORKERS)
         return NULL;
     local_node *n = calloc(1, sizeof *n);
     if (!n)
@@ -306,6 +381,8 @@ sc_node *sc_node_local_create(sc_local_pool *pool, int id, int inline_node)
     n->base.ops = &local_ops;
     n->base.id = id;
     n->inline_node = inline_node;
+    n->runner = (sc_block_runner){ .run = run_blocks, .ctx = n };
+    n->pool = pool;           /* before its thread starts: read there */
     pthread_mutex_init(&n->lock, NULL);
     pthread_cond_init(&n->go, NULL);
     pthread_cond_init(&n->done, NULL);
@@ -316,6 +393,7 @@ sc_node *sc_node_local_create(sc_local_pool *pool, int id, int inline_node)
             local_destroy(&n->base);
             return NULL;
         }
+        sc_np_set_runner(n->np, &n->runner);
     } else {
         if (pthread_create(&n->thread, NULL, worker, n) != 0) {
             local_destroy(&n->base);
@@ -332,11 +410,16 @@ sc_node *sc_node_local_create(sc_local_pool *pool, int id, int inline_node)
             return NULL;
         }
     }
-    /* joins the pool only once it can run units (the pool is read by the
-     * other members only while a job runs, never during create/destroy) */
-    n->pool = pool;
-    if (pool)
-        pool->members[pool->n++] = n;
+    /* joins the pool only once it can run units (members look at each
+     * other's lists only while a job runs, at each other's blocks any
+     * time: members are appended, never moved) */
+    if (pool && inline_node)
+        pool->home = n;
+    if (pool) {
+        int k = atomic_load(&pool->n);
+        pool->members[k] = n;
+        atomic_store_explicit(&pool->n, k + 1, memory_order_release);
+    }
     return &n->base;
 }
 
