@@ -1107,12 +1107,29 @@ static int friction_polish(work *wk, const double *q, const int *findex,
  * each round a full pivoting pass with fixed bounds, then an exact polish
  * with that round's sets; SC_OK as soon as one satisfies the bounds it
  * implies, SC_EMAXITER after LCP_FRICTION_ROUNDS. */
+/* FNV-1a of a round's answer, bit for bit. */
+static uint64_t answer_hash(const double *z, int n)
+{
+    uint64_t h = 1469598103934665603ULL;
+    const unsigned char *b = (const unsigned char *)z;
+    for (size_t k = 0; k < (size_t)n * sizeof *z; k++) {
+        h ^= b[k];
+        h *= 1099511628211ULL;
+    }
+    return h;
+}
+
 static int solve_friction(work *wk, const double *q, const double *lo, const double *hi,
                           const int *findex, const double *mu, int start, double *z,
                           double *w, double *residual)
 {
     const int n = wk->s.n;
     double *zprev = wk->zprev;
+    /* a round that repeats an earlier round's answer bit for bit has
+     * entered a cycle (the bin: a third of the fixed points that failed,
+     * most with period 2, found by round 3-8; none settled after a
+     * repeat): Lemke at once instead of the remaining rounds */
+    uint64_t seen[LCP_FRICTION_ROUNDS];
     /* round 0: the bounds of the guess (a warm start), else frictionless */
     if (start == START_GUESS)
         memcpy(zprev, z, (size_t)n * sizeof(double));
@@ -1132,6 +1149,12 @@ static int solve_friction(work *wk, const double *q, const double *lo, const dou
             verify_coupled(wk, q, lo, hi, findex, mu, z, w, residual, 0))
             return SC_OK;
         memcpy(z, zprev, (size_t)n * sizeof(double));
+        seen[round] = answer_hash(z, n);
+        int cycle = 0;
+        for (int r = 0; r < round && !cycle; r++)
+            cycle = seen[r] == seen[round];
+        if (cycle)
+            break;
     }
     for (int i = 0; i < n; i++)   /* the w of the z handed back */
         w[i] = q[i] + row_dot(wk->s.M, z, n, i);
