@@ -34,6 +34,7 @@ typedef struct lemke {
     double *t;        /* n x cols tableau, row-major */
     double *rhs;      /* values of the basic variables */
     int *basis;       /* column of the basic variable of each row */
+    int *nz;          /* scratch: the pivot row's nonzero columns */
 } lemke;
 
 static double *row(const lemke *lk, int i)
@@ -44,15 +45,28 @@ static double *row(const lemke *lk, int i)
 static void pivot(lemke *lk, int r, int c)
 {
     double *tr = row(lk, r), p = tr[c];
-    for (int j = 0; j < lk->cols; j++)
+    /* the pivot row's nonzero columns: the tableau stays sparse (the
+     * basis inverse starts as I, the friction LCP's lambda rows hold three
+     * entries), and a zero entry changes no other row */
+    int *nz = lk->nz, m = 0;
+    for (int j = 0; j < lk->cols; j++) {
         tr[j] /= p;
+        if (tr[j] != 0.0)
+            nz[m++] = j;
+    }
     lk->rhs[r] /= p;
+    int sparse = 2 * m < lk->cols;    /* else the plain loop (vectorised) */
     for (int i = 0; i < lk->n; i++) {
         double *ti = row(lk, i), g = ti[c];
         if (i == r || g == 0.0)
             continue;
-        for (int j = 0; j < lk->cols; j++)
-            ti[j] -= g * tr[j];
+        if (sparse) {
+            for (int k = 0; k < m; k++)
+                ti[nz[k]] -= g * tr[nz[k]];
+        } else {
+            for (int j = 0; j < lk->cols; j++)
+                ti[j] -= g * tr[j];
+        }
         lk->rhs[i] -= g * lk->rhs[r];
     }
     lk->basis[r] = c;
@@ -187,14 +201,15 @@ int sc_lcp_lemke(int n, const double *M, const double *q, double *z, long max_pi
                  long *pivots)
 {
     size_t nd = (size_t)n, cols = 2 * nd + 1;
-    lemke lk = { n, (int)cols, NULL, NULL, NULL };
+    lemke lk = { n, (int)cols, NULL, NULL, NULL, NULL };
     if (nd > SIZE_MAX / sizeof(double) / (cols + 2) / 2)
         return SC_ENOMEM;
-    lk.t = malloc((nd * cols + nd) * sizeof(double) + nd * sizeof(int));
+    lk.t = malloc((nd * cols + nd) * sizeof(double) + (nd + cols) * sizeof(int));
     if (!lk.t)
         return SC_ENOMEM;
     lk.rhs = lk.t + nd * cols;
     lk.basis = (int *)(void *)(lk.rhs + nd);
+    lk.nz = lk.basis + nd;
     memset(lk.t, 0, nd * cols * sizeof(double));
     for (int i = 0; i < n; i++) {
         double *ti = row(&lk, i);
