@@ -55,7 +55,7 @@ int main(int argc, char **argv)
         return 1;
     }
     double e0 = sc_world_energy(w), peak = e0, pen = 0;
-    long frames = 0, fallbacks = 0;
+    long frames = 0, fallbacks = 0, refused = 0;
     double t0 = now_s();
     while (!sc_world_at_rest(w) && frames * DT < MAX_SIM_S) {
         rc = sc_world_step(w, DT);
@@ -68,6 +68,7 @@ int main(int argc, char **argv)
         sc_world_stats(w, &st);
         pen = pen > st.max_penetration ? pen : st.max_penetration;
         fallbacks += st.lcp_fallbacks;
+        refused += st.lcp_energy_refused;
         double e = sc_world_energy(w);
         peak = peak > e ? peak : e;
     }
@@ -84,7 +85,8 @@ int main(int argc, char **argv)
     printf("  real-time factor       %8.2f x (simulated / wall)\n", wall > 0 ? sim / wall : 0);
     printf("  peak energy / initial  %8.5f\n", peak / e0);
     printf("  max penetration        %8.3f mm\n", 1000 * pen);
-    printf("  friction fallbacks     %8ld islands\n", fallbacks);
+    printf("  friction fallbacks     %8ld islands (%ld answers refused for adding energy)\n",
+           fallbacks, refused);
     static const char *names[SC_STAGE_COUNT] = { "broad phase", "narrow phase", "time of impact",
                                                  "contact graph", "LCP (Dantzig)", "integration" };
     double total = 0;

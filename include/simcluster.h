@@ -327,6 +327,10 @@ typedef struct sc_stats {
     int lcp_inelastic;        /* islands whose elastic answer added kinetic
                                  energy (restitution at several contacts at
                                  once): solved again with e = 0 */
+    int lcp_energy_refused;   /* of lcp_fallbacks, coupled friction answers
+                                 the solver found but refused because they
+                                 added kinetic energy (the rest: the solver
+                                 failed) */
     double lcp_residual;      /* largest complementarity error of an exact
                                  solve (w_i z_i etc., m/s), last frame */
     double lcp_outer_residual;/* largest outer residual of a split solve, m/s */

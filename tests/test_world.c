@@ -568,12 +568,19 @@ static void test_a_pile_never_gains_energy(void **state)
         assert_non_null(w);
         assert_int_equal(sc_scene_bin(w, 200, 1), SC_OK);
         double e0 = sc_world_energy(w), peak = e0;
+        long refused = 0, fallbacks = 0;
         for (int k = 0; k < 30; k++) {
             assert_int_equal(sc_world_step(w, 0.01), SC_OK);
             peak = fmax(peak, sc_world_energy(w));
+            sc_stats st;
+            sc_world_stats(w, &st);
+            refused += st.lcp_energy_refused;
+            fallbacks += st.lcp_fallbacks;
         }
-        print_message("bin of 200, %s mode: peak energy / initial %.6f\n",
-                      mode == SC_TOI_LOCAL ? "local" : "world", peak / e0);
+        print_message("bin of 200, %s mode: peak energy / initial %.6f; friction fallbacks %ld, "
+                      "%ld of them answers refused for adding energy\n",
+                      mode == SC_TOI_LOCAL ? "local" : "world", peak / e0, fallbacks, refused);
+        assert_true(refused > 0 && refused <= fallbacks);
         assert_true(peak <= e0 * (1 + 1e-9));
         sc_world_destroy(w);
     }

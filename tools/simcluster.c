@@ -568,7 +568,8 @@ typedef struct totals {
     int interrupted;            /* the signal that stopped the run, else 0 */
     long duplicates;            /* duplicate daemon ids reported so far */
     /* the contact solver, summed (or the largest) over the frames */
-    long solves, split, blocks, shared, pivots, staggered, split_fb, block_fb, nan, inelastic;
+    long solves, split, blocks, shared, pivots, staggered, refused, split_fb, block_fb, nan;
+    long inelastic;
     long unconverged;
     long substeps, max_pivots, backups, spec;
     int max_sweeps, max_substeps, max_backups;
@@ -656,6 +657,7 @@ static int simulate(const options *o, sc_world *w, totals *t, int progress, reco
         t->pivots += st.lcp_pivots;
         t->max_pivots = st.lcp_pivots > t->max_pivots ? st.lcp_pivots : t->max_pivots;
         t->staggered += st.lcp_fallbacks;
+        t->refused += st.lcp_energy_refused;
         t->split_fb += st.lcp_split_fallbacks;
         t->block_fb += st.lcp_block_fallbacks;
         t->nan += st.lcp_nan_islands;
@@ -823,7 +825,7 @@ static int run_cmd(int argc, char **argv)
                "\"frames_over_budget\": %ld, \"max_frame_s\": %.4f, \"initial_overlaps\": %ld, "
                "\"solver\": {\"island_split\": %d, \"solves\": %ld, \"split\": %ld, "
                "\"blocks\": %ld, \"blocks_shared\": %ld, \"pivots\": %ld, \"max_frame_pivots\": %ld, "
-               "\"staggered_fallbacks\": %ld, \"split_fallbacks\": %ld, "
+               "\"staggered_fallbacks\": %ld, \"energy_refused\": %ld, \"split_fallbacks\": %ld, "
                "\"block_fallbacks\": %ld, \"nan_islands\": %ld, \"inelastic_islands\": %ld, "
                "\"unconverged\": %ld, "
                "\"max_sweeps\": %d, \"max_residual\": %.3g, \"max_outer_residual\": %.3g, "
@@ -839,7 +841,7 @@ static int run_cmd(int argc, char **argv)
                st.duplicate_nodes, t.comm, t.msgs_out, t.msgs_in, t.piped, t.over_budget, t.max_frame,
                t.overlaps,
                island_split, t.solves, t.split, t.blocks, t.shared, t.pivots, t.max_pivots, t.staggered,
-               t.split_fb, t.block_fb, t.nan, t.inelastic, t.unconverged, t.max_sweeps, t.residual,
+               t.refused, t.split_fb, t.block_fb, t.nan, t.inelastic, t.unconverged, t.max_sweeps, t.residual,
                t.outer_residual, t.substeps, t.max_substeps,
                o.toi_mode == SC_TOI_LOCAL ? "local" : "world", t.backups, t.max_backups, t.spec,
                hash,
@@ -872,9 +874,10 @@ static int run_cmd(int argc, char **argv)
                "contacts %ld\n",
                o.toi_mode == SC_TOI_LOCAL ? "local" : "world",
                t.frames ? (double)t.backups / (double)t.frames : 0.0, t.max_backups, t.spec);
-        printf("  fallbacks: staggered friction %ld, blocks after staggered %ld, projected "
-               "Gauss-Seidel blocks %ld, non-finite islands %ld, inelastic re-solves %ld\n",
-               t.staggered, t.split_fb, t.block_fb, t.nan, t.inelastic);
+        printf("  fallbacks: staggered friction %ld (%ld of them answers refused for adding "
+               "energy), blocks after staggered %ld, projected Gauss-Seidel blocks %ld, "
+               "non-finite islands %ld, inelastic re-solves %ld\n",
+               t.staggered, t.refused, t.split_fb, t.block_fb, t.nan, t.inelastic);
         printf("  work units %ld", t.units);
         if (o.cluster)
             printf(", from daemons %ld, recomputed %ld, late %ld, dropped messages %ld",

@@ -933,6 +933,7 @@ static int solve_rows(sc_arena *arena, sc_body *bodies, row *rows, int nrows,
              * bolt wedged in a nut's hole: near-opposed normals squeezing
              * with hundreds of N s, friction bounded by them): an LCP
              * answer, but not physics; the staggered solve cannot do it */
+            info->energy_refused++;
             rc = SC_ENUMERIC;
         }
         if (rc == SC_OK) {

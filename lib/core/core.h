@@ -204,6 +204,9 @@ typedef struct sc_solve_info {
     int nan_islands;                /* islands with non-finite data: no impulse */
     int inelastic;                  /* islands whose elastic answer added energy:
                                        solved again with e = 0 */
+    int energy_refused;             /* of failures, coupled friction answers the
+                                       solver found but that added kinetic
+                                       energy (refused, solved staggered) */
     int sweeps_max;                 /* most outer sweeps of one split island */
     int unconverged;                /* split islands that stopped at max_sweeps */
     int diverged;                   /* split islands whose sweeps diverged (ended
