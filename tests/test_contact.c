@@ -29,6 +29,8 @@ typedef struct stack {
     sc_body *bodies;          /* u* (gravity applied), as a substep has them */
     sc_contact *c;
     int *ci;
+    sc_body *out[2];          /* room for two solves' bodies and contacts */
+    sc_contact *cout[2];
 } stack;
 
 static sc_world *stack_world(void)
@@ -69,6 +71,11 @@ static void capture(stack *s, sc_world *w, int frames)
     s->c = malloc((size_t)s->nc * sizeof *s->c);
     s->ci = malloc((size_t)s->nc * sizeof *s->ci);
     assert_true(s->bodies && s->c && s->ci);
+    for (int k = 0; k < 2; k++) {
+        s->out[k] = malloc((size_t)s->nb * sizeof *s->out[k]);
+        s->cout[k] = malloc((size_t)s->nc * sizeof *s->cout[k]);
+        assert_true(s->out[k] && s->cout[k]);
+    }
     memcpy(s->c, st->contacts, (size_t)s->nc * sizeof *s->c);
     for (int k = 0; k < s->nc; k++)
         s->ci[k] = k;
@@ -104,6 +111,10 @@ static void pile_make(stack *s)
 
 static void stack_free(stack *s)
 {
+    for (int k = 0; k < 2; k++) {
+        free(s->cout[k]);
+        free(s->out[k]);
+    }
     free(s->ci);
     free(s->c);
     free(s->bodies);
@@ -151,9 +162,8 @@ static void test_each_fallback_is_taken_counted_and_physical(void **state)
     (void)state;
     stack s;
     stack_make(&s);
-    sc_body *out = malloc((size_t)s.nb * sizeof *out);
-    sc_contact *cout = malloc((size_t)s.nc * sizeof *cout);
-    assert_true(out && cout);
+    sc_body *out = s.out[0];
+    sc_contact *cout = s.cout[0];
     const double weight = LAYERS * 1.0 * 9.81 * H;
     sc_contact_params base = sc_frame_contact_params(&s.w->fcfg);
     sc_solve_info info;
@@ -207,8 +217,6 @@ static void test_each_fallback_is_taken_counted_and_physical(void **state)
         assert_memory_equal(out[i].v, s.bodies[i].v, sizeof out[i].v);
     for (int k = 0; k < s.nc; k++)
         assert_true(cout[k].impulse[0] == 0 && cout[k].impulse[1] == 0 && cout[k].impulse[2] == 0);
-    free(cout);
-    free(out);
     stack_free(&s);
 }
 
@@ -219,9 +227,8 @@ static void test_split_island_agrees_with_the_exact_one(void **state)
     (void)state;
     stack s;
     stack_make(&s);
-    sc_body *ex = malloc((size_t)s.nb * sizeof *ex), *sp = malloc((size_t)s.nb * sizeof *sp);
-    sc_contact *cex = malloc((size_t)s.nc * sizeof *cex), *csp = malloc((size_t)s.nc * sizeof *csp);
-    assert_true(ex && sp && cex && csp);
+    sc_body *ex = s.out[0], *sp = s.out[1];
+    sc_contact *cex = s.cout[0], *csp = s.cout[1];
     sc_contact_params p = sc_frame_contact_params(&s.w->fcfg);
     sc_solve_info ie, is;
     p.split_contacts = 0;
@@ -247,7 +254,6 @@ static void test_split_island_agrees_with_the_exact_one(void **state)
      * times the velocity error allowed above */
     assert_true(fabs(floor_impulse(cex, s.nc) - floor_impulse(csp, s.nc)) <
                 LAYERS * 1.0 * 5 * p.tol);
-    free(csp), free(cex), free(sp), free(ex);
     stack_free(&s);
 }
 
@@ -303,9 +309,8 @@ static void test_blocks_of_a_colour_give_the_same_bits_in_any_order_or_thread(vo
     (void)state;
     stack s;
     pile_make(&s);
-    sc_body *b0 = malloc((size_t)s.nb * sizeof *b0), *b1 = malloc((size_t)s.nb * sizeof *b1);
-    sc_contact *c0 = malloc((size_t)s.nc * sizeof *c0), *c1 = malloc((size_t)s.nc * sizeof *c1);
-    assert_true(b0 && b1 && c0 && c1);
+    sc_body *b0 = s.out[0], *b1 = s.out[1];
+    sc_contact *c0 = s.cout[0], *c1 = s.cout[1];
     sc_contact_params p = sc_frame_contact_params(&s.w->fcfg);
     sc_solve_info i0, i1;
     solve_copy(&s, &p, &i0, b0, c0);
@@ -330,7 +335,6 @@ static void test_blocks_of_a_colour_give_the_same_bits_in_any_order_or_thread(vo
         sc_arena_destroy(&r.arena[1]);
         sc_arena_destroy(&r.arena[0]);
     }
-    free(c1), free(c0), free(b1), free(b0);
     stack_free(&s);
 }
 
@@ -349,17 +353,12 @@ static void test_resting_contacts_keep_their_impulses(void **state)
     assert_true(fabs(floor_impulse(got, n) - weight) < 0.02 * weight);
     /* matched, not recomputed: the contacts the solve starts from carry it */
     assert_true(fabs(floor_impulse(s.c, s.nc) - weight) < 0.02 * weight);
-    sc_body *out = malloc((size_t)s.nb * sizeof *out);
-    sc_contact *cout = malloc((size_t)s.nc * sizeof *cout);
-    assert_true(out && cout);
     sc_contact_params p = sc_frame_contact_params(&s.w->fcfg);
     sc_solve_info warm, cold;
-    solve_copy(&s, &p, &warm, out, cout);
+    solve_copy(&s, &p, &warm, s.out[0], s.cout[0]);
     p.cold = 1;
-    solve_copy(&s, &p, &cold, out, cout);
+    solve_copy(&s, &p, &cold, s.out[0], s.cout[0]);
     assert_true(warm.pivots < cold.pivots);
-    free(cout);
-    free(out);
     stack_free(&s);
 }
 
@@ -408,8 +407,7 @@ static void test_a_pinched_elastic_body_is_not_thrown(void **state)
     sc_solve_info info;
     sc_arena a;
     sc_arena_init(&a);
-    sc_body *out = malloc((size_t)s.nb * sizeof *out);
-    assert_non_null(out);
+    sc_body *out = s.out[0];
     double ke0 = box_energy(b);
     /* one contact: an elastic bounce */
     memcpy(out, s.bodies, (size_t)s.nb * sizeof *out);
@@ -431,7 +429,6 @@ static void test_a_pinched_elastic_body_is_not_thrown(void **state)
     assert_true(ke <= ke0);
     for (int k = 0; k < 3; k++)
         assert_true(isfinite(out[1].v[k]) && isfinite(out[1].w[k]));
-    free(out);
     sc_arena_destroy(&a);
     stack_free(&s);
 }
