@@ -166,7 +166,7 @@ typedef struct result {
     double vmax, wmax;           /* fastest body at the last frame, m/s and rad/s */
     /* simcluster's contact solver over the run (sc_stats, every frame) */
     long frames;                 /* frames stepped without error */
-    long solves, split, blocks, shared, unconverged, substeps, backups, spec, refused;
+    long solves, split, blocks, shared, unconverged, substeps, backups, spec, refused, rscaled;
     long fallbacks, split_fallbacks, block_fallbacks, nan_islands, regularised;
     int sweeps_max;
     double outer_res, exact_res; /* largest of any frame, m/s */
@@ -599,6 +599,7 @@ static void solver_add(result *r, const sc_stats *st)
     r->spec += st->spec_contacts;
     r->fallbacks += st->lcp_fallbacks;
     r->refused += st->lcp_energy_refused;
+    r->rscaled += st->lcp_restitution_scaled;
     r->split_fallbacks += st->lcp_split_fallbacks;
     r->block_fallbacks += st->lcp_block_fallbacks;
     r->nan_islands += st->lcp_nan_islands;
@@ -782,13 +783,13 @@ static void print_solver(int eng, const result *r)
            "%ld block solves (%ld by helping threads), %ld unconverged, sweeps max %d, "
            "outer residual max %.3g m/s, exact residual max "
            "%.3g m/s; fallbacks: staggered %ld (%ld refused for adding energy), blocks %ld, block PGS %ld, NaN islands %ld, "
-           "regularised %ld; substeps %.3f a frame, back-ups %.3f a frame (summed over "
+           "regularised %ld, restitution scaled down %ld; substeps %.3f a frame, back-ups %.3f a frame (summed over "
            "motion groups), speculative contacts %ld\n",
            eng_name[eng], r->frames, r->solves, r->split,
            r->solves ? 100.0 * (double)r->split / (double)r->solves : 0.0, r->blocks, r->shared,
            r->unconverged,
            r->sweeps_max, r->outer_res, r->exact_res, r->fallbacks, r->refused, r->split_fallbacks,
-           r->block_fallbacks, r->nan_islands, r->regularised,
+           r->block_fallbacks, r->nan_islands, r->regularised, r->rscaled,
            (double)r->substeps / (double)r->frames, (double)r->backups / (double)r->frames,
            r->spec);
 }

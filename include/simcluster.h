@@ -329,8 +329,12 @@ typedef struct sc_stats {
                                  once): solved again with e = 0 */
     int lcp_energy_refused;   /* of lcp_fallbacks, coupled friction answers
                                  the solver found but refused because they
-                                 added kinetic energy (the rest: the solver
-                                 failed) */
+                                 added kinetic energy of their own (the
+                                 rest: the solver failed) */
+    int lcp_restitution_scaled; /* coupled friction answers whose restitution
+                                 at several contacts at once added energy:
+                                 solved again with the bounce scaled down
+                                 (to none at most), no fallback */
     double lcp_residual;      /* largest complementarity error of an exact
                                  solve (w_i z_i etc., m/s), last frame */
     double lcp_outer_residual;/* largest outer residual of a split solve, m/s */

@@ -168,6 +168,7 @@ static uint64_t run(sc_world *w, daemon_thread *d, int stop_at, sc_stats *sum)
         sum->lcp_unconverged += st.lcp_unconverged;
         sum->lcp_fallbacks += st.lcp_fallbacks;
         sum->lcp_energy_refused += st.lcp_energy_refused;
+        sum->lcp_restitution_scaled += st.lcp_restitution_scaled;
         sum->lcp_regularised += st.lcp_regularised;
         if (st.lcp_sweeps_max > sum->lcp_sweeps_max)
             sum->lcp_sweeps_max = st.lcp_sweeps_max;
@@ -283,6 +284,7 @@ static void test_split_islands_on_daemons_give_the_same_bits(void **state)
     assert_int_equal(sum.lcp_unconverged, ls.lcp_unconverged);
     assert_int_equal(sum.lcp_fallbacks, ls.lcp_fallbacks);
     assert_int_equal(sum.lcp_energy_refused, ls.lcp_energy_refused);
+    assert_int_equal(sum.lcp_restitution_scaled, ls.lcp_restitution_scaled);
     assert_int_equal(sum.lcp_regularised, ls.lcp_regularised);
     assert_int_equal(sum.lcp_sweeps_max, ls.lcp_sweeps_max);
     assert_memory_equal(&sum.lcp_residual, &ls.lcp_residual, sizeof ls.lcp_residual);

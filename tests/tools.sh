@@ -88,14 +88,15 @@ import json, sys
 r = json.load(open(sys.argv[1]))["solver"]
 ok = (r["island_split"] == 16 and r["split"] > 0 and r["blocks"] > 0 and r["solves"] >= r["split"]
       and r["max_outer_residual"] >= 0 and r["substeps"] >= 20 and r["nan_islands"] == 0 and r["inelastic_islands"] >= 0
-      and 0 <= r["blocks_shared"] <= r["blocks"] and 0 <= r["energy_refused"] <= r["staggered_fallbacks"])
+      and 0 <= r["blocks_shared"] <= r["blocks"] and 0 <= r["energy_refused"] <= r["staggered_fallbacks"]
+      and r["restitution_scaled"] >= 0)
 sys.exit(not ok)
 PY
 check "run --island-split 0" 0 "$tool" run "$dir/heap.scene" --frames 5 --island-split 0
 grep -q "split into blocks 0," "$dir/out" || { echo "FAIL: --island-split 0 split"; cat "$dir/out"; fail=1; }
 grep -q "^  LCP residual at most [0-9.e+-]* m/s (exact)" "$dir/out" ||
     { echo "FAIL: run: no LCP residual line"; cat "$dir/out"; fail=1; }
-grep -q "^  fallbacks: staggered friction [0-9]* ([0-9]* of them answers refused for adding energy), blocks after staggered [0-9]*, projected Gauss-Seidel blocks [0-9]*, non-finite islands 0, inelastic re-solves [0-9]*$" "$dir/out" ||
+grep -q "^  fallbacks: staggered friction [0-9]* ([0-9]* of them answers refused for adding energy), blocks after staggered [0-9]*, projected Gauss-Seidel blocks [0-9]*, non-finite islands 0, inelastic re-solves [0-9]*, restitution scaled down [0-9]*$" "$dir/out" ||
     { echo "FAIL: run: no fallbacks line"; cat "$dir/out"; fail=1; }
 # the dense pile: islands split into blocks, the same bits on 1 and 3 threads
 check "run bin, one worker" 0 "$tool" run bin --bodies 40 --frames 120 --workers 1 --json

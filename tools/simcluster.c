@@ -569,7 +569,7 @@ typedef struct totals {
     long duplicates;            /* duplicate daemon ids reported so far */
     /* the contact solver, summed (or the largest) over the frames */
     long solves, split, blocks, shared, pivots, staggered, refused, split_fb, block_fb, nan;
-    long inelastic;
+    long inelastic, rscaled;
     long unconverged;
     long substeps, max_pivots, backups, spec;
     int max_sweeps, max_substeps, max_backups;
@@ -658,6 +658,7 @@ static int simulate(const options *o, sc_world *w, totals *t, int progress, reco
         t->max_pivots = st.lcp_pivots > t->max_pivots ? st.lcp_pivots : t->max_pivots;
         t->staggered += st.lcp_fallbacks;
         t->refused += st.lcp_energy_refused;
+        t->rscaled += st.lcp_restitution_scaled;
         t->split_fb += st.lcp_split_fallbacks;
         t->block_fb += st.lcp_block_fallbacks;
         t->nan += st.lcp_nan_islands;
@@ -827,6 +828,7 @@ static int run_cmd(int argc, char **argv)
                "\"blocks\": %ld, \"blocks_shared\": %ld, \"pivots\": %ld, \"max_frame_pivots\": %ld, "
                "\"staggered_fallbacks\": %ld, \"energy_refused\": %ld, \"split_fallbacks\": %ld, "
                "\"block_fallbacks\": %ld, \"nan_islands\": %ld, \"inelastic_islands\": %ld, "
+               "\"restitution_scaled\": %ld, "
                "\"unconverged\": %ld, "
                "\"max_sweeps\": %d, \"max_residual\": %.3g, \"max_outer_residual\": %.3g, "
                "\"substeps\": %ld, \"max_substeps\": %d}, "
@@ -841,7 +843,8 @@ static int run_cmd(int argc, char **argv)
                st.duplicate_nodes, t.comm, t.msgs_out, t.msgs_in, t.piped, t.over_budget, t.max_frame,
                t.overlaps,
                island_split, t.solves, t.split, t.blocks, t.shared, t.pivots, t.max_pivots, t.staggered,
-               t.refused, t.split_fb, t.block_fb, t.nan, t.inelastic, t.unconverged, t.max_sweeps, t.residual,
+               t.refused, t.split_fb, t.block_fb, t.nan, t.inelastic, t.rscaled, t.unconverged,
+               t.max_sweeps, t.residual,
                t.outer_residual, t.substeps, t.max_substeps,
                o.toi_mode == SC_TOI_LOCAL ? "local" : "world", t.backups, t.max_backups, t.spec,
                hash,
@@ -876,8 +879,8 @@ static int run_cmd(int argc, char **argv)
                t.frames ? (double)t.backups / (double)t.frames : 0.0, t.max_backups, t.spec);
         printf("  fallbacks: staggered friction %ld (%ld of them answers refused for adding "
                "energy), blocks after staggered %ld, projected Gauss-Seidel blocks %ld, "
-               "non-finite islands %ld, inelastic re-solves %ld\n",
-               t.staggered, t.refused, t.split_fb, t.block_fb, t.nan, t.inelastic);
+               "non-finite islands %ld, inelastic re-solves %ld, restitution scaled down %ld\n",
+               t.staggered, t.refused, t.split_fb, t.block_fb, t.nan, t.inelastic, t.rscaled);
         printf("  work units %ld", t.units);
         if (o.cluster)
             printf(", from daemons %ld, recomputed %ld, late %ld, dropped messages %ld",

@@ -198,24 +198,64 @@ static int solve(sc_arena *a, int n, double *A, const double *q, const double *l
     return rc;
 }
 
-/* Whether impulses z change the island's kinetic energy by more than
- * rounding upwards: with row speeds s = q - off (J u*), the change is
- * z.s + z.A z / 2. A normal-only or a boxed LCP answer never adds energy
- * (z.w = 0 makes it -z.A z / 2); a coupled friction answer can. */
+/* Whether a coupled friction answer z adds kinetic energy, and whose. With
+ * row speeds s = q - off (J u*) and w = A z + q, applying z changes the
+ * kinetic energy by z.s + z.A z / 2 = (z.w - z.A z / 2) - z.off. The
+ * first part is the answer's own and is never positive for an exact one:
+ * z.w = 0 on normals and free friction rows, and a friction row at its
+ * bound opposes its sliding (z_t w_t <= 0); a positive one is rounding
+ * grown large (a bolt wedged in a nut: 550 N s of squeeze and 16 m/s out),
+ * not physics: ENERGY_OWN. The second is the targets': Newton's
+ * restitution at several contacts at once can add energy (ENERGY_TARGETS).
+ * A normal-only or a boxed LCP answer adds none of its own. */
+enum { ENERGY_NONE, ENERGY_TARGETS, ENERGY_OWN };
 static int adds_energy(const double *A, int n, const double *q, const double *off,
                        const double *z)
 {
-    double lin = 0, quad = 0;
+    double zw = 0, quad = 0, zoff = 0;
     for (int i = 0; i < n; i++) {
         if (z[i] == 0)
             continue;
         double az = 0;
         for (int j = 0; j < n; j++)
             az += A[i * n + j] * z[j];
-        lin += z[i] * (q[i] - off[i]);
+        zw += z[i] * (az + q[i]);
         quad += 0.5 * z[i] * az;
+        zoff += z[i] * off[i];
     }
-    return lin + quad > 1e-6 * (fabs(lin) + quad) + 1e-12;
+    if (zw - quad > 1e-6 * (fabs(zw) + quad) + 1e-12)
+        return ENERGY_OWN;
+    double lin = zw - 2 * quad - zoff;    /* z.s */
+    return lin + quad > 1e-6 * (fabs(lin) + quad) + 1e-12 ? ENERGY_TARGETS : ENERGY_NONE;
+}
+
+/* A coupled friction answer whose restitution targets add energy: solved
+ * again with the targets (the negative offsets, -e times an approach)
+ * scaled by 1/2, 1/4 and 0 until it adds none. Keeps the coupling of
+ * friction and normals that the staggered fallback loses, and the bounce
+ * as large as the energy allows. q, off, z, w: the island's (z and w get
+ * the new answer); ENERGY_NONE when one was found. */
+static int scale_restitution(sc_arena *arena, int n, double *A, const double *q,
+                             const double *off, const double *lo, const double *hi,
+                             const int *findex, const double *mu, double *z, double *w,
+                             sc_solve_info *info)
+{
+    static const double scale[] = { 0.5, 0.25, 0 };
+    double *q2 = sc_arena_alloc(arena, 2 * (size_t)n * sizeof *q2);
+    if (!q2)
+        return ENERGY_TARGETS;
+    double *off2 = q2 + n;
+    int kind = ENERGY_TARGETS;
+    for (size_t t = 0; t < sizeof scale / sizeof scale[0] && kind == ENERGY_TARGETS; t++) {
+        for (int i = 0; i < n; i++) {
+            off2[i] = off[i] < 0 ? scale[t] * off[i] : off[i];
+            q2[i] = q[i] - off[i] + off2[i];
+        }
+        int rc = solve(arena, n, A, q2, lo, hi, findex, mu, z, w, info, 0);
+        kind = rc == SC_OK ? adds_energy(A, n, q2, off2, z) : ENERGY_OWN;
+    }
+    sc_arena_free(arena, q2);
+    return kind;
 }
 
 /* Move a movable body by h times a pseudo velocity (6: linear, angular). */
@@ -928,11 +968,17 @@ static int solve_rows(sc_arena *arena, sc_body *bodies, row *rows, int nrows,
         rc = solve(arena, nrows, A, q, lo, hi, friction ? findex : NULL, mu, z, w, info,
                    (warm && nc > WARM_MIN_CONTACTS && !p->cold ? SOLVE_WARM : 0) |
                        (p->inject & SC_INJECT_COUPLED ? SOLVE_FAIL : 0));
-        if (rc == SC_OK && friction && adds_energy(A, nrows, q, off, z)) {
-            /* a coupled friction answer that adds kinetic energy (seen on a
-             * bolt wedged in a nut's hole: near-opposed normals squeezing
-             * with hundreds of N s, friction bounded by them): an LCP
-             * answer, but not physics; the staggered solve cannot do it */
+        int gain = rc == SC_OK && friction ? adds_energy(A, nrows, q, off, z) : ENERGY_NONE;
+        if (gain == ENERGY_TARGETS) {
+            gain = scale_restitution(arena, nrows, A, q, off, lo, hi, findex, mu, z, w, info);
+            info->restitution_scaled += gain == ENERGY_NONE;
+        }
+        if (gain != ENERGY_NONE) {
+            /* a coupled friction answer that adds kinetic energy of its
+             * own (seen on a bolt wedged in a nut's hole: near-opposed
+             * normals squeezing with hundreds of N s, friction bounded by
+             * them): an LCP answer, but not physics; the staggered solve
+             * cannot do it */
             info->energy_refused++;
             rc = SC_ENUMERIC;
         }

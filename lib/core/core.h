@@ -207,6 +207,9 @@ typedef struct sc_solve_info {
     int energy_refused;             /* of failures, coupled friction answers the
                                        solver found but that added kinetic
                                        energy (refused, solved staggered) */
+    int restitution_scaled;         /* coupled friction answers whose
+                                       restitution targets added energy,
+                                       solved again with them scaled down */
     int sweeps_max;                 /* most outer sweeps of one split island */
     int unconverged;                /* split islands that stopped at max_sweeps */
     int diverged;                   /* split islands whose sweeps diverged (ended

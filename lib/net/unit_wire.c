@@ -74,7 +74,7 @@
 #include "unit_wire.h"
 
 #define WIRE_VERSION 7       /* 6: island units carry impact_first, results inelastic, v0, w0;
-                                7: results carry energy_refused */
+                                7: results carry energy_refused, restitution_scaled */
 #define MAGIC_UNIT 0x55574353u        /* "SCWU" */
 #define MAGIC_RESULT 0x52574353u      /* "SCWR" */
 #define MAX_PAIRS (1 << 16)
@@ -835,7 +835,7 @@ void sc_wire_unit_free(sc_wire_unit *wu)
  * field added there must be added here; test_unit_wire compares whole
  * infos of a local and a remote run), and pivots. blocks_shared stays
  * home: a daemon's island shares no blocks. */
-#define INFO_INTS 16
+#define INFO_INTS 17
 
 static void info_ints(sc_solve_info *info, int *f[INFO_INTS])
 {
@@ -844,7 +844,8 @@ static void info_ints(sc_solve_info *info, int *f[INFO_INTS])
                           &info->blocks,          &info->block_fallbacks,
                           &info->nan_islands,     &info->sweeps_max,  &info->unconverged,
                           &info->solves,          &info->diverged,    &info->cold_starts,
-                          &info->inelastic,       &info->energy_refused };
+                          &info->inelastic,       &info->energy_refused,
+                          &info->restitution_scaled };
     memcpy(f, p, sizeof p);
 }
 
@@ -882,7 +883,7 @@ static void get_info(rbuf *r, sc_solve_info *info)
 #define STAT_F64 (SC_STAGE_COUNT + 6)
 #define STAT_LONGS 6
 #define STAT_SIZES 2
-#define STAT_INTS 20
+#define STAT_INTS 21
 
 typedef struct stat_ptrs {
     double *d[STAT_F64];
@@ -906,7 +907,8 @@ static void stat_fields(sc_stats *s, stat_ptrs *p)
                           &s->lcp_regularised, &s->lcp_split_fallbacks, &s->lcp_nan_islands,
                           &s->substeps,       &s->backups,          &s->backup_regions,
                           &s->backup_bodies,  &s->spec_contacts,    &s->spec_rounds,
-                          &s->lcp_inelastic,  &s->lcp_energy_refused };
+                          &s->lcp_inelastic,  &s->lcp_energy_refused,
+                          &s->lcp_restitution_scaled };
     _Static_assert(sizeof d / sizeof d[0] == STAT_F64 - SC_STAGE_COUNT, "stat doubles");
     memcpy(&p->d[SC_STAGE_COUNT], d, sizeof d);
     memcpy(p->l, l, sizeof l);
