@@ -651,42 +651,54 @@ struct sc_block_batch {
     const blocks *bl;
     double *z, *u;
     int fail;
-    const int *list;          /* the blocks to solve */
+    const int *list;          /* the colour's blocks */
+    double skip;              /* a block this close to its answer is passed over */
     sc_solve_info *info;      /* per listed block */
     int *rc;                  /* per listed block */
 };
 
+/* Whether block k is close enough to its answer to be passed over in a
+ * sweep (its solve would move nothing that matters): it reads only its
+ * rows and its bodies, which no other block of its colour writes. */
+static int block_settled(const gs_problem *pb, const blocks *bl, const double *z,
+                         const double *u, int k, double skip)
+{
+    return rows_residual(pb, bl, z, u, bl->bstart[k], bl->bstart[k + 1]) <= skip;
+}
+
 void sc_block_run(sc_block_batch *b, int i, sc_arena *a, int helper)
 {
     memset(&b->info[i], 0, sizeof b->info[i]);
+    b->rc[i] = SC_OK;
+    if (block_settled(b->pb, b->bl, b->z, b->u, b->list[i], b->skip))
+        return;
     b->rc[i] = block_solve(a, b->pb, b->bl, b->list[i], b->z, b->u, &b->info[i], b->fail);
     b->info[i].blocks_shared = helper;
 }
 
 /* One colour of a sweep: its blocks that are not close enough already
- * (list: room for every block; binfo: with a runner), solved here or, with
- * a runner, wherever it runs them. Either way each block's solve sees the
- * same numbers, and the first error in block order is returned. */
+ * (binfo, brc: room for every block, with a runner), solved here or, with
+ * a runner, wherever it runs them (the closeness test too). Either way each
+ * block's solve sees the same numbers, and the first error in block order
+ * is returned. */
 static int colour_solve(sc_arena *a, const gs_problem *pb, const blocks *bl, int c, double *z,
                         double *u, int fail, double skip, const sc_block_runner *runner,
-                        int *list, sc_solve_info *binfo, int *brc, sc_solve_info *info)
+                        sc_solve_info *binfo, int *brc, sc_solve_info *info)
 {
-    int n = 0;
-    for (int j = bl->cstart[c]; j < bl->cstart[c + 1]; j++) {
-        int k = bl->order[j];
-        if (rows_residual(pb, bl, z, u, bl->bstart[k], bl->bstart[k + 1]) > skip)
-            list[n++] = k;
-    }
+    const int *list = &bl->order[bl->cstart[c]];
+    int n = bl->cstart[c + 1] - bl->cstart[c];
     int rc = SC_OK;
     if (!runner || n < 2) {
         for (int i = 0; i < n; i++) {
+            if (block_settled(pb, bl, z, u, list[i], skip))
+                continue;
             int r = block_solve(a, pb, bl, list[i], z, u, info, fail);
             rc = rc == SC_OK ? r : rc;
         }
         return rc;
     }
     sc_block_batch b = { .pb = pb, .bl = bl, .z = z, .u = u, .fail = fail, .list = list,
-                         .info = binfo, .rc = brc };
+                         .skip = skip, .info = binfo, .rc = brc };
     runner->run(runner->ctx, &b, n, a);
     for (int i = 0; i < n; i++) {
         block_info_add(info, &binfo[i]);
@@ -712,13 +724,11 @@ static int block_gs(sc_arena *a, const gs_problem *pb, const blocks *bl, double 
     size_t nbl = (size_t)bl->count;
     const sc_block_runner *runner = p->runner;
     double *zb = sc_arena_alloc(a, nz), *ub = zb ? sc_arena_alloc(a, nub) : NULL;
-    int *list = ub ? sc_arena_alloc(a, nbl * sizeof *list) : NULL;
-    sc_solve_info *binfo = list && runner ? sc_arena_alloc(a, nbl * sizeof *binfo) : NULL;
+    sc_solve_info *binfo = ub && runner ? sc_arena_alloc(a, nbl * sizeof *binfo) : NULL;
     int *brc = binfo ? sc_arena_alloc(a, nbl * sizeof *brc) : NULL;
-    if (!list || (runner && !brc)) {
+    if (!ub || (runner && !brc)) {
         sc_arena_free(a, brc);
         sc_arena_free(a, binfo);
-        sc_arena_free(a, list);
         sc_arena_free(a, ub);
         sc_arena_free(a, zb);
         return SC_ENOMEM;
@@ -731,8 +741,8 @@ static int block_gs(sc_arena *a, const gs_problem *pb, const blocks *bl, double 
     while (res > tol && sweeps < p->max_sweeps && rc == SC_OK) {
         for (int i = 0; i < bl->ncolours && rc == SC_OK; i++) {
             int c = sweeps % 2 == 0 ? i : bl->ncolours - 1 - i;
-            rc = colour_solve(a, pb, bl, c, z, u, fail, SKIP_SHARE * tol, runner, list, binfo,
-                              brc, info);
+            rc = colour_solve(a, pb, bl, c, z, u, fail, SKIP_SHARE * tol, runner, binfo, brc,
+                              info);
         }
         sweeps++;
         res = residual(pb, bl, z, u);
@@ -752,7 +762,6 @@ static int block_gs(sc_arena *a, const gs_problem *pb, const blocks *bl, double 
     }
     sc_arena_free(a, brc);
     sc_arena_free(a, binfo);
-    sc_arena_free(a, list);
     sc_arena_free(a, ub);
     sc_arena_free(a, zb);
     if (rc != SC_OK)
