@@ -18,10 +18,15 @@
  * Small islands (up to split_contacts contacts) are one exact LCP. Larger
  * ones, a pile, are split into blocks of whole pairs, each block an exact
  * Dantzig solve, iterated by block Gauss-Seidel from last solve's impulses
- * (warm start) until the outer residual is below tol. The same block
- * iteration is the last fallback of an exact island, and a block whose
- * Dantzig solve fails takes projected Gauss-Seidel: no island fails for
- * numerical reasons, and every fallback is counted (sc_solve_info).
+ * (warm start) until the outer residual is below tol; the blocks are
+ * coloured (no two of a colour share a moving body) and each colour's may
+ * go to a runner that shares them with idle threads, the same bits either
+ * way. The same block iteration is the last fallback of an exact island,
+ * and a block whose Dantzig solve fails takes projected Gauss-Seidel: no
+ * island fails for numerical reasons, and every fallback is counted
+ * (sc_solve_info). A coupled friction answer whose restitution at several
+ * contacts would add energy is solved again with the bounce scaled down
+ * (scale_restitution()); one that adds energy of its own is refused.
  *
  * Resting contacts keep a small penetration; deeper ones are pushed out by
  * a second, normal-only LCP on pseudo velocities (split impulse): positions

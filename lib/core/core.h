@@ -135,16 +135,15 @@ typedef struct sc_body {
                                        in this frame, 0: none this frame */
 } sc_body;
 
-/* Contact model constants (Baraff's velocity-level LCP, the paper's states)
- * and the solver's settings (docs/DESIGN.md section 11). */
 /* A split island's blocks of one colour (contact.c; no two share a
- * movable body), to be solved anywhere, in any order: each is solved by
- * sc_block_run() with scratch from the arena of whoever runs it, and
+ * movable body), to be solved anywhere, in any order: each is run by
+ * sc_block_run() with scratch from the arena of whoever runs it, reads and
  * writes only its own rows and its bodies' local velocities, so the result
  * is the same bits whoever ran which (docs/DESIGN.md 11, shared blocks). */
 typedef struct sc_block_batch sc_block_batch;
-/* Solve block i of the batch (0 <= i < its count) with scratch from a;
- * helper: 1 when a thread other than the island's solves it (counted). */
+/* Block i of the batch (0 <= i < its count): passed over when it is close
+ * enough to its answer, else solved with scratch from a; helper: 1 when a
+ * thread other than the island's runs it (counted). */
 void sc_block_run(sc_block_batch *b, int i, sc_arena *a, int helper);
 /* Runs blocks [0, count) of a batch (sc_block_run() on each, the calling
  * thread with arena a) and returns when all are done. */
@@ -153,6 +152,8 @@ typedef struct sc_block_runner {
     void *ctx;
 } sc_block_runner;
 
+/* Contact model constants (Baraff's velocity-level LCP, the paper's states)
+ * and the solver's settings (docs/DESIGN.md section 11). */
 typedef struct sc_contact_params {
     double bounce_speed;            /* m/s: approach faster = collision (restitution),
                                        slower = resting contact (e = 0) */
@@ -206,7 +207,8 @@ typedef struct sc_solve_info {
                                        solved again with e = 0 */
     int energy_refused;             /* of failures, coupled friction answers the
                                        solver found but that added kinetic
-                                       energy (refused, solved staggered) */
+                                       energy of their own (refused, solved
+                                       staggered) */
     int restitution_scaled;         /* coupled friction answers whose
                                        restitution targets added energy,
                                        solved again with them scaled down */
