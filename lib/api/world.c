@@ -260,7 +260,7 @@ SC_API double sc_world_energy(const sc_world *w)
 
 SC_API uint64_t sc_world_hash(const sc_world *w)
 {
-    uint64_t h = 0xcbf29ce484222325ULL;
+    uint64_t h = SC_FNV_OFFSET;
     if (!w)
         return h;
     for (int i = 0; i < w->st.nbodies; i++) {
@@ -270,12 +270,7 @@ SC_API uint64_t sc_world_hash(const sc_world *w)
         for (int p = 0; p < 4; p++)
             for (int k = 0; k < len[p]; k++) {
                 double d = parts[p][k] + 0.0;   /* -0 and 0 hash alike */
-                unsigned char bytes[sizeof d];
-                memcpy(bytes, &d, sizeof d);
-                for (size_t j = 0; j < sizeof d; j++) {
-                    h ^= bytes[j];
-                    h *= 0x100000001b3ULL;
-                }
+                h = sc_fnv1a(h, &d, sizeof d);
             }
     }
     return h;

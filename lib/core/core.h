@@ -22,6 +22,20 @@
 static inline double max_d(double a, double b) { return a >= b || (b != b && a == a) ? a : b; }
 static inline double min_d(double a, double b) { return a <= b || (b != b && a == a) ? a : b; }
 
+/* FNV-1a over n bytes at p, continuing from h (SC_FNV_OFFSET to start):
+ * shapes' content hashes, the world's state hash, the friction fixed
+ * point's cycle test. */
+#define SC_FNV_OFFSET 0xcbf29ce484222325ULL
+static inline uint64_t sc_fnv1a(uint64_t h, const void *p, size_t n)
+{
+    const unsigned char *c = p;
+    for (size_t i = 0; i < n; i++) {
+        h ^= c[i];
+        h *= 0x100000001b3ULL;
+    }
+    return h;
+}
+
 /* Internal invariants only, never bad input (that gets an SC_E* code). */
 #define SC_ASSERT(c) assert(c)
 

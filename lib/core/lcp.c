@@ -1106,19 +1106,8 @@ static int friction_polish(work *wk, const double *q, const int *findex,
  * Fixed point on them (round 0 with the normals at 0, i.e. frictionless),
  * each round a full pivoting pass with fixed bounds, then an exact polish
  * with that round's sets; SC_OK as soon as one satisfies the bounds it
- * implies, SC_EMAXITER after LCP_FRICTION_ROUNDS. */
-/* FNV-1a of a round's answer, bit for bit. */
-static uint64_t answer_hash(const double *z, int n)
-{
-    uint64_t h = 1469598103934665603ULL;
-    const unsigned char *b = (const unsigned char *)z;
-    for (size_t k = 0; k < (size_t)n * sizeof *z; k++) {
-        h ^= b[k];
-        h *= 1099511628211ULL;
-    }
-    return h;
-}
-
+ * implies, SC_EMAXITER after LCP_FRICTION_ROUNDS or once a round repeats an
+ * earlier one (a cycle). */
 static int solve_friction(work *wk, const double *q, const double *lo, const double *hi,
                           const int *findex, const double *mu, int start, double *z,
                           double *w, double *residual)
@@ -1149,7 +1138,7 @@ static int solve_friction(work *wk, const double *q, const double *lo, const dou
             verify_coupled(wk, q, lo, hi, findex, mu, z, w, residual, 0))
             return SC_OK;
         memcpy(z, zprev, (size_t)n * sizeof(double));
-        seen[round] = answer_hash(z, n);
+        seen[round] = sc_fnv1a(SC_FNV_OFFSET, z, (size_t)n * sizeof *z);
         int cycle = 0;
         for (int r = 0; r < round && !cycle; r++)
             cycle = seen[r] == seen[round];

@@ -43,32 +43,22 @@ static void shape_free(sc_shape *s)
     free(s);
 }
 
-static uint64_t fnv1a(uint64_t h, const void *p, size_t n)
-{
-    const unsigned char *c = p;
-    for (size_t i = 0; i < n; i++) {
-        h ^= c[i];
-        h *= 0x100000001b3ULL;
-    }
-    return h;
-}
-
 /* Content hash: equal shapes hash equal on every machine (cluster cache). */
 static void shape_hash(sc_shape *s)
 {
-    uint64_t h = 0xcbf29ce484222325ULL;
-    h = fnv1a(h, &s->kind, sizeof s->kind);
-    h = fnv1a(h, &s->radius, sizeof s->radius);
-    h = fnv1a(h, s->half, sizeof s->half);
-    h = fnv1a(h, s->plane, sizeof s->plane);
+    uint64_t h = SC_FNV_OFFSET;
+    h = sc_fnv1a(h, &s->kind, sizeof s->kind);
+    h = sc_fnv1a(h, &s->radius, sizeof s->radius);
+    h = sc_fnv1a(h, s->half, sizeof s->half);
+    h = sc_fnv1a(h, s->plane, sizeof s->plane);
     if (s->xyz) {
-        h = fnv1a(h, s->xyz, (size_t)s->nverts * 3 * sizeof *s->xyz);
-        h = fnv1a(h, s->tri, (size_t)s->ntris * 3 * sizeof *s->tri);
+        h = sc_fnv1a(h, s->xyz, (size_t)s->nverts * 3 * sizeof *s->xyz);
+        h = sc_fnv1a(h, s->tri, (size_t)s->ntris * 3 * sizeof *s->tri);
     }
     if (s->npieces > 0) {     /* shapes without pieces keep their hashes */
-        h = fnv1a(h, &s->npieces, sizeof s->npieces);
-        h = fnv1a(h, s->piece_count, (size_t)s->npieces * sizeof *s->piece_count);
-        h = fnv1a(h, s->piece_pts, (size_t)s->npiece_pts * 3 * sizeof *s->piece_pts);
+        h = sc_fnv1a(h, &s->npieces, sizeof s->npieces);
+        h = sc_fnv1a(h, s->piece_count, (size_t)s->npieces * sizeof *s->piece_count);
+        h = sc_fnv1a(h, s->piece_pts, (size_t)s->npiece_pts * 3 * sizeof *s->piece_pts);
     }
     s->hash = h;
 }
