@@ -682,29 +682,24 @@ void sc_block_run(sc_block_batch *b, int i, sc_arena *a, int helper)
 }
 
 /* One colour of a sweep: its blocks that are not close enough already
- * (binfo, brc: room for every block, with a runner), solved here or, with
- * a runner, wherever it runs them (the closeness test too). Either way each
- * block's solve sees the same numbers, and the first error in block order
- * is returned. */
+ * (binfo, brc: room for every block), solved here one after another or,
+ * with a runner, wherever it runs them (the closeness test too). Either way
+ * each block's solve sees the same numbers, and the first error in block
+ * order is returned. */
 static int colour_solve(sc_arena *a, const gs_problem *pb, const blocks *bl, int c, double *z,
                         double *u, int fail, double skip, const sc_block_runner *runner,
                         sc_solve_info *binfo, int *brc, sc_solve_info *info)
 {
-    const int *list = &bl->order[bl->cstart[c]];
     int n = bl->cstart[c + 1] - bl->cstart[c];
+    sc_block_batch b = { .pb = pb, .bl = bl, .z = z, .u = u, .fail = fail,
+                         .list = &bl->order[bl->cstart[c]], .skip = skip, .info = binfo,
+                         .rc = brc };
+    if (runner && n >= 2)
+        runner->run(runner->ctx, &b, n, a);
+    else
+        for (int i = 0; i < n; i++)
+            sc_block_run(&b, i, a, 0);
     int rc = SC_OK;
-    if (!runner || n < 2) {
-        for (int i = 0; i < n; i++) {
-            if (block_settled(pb, bl, z, u, list[i], skip))
-                continue;
-            int r = block_solve(a, pb, bl, list[i], z, u, info, fail);
-            rc = rc == SC_OK ? r : rc;
-        }
-        return rc;
-    }
-    sc_block_batch b = { .pb = pb, .bl = bl, .z = z, .u = u, .fail = fail, .list = list,
-                         .skip = skip, .info = binfo, .rc = brc };
-    runner->run(runner->ctx, &b, n, a);
     for (int i = 0; i < n; i++) {
         block_info_add(info, &binfo[i]);
         rc = rc == SC_OK ? brc[i] : rc;
@@ -729,9 +724,9 @@ static int block_gs(sc_arena *a, const gs_problem *pb, const blocks *bl, double 
     size_t nbl = (size_t)bl->count;
     const sc_block_runner *runner = p->runner;
     double *zb = sc_arena_alloc(a, nz), *ub = zb ? sc_arena_alloc(a, nub) : NULL;
-    sc_solve_info *binfo = ub && runner ? sc_arena_alloc(a, nbl * sizeof *binfo) : NULL;
+    sc_solve_info *binfo = ub ? sc_arena_alloc(a, nbl * sizeof *binfo) : NULL;
     int *brc = binfo ? sc_arena_alloc(a, nbl * sizeof *brc) : NULL;
-    if (!ub || (runner && !brc)) {
+    if (!brc) {
         sc_arena_free(a, brc);
         sc_arena_free(a, binfo);
         sc_arena_free(a, ub);
