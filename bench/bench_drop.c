@@ -781,10 +781,10 @@ static void print_solver(int eng, const result *r)
     }
     printf("        %s solver: %ld frames, %ld island solves, %ld split (%.1f %%), "
            "%ld block solves (%ld by helping threads), %ld unconverged, sweeps max %d, "
-           "outer residual max %.3g m/s, exact residual max "
-           "%.3g m/s; fallbacks: staggered %ld (%ld refused for adding energy), blocks %ld, block PGS %ld, NaN islands %ld, "
-           "regularised %ld, restitution scaled down %ld; substeps %.3f a frame, back-ups %.3f a frame (summed over "
-           "motion groups), speculative contacts %ld\n",
+           "outer residual max %.3g m/s, exact residual max %.3g m/s; fallbacks: staggered "
+           "%ld (%ld refused for adding energy), blocks %ld, block PGS %ld, NaN islands %ld, "
+           "regularised %ld, restitution scaled down %ld; substeps %.3f a frame, back-ups "
+           "%.3f a frame (summed over motion groups), speculative contacts %ld\n",
            eng_name[eng], r->frames, r->solves, r->split,
            r->solves ? 100.0 * (double)r->split / (double)r->solves : 0.0, r->blocks, r->shared,
            r->unconverged,

@@ -569,8 +569,7 @@ typedef struct totals {
     long duplicates;            /* duplicate daemon ids reported so far */
     /* the contact solver, summed (or the largest) over the frames */
     long solves, split, blocks, shared, pivots, staggered, refused, split_fb, block_fb, nan;
-    long inelastic, rscaled;
-    long unconverged;
+    long inelastic, rscaled, unconverged;
     long substeps, max_pivots, backups, spec;
     int max_sweeps, max_substeps, max_backups;
     double residual, outer_residual;
