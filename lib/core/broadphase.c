@@ -554,6 +554,19 @@ static int find_slot(const bp_slot *sl, int s0, int s1, double x)
     return s0;
 }
 
+/* The same slot as find_slot(), walked from c, the answer for the last
+ * body of the same row: the bodies of a row come in order of lo, so it
+ * is a step or two away (a step back too, should rounding ever make
+ * window_start() fall). */
+static inline int walk_slot(const bp_slot *sl, int s0, int s1, int c, double x)
+{
+    while (c > s0 && !(sl[c - 1].lo < x))
+        c--;
+    while (c < s1 && sl[c].lo < x)
+        c++;
+    return c;
+}
+
 /* Pairs between level li's bodies and the coarser level lj: each body of
  * li scans the 3 x 3 rows of lj around its cell (lj's cells are at least
  * twice li's diameters, so that holds every partner). */
@@ -563,11 +576,12 @@ static int sweep_cross(sc_broadphase *bp, int li, int lj)
     int level = bp->lexp[lj], r0 = bp->lrow[lj], r1 = bp->lrow[lj + 1];
     double scale = ldexp(1.0, -level), width = bp->lwidth[lj];
     const bp_slot *sl = bp->slot;
-    int row_lo[9], row_hi[9], nr = 0;
+    int row_lo[9], row_hi[9], cur[9], nr = 0;
     int64_t last_u = INT64_MIN, last_v = INT64_MIN;
     for (int k = bp->rstart[bp->lrow[li]]; k < bp->rstart[bp->lrow[li + 1]]; k++) {
         int64_t iu = cell_of(sl[k].c[ua], scale), iv = cell_of(sl[k].c[va], scale);
-        if (iu != last_u || iv != last_v) {      /* bodies of a row share it */
+        int fresh = iu != last_u || iv != last_v;
+        if (fresh) {                             /* bodies of a row share it */
             last_u = iu;
             last_v = iv;
             nr = 0;
@@ -581,9 +595,14 @@ static int sweep_cross(sc_broadphase *bp, int li, int lj)
             }
         }
         double from = window_start(sl[k].lo, width);
-        for (int t = 0; t < nr; t++)
-            if (scan(bp, k, find_slot(sl, row_lo[t], row_hi[t], from), row_hi[t]))
+        for (int t = 0; t < nr; t++) {
+            if (fresh)
+                cur[t] = find_slot(sl, row_lo[t], row_hi[t], from);
+            else
+                cur[t] = walk_slot(sl, row_lo[t], row_hi[t], cur[t], from);
+            if (scan(bp, k, cur[t], row_hi[t]))
                 return SC_ENOMEM;
+        }
     }
     return SC_OK;
 }
