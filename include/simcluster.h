@@ -297,6 +297,12 @@ typedef struct sc_stats {
     long frames;              /* frames stepped */
     int bodies;               /* bodies in the world */
     int pairs;                /* broad-phase pairs, last frame */
+    long np_pairs;            /* narrow-phase pair tests of the frame's
+                                 detections (every substep, back-up and
+                                 speculative round), last frame */
+    long np_reused;           /* of them, answered from the frame's last
+                                 detection: both poses the same bits, so the
+                                 same contacts (docs/DESIGN.md 3.3) */
     int contacts;             /* contact points, last frame */
     int islands;              /* islands, last frame */
     long lcp_pivots;          /* LCP pivots, last frame */
@@ -361,6 +367,8 @@ typedef struct sc_stats {
     int private_ode;          /* of them, with their own copy of ODE (trimesh
                                  pairs run concurrently only on those) */
     long units;               /* work units run */
+    long units_background;    /* of them, motion groups stepped by idle local
+                                 threads beside a pile (docs/DESIGN.md 5) */
     double sched_s;           /* wall seconds spent scheduling: cost estimates,
                                  assignment, model fits */
     double makespan_s;        /* wall seconds from dispatch to the last unit's

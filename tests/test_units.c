@@ -348,6 +348,151 @@ static void test_bad_worker_counts(void **state)
     sc_world_destroy(w);
 }
 
+/* A drop of 300 parts (the default world: local time of impact, motion
+ * groups): once a pile forms, the other groups are stepped by idle worker
+ * threads beside it (docs/DESIGN.md 5, background units), which depends
+ * on timing; the result does not. */
+static void test_groups_beside_a_pile_same_bits_for_1_2_4_workers(void **state)
+{
+    (void)state;
+    const int workers[] = { 1, 2, 4 };
+    uint64_t h[3];
+    for (int i = 0; i < 3; i++) {
+        sc_world_config c = sc_world_config_default();
+        c.workers = workers[i];
+        sc_world *w = sc_world_create(&c);
+        assert_non_null(w);
+        assert_int_equal(sc_scene_bolts_nuts(w, 300, 5), SC_OK);
+        long bg = 0, units = 0;
+        for (int f = 0; f < 120; f++) {
+            sc_stats st;
+            assert_int_equal(sc_world_step(w, 0.01), SC_OK);
+            sc_world_stats(w, &st);
+            bg += st.units_background;
+            units += st.units;
+            assert_true(st.units_background <= st.units);
+        }
+        h[i] = sc_world_hash(w);
+        printf("  drop of 300, %d workers: %ld units, %ld group units beside the pile; "
+               "hash %016llx\n",
+               workers[i], units, bg, (unsigned long long)h[i]);
+        if (workers[i] == 1)
+            assert_int_equal(bg, 0);
+        else
+            assert_true(bg > 0);
+        sc_world_destroy(w);
+    }
+    assert_true(h[1] == h[0]);
+    assert_true(h[2] == h[0]);
+}
+
+/* The contacts of a state copied out of a world, detected on a scratch of
+ * their own: into c (room for 4096), their count. */
+static int detect_copy(const sc_world *w, sc_frame_state *st, sc_frame_scratch *scr,
+                       sc_exec *ex, sc_stats *fs, sc_contact *c)
+{
+    int n = st->nbodies;
+    sc_frame f = { .cfg = &w->fcfg, .st = st, .scr = scr, .ex = ex, .stats = fs };
+    f.centre = malloc((size_t)n * 3 * sizeof *f.centre);
+    f.radius = malloc((size_t)n * sizeof *f.radius);
+    f.active = malloc((size_t)n);
+    f.poses = malloc((size_t)n * sizeof *f.poses);
+    assert_true(f.centre && f.radius && f.active && f.poses);
+    assert_int_equal(sc_detect(&f), SC_OK);
+    assert_true(st->ncontacts <= 4096);
+    memcpy(c, st->contacts, (size_t)st->ncontacts * sizeof *c);
+    free(f.centre);
+    free(f.radius);
+    free(f.active);
+    free(f.poses);
+    return st->ncontacts;
+}
+
+static void assert_same_geometry(const sc_contact *a, const sc_contact *b, int n)
+{
+    for (int k = 0; k < n; k++) {
+        assert_int_equal(a[k].body_a, b[k].body_a);
+        assert_int_equal(a[k].body_b, b[k].body_b);
+        assert_memory_equal(a[k].pos, b[k].pos, sizeof a[k].pos);
+        assert_memory_equal(a[k].normal, b[k].normal, sizeof a[k].normal);
+        assert_memory_equal(&a[k].depth, &b[k].depth, sizeof a[k].depth);
+    }
+}
+
+/* The narrow phase's memo (detect.c): within a frame, a pair whose poses
+ * did not change is answered from the last detection, with the same
+ * contacts a fresh narrow phase gives; a pair with one body moved by
+ * 0.1 mm is collided again. */
+static void test_narrow_phase_memo_answers_as_a_fresh_one(void **state)
+{
+    (void)state;
+    sc_world_config c = sc_world_config_default();
+    c.workers = 1;
+    sc_world *w = sc_world_create(&c);
+    assert_non_null(w);
+    assert_int_equal(sc_scene_bin(w, 60, 2), SC_OK);
+    for (int f = 0; f < 80; f++)
+        assert_int_equal(sc_world_step(w, 0.01), SC_OK);
+    sc_frame_state st = w->st;
+    int n = st.nbodies;
+    st.bodies = malloc((size_t)n * sizeof *st.bodies);
+    st.contacts = malloc(4096 * sizeof *st.contacts);
+    sc_contact *first = malloc(4096 * sizeof *first), *again = malloc(4096 * sizeof *again);
+    sc_contact *fresh = malloc(4096 * sizeof *fresh);
+    assert_true(st.bodies && st.contacts && first && again && fresh);
+    memcpy(st.bodies, w->st.bodies, (size_t)n * sizeof *st.bodies);
+    st.ncontacts = 0;
+    st.contact_cap = 4096;
+    sc_frame_scratch scr, scr2;
+    assert_int_equal(sc_frame_scratch_init(&scr), SC_OK);
+    assert_int_equal(sc_frame_scratch_init(&scr2), SC_OK);
+    sc_np_ctx *np = sc_np_create();
+    assert_non_null(np);
+    sc_exec_serial ex;
+    sc_exec_serial_init(&ex, np);
+    sc_stats fs;
+    memset(&fs, 0, sizeof fs);
+    int n1 = detect_copy(w, &st, &scr, &ex.base, &fs, first);
+    long pairs = fs.np_pairs;
+    assert_true(n1 > 50);
+    assert_int_equal(fs.np_reused, 0);
+    /* the same poses: every pair from the memo, the same contacts */
+    memset(&fs, 0, sizeof fs);
+    int n2 = detect_copy(w, &st, &scr, &ex.base, &fs, again);
+    assert_int_equal(fs.np_pairs, pairs);
+    assert_int_equal(fs.np_reused, pairs);
+    assert_int_equal(n2, n1);
+    assert_same_geometry(first, again, n1);
+    /* a body in contact moved: its pairs collided again, the same as a
+     * fresh scratch (no memo) finds */
+    int moved = first[n1 / 2].body_b;
+    st.bodies[moved].x[0] += 1e-4;
+    memset(&fs, 0, sizeof fs);
+    int n3 = detect_copy(w, &st, &scr, &ex.base, &fs, again);
+    long with_moved = 0;
+    for (int k = 0; k < scr.memo.npairs; k++)
+        with_moved += scr.memo.pairs[k].a == moved || scr.memo.pairs[k].b == moved;
+    assert_true(with_moved > 0);
+    assert_int_equal(fs.np_reused, fs.np_pairs - with_moved);
+    sc_stats fs2;
+    memset(&fs2, 0, sizeof fs2);
+    int n4 = detect_copy(w, &st, &scr2, &ex.base, &fs2, fresh);
+    assert_int_equal(fs2.np_reused, 0);
+    assert_int_equal(n3, n4);
+    assert_same_geometry(again, fresh, n3);
+    printf("  bin of 60: %ld pairs, %d contacts; one part moved: %ld pairs collided again\n",
+           pairs, n1, with_moved);
+    sc_np_destroy(np);
+    sc_frame_scratch_free(&scr);
+    sc_frame_scratch_free(&scr2);
+    free(st.bodies);
+    free(st.contacts);
+    free(first);
+    free(again);
+    free(fresh);
+    sc_world_destroy(w);
+}
+
 static void test_worlds_come_and_go(void **state)
 {
     (void)state;
@@ -476,6 +621,8 @@ int main(void)
         cmocka_unit_test(test_same_bits_for_random_assignments),
         cmocka_unit_test(test_groups_same_bits_for_1_2_3_8_workers),
         cmocka_unit_test(test_pile_blocks_shared_same_bits_for_1_2_4_workers),
+        cmocka_unit_test(test_groups_beside_a_pile_same_bits_for_1_2_4_workers),
+        cmocka_unit_test(test_narrow_phase_memo_answers_as_a_fresh_one),
         cmocka_unit_test(test_longest_first_onto_earliest_finish),
         cmocka_unit_test(test_speed_is_learned_and_slow_nodes_get_less),
         cmocka_unit_test(test_cost_model_is_fitted),

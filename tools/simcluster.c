@@ -559,6 +559,8 @@ typedef struct totals {
     long frames, units, remote, recomputed, late;
     long msgs_out, msgs_in;     /* sealed messages of units sent, results received */
     long piped;                 /* group units back while the pile ran */
+    long beside;                /* group units idle threads ran beside the pile */
+    long np_pairs, np_reused;   /* narrow-phase pair tests, of them from the memo */
     long overlaps;              /* body pairs overlapping where they were placed */
     int auth_warned;            /* the warning about another key was given */
     long over_budget;           /* frames whose step took more than DT of wall time */
@@ -641,6 +643,9 @@ static int simulate(const options *o, sc_world *w, totals *t, int progress, reco
         t->msgs_out += st.unit_messages;
         t->msgs_in += st.result_messages;
         t->piped += st.pipelined_units;
+        t->beside += st.units_background;
+        t->np_pairs += st.np_pairs;
+        t->np_reused += st.np_reused;
         if (st.duplicate_nodes > t->duplicates) {
             /* two running daemons with one id: said once per pair */
             t->duplicates = st.duplicate_nodes;
@@ -822,6 +827,8 @@ static int run_cmd(int argc, char **argv)
                "\"dropped_stale\": %ld, "
                "\"dropped_misaddressed\": %ld, \"duplicate_nodes\": %ld, \"comm_s\": %.4f, "
                "\"unit_messages\": %ld, \"result_messages\": %ld, \"pipelined_units\": %ld, "
+               "\"background_units\": %ld, \"narrow_phase_pairs\": %ld, "
+               "\"narrow_phase_reused\": %ld, "
                "\"frames_over_budget\": %ld, \"max_frame_s\": %.4f, \"initial_overlaps\": %ld, "
                "\"solver\": {\"island_split\": %d, \"solves\": %ld, \"split\": %ld, "
                "\"blocks\": %ld, \"blocks_shared\": %ld, \"pivots\": %ld, \"max_frame_pivots\": %ld, "
@@ -839,7 +846,8 @@ static int run_cmd(int argc, char **argv)
                t.rest_s, t.peak_energy, t.max_pen, t.units, st.daemons, t.remote, t.recomputed,
                t.late, st.dropped_messages, st.dropped_auth, st.dropped_stale,
                st.dropped_misaddressed,
-               st.duplicate_nodes, t.comm, t.msgs_out, t.msgs_in, t.piped, t.over_budget, t.max_frame,
+               st.duplicate_nodes, t.comm, t.msgs_out, t.msgs_in, t.piped, t.beside, t.np_pairs,
+               t.np_reused, t.over_budget, t.max_frame,
                t.overlaps,
                island_split, t.solves, t.split, t.blocks, t.shared, t.pivots, t.max_pivots, t.staggered,
                t.refused, t.split_fb, t.block_fb, t.nan, t.inelastic, t.rscaled, t.unconverged,
@@ -880,7 +888,13 @@ static int run_cmd(int argc, char **argv)
                "energy), blocks after staggered %ld, projected Gauss-Seidel blocks %ld, "
                "non-finite islands %ld, inelastic re-solves %ld, restitution scaled down %ld\n",
                t.staggered, t.refused, t.split_fb, t.block_fb, t.nan, t.inelastic, t.rscaled);
+        printf("  narrow phase: %ld pair tests, %ld of them (%.1f %%) answered by the frame's "
+               "last detection\n",
+               t.np_pairs, t.np_reused,
+               t.np_pairs ? 100.0 * (double)t.np_reused / (double)t.np_pairs : 0.0);
         printf("  work units %ld", t.units);
+        if (t.beside)
+            printf(", motion groups stepped by idle threads beside the pile %ld", t.beside);
         if (o.cluster)
             printf(", from daemons %ld, recomputed %ld, late %ld, dropped messages %ld",
                    t.remote, t.recomputed, t.late, st.dropped_messages);

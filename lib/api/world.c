@@ -310,6 +310,9 @@ SC_API int sc_world_step(sc_world *w, double dt)
     sc_stats_clear_solver(st);
     st->collider_warnings = 0;
     st->units = 0;
+    st->units_background = 0;
+    st->np_pairs = 0;
+    st->np_reused = 0;
     st->sched_s = 0;
     st->makespan_s = 0;
     st->makespan_bound_s = 0;

@@ -145,6 +145,8 @@ void sc_stats_add_frame(sc_stats *s, const sc_stats *g)
         s->stage_total_s[k] += g->stage_s[k];
     }
     s->pairs += g->pairs;
+    s->np_pairs += g->np_pairs;
+    s->np_reused += g->np_reused;
     s->islands += g->islands;
     sc_stats_add_solver(s, g);
     s->max_penetration = max_d(s->max_penetration, g->max_penetration);

@@ -152,23 +152,89 @@ static void match_impulses(const sc_frame_state *st, const sc_contact *old, int 
     }
 }
 
+static int pose_same(const sc_pose *a, const sc_pose *b)
+{
+    return memcmp(a, b, sizeof *a) == 0;
+}
+
+/* Pair i's contacts from the memo when its two poses are the same bits as
+ * at the memo's detection (cursor *j walks the memo's pairs in order):
+ * the memo's pair index, or -1. */
+static int memo_find(const sc_np_memo *m, const sc_pose *poses, sc_pair p, int *j)
+{
+    while (*j < m->npairs &&
+           (m->pairs[*j].a < p.a || (m->pairs[*j].a == p.a && m->pairs[*j].b < p.b)))
+        (*j)++;
+    if (*j == m->npairs || m->pairs[*j].a != p.a || m->pairs[*j].b != p.b)
+        return -1;
+    return pose_same(&m->poses[p.a], &poses[p.a]) && pose_same(&m->poses[p.b], &poses[p.b])
+               ? *j
+               : -1;
+}
+
+/* This detection's results into the memo (raw contacts, pairs in order);
+ * without memory the memo is dropped, which only costs time. */
+static void memo_keep(sc_np_memo *m, const sc_frame *f, const sc_pair *pairs, int npairs,
+                      const sc_contact *uc, const int *ncontact, int total)
+{
+    int n = f->st->nbodies;
+    m->valid = 0;
+    if (sc_grow((void **)&m->poses, &m->pose_cap, n, sizeof *m->poses, INT_MAX) ||
+        sc_grow((void **)&m->pairs, &m->pair_cap, npairs, sizeof *m->pairs, INT_MAX) ||
+        sc_grow((void **)&m->start, &m->start_cap, npairs + 1, sizeof *m->start, INT_MAX) ||
+        sc_grow((void **)&m->c, &m->c_cap, total, sizeof *m->c, INT_MAX))
+        return;
+    if (n > 0)
+        memcpy(m->poses, f->poses, (size_t)n * sizeof *m->poses);
+    if (npairs > 0)
+        memcpy(m->pairs, pairs, (size_t)npairs * sizeof *m->pairs);
+    int k = 0;
+    for (int i = 0; i < npairs; i++) {
+        m->start[i] = k;
+        if (ncontact[i] > 0)
+            memcpy(&m->c[k], &uc[(size_t)i * SC_MAX_PAIR_CONTACTS],
+                   (size_t)ncontact[i] * sizeof *m->c);
+        k += ncontact[i];
+    }
+    m->start[npairs] = k;
+    m->nbodies = n;
+    m->npairs = npairs;
+    m->valid = 1;
+}
+
 /* Step 4, exact: every pair through the narrow phase as work units on the
- * executor, merged in pair order, so the contact list is canonical. */
+ * executor, merged in pair order, so the contact list is canonical. A pair
+ * whose poses have not changed since the last detection of this frame (a
+ * sleeper's, or an island a speculative re-solve left alone) takes its
+ * contacts from the memo instead: the same bits, as the narrow phase reads
+ * nothing else. */
 static int narrowphase(sc_frame *f, int npairs)
 {
     sc_frame_state *st = f->st;
     const sc_pair *pairs = f->scr->pairs;
     sc_arena *a = &f->scr->arena;
+    sc_np_memo *m = &f->scr->memo;
     if (npairs > INT_MAX / SC_MAX_PAIR_CONTACTS)
         return SC_ETOOBIG;
     sc_unit_pair *up = sc_arena_alloc(a, (size_t)npairs * sizeof *up);
     int *ncontact = up ? sc_arena_alloc(a, (size_t)npairs * sizeof *ncontact) : NULL;
-    sc_contact *uc = ncontact ? sc_arena_alloc(a, (size_t)npairs * SC_MAX_PAIR_CONTACTS *
-                                                      sizeof *uc)
-                              : NULL;
+    int *run_of = ncontact ? sc_arena_alloc(a, (size_t)npairs * sizeof *run_of) : NULL;
+    sc_contact *uc = run_of ? sc_arena_alloc(a, (size_t)npairs * SC_MAX_PAIR_CONTACTS *
+                                                    sizeof *uc)
+                            : NULL;
     int rc = uc ? SC_OK : SC_ENOMEM;
+    int use_memo = m->valid && m->nbodies == st->nbodies;
+    int nrun = 0, cursor = 0;
     for (int i = 0; rc == SC_OK && i < npairs; i++) {
-        sc_unit_pair *p = &up[i];
+        int hit = use_memo ? memo_find(m, f->poses, pairs[i], &cursor) : -1;
+        if (hit >= 0) {
+            ncontact[i] = m->start[hit + 1] - m->start[hit];
+            if (ncontact[i] > 0)
+                memcpy(&uc[(size_t)i * SC_MAX_PAIR_CONTACTS], &m->c[m->start[hit]],
+                       (size_t)ncontact[i] * sizeof *uc);
+            continue;
+        }
+        sc_unit_pair *p = &up[nrun];
         const sc_body *A = &st->bodies[pairs[i].a], *B = &st->bodies[pairs[i].b];
         memset(p, 0, sizeof *p);    /* a1, b1 are the TOI's only */
         p->sa = A->shape;
@@ -180,7 +246,10 @@ static int narrowphase(sc_frame *f, int npairs)
         /* the contacts still held are those of the last detection */
         p->touching = sc_contacts_have_pair(st->contacts, st->ncontacts, p->body_a, p->body_b);
         ncontact[i] = 0;
+        run_of[nrun++] = i;
     }
+    f->stats->np_pairs += npairs;
+    f->stats->np_reused += npairs - nrun;
     /* the old contacts that carry an impulse, for the warm start */
     int nold = 0;
     for (int k = 0; k < st->ncontacts; k++)
@@ -196,16 +265,29 @@ static int narrowphase(sc_frame *f, int npairs)
             if (carries_impulse(&st->contacts[k]))
                 old[nold++] = st->contacts[k];
     }
+    /* the pairs collided now: their contacts and counts in run order */
+    int *rn = rc == SC_OK && nrun ? sc_arena_alloc(a, (size_t)nrun * sizeof *rn) : NULL;
+    sc_contact *rcs = rn ? sc_arena_alloc(a, (size_t)nrun * SC_MAX_PAIR_CONTACTS * sizeof *rcs)
+                         : NULL;
+    if (nrun && rc == SC_OK && !rcs)
+        rc = SC_ENOMEM;
     sc_job job = {
         .kind = SC_UNIT_COLLIDE,
         .pairs = up,
-        .npairs = npairs,
-        .contacts = uc,
-        .ncontact = ncontact,
+        .npairs = nrun,
+        .contacts = rcs,
+        .ncontact = rn,
     };
     st->ncontacts = 0;
-    if (rc == SC_OK)
+    if (rc == SC_OK && nrun > 0)
         rc = f->ex->run(f->ex, &job, SC_STAGE_NARROWPHASE, f->stats);
+    for (int r = 0; rc == SC_OK && r < nrun; r++) {
+        int i = run_of[r];
+        ncontact[i] = rn[r];
+        if (rn[r] > 0)
+            memcpy(&uc[(size_t)i * SC_MAX_PAIR_CONTACTS], &rcs[(size_t)r * SC_MAX_PAIR_CONTACTS],
+                   (size_t)rn[r] * sizeof *uc);
+    }
     int total = 0;
     for (int i = 0; rc == SC_OK && i < npairs; i++)
         total += ncontact[i];
@@ -220,11 +302,18 @@ static int narrowphase(sc_frame *f, int npairs)
             maxpen = max_d(maxpen, c[k].depth);
         }
     }
+    if (rc == SC_OK)
+        memo_keep(m, f, pairs, npairs, uc, ncontact, total);
+    else
+        m->valid = 0;
     if (rc == SC_OK && taken)
         match_impulses(st, old, nold, taken);
+    sc_arena_free(a, rcs);
+    sc_arena_free(a, rn);
     sc_arena_free(a, taken);
     sc_arena_free(a, old);
     sc_arena_free(a, uc);
+    sc_arena_free(a, run_of);
     sc_arena_free(a, ncontact);
     sc_arena_free(a, up);
     if (rc != SC_OK)

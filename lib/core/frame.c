@@ -55,6 +55,10 @@ void sc_frame_scratch_free(sc_frame_scratch *s)
         s->groups_free(s->groups);
     sc_bp_destroy(s->bp);
     free(s->pairs);
+    free(s->memo.poses);
+    free(s->memo.pairs);
+    free(s->memo.start);
+    free(s->memo.c);
     sc_islands_free(&s->islands);
     sc_arena_destroy(&s->arena);
     memset(s, 0, sizeof *s);
@@ -255,6 +259,7 @@ int sc_frame_step(const sc_frame_config *cfg, sc_frame_state *st, double dt,
         return SC_OK;
     sc_arena *a = &scr->arena;
     sc_frame f = { .cfg = cfg, .st = st, .scr = scr, .ex = ex, .stats = stats };
+    scr->memo.valid = 0;    /* the last frame's (or another group's) bodies */
     /* the frame's arrays, last in first out */
     sc_body *saved = sc_arena_alloc(a, (size_t)n * sizeof *saved);
     unsigned char *touched = sc_arena_alloc(a, (size_t)n);

@@ -104,6 +104,13 @@ struct sc_exec {
      * After a start() that failed, finish() is not called. */
     int (*start)(sc_exec *ex, sc_job *job, double home_busy_s);
     int (*finish)(sc_exec *ex, sc_job *job, int stage, sc_stats *st);
+    /* A job run around the caller's (NULL: not offered): background()
+     * returns 1 when it handed the job's units to idle local threads (0:
+     * not now, run it otherwise), which take them while the caller runs
+     * other jobs; drain() runs what is left on the calling thread, waits
+     * for the rest and accounts the job as run() would. */
+    int (*background)(sc_exec *ex, sc_job *job);
+    int (*drain)(sc_exec *ex, sc_job *job, sc_stats *st);
 };
 /* The serial executor: every job as one unit on the calling thread, with
  * its narrow-phase context np. */
@@ -137,8 +144,28 @@ typedef struct sc_frame_state {
  * caller between frames), the broad phase's sort order and pair list, the
  * islands' arrays, and (motion groups) the scratch of groups run on this
  * thread. */
+/* The narrow phase's last results within one frame (detect.c): a pair
+ * whose two poses are the same bits as at the last detection has the same
+ * contacts (the narrow phase reads only shapes and poses), so it is not
+ * collided again. Pair k's contacts are c[start[k] .. start[k + 1]),
+ * before the warm start. Valid only within the frame that wrote it. */
+typedef struct sc_np_memo {
+    int valid;
+    int nbodies;
+    sc_pose *poses;                 /* every body's pose at that detection */
+    int pose_cap;
+    int npairs;
+    sc_pair *pairs;                 /* in (a, b) order */
+    int pair_cap;
+    int *start;
+    int start_cap;
+    sc_contact *c;
+    int c_cap;
+} sc_np_memo;
+
 typedef struct sc_frame_scratch {
     sc_arena arena;
+    sc_np_memo memo;
     sc_broadphase *bp;
     sc_pair *pairs;
     int pair_cap;

@@ -482,8 +482,13 @@ static int step_groups(const sc_frame_config *cfg, sc_frame_state *st, double dt
      * read only the groups' own members and the static bodies, which the
      * pile does not write, and write only their own, so the order changes
      * nothing. */
-    int started = 0;
-    if (nu > 0 && big >= 0 && ex->start) {
+    int started = 0, background = 0;
+    /* Without remote nodes, idle local threads step the other groups in
+     * the gaps of the pile's jobs, and the calling thread the rest after
+     * it (the same bits: each unit writes only its own group). */
+    if (nu > 0 && big >= 0 && ex->background)
+        background = ex->background(ex, &job);
+    if (nu > 0 && big >= 0 && !background && ex->start) {
         rc = ex->start(ex, &job, scr->groups->pile_s);
         started = rc == SC_OK;
     }
@@ -494,7 +499,12 @@ static int step_groups(const sc_frame_config *cfg, sc_frame_state *st, double dt
         sc_group_scratch *ps = scr->groups;
         ps->pile_s = ps->pile_s > 0 ? PILE_KEEP * ps->pile_s + (1 - PILE_KEEP) * t : t;
     }
-    if (nu > 0 && rc == SC_OK)
+    if (background) {
+        /* always: the units taken read this frame's arrays */
+        int drc = ex->drain(ex, &job, stats);
+        if (rc == SC_OK)
+            rc = drc;
+    } else if (nu > 0 && rc == SC_OK)
         rc = started ? ex->finish(ex, &job, -1, stats) : ex->run(ex, &job, -1, stats);
     for (int k = 0; k < ng; k++) {
         sc_stats_add_frame(stats, &out[k].stats);

@@ -58,6 +58,7 @@ static int serial_width(const sc_exec *ex)
 
 void sc_exec_serial_init(sc_exec_serial *s, sc_np_ctx *np)
 {
+    memset(s, 0, sizeof *s);
     s->base.run = serial_run;
     s->base.width = serial_width;
     s->np = np;

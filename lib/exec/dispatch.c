@@ -159,7 +159,10 @@ static int account(sc_exec_nodes *x, sc_job *job, int stage, sc_stats *st, doubl
     double t2 = sc_wall_now();
     double bound = 0;
     int rc = SC_OK;
-    sc_sched_observe(&x->sched, job->units, job->nunits, &bound);
+    if (makespan_s >= 0)
+        sc_sched_observe(&x->sched, job->units, job->nunits, &bound);
+    else
+        makespan_s = 0;    /* background: taken as threads fell idle */
     /* CPU of the other nodes is CPU of this stage too (Table 1); group
      * units count their own */
     if (stage >= 0) {
@@ -280,6 +283,29 @@ static int nodes_finish(sc_exec *ex, sc_job *job, int stage, sc_stats *st)
                    x->pend.sched_s);
 }
 
+/* background(): only with worker threads and no remote nodes (those get
+ * theirs by start()), and no job started. */
+static int nodes_background(sc_exec *ex, sc_job *job)
+{
+    sc_exec_nodes *x = (sc_exec_nodes *)ex;
+    if (x->prov.ctx || x->nlocal < 2 || x->pend.job || job->nunits == 0 ||
+        cut(x, job) != SC_OK)
+        return 0;
+    sc_local_pool_background(x->pool, job);
+    return 1;
+}
+
+static int nodes_drain(sc_exec *ex, sc_job *job, sc_stats *st)
+{
+    sc_exec_nodes *x = (sc_exec_nodes *)ex;
+    sc_local_pool_drain(x->pool);
+    for (int i = 0; i < job->nunits; i++)
+        st->units_background += job->units[i].node != 0;
+    /* the units' times are not the scheduler's to learn from: they ran
+     * in gaps, not as assigned */
+    return account(x, job, -1, st, 0, -1, 0);
+}
+
 int sc_exec_nodes_init(sc_exec_nodes *x, int nlocal, int extra)
 {
     memset(x, 0, sizeof *x);
@@ -287,6 +313,8 @@ int sc_exec_nodes_init(sc_exec_nodes *x, int nlocal, int extra)
     x->base.width = nodes_width;
     x->base.start = nodes_start;
     x->base.finish = nodes_finish;
+    x->base.background = nodes_background;
+    x->base.drain = nodes_drain;
     x->cap = nlocal + extra;
     x->nodes = sc_calloc_array((size_t)x->cap, sizeof *x->nodes);
     x->pend.start = sc_calloc_array((size_t)x->cap + 1, sizeof *x->pend.start);

@@ -46,6 +46,14 @@ sc_local_pool *sc_local_pool_create(void);
 void sc_local_pool_stop(sc_local_pool *p);
 void sc_local_pool_destroy(sc_local_pool *p);   /* after its nodes */
 sc_node *sc_node_local_create(sc_local_pool *pool, int id, int inline_node);
+/* Background units (docs/DESIGN.md section 5): the units of job (each
+ * writing only its own outputs) published for idle worker threads, which
+ * take them one at a time between their own batches while the caller goes
+ * on with other jobs; drain() has the calling thread run what is left and
+ * waits for those taken. One background job at a time; the pool needs its
+ * home node (the calling thread). */
+void sc_local_pool_background(sc_local_pool *p, const sc_job *job);
+void sc_local_pool_drain(sc_local_pool *p);
 /* 1 when a local node runs on a private copy of ODE. */
 int sc_node_local_private_ode(const sc_node *n);
 

@@ -33,12 +33,23 @@
 
 typedef struct local_node local_node;
 
+/* Units run in the background (sc_local_pool_background): idle workers
+ * take them one at a time, the caller the rest when it drains them. */
+typedef struct bg_batch {
+    const sc_job *job;
+    int count;
+    atomic_int next;          /* the next unit to take */
+} bg_batch;
+
 /* Members are only added (never moved: idle workers look at them any
  * time, for blocks), each before n counts it. */
 struct sc_local_pool {
     local_node *members[SC_MAX_WORKERS];
     atomic_int n;
     local_node *home;         /* the calling thread's node, or NULL */
+    bg_batch bg_store;
+    _Atomic(bg_batch *) bg;   /* published background units, or NULL */
+    atomic_int bg_helpers;    /* workers looking at bg */
 };
 
 /* One colour of a split island's blocks, published by the node solving
@@ -162,6 +173,57 @@ static void run_blocks(void *ctx, sc_block_batch *b, int count, sc_arena *a)
         cpu_relax();
 }
 
+/* Background unit i of b on n, timed and recorded as run by n. */
+static void run_bg_unit(local_node *n, bg_batch *b, int i)
+{
+    sc_unit *u = &b->job->units[i];
+    double t = sc_wall_now();
+    sc_unit_run(n->np, b->job, u);
+    u->time_s = sc_wall_now() - t;
+    u->node = n->base.id;
+}
+
+/* An idle worker takes one background unit (then looks for a batch of
+ * its own again); 1 if it ran one. Counted in bg_helpers as help_others()
+ * counts its helpers, so that drain() waits for it. */
+static int help_background(local_node *n)
+{
+    sc_local_pool *p = n->pool;
+    if (!p || n->inline_node || !atomic_load_explicit(&p->bg, memory_order_relaxed))
+        return 0;
+    atomic_fetch_add(&p->bg_helpers, 1);
+    bg_batch *b = atomic_load(&p->bg);
+    int i, ran = 0;
+    if (b && (i = atomic_fetch_add_explicit(&b->next, 1, memory_order_relaxed)) < b->count) {
+        run_bg_unit(n, b, i);
+        ran = 1;
+    }
+    atomic_fetch_sub(&p->bg_helpers, 1);
+    return ran;
+}
+
+void sc_local_pool_background(sc_local_pool *p, const sc_job *job)
+{
+    bg_batch *b = &p->bg_store;
+    b->job = job;
+    b->count = job->nunits;
+    atomic_store_explicit(&b->next, 0, memory_order_relaxed);
+    atomic_store(&p->bg, b);
+}
+
+void sc_local_pool_drain(sc_local_pool *p)
+{
+    bg_batch *b = atomic_load(&p->bg);
+    if (!b)
+        return;
+    int i;
+    while ((i = atomic_fetch_add_explicit(&b->next, 1, memory_order_relaxed)) < b->count)
+        run_bg_unit(p->home, b, i);
+    atomic_store(&p->bg, NULL);
+    while (atomic_load(&p->bg_helpers) > 0)
+        cpu_relax();
+}
+
 /* Spin until *v != old or spin_s passed (since the last block n helped
  * with); 1 if it changed. */
 static int spin_until_changed(local_node *n, const atomic_uint *v, unsigned old, double spin_s)
@@ -170,7 +232,7 @@ static int spin_until_changed(local_node *n, const atomic_uint *v, unsigned old,
     for (int i = 1;; i++) {
         if (atomic_load_explicit(v, memory_order_acquire) != old)
             return 1;
-        if (help_others(n))
+        if (help_others(n) || help_background(n))
             end = sc_wall_now() + spin_s;
         cpu_relax();
         if ((i & 63) == 0 && sc_wall_now() > end)

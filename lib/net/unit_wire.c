@@ -73,8 +73,9 @@
 
 #include "unit_wire.h"
 
-#define WIRE_VERSION 7       /* 6: island units carry impact_first, results inelastic, v0, w0;
-                                7: results carry energy_refused, restitution_scaled */
+#define WIRE_VERSION 8       /* 6: island units carry impact_first, results inelastic, v0, w0;
+                                7: results carry energy_refused, restitution_scaled;
+                                8: and np_pairs, np_reused */
 #define MAGIC_UNIT 0x55574353u        /* "SCWU" */
 #define MAGIC_RESULT 0x52574353u      /* "SCWR" */
 #define MAX_PAIRS (1 << 16)
@@ -881,7 +882,7 @@ static void get_info(rbuf *r, sc_solve_info *info)
  * sc_stats_add_solver() (clock.c) read, field by field: a field they
  * start to read must be added here (test_unit_wire compares them). */
 #define STAT_F64 (SC_STAGE_COUNT + 6)
-#define STAT_LONGS 6
+#define STAT_LONGS 8
 #define STAT_SIZES 2
 #define STAT_INTS 21
 
@@ -899,7 +900,8 @@ static void stat_fields(sc_stats *s, stat_ptrs *p)
     double *d[] = { &s->lcp_residual, &s->lcp_outer_residual, &s->max_penetration,
                     &s->sched_s, &s->makespan_s, &s->makespan_bound_s };
     long *l[STAT_LONGS] = { &s->lcp_pivots, &s->lcp_blocks, &s->lcp_block_fallbacks,
-                            &s->collider_warnings, &s->units, &s->initial_overlaps };
+                            &s->collider_warnings, &s->units, &s->initial_overlaps,
+                            &s->np_pairs,  &s->np_reused };
     size_t *z[STAT_SIZES] = { &s->arena_bytes, &s->unit_arena_bytes };
     int *i[STAT_INTS] = { &s->pairs,          &s->islands,          &s->lcp_solves,
                           &s->lcp_fallbacks,  &s->lcp_split,        &s->lcp_sweeps_max,
