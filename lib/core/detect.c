@@ -66,6 +66,9 @@ static int broadphase(sc_frame *f, int *npairs)
             scr->pairs[k++] = *pr;
     }
     np = k;
+    /* the plane pairs apart, sorted (one per body and plane: few), then
+     * merged with the sweep's, which are sorted already */
+    int npl = 0;
     for (int pi = 0; pi < n; pi++) {
         const sc_body *pb = &st->bodies[pi];
         if (pb->shape->kind != SC_SHAPE_PLANE)
@@ -81,15 +84,30 @@ static int broadphase(sc_frame *f, int *npairs)
                 continue;
             if (v3_dot(nrm, &f->centre[3 * i]) - d > f->radius[i])
                 continue;
-            if (sc_grow((void **)&scr->pairs, &scr->pair_cap, np + 1, sizeof *scr->pairs, INT_MAX) != SC_OK)
+            if (sc_grow((void **)&scr->plane_pairs, &scr->plane_pair_cap, npl + 1,
+                        sizeof *scr->plane_pairs, INT_MAX) != SC_OK)
                 return SC_ENOMEM;
-            scr->pairs[np].a = i < pi ? i : pi;
-            scr->pairs[np].b = i < pi ? pi : i;
-            np++;
+            scr->plane_pairs[npl].a = i < pi ? i : pi;
+            scr->plane_pairs[npl].b = i < pi ? pi : i;
+            npl++;
         }
     }
-    if (np > 1)
-        qsort(scr->pairs, (size_t)np, sizeof *scr->pairs, cmp_pair);
+    if (npl > 1)
+        qsort(scr->plane_pairs, (size_t)npl, sizeof *scr->plane_pairs, cmp_pair);
+    if (npl > 0) {
+        if (sc_grow((void **)&scr->pairs, &scr->pair_cap, np + npl, sizeof *scr->pairs,
+                    INT_MAX) != SC_OK)
+            return SC_ENOMEM;
+        /* from the back, so that the sweep's pairs move at most once */
+        int i = np - 1, j = npl - 1;
+        for (int o = np + npl - 1; o >= 0; o--) {
+            if (j < 0 || (i >= 0 && cmp_pair(&scr->pairs[i], &scr->plane_pairs[j]) > 0))
+                scr->pairs[o] = scr->pairs[i--];
+            else
+                scr->pairs[o] = scr->plane_pairs[j--];
+        }
+        np += npl;
+    }
     *npairs = np;
     return SC_OK;
 }

@@ -55,6 +55,7 @@ void sc_frame_scratch_free(sc_frame_scratch *s)
         s->groups_free(s->groups);
     sc_bp_destroy(s->bp);
     free(s->pairs);
+    free(s->plane_pairs);
     free(s->memo.poses);
     free(s->memo.pairs);
     free(s->memo.start);

@@ -169,6 +169,8 @@ typedef struct sc_frame_scratch {
     sc_broadphase *bp;
     sc_pair *pairs;
     int pair_cap;
+    sc_pair *plane_pairs;           /* detect.c: pairs with a plane */
+    int plane_pair_cap;
     sc_islands islands;
     struct sc_group_scratch *groups;   /* group.c, created when first used */
     void (*groups_free)(struct sc_group_scratch *);
