@@ -167,7 +167,7 @@ static int snap_take(snap *sn, const sc_world *w)
     memcpy(sn->contacts, w->st.contacts, (size_t)sn->ncontacts * sizeof *sn->contacts);
     sc_frame_state fs = { .bodies = sn->bodies, .nbodies = sn->nbodies };
     sc_frame fr = { .cfg = &w->fcfg, .st = &fs };
-    sc_apply_forces(&fr, DT);
+    sc_apply_forces(&fr, DT, NULL);
     for (int i = 0; i < sn->nbodies; i++)
         active[i] = sc_body_movable(&sn->bodies[i]);
     int rc = sc_islands_build(NULL, sn->nbodies, active, sn->contacts, sn->ncontacts, &sn->is);

@@ -312,6 +312,9 @@ typedef struct sc_stats {
     /* the contact solver (docs/DESIGN.md section 11), last frame; every
        fallback is counted, none is an error */
     int lcp_solves;           /* island solves (islands x substeps) */
+    int lcp_kept;             /* islands a speculative round left as they
+                                 were: their last solve's result kept, the
+                                 same bits (docs/DESIGN.md 3.4), last frame */
     int lcp_split;            /* of them, solved as blocks (block Gauss-Seidel) */
     long lcp_blocks;          /* block solves (blocks x sweeps) */
     long lcp_blocks_shared;   /* of them, solved by a thread that helped the

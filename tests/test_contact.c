@@ -84,7 +84,7 @@ static void capture(stack *s, sc_world *w, int frames)
     assert_non_null(keep);
     memcpy(keep, st->bodies, (size_t)s->nb * sizeof *keep);
     sc_frame f = { .cfg = &s->w->fcfg, .st = st };
-    sc_apply_forces(&f, H);
+    sc_apply_forces(&f, H, NULL);
     memcpy(s->bodies, st->bodies, (size_t)s->nb * sizeof *s->bodies);
     memcpy(st->bodies, keep, (size_t)s->nb * sizeof *keep);
     free(keep);

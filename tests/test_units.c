@@ -493,6 +493,45 @@ static void test_narrow_phase_memo_answers_as_a_fresh_one(void **state)
     sc_world_destroy(w);
 }
 
+/* A speculative round solves again only the islands its new speculative
+ * contacts reach (frame.c): the others keep their last solve's result,
+ * which is the same bits as solving them again. A bin and a drop, each
+ * beside a world that solves every island again. */
+static void test_speculative_rounds_keep_islands_same_bits(void **state)
+{
+    (void)state;
+    for (int scene = 0; scene < 2; scene++) {
+        uint64_t h[2];
+        long kept[2] = { 0, 0 }, solves[2] = { 0, 0 };
+        for (int all = 0; all < 2; all++) {
+            sc_world_config c = sc_world_config_default();
+            c.workers = 2;
+            sc_world *w = sc_world_create(&c);
+            assert_non_null(w);
+            w->fcfg.redo_all = all;
+            assert_int_equal(scene ? sc_scene_bolts_nuts(w, 300, 5) : sc_scene_bin(w, 100, 3),
+                             SC_OK);
+            for (int f = 0; f < 120; f++) {
+                sc_stats st;
+                assert_int_equal(sc_world_step(w, 0.01), SC_OK);
+                sc_world_stats(w, &st);
+                kept[all] += st.lcp_kept;
+                solves[all] += st.lcp_solves;
+            }
+            h[all] = sc_world_hash(w);
+            sc_world_destroy(w);
+        }
+        printf("  %s: %ld island solves, %ld islands kept by speculative rounds (every island "
+               "solved again: %ld solves); hash %016llx / %016llx\n",
+               scene ? "drop of 300" : "bin of 100", solves[0], kept[0], solves[1],
+               (unsigned long long)h[0], (unsigned long long)h[1]);
+        assert_true(kept[0] > 0);
+        assert_int_equal(kept[1], 0);
+        assert_int_equal(solves[0] + kept[0], solves[1]);
+        assert_true(h[0] == h[1]);
+    }
+}
+
 static void test_worlds_come_and_go(void **state)
 {
     (void)state;
@@ -623,6 +662,7 @@ int main(void)
         cmocka_unit_test(test_pile_blocks_shared_same_bits_for_1_2_4_workers),
         cmocka_unit_test(test_groups_beside_a_pile_same_bits_for_1_2_4_workers),
         cmocka_unit_test(test_narrow_phase_memo_answers_as_a_fresh_one),
+        cmocka_unit_test(test_speculative_rounds_keep_islands_same_bits),
         cmocka_unit_test(test_longest_first_onto_earliest_finish),
         cmocka_unit_test(test_speed_is_learned_and_slow_nodes_get_less),
         cmocka_unit_test(test_cost_model_is_fitted),

@@ -571,7 +571,7 @@ typedef struct totals {
     long duplicates;            /* duplicate daemon ids reported so far */
     /* the contact solver, summed (or the largest) over the frames */
     long solves, split, blocks, shared, pivots, staggered, refused, split_fb, block_fb, nan;
-    long inelastic, rscaled, unconverged;
+    long inelastic, rscaled, unconverged, kept;
     long substeps, max_pivots, backups, spec;
     int max_sweeps, max_substeps, max_backups;
     double residual, outer_residual;
@@ -655,6 +655,7 @@ static int simulate(const options *o, sc_world *w, totals *t, int progress, reco
         }
         t->max_pen = fmax(t->max_pen, st.max_penetration);
         t->solves += st.lcp_solves;
+        t->kept += st.lcp_kept;
         t->split += st.lcp_split;
         t->blocks += st.lcp_blocks;
         t->shared += st.lcp_blocks_shared;
@@ -830,7 +831,7 @@ static int run_cmd(int argc, char **argv)
                "\"background_units\": %ld, \"narrow_phase_pairs\": %ld, "
                "\"narrow_phase_reused\": %ld, "
                "\"frames_over_budget\": %ld, \"max_frame_s\": %.4f, \"initial_overlaps\": %ld, "
-               "\"solver\": {\"island_split\": %d, \"solves\": %ld, \"split\": %ld, "
+               "\"solver\": {\"island_split\": %d, \"solves\": %ld, \"kept\": %ld, \"split\": %ld, "
                "\"blocks\": %ld, \"blocks_shared\": %ld, \"pivots\": %ld, \"max_frame_pivots\": %ld, "
                "\"staggered_fallbacks\": %ld, \"energy_refused\": %ld, \"split_fallbacks\": %ld, "
                "\"block_fallbacks\": %ld, \"nan_islands\": %ld, \"inelastic_islands\": %ld, "
@@ -849,7 +850,7 @@ static int run_cmd(int argc, char **argv)
                st.duplicate_nodes, t.comm, t.msgs_out, t.msgs_in, t.piped, t.beside, t.np_pairs,
                t.np_reused, t.over_budget, t.max_frame,
                t.overlaps,
-               island_split, t.solves, t.split, t.blocks, t.shared, t.pivots, t.max_pivots, t.staggered,
+               island_split, t.solves, t.kept, t.split, t.blocks, t.shared, t.pivots, t.max_pivots, t.staggered,
                t.refused, t.split_fb, t.block_fb, t.nan, t.inelastic, t.rscaled, t.unconverged,
                t.max_sweeps, t.residual,
                t.outer_residual, t.substeps, t.max_substeps,
@@ -873,9 +874,9 @@ static int run_cmd(int argc, char **argv)
         if (t.overlaps)
             printf("  body pairs overlapping where placed: %ld (pushed apart)\n", t.overlaps);
         printf("  contact solves %ld (split into blocks %ld, block solves %ld, %ld of them by "
-               "helping threads), pivots %ld (most in a frame %ld), substeps %.2f a frame "
-               "(most %d)\n",
-               t.solves, t.split, t.blocks, t.shared, t.pivots, t.max_pivots,
+               "helping threads; islands kept by speculative rounds %ld), pivots %ld (most in a "
+               "frame %ld), substeps %.2f a frame (most %d)\n",
+               t.solves, t.split, t.blocks, t.shared, t.kept, t.pivots, t.max_pivots,
                t.frames ? (double)t.substeps / (double)t.frames : 0.0, t.max_substeps);
         printf("  LCP residual at most %.3g m/s (exact), %.3g m/s (split, tolerance %.0e; "
                "%ld stopped at %d sweeps)\n",

@@ -81,6 +81,7 @@ void sc_stats_add_solve(sc_stats *st, const sc_solve_info *info)
 void sc_stats_add_solver(sc_stats *s, const sc_stats *g)
 {
     s->lcp_solves += g->lcp_solves;
+    s->lcp_kept += g->lcp_kept;
     s->lcp_pivots += g->lcp_pivots;
     s->lcp_fallbacks += g->lcp_fallbacks;
     s->lcp_split += g->lcp_split;
@@ -112,6 +113,7 @@ void sc_stats_add_solver(sc_stats *s, const sc_stats *g)
 void sc_stats_clear_solver(sc_stats *st)
 {
     st->lcp_solves = 0;
+    st->lcp_kept = 0;
     st->lcp_pivots = 0;
     st->lcp_fallbacks = 0;
     st->lcp_split = 0;

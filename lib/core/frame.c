@@ -3,6 +3,7 @@
  * checked for contacts that got deeper than the tolerance and backed up to
  * their time of impact (steps 5-6). It reads and writes only the state it
  * is given; its jobs go to the executor it is given. */
+#include <limits.h>
 #include <stdlib.h>
 #include <string.h>
 
@@ -67,19 +68,158 @@ void sc_frame_scratch_free(sc_frame_scratch *s)
 
 /* ---- the frame: the paper's steps (3)-(7) ---------------------------- */
 
-/* Steps (4)-(7) once over h: islands, contact impulses, positions. */
-static int substep(sc_frame *f, double h, sc_islands *is, unsigned char *touched)
+/* The islands of is that hold a body marked in mask, into sub (arrays
+ * from the arena, freed by sub_islands_free()). */
+static int sub_islands(sc_arena *a, const sc_islands *is, const unsigned char *mask,
+                       sc_islands *sub)
+{
+    memset(sub, 0, sizeof *sub);
+    size_t nb = (size_t)is->body_start[is->count], nc = (size_t)is->contact_start[is->count];
+    sub->body_start = sc_arena_alloc(a, ((size_t)is->count + 1) * sizeof(int));
+    sub->contact_start = sub->body_start ? sc_arena_alloc(a, ((size_t)is->count + 1) * sizeof(int))
+                                         : NULL;
+    sub->bodies = sub->contact_start ? sc_arena_alloc(a, (nb + 1) * sizeof(int)) : NULL;
+    sub->contacts = sub->bodies ? sc_arena_alloc(a, (nc + 1) * sizeof(int)) : NULL;
+    if (!sub->contacts)
+        return SC_ENOMEM;
+    int m = 0, kb = 0, kc = 0;
+    for (int i = 0; i < is->count; i++) {
+        if (!mask[is->bodies[is->body_start[i]]])
+            continue;    /* an island is marked whole or not at all */
+        sub->body_start[m] = kb;
+        sub->contact_start[m] = kc;
+        for (int j = is->body_start[i]; j < is->body_start[i + 1]; j++)
+            sub->bodies[kb++] = is->bodies[j];
+        for (int j = is->contact_start[i]; j < is->contact_start[i + 1]; j++)
+            sub->contacts[kc++] = is->contacts[j];
+        m++;
+    }
+    sub->body_start[m] = kb;
+    sub->contact_start[m] = kc;
+    sub->count = m;
+    return SC_OK;
+}
+
+static void sub_islands_free(sc_arena *a, sc_islands *sub)
+{
+    sc_arena_free(a, sub->contacts);
+    sc_arena_free(a, sub->bodies);
+    sc_arena_free(a, sub->contact_start);
+    sc_arena_free(a, sub->body_start);
+}
+
+/* What a speculative round solves again (frame.c's loop): the bodies at
+ * the substep's start, and those the round's new speculative contacts
+ * hold. Islands without one of them have the contacts and start they had
+ * in the last solve of this substep, over the same h: their bodies keep
+ * its result, the same bits a solve again would give. */
+typedef struct redo {
+    const sc_body *saved;
+    const unsigned char *dirty;
+    const sc_contact *old;          /* the last solve's contacts, impulses */
+    int nold;
+} redo;
+
+static int same_contact(const sc_contact *x, const sc_contact *y)
+{
+    return x->body_a == y->body_a && x->body_b == y->body_b &&
+           !memcmp(x->pos, y->pos, sizeof x->pos) &&
+           !memcmp(x->normal, y->normal, sizeof x->normal) &&
+           !memcmp(&x->depth, &y->depth, sizeof x->depth);
+}
+
+/* For each contact of an island kept (not in mask), its place in the last
+ * solve's contacts (from[k]; -1 for the others): the same contact, whose
+ * impulse that solve found. 0 if one is missing (then all are solved). */
+static int kept_impulses(const sc_frame_state *st, const sc_islands *is,
+                         const unsigned char *mask, const redo *rd, int *from)
+{
+    for (int k = 0; k < st->ncontacts; k++)
+        from[k] = -1;
+    for (int i = 0; i < is->count; i++) {
+        if (mask[is->bodies[is->body_start[i]]])
+            continue;
+        for (int j = is->contact_start[i]; j < is->contact_start[i + 1]; j++) {
+            int k = is->contacts[j];
+            const sc_contact *c = &st->contacts[k];
+            int o = sc_contacts_pair_start(rd->old, rd->nold, c->body_a, c->body_b);
+            while (o < rd->nold && rd->old[o].body_a == c->body_a &&
+                   rd->old[o].body_b == c->body_b && !same_contact(&rd->old[o], c))
+                o++;
+            if (o == rd->nold || !same_contact(&rd->old[o], c))
+                return 0;
+            from[k] = o;
+        }
+    }
+    return 1;
+}
+
+/* Steps (4)-(7) once over h: islands, contact impulses, positions; with
+ * rd, only the islands that hold a dirty body, the others' bodies kept. */
+static int substep(sc_frame *f, double h, sc_islands *is, unsigned char *touched,
+                   const redo *rd)
 {
     sc_frame_state *st = f->st;
+    sc_arena *a = &f->scr->arena;
     int n = st->nbodies;
-    sc_apply_forces(f, h);
+    if (!rd)
+        sc_apply_forces(f, h, NULL);
     double t0 = sc_stage_now(f);
     for (int i = 0; i < n; i++)
-        f->active[i] = sc_body_movable(&st->bodies[i]);
-    int rc = sc_islands_build(&f->scr->arena, n, f->active, st->contacts, st->ncontacts, is);
+        f->active[i] = sc_body_movable(rd ? &rd->saved[i] : &st->bodies[i]);
+    int rc = sc_islands_build(a, n, f->active, st->contacts, st->ncontacts, is);
     sc_stage_since(f, SC_STAGE_ISLANDS, t0);
     if (rc != SC_OK)
         return rc;
+    unsigned char *mask = NULL;
+    sc_islands sub;
+    const sc_islands *solve = is;
+    if (rd) {
+        /* the islands of the dirty bodies are solved again from the start;
+         * the other bodies keep the last solve's result (a body that was
+         * not movable then is as it started: detection may have woken it
+         * since) */
+        mask = sc_arena_alloc(a, (size_t)n);
+        if (!mask)
+            return SC_ENOMEM;
+        memcpy(mask, rd->dirty, (size_t)n);
+        for (int i = 0; i < is->count; i++) {
+            int any = 0;
+            for (int j = is->body_start[i]; j < is->body_start[i + 1] && !any; j++)
+                any = mask[is->bodies[j]];
+            for (int j = is->body_start[i]; any && j < is->body_start[i + 1]; j++)
+                mask[is->bodies[j]] = 1;
+        }
+        /* the kept islands' contacts take the impulses that solve found
+         * (the next detection's warm starts) */
+        int *from = sc_arena_alloc(a, ((size_t)st->ncontacts + 1) * sizeof *from);
+        if (!from) {
+            sc_arena_free(a, mask);
+            return SC_ENOMEM;
+        }
+        if (kept_impulses(st, is, mask, rd, from)) {
+            for (int k = 0; k < st->ncontacts; k++)
+                if (from[k] >= 0)
+                    v3_copy(st->contacts[k].impulse, rd->old[from[k]].impulse);
+        } else {
+            memset(mask, 1, (size_t)n);
+        }
+        sc_arena_free(a, from);
+        for (int i = 0; i < n; i++)
+            if (mask[i] || !sc_body_movable(&rd->saved[i]))
+                st->bodies[i] = rd->saved[i];
+        sc_apply_forces(f, h, mask);
+        rc = sub_islands(a, is, mask, &sub);
+        if (rc != SC_OK) {
+            sub_islands_free(a, &sub);
+            sc_arena_free(a, mask);
+            return rc;
+        }
+        solve = &sub;
+        for (int i = 0; i < is->count; i++)
+            f->stats->lcp_kept += !mask[is->bodies[is->body_start[i]]] &&
+                                  is->contact_start[i + 1] > is->contact_start[i];
+    }
     memset(touched, 0, (size_t)n);
     for (int k = 0; k < st->ncontacts; k++) {
         touched[st->contacts[k].body_a] = 1;
@@ -92,23 +232,40 @@ static int substep(sc_frame *f, double h, sc_islands *is, unsigned char *touched
         .kind = SC_UNIT_ISLAND,
         .bodies = st->bodies,
         .c = st->contacts,
-        .islands = is,
+        .islands = solve,
         .h = h,
         .params = &params,
     };
-    rc = f->ex->run(f->ex, &job, SC_STAGE_LCP, f->stats);
+    rc = solve->count > 0 ? f->ex->run(f->ex, &job, SC_STAGE_LCP, f->stats) : SC_OK;
     sc_stage_since(f, SC_STAGE_LCP, t0);
     f->stats->islands = is->count;
+    if (rc == SC_OK) {
+        t0 = sc_stage_now(f);
+        sc_integrate_positions(f, h, mask);
+        sc_stage_since(f, SC_STAGE_INTEGRATE, t0);
+    }
+    if (rd) {
+        sub_islands_free(a, &sub);
+        sc_arena_free(a, mask);
+    }
     if (rc != SC_OK)
         return rc;
-    t0 = sc_stage_now(f);
-    sc_integrate_positions(f, h);
-    sc_stage_since(f, SC_STAGE_INTEGRATE, t0);
     for (int i = 0; i < n; i++) {
         sc_body *b = &st->bodies[i];
         if (sc_body_movable(b) && (!sc_finite3(b->x) || !sc_finite3(b->v) || !sc_finite3(b->w)))
             return SC_ENUMERIC;
     }
+    return SC_OK;
+}
+
+/* The contacts a solve ended with, impulses included, into keep. */
+static int keep_solved(const sc_frame_state *st, sc_spec_list *keep)
+{
+    if (sc_grow((void **)&keep->c, &keep->cap, st->ncontacts, sizeof *keep->c, INT_MAX))
+        return SC_ENOMEM;
+    if (st->ncontacts > 0)
+        memcpy(keep->c, st->contacts, (size_t)st->ncontacts * sizeof *keep->c);
+    keep->n = st->ncontacts;
     return SC_OK;
 }
 
@@ -136,6 +293,7 @@ static int substeps(sc_frame *f, double dt, sc_body *saved, unsigned char *touch
         }
     }
     sc_spec_list spec = { 0 };    /* speculative contacts of this substep */
+    sc_spec_list solved = { 0 };  /* the contacts of its last solve */
     int backups = 0, movable = 0;
     for (int i = 0; i < n; i++)
         movable += st->bodies[i].inv_mass > 0;
@@ -152,11 +310,14 @@ static int substeps(sc_frame *f, double dt, sc_body *saved, unsigned char *touch
         if (n0 > 0)
             memcpy(c0, st->contacts, (size_t)n0 * sizeof *c0);
         double h = left;
-        rc = substep(f, h, is, touched);
+        rc = substep(f, h, is, touched, NULL);
+        if (rc == SC_OK && local)
+            rc = keep_solved(st, &solved);
         if (rc == SC_OK)
             rc = sc_detect(f);
         spec.n = 0;
         int rounds = 0, sub_backups = 0;
+        int solved_spec = 0;    /* speculative contacts the last solve had */
         while (rc == SC_OK && local) {
             /* local mode: pairs past the tolerance enter the substep again
              * as speculative contacts (slow ones from where they ended,
@@ -202,7 +363,23 @@ static int substeps(sc_frame *f, double dt, sc_body *saved, unsigned char *touch
              * (else it would stay immovable, and the other body might
              * come to rest on it at a gap, never touching it) */
             sc_wake_touched(saved, spec.c, spec.n);
-            memcpy(st->bodies, saved, (size_t)n * sizeof *saved);
+            /* a round at the same h: only the islands the new speculative
+             * contacts reach are solved again (substep(), redo) */
+            int part = !back && !f->cfg->redo_all;
+            unsigned char *dirty = part ? sc_arena_alloc(a, (size_t)n) : NULL;
+            if (part && !dirty) {
+                rc = SC_ENOMEM;
+                break;
+            }
+            if (dirty) {
+                memset(dirty, 0, (size_t)n);
+                for (int k = solved_spec; k < spec.n; k++) {
+                    dirty[spec.c[k].body_a] = 1;
+                    dirty[spec.c[k].body_b] = 1;
+                }
+            } else {
+                memcpy(st->bodies, saved, (size_t)n * sizeof *saved);
+            }
             if (back) {
                 /* back up to the first impact of the pairs nothing holds;
                  * the speculative contacts stay (their gaps are at the
@@ -212,11 +389,16 @@ static int substeps(sc_frame *f, double dt, sc_body *saved, unsigned char *touch
                 h = max_d(frac * h, 1e-6 * dt);
             }
             rc = sc_spec_merge(st, c0, n0, &spec);
+            solved_spec = spec.n;
             f->stats->spec_contacts += spec.n;
             f->stats->spec_rounds += !back;
             rounds += !back;
+            redo rd = { .saved = saved, .dirty = dirty, .old = solved.c, .nold = solved.n };
             if (rc == SC_OK)
-                rc = substep(f, h, is, touched);
+                rc = substep(f, h, is, touched, dirty ? &rd : NULL);
+            sc_arena_free(a, dirty);
+            if (rc == SC_OK)
+                rc = keep_solved(st, &solved);
             if (rc == SC_OK)
                 rc = sc_detect(f);
         }
@@ -231,7 +413,7 @@ static int substeps(sc_frame *f, double dt, sc_body *saved, unsigned char *touch
             st->ncontacts = n0;
             backups++;
             h = max_d(frac * h, 1e-6 * dt);
-            rc = substep(f, h, is, touched);
+            rc = substep(f, h, is, touched, NULL);
             if (rc == SC_OK)
                 rc = sc_detect(f);
         }
@@ -242,6 +424,7 @@ static int substeps(sc_frame *f, double dt, sc_body *saved, unsigned char *touch
             left = 0;
     }
     free(spec.c);
+    free(solved.c);
     f->stats->backups += backups;
     if (backups > 0) {
         f->stats->backup_regions++;

@@ -127,6 +127,8 @@ typedef struct sc_frame_config {
     int broadphase;                 /* SC_BROADPHASE_* */
     int island_split;               /* sc_world_config.island_split */
     int toi_mode;                   /* sc_world_config.toi_mode */
+    int redo_all;                   /* tests: a speculative round solves every
+                                       island again (frame.c) */
 } sc_frame_config;
 
 /* What a frame reads and writes: the bodies (states in, new states out)
@@ -317,9 +319,9 @@ int sc_detect(sc_frame *f);
  * returns how many woke. */
 int sc_wake_touched(sc_body *bodies, const sc_contact *c, int n);
 /* Step 3: u* = u + h (g + F/m) (keeping u in v0/w0); positions after the
- * contact solve. */
-void sc_apply_forces(sc_frame *f, double h);
-void sc_integrate_positions(sc_frame *f, double h);
+ * contact solve. only (NULL: every body) marks the bodies to step. */
+void sc_apply_forces(sc_frame *f, double h, const unsigned char *only);
+void sc_integrate_positions(sc_frame *f, double h, const unsigned char *only);
 /* States after a frame: free / colliding / contact, islands asleep. */
 void sc_update_states(sc_frame *f, const sc_islands *is, const unsigned char *touched,
                       double dt);

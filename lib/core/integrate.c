@@ -44,11 +44,11 @@ static void gyroscopic(double wb[3], const double I[9], const double inv_I[9], d
 
 /* Step 3, first half: u* = u + h (g + F/m), gyroscopic term, and the world
  * inverse inertia the contact solve needs. v0/w0 keep u for restitution. */
-void sc_apply_forces(sc_frame *f, double h)
+void sc_apply_forces(sc_frame *f, double h, const unsigned char *only)
 {
     for (int i = 0; i < f->st->nbodies; i++) {
         sc_body *b = &f->st->bodies[i];
-        if (!sc_body_movable(b))
+        if (!sc_body_movable(b) || (only && !only[i]))
             continue;
         v3_copy(b->v0, b->v);
         v3_copy(b->w0, b->w);
@@ -73,11 +73,11 @@ void sc_apply_forces(sc_frame *f, double h)
  * is exact for free fall and for a constant friction deceleration; a body
  * that collided this substep took its impulse at the start and then flew
  * under the external forces: x += h (u' - a h / 2). */
-void sc_integrate_positions(sc_frame *f, double h)
+void sc_integrate_positions(sc_frame *f, double h, const unsigned char *only)
 {
     for (int i = 0; i < f->st->nbodies; i++) {
         sc_body *b = &f->st->bodies[i];
-        if (!sc_body_movable(b))
+        if (!sc_body_movable(b) || (only && !only[i]))
             continue;
         double step[3], avg_w[3];
         if (b->collided == 2) {

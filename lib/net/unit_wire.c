@@ -73,9 +73,9 @@
 
 #include "unit_wire.h"
 
-#define WIRE_VERSION 8       /* 6: island units carry impact_first, results inelastic, v0, w0;
+#define WIRE_VERSION 9       /* 6: island units carry impact_first, results inelastic, v0, w0;
                                 7: results carry energy_refused, restitution_scaled;
-                                8: and np_pairs, np_reused */
+                                8: and np_pairs, np_reused; 9: and lcp_kept */
 #define MAGIC_UNIT 0x55574353u        /* "SCWU" */
 #define MAGIC_RESULT 0x52574353u      /* "SCWR" */
 #define MAX_PAIRS (1 << 16)
@@ -884,7 +884,7 @@ static void get_info(rbuf *r, sc_solve_info *info)
 #define STAT_F64 (SC_STAGE_COUNT + 6)
 #define STAT_LONGS 8
 #define STAT_SIZES 2
-#define STAT_INTS 21
+#define STAT_INTS 22
 
 typedef struct stat_ptrs {
     double *d[STAT_F64];
@@ -910,7 +910,7 @@ static void stat_fields(sc_stats *s, stat_ptrs *p)
                           &s->substeps,       &s->backups,          &s->backup_regions,
                           &s->backup_bodies,  &s->spec_contacts,    &s->spec_rounds,
                           &s->lcp_inelastic,  &s->lcp_energy_refused,
-                          &s->lcp_restitution_scaled };
+                          &s->lcp_restitution_scaled, &s->lcp_kept };
     _Static_assert(sizeof d / sizeof d[0] == STAT_F64 - SC_STAGE_COUNT, "stat doubles");
     memcpy(&p->d[SC_STAGE_COUNT], d, sizeof d);
     memcpy(p->l, l, sizeof l);
