@@ -528,6 +528,51 @@ static void test_sap_stays_exact_over_frames_of_moving_bodies(void **state)
 
 /* The body count changes between calls on one broad phase (bodies added,
  * removed, all removed, methods alternated). */
+/* SAP after a call that moved few bodies tests only theirs again (its
+ * last pairs for the others): after moving 1, 3 or 20 of 400 bodies (some
+ * onto others, some apart), growing a radius, waking or sleeping one, or
+ * moving them all, the reference's pairs every time. */
+static void test_sap_exact_when_few_bodies_moved(void **state)
+{
+    (void)state;
+    rng g = { 77 };
+    scene s = scene_new(400, 1);
+    for (int i = 0; i < s.n; i++) {
+        for (int k = 0; k < 3; k++)
+            centre(&s, i)[k] = uni(&g, 0, 1.5);
+        s.r[i] = uni(&g, 0.02, 0.09);
+        s.act[i] = rng_next(&g) % 5 != 0;
+    }
+    sc_broadphase *bp = sc_bp_create();
+    assert_non_null(bp);
+    for (int round = 0; round < 60; round++) {
+        sc_pair *want;
+        int nwant = reference(&s, &want);
+        check_method(bp, SC_BROADPHASE_SAP, &s, want, nwant, "few moved");
+        free(want);
+        int kind = round % 6, moves = kind == 0 ? 1 : kind == 1 ? 3 : kind == 2 ? 20 : 1;
+        if (kind == 5)
+            moves = s.n;
+        for (int m = 0; m < moves; m++) {
+            int i = (int)(rng_next(&g) % (uint64_t)s.n);
+            if (kind == 3) {
+                s.r[i] *= 1.5;                  /* grown */
+            } else if (kind == 4) {
+                s.act[i] = !s.act[i];           /* woken or put to sleep */
+            } else if (m % 2 && kind != 5) {
+                int j = (int)(rng_next(&g) % (uint64_t)s.n);
+                for (int k = 0; k < 3; k++)     /* onto another */
+                    centre(&s, i)[k] = centre(&s, j)[k] + uni(&g, -0.05, 0.05);
+            } else {
+                for (int k = 0; k < 3; k++)
+                    centre(&s, i)[k] += uni(&g, -0.02, 0.02);
+            }
+        }
+    }
+    sc_bp_destroy(bp);
+    scene_free(&s);
+}
+
 static void test_sap_stays_exact_when_the_body_count_changes(void **state)
 {
     (void)state;
@@ -706,6 +751,7 @@ int main(void)
         cmocka_unit_test(test_zero_one_and_two_bodies),
         cmocka_unit_test(test_sap_stays_exact_over_frames_of_moving_bodies),
         cmocka_unit_test(test_sap_stays_exact_when_the_body_count_changes),
+        cmocka_unit_test(test_sap_exact_when_few_bodies_moved),
         cmocka_unit_test(test_sap_matches_reference_on_a_5000_body_pile),
         cmocka_unit_test(test_pairs_array_grows_from_null_then_is_reused),
         cmocka_unit_test(test_invalid_input_returns_einval),

@@ -58,6 +58,14 @@
  * to break these arguments (touching pairs, huge offsets, radii from 1e-9 to
  * 1e3, planes, identical centres).
  *
+ * Few moved: a pile is detected again within its frame after every
+ * back-up and speculative round, and a round that solved few islands
+ * again moved few bodies. So SAP keeps its last call's centres, radii,
+ * activity and pairs: when at most one body in BP_FEW_MOVED has other
+ * bits now, the pairs of two unmoved bodies are the last ones (the same
+ * predicate on the same bits), and each moved body is tested against
+ * every body; both merged in order. The same set as a sweep.
+ *
  * Memory: per-body arrays grow with n and the pair scratch with the pair
  * count; nothing is allocated once they have reached their size.
  */
@@ -138,6 +146,13 @@ struct sc_broadphase {
     /* output while a call runs */
     sc_pair **out;
     int *out_cap, nout;
+    /* the last sweep's input and output, for a call that moves few
+     * bodies ("Few moved" above) */
+    int last_n, last_cap;          /* last_n 0: none */
+    double *last_c, *last_r;
+    unsigned char *last_act, *moved;
+    sc_pair *last, *fresh;
+    int nlast, last_pair_cap, fresh_cap;
 };
 
 /* The predicate of the contract; every method goes through it. */
@@ -656,6 +671,115 @@ static int find_swept_pairs(sc_broadphase *bp, const double *c, const double *r,
     return sort_pairs(bp, n);
 }
 
+/* ---- sweep and prune: few moved ---- */
+
+#define BP_FEW_MOVED 16        /* at most one body in this many moved */
+
+static int cmp_pairs(const void *x, const void *y)
+{
+    const sc_pair *a = x, *b = y;
+    if (a->a != b->a)
+        return (a->a > b->a) - (a->a < b->a);
+    return (a->b > b->b) - (a->b < b->b);
+}
+
+/* The pairs when few bodies moved since the last sweep; 1 if done so (into
+ * the output), 0 if too many moved, or a code. */
+static int find_moved_pairs(sc_broadphase *bp, const double *c, const double *r,
+                            const unsigned char *active, int n)
+{
+    if (bp->last_n != n || n < 2 * BP_FEW_MOVED)
+        return 0;
+    int k = 0;
+    for (int i = 0; i < n; i++) {
+        unsigned char act = !active || active[i];
+        bp->moved[i] = memcmp(&c[3 * i], &bp->last_c[3 * i], 3 * sizeof *c) != 0 ||
+                       memcmp(&r[i], &bp->last_r[i], sizeof *r) != 0 || act != bp->last_act[i];
+        k += bp->moved[i];
+        if (k * BP_FEW_MOVED > n)
+            return 0;
+    }
+    /* the moved bodies' pairs: each against every body (two moved ones
+     * once), sorted */
+    int nf = 0;
+    for (int i = 0; i < n; i++) {
+        if (!bp->moved[i])
+            continue;
+        int ai = !active || active[i];
+        const double *ci = &c[3 * i];
+        for (int j = 0; j < n; j++) {
+            if (j == i || (bp->moved[j] && j < i) || !(ai || !active || active[j]))
+                continue;
+            const double *cj = &c[3 * j];
+            if (!spheres_overlap(ci[0], ci[1], ci[2], r[i], cj[0], cj[1], cj[2], r[j]))
+                continue;
+            if (nf == bp->fresh_cap) {
+                int cap = bp->fresh_cap ? 2 * bp->fresh_cap : 64;
+                sc_pair *p = realloc(bp->fresh, (size_t)cap * sizeof *p);
+                if (!p)
+                    return SC_ENOMEM;
+                bp->fresh = p;
+                bp->fresh_cap = cap;
+            }
+            bp->fresh[nf++] = (sc_pair){ i < j ? i : j, i < j ? j : i };
+        }
+    }
+    if (nf > 1)
+        qsort(bp->fresh, (size_t)nf, sizeof *bp->fresh, cmp_pairs);
+    /* merged with the last pairs of two unmoved bodies */
+    int i = 0, j = 0;
+    for (;;) {
+        while (i < bp->nlast && (bp->moved[bp->last[i].a] || bp->moved[bp->last[i].b]))
+            i++;
+        if (i == bp->nlast && j == nf)
+            break;
+        int take_last = j == nf || (i < bp->nlast && cmp_pairs(&bp->last[i], &bp->fresh[j]) < 0);
+        if (bp->nout == *bp->out_cap && grow_pairs(bp))
+            return SC_ENOMEM;
+        (*bp->out)[bp->nout++] = take_last ? bp->last[i++] : bp->fresh[j++];
+    }
+    return 1;
+}
+
+/* This call's input and output, for the next. */
+static int keep_last(sc_broadphase *bp, const double *c, const double *r,
+                     const unsigned char *active, int n)
+{
+    bp->last_n = 0;
+    if (n > bp->last_cap) {
+        double *lc = realloc(bp->last_c, 3 * (size_t)n * sizeof *lc);
+        if (lc)
+            bp->last_c = lc;
+        double *lr = lc ? realloc(bp->last_r, (size_t)n * sizeof *lr) : NULL;
+        if (lr)
+            bp->last_r = lr;
+        unsigned char *la = lr ? realloc(bp->last_act, (size_t)n) : NULL;
+        if (la)
+            bp->last_act = la;
+        unsigned char *mv = la ? realloc(bp->moved, (size_t)n) : NULL;
+        if (!mv)
+            return SC_ENOMEM;
+        bp->moved = mv;
+        bp->last_cap = n;
+    }
+    if (bp->nout > bp->last_pair_cap) {
+        sc_pair *p = realloc(bp->last, (size_t)bp->nout * sizeof *p);
+        if (!p)
+            return SC_ENOMEM;
+        bp->last = p;
+        bp->last_pair_cap = bp->nout;
+    }
+    memcpy(bp->last_c, c, 3 * (size_t)n * sizeof *c);
+    memcpy(bp->last_r, r, (size_t)n * sizeof *r);
+    for (int i = 0; i < n; i++)
+        bp->last_act[i] = !active || active[i];
+    if (bp->nout > 0)
+        memcpy(bp->last, *bp->out, (size_t)bp->nout * sizeof *bp->last);
+    bp->nlast = bp->nout;
+    bp->last_n = n;
+    return SC_OK;
+}
+
 /* ---- API ---- */
 
 sc_broadphase *sc_bp_create(void)
@@ -681,6 +805,12 @@ void sc_bp_destroy(sc_broadphase *bp)
     free(bp->lwidth);
     free(bp->count);
     free(bp->tmp);
+    free(bp->last_c);
+    free(bp->last_r);
+    free(bp->last_act);
+    free(bp->moved);
+    free(bp->last);
+    free(bp->fresh);
     free(bp);
 }
 
@@ -700,10 +830,22 @@ int sc_bp_find_pairs(sc_broadphase *bp, int method, const double *c, const doubl
     bp->out = pairs;
     bp->out_cap = cap;
     bp->nout = 0;
-    int rc = method == SC_BROADPHASE_SPHERES ? find_all_pairs(bp, c, r, active, n)
-                                             : find_swept_pairs(bp, c, r, active, n, var);
+    int rc;
+    if (method == SC_BROADPHASE_SPHERES) {
+        rc = find_all_pairs(bp, c, r, active, n);
+    } else {
+        rc = find_moved_pairs(bp, c, r, active, n);
+        if (rc == 0) {
+            bp->nout = 0;
+            rc = find_swept_pairs(bp, c, r, active, n, var);
+        }
+        if (rc >= 0 && keep_last(bp, c, r, active, n) != SC_OK)
+            bp->last_n = 0;     /* only costs the next call a sweep */
+        rc = rc < 0 ? rc : SC_OK;
+    }
     if (rc < 0) {
         bp->n = 0;              /* a failed call may leave the order half done */
+        bp->last_n = 0;
         return rc;
     }
     return bp->nout;
