@@ -278,6 +278,14 @@ void sc_np_destroy(sc_np_ctx *ctx);
  * SC_MAX_PAIR_CONTACTS; returns how many were written (<= max) or a code. */
 int sc_np_collide(sc_np_ctx *ctx, const sc_shape *a, const sc_pose *pa,
                   const sc_shape *b, const sc_pose *pb, sc_contact *out, int max);
+/* The same, for a caller that only asks whether the deepest contact is
+ * deeper than stop: a shape with convex pieces stops at the first pair of
+ * pieces with a contact deeper than stop, and returns what it has (its
+ * deepest is then deeper than stop, not the deepest of all). Otherwise
+ * the same contacts as sc_np_collide(). */
+int sc_np_collide_until(sc_np_ctx *ctx, const sc_shape *a, const sc_pose *pa,
+                        const sc_shape *b, const sc_pose *pb, sc_contact *out, int max,
+                        double stop);
 /* Reduce n raw contacts in place to at most SC_MAX_PAIR_CONTACTS well-spread
  * ones (points closer than merge_dist merged); returns the new count. */
 int sc_manifold_reduce(sc_contact *c, int n, double merge_dist);

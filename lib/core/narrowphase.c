@@ -355,7 +355,7 @@ static int pieces_near(const sc_shape *s, const sc_pose *p, const double c[3], d
 #define PIECE_STACK 64
 static int collide_pieces(sc_np_ctx *ctx, const sc_shape *a, const sc_pose *pa,
                           const sc_shape *b, const sc_pose *pb, double merge, sc_contact *out,
-                          int max)
+                          int max, double stop)
 {
     sc_contact c[PIECE_BUF + SC_MAX_PAIR_CONTACTS];
     placed_piece stack[PIECE_STACK], *pp = stack;
@@ -366,9 +366,9 @@ static int collide_pieces(sc_np_ctx *ctx, const sc_shape *a, const sc_pose *pa,
     placed_piece *qa = pp, *qb = pp + na;
     int ma = pieces_near(a, pa, pb->pos, b->bound_r, qa);
     int mb = pieces_near(b, pb, pa->pos, a->bound_r, qb);
-    int n = 0, rc = SC_OK;
-    for (int i = 0; i < ma && rc == SC_OK; i++)
-        for (int j = 0; j < mb && rc == SC_OK; j++) {
+    int n = 0, rc = SC_OK, deep = 0;
+    for (int i = 0; i < ma && rc == SC_OK && !deep; i++)
+        for (int j = 0; j < mb && rc == SC_OK && !deep; j++) {
             double d[3], r = qa[i].r + qb[j].r;
             v3_sub(d, qa[i].q.pos, qb[j].q.pos);
             if (v3_dot(d, d) > r * r)
@@ -380,10 +380,14 @@ static int collide_pieces(sc_np_ctx *ctx, const sc_shape *a, const sc_pose *pa,
                 continue;
             int k = sc_np_collide(ctx, qa[i].s, &qa[i].q, qb[j].s, &qb[j].q, &c[n],
                                   SC_MAX_PAIR_CONTACTS);
-            if (k < 0)
+            if (k < 0) {
                 rc = k;
-            else
-                n += k;
+                break;
+            }
+            /* deeper than stop: the caller asks no more than this */
+            for (int q = n; q < n + k; q++)
+                deep |= c[q].depth > stop;
+            n += k;
             if (n > PIECE_BUF)
                 n = sc_manifold_reduce(c, n, merge);
         }
@@ -392,8 +396,24 @@ static int collide_pieces(sc_np_ctx *ctx, const sc_shape *a, const sc_pose *pa,
     return rc == SC_OK ? emit(c, n, merge, out, max) : rc;
 }
 
+static int np_collide(sc_np_ctx *ctx, const sc_shape *a, const sc_pose *pa, const sc_shape *b,
+                      const sc_pose *pb, sc_contact *out, int max, double stop);
+
 int sc_np_collide(sc_np_ctx *ctx, const sc_shape *a, const sc_pose *pa, const sc_shape *b,
                   const sc_pose *pb, sc_contact *out, int max)
+{
+    return np_collide(ctx, a, pa, b, pb, out, max, INFINITY);
+}
+
+int sc_np_collide_until(sc_np_ctx *ctx, const sc_shape *a, const sc_pose *pa,
+                        const sc_shape *b, const sc_pose *pb, sc_contact *out, int max,
+                        double stop)
+{
+    return np_collide(ctx, a, pa, b, pb, out, max, stop);
+}
+
+static int np_collide(sc_np_ctx *ctx, const sc_shape *a, const sc_pose *pa, const sc_shape *b,
+                      const sc_pose *pb, sc_contact *out, int max, double stop)
 {
     if (!ctx || !a || !b || !pa || !pb || (!out && max > 0) || max < 0)
         return SC_EINVAL;
@@ -413,7 +433,7 @@ int sc_np_collide(sc_np_ctx *ctx, const sc_shape *a, const sc_pose *pa, const sc
         return emit(c, n, merge, out, max);
     }
     if (a->npieces || b->npieces)
-        return collide_pieces(ctx, a, pa, b, pb, merge, out, max);
+        return collide_pieces(ctx, a, pa, b, pb, merge, out, max, stop);
     const sc_ode *o = ctx->ode;
     if (sc_ode_is_private(o))
         o->dAllocateODEDataForThread(dAllocateMaskAll);

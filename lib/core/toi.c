@@ -26,10 +26,12 @@ void sc_pose_lerp(sc_pose *r, const sc_pose *a, const sc_pose *b, double t)
 }
 
 /* Deepest penetration at time t, or -1 when apart, and its normal (n may
- * be NULL); negative code on error. */
+ * be NULL); negative code on error. A caller that only compares it with
+ * stop gets, when it is deeper, some depth deeper than stop (pieces:
+ * sc_np_collide_until()); stop INFINITY: the deepest. */
 static int deepest_at(sc_np_ctx *ctx, const sc_shape *a, const sc_pose *a0, const sc_pose *a1,
                       const sc_shape *b, const sc_pose *b0, const sc_pose *b1, double t,
-                      double *depth, double *n)
+                      double stop, double *depth, double *n)
 {
     sc_pose pa, pb;
     sc_pose_lerp(&pa, a0, a1, t);
@@ -40,7 +42,7 @@ static int deepest_at(sc_np_ctx *ctx, const sc_shape *a, const sc_pose *a0, cons
         return SC_OK;
     }
     sc_contact c[SC_MAX_PAIR_CONTACTS];
-    int k = sc_np_collide(ctx, a, &pa, b, &pb, c, SC_MAX_PAIR_CONTACTS);
+    int k = sc_np_collide_until(ctx, a, &pa, b, &pb, c, SC_MAX_PAIR_CONTACTS, stop);
     if (k < 0)
         return k;
     *depth = -1;
@@ -55,9 +57,9 @@ static int deepest_at(sc_np_ctx *ctx, const sc_shape *a, const sc_pose *a0, cons
 
 static int depth_at(sc_np_ctx *ctx, const sc_shape *a, const sc_pose *a0, const sc_pose *a1,
                     const sc_shape *b, const sc_pose *b0, const sc_pose *b1, double t,
-                    double *depth)
+                    double stop, double *depth)
 {
-    return deepest_at(ctx, a, a0, a1, b, b0, b1, t, depth, NULL);
+    return deepest_at(ctx, a, a0, a1, b, b0, b1, t, stop, depth, NULL);
 }
 
 /* How far any point of s can move between p0 and p1 (translation plus
@@ -104,7 +106,7 @@ static int sample_touch(sc_np_ctx *ctx, const sc_shape *a, const sc_pose *a0, co
     for (int k = 1; k <= samples && t0 + (1 - t0) * ((double)(k - 1) / samples) < tmax; k++) {
         double hi = t0 + (1 - t0) * ((double)k / samples);
         double lo = t0 + (1 - t0) * ((double)(k - 1) / samples);
-        rc = depth_at(ctx, a, a0, a1, b, b0, b1, hi, &d);
+        rc = depth_at(ctx, a, a0, a1, b, b0, b1, hi, tol_m, &d);
         if (rc < 0)
             return rc;
         if (d < 0)
@@ -113,7 +115,7 @@ static int sample_touch(sc_np_ctx *ctx, const sc_shape *a, const sc_pose *a0, co
         double best = hi;
         for (int it = 0; it < TOI_MAX_BISECT && hi - lo > 1e-12; it++) {
             double mid = 0.5 * (lo + hi);
-            rc = depth_at(ctx, a, a0, a1, b, b0, b1, mid, &d);
+            rc = depth_at(ctx, a, a0, a1, b, b0, b1, mid, tol_m, &d);
             if (rc < 0)
                 return rc;
             if (d < 0) {
@@ -143,7 +145,7 @@ static int sample_deepen(sc_np_ctx *ctx, const sc_shape *a, const sc_pose *a0,
     for (int k = 1; k <= samples && t0 + (1 - t0) * ((double)(k - 1) / samples) < tmax; k++) {
         double hi = t0 + (1 - t0) * ((double)k / samples);
         double lo = t0 + (1 - t0) * ((double)(k - 1) / samples);
-        rc = depth_at(ctx, a, a0, a1, b, b0, b1, hi, &d);
+        rc = depth_at(ctx, a, a0, a1, b, b0, b1, hi, limit_m, &d);
         if (rc < 0)
             return rc;
         if (d <= limit_m)
@@ -151,7 +153,7 @@ static int sample_deepen(sc_np_ctx *ctx, const sc_shape *a, const sc_pose *a0,
         /* lo within the limit, hi past it: keep the last time within */
         for (int it = 0; it < TOI_MAX_BISECT && hi - lo > 1e-9; it++) {
             double mid = 0.5 * (lo + hi);
-            rc = depth_at(ctx, a, a0, a1, b, b0, b1, mid, &d);
+            rc = depth_at(ctx, a, a0, a1, b, b0, b1, mid, limit_m, &d);
             if (rc < 0)
                 return rc;
             if (d <= limit_m)
@@ -262,7 +264,7 @@ int sc_toi_ca_before_ctx(sc_np_ctx *ctx, const sc_shape *a, const sc_pose *a0,
          * sphere-convex collider reads depths up to 4e-7 m short): the
          * sampling search, as for any pair it takes as apart */
         double d;
-        rc = depth_at(ctx, a, a0, a1, b, b0, b1, 0, &d);
+        rc = depth_at(ctx, a, a0, a1, b, b0, b1, 0, -1, &d);
         if (rc < 0)
             return rc;
         if (d >= 0) {
@@ -369,7 +371,7 @@ int sc_toi_ca_deepen_before_ctx(sc_np_ctx *ctx, const sc_shape *a, const sc_pose
     sc_ccd_sep s, sn;
     sc_pose pa, pb;
     double d0, n0[3];
-    int rc = deepest_at(ctx, a, a0, a1, b, b0, b1, 0, &d0, n0);
+    int rc = deepest_at(ctx, a, a0, a1, b, b0, b1, 0, INFINITY, &d0, n0);
     if (rc < 0)
         return rc;
     /* as the sampling search */
@@ -415,7 +417,7 @@ int sc_toi_sample_before_ctx(sc_np_ctx *ctx, const sc_shape *a, const sc_pose *a
     if (!ctx || !a || !b || !a0 || !a1 || !b0 || !b1 || !t || !(tol_m > 0) || !isfinite(tol_m))
         return SC_EINVAL;
     double d;
-    int rc = depth_at(ctx, a, a0, a1, b, b0, b1, 0.0, &d);
+    int rc = depth_at(ctx, a, a0, a1, b, b0, b1, 0.0, -1, &d);
     if (rc < 0)
         return rc;
     if (d >= 0) {
@@ -432,7 +434,7 @@ int sc_toi_sample_deepen_before_ctx(sc_np_ctx *ctx, const sc_shape *a, const sc_
     if (!ctx || !a || !b || !a0 || !a1 || !b0 || !b1 || !t || !(limit_m > 0))
         return SC_EINVAL;
     double d;
-    int rc = depth_at(ctx, a, a0, a1, b, b0, b1, 0.0, &d);
+    int rc = depth_at(ctx, a, a0, a1, b, b0, b1, 0.0, INFINITY, &d);
     if (rc < 0)
         return rc;
     if (!held_limit(d, &limit_m))
