@@ -708,7 +708,7 @@ static int find_moved_pairs(sc_broadphase *bp, const double *c, const double *r,
         int ai = !active || active[i];
         const double *ci = &c[3 * i];
         for (int j = 0; j < n; j++) {
-            if (j == i || (bp->moved[j] && j < i) || !(ai || !active || active[j]))
+            if (j == i || (j < i && bp->moved[j]) || !(ai || !active || active[j]))
                 continue;
             const double *cj = &c[3 * j];
             if (!spheres_overlap(ci[0], ci[1], ci[2], r[i], cj[0], cj[1], cj[2], r[j]))
@@ -746,6 +746,8 @@ static int keep_last(sc_broadphase *bp, const double *c, const double *r,
                      const unsigned char *active, int n)
 {
     bp->last_n = 0;
+    if (n < 2 * BP_FEW_MOVED)
+        return SC_OK;           /* find_moved_pairs() does not look */
     if (n > bp->last_cap) {
         double *lc = realloc(bp->last_c, 3 * (size_t)n * sizeof *lc);
         if (lc)
