@@ -76,6 +76,43 @@ static void test_groups_same_bits_for_1_2_3_8_workers(void **state)
     (void)state;
 }
 
+/* What the determinism tests below add up over a run. */
+typedef struct run_sum {
+    long blocks, shared, split, units, background, kept, solves;
+} run_sum;
+
+/* A bin (sc_scene_bin) or a drop (sc_scene_bolts_nuts) of n parts, seed
+ * seed, in the default world on workers threads (redo_all: every
+ * speculative round solves every island again), frames frames, its
+ * figures summed into *s; returns the state hash. */
+static uint64_t run_scene(int workers, int bin, int n, uint64_t seed, int frames, int redo_all,
+                          run_sum *s)
+{
+    sc_world_config c = sc_world_config_default();
+    c.workers = workers;
+    sc_world *w = sc_world_create(&c);
+    assert_non_null(w);
+    w->fcfg.redo_all = redo_all;
+    assert_int_equal(bin ? sc_scene_bin(w, n, seed) : sc_scene_bolts_nuts(w, n, seed), SC_OK);
+    memset(s, 0, sizeof *s);
+    for (int f = 0; f < frames; f++) {
+        sc_stats st;
+        assert_int_equal(sc_world_step(w, 0.01), SC_OK);
+        sc_world_stats(w, &st);
+        assert_true(st.units_background <= st.units);
+        s->blocks += st.lcp_blocks;
+        s->shared += st.lcp_blocks_shared;
+        s->split += st.lcp_split;
+        s->units += st.units;
+        s->background += st.units_background;
+        s->kept += st.lcp_kept;
+        s->solves += st.lcp_solves;
+    }
+    uint64_t h = sc_world_hash(w);
+    sc_world_destroy(w);
+    return h;
+}
+
 /* A pile of 100 parts in a bin (local time of impact, motion groups, the
  * default world): its split islands share their blocks with the threads
  * that are idle (docs/DESIGN.md 11, shared blocks), which depends on
@@ -86,28 +123,14 @@ static void test_pile_blocks_shared_same_bits_for_1_2_4_workers(void **state)
     const int workers[] = { 1, 2, 4 };
     uint64_t h[3];
     for (int i = 0; i < 3; i++) {
-        sc_world_config c = sc_world_config_default();
-        c.workers = workers[i];
-        sc_world *w = sc_world_create(&c);
-        assert_non_null(w);
-        assert_int_equal(sc_scene_bin(w, 100, 3), SC_OK);
-        long blocks = 0, shared = 0, split = 0;
-        for (int f = 0; f < 150; f++) {
-            sc_stats st;
-            assert_int_equal(sc_world_step(w, 0.01), SC_OK);
-            sc_world_stats(w, &st);
-            blocks += st.lcp_blocks;
-            shared += st.lcp_blocks_shared;
-            split += st.lcp_split;
-        }
-        h[i] = sc_world_hash(w);
+        run_sum r;
+        h[i] = run_scene(workers[i], 1, 100, 3, 150, 0, &r);
         printf("  bin of 100, %d workers: %ld split solves, %ld block solves, %ld by helping "
                "threads; hash %016llx\n",
-               workers[i], split, blocks, shared, (unsigned long long)h[i]);
-        assert_true(split > 0);
+               workers[i], r.split, r.blocks, r.shared, (unsigned long long)h[i]);
+        assert_true(r.split > 0);
         if (workers[i] == 1)
-            assert_int_equal(shared, 0);
-        sc_world_destroy(w);
+            assert_int_equal(r.shared, 0);
     }
     assert_true(h[1] == h[0]);
     assert_true(h[2] == h[0]);
@@ -358,29 +381,15 @@ static void test_groups_beside_a_pile_same_bits_for_1_2_4_workers(void **state)
     const int workers[] = { 1, 2, 4 };
     uint64_t h[3];
     for (int i = 0; i < 3; i++) {
-        sc_world_config c = sc_world_config_default();
-        c.workers = workers[i];
-        sc_world *w = sc_world_create(&c);
-        assert_non_null(w);
-        assert_int_equal(sc_scene_bolts_nuts(w, 300, 5), SC_OK);
-        long bg = 0, units = 0;
-        for (int f = 0; f < 120; f++) {
-            sc_stats st;
-            assert_int_equal(sc_world_step(w, 0.01), SC_OK);
-            sc_world_stats(w, &st);
-            bg += st.units_background;
-            units += st.units;
-            assert_true(st.units_background <= st.units);
-        }
-        h[i] = sc_world_hash(w);
+        run_sum r;
+        h[i] = run_scene(workers[i], 0, 300, 5, 120, 0, &r);
         printf("  drop of 300, %d workers: %ld units, %ld group units beside the pile; "
                "hash %016llx\n",
-               workers[i], units, bg, (unsigned long long)h[i]);
+               workers[i], r.units, r.background, (unsigned long long)h[i]);
         if (workers[i] == 1)
-            assert_int_equal(bg, 0);
+            assert_int_equal(r.background, 0);
         else
-            assert_true(bg > 0);
-        sc_world_destroy(w);
+            assert_true(r.background > 0);
     }
     assert_true(h[1] == h[0]);
     assert_true(h[2] == h[0]);
@@ -500,35 +509,18 @@ static void test_narrow_phase_memo_answers_as_a_fresh_one(void **state)
 static void test_speculative_rounds_keep_islands_same_bits(void **state)
 {
     (void)state;
-    for (int scene = 0; scene < 2; scene++) {
-        uint64_t h[2];
-        long kept[2] = { 0, 0 }, solves[2] = { 0, 0 };
-        for (int all = 0; all < 2; all++) {
-            sc_world_config c = sc_world_config_default();
-            c.workers = 2;
-            sc_world *w = sc_world_create(&c);
-            assert_non_null(w);
-            w->fcfg.redo_all = all;
-            assert_int_equal(scene ? sc_scene_bolts_nuts(w, 300, 5) : sc_scene_bin(w, 100, 3),
-                             SC_OK);
-            for (int f = 0; f < 120; f++) {
-                sc_stats st;
-                assert_int_equal(sc_world_step(w, 0.01), SC_OK);
-                sc_world_stats(w, &st);
-                kept[all] += st.lcp_kept;
-                solves[all] += st.lcp_solves;
-            }
-            h[all] = sc_world_hash(w);
-            sc_world_destroy(w);
-        }
+    for (int bin = 0; bin < 2; bin++) {
+        run_sum part, all;
+        uint64_t h = run_scene(2, bin, bin ? 100 : 300, bin ? 3 : 5, 120, 0, &part);
+        uint64_t h_all = run_scene(2, bin, bin ? 100 : 300, bin ? 3 : 5, 120, 1, &all);
         printf("  %s: %ld island solves, %ld islands kept by speculative rounds (every island "
                "solved again: %ld solves); hash %016llx / %016llx\n",
-               scene ? "drop of 300" : "bin of 100", solves[0], kept[0], solves[1],
-               (unsigned long long)h[0], (unsigned long long)h[1]);
-        assert_true(kept[0] > 0);
-        assert_int_equal(kept[1], 0);
-        assert_int_equal(solves[0] + kept[0], solves[1]);
-        assert_true(h[0] == h[1]);
+               bin ? "bin of 100" : "drop of 300", part.solves, part.kept, all.solves,
+               (unsigned long long)h, (unsigned long long)h_all);
+        assert_true(part.kept > 0);
+        assert_int_equal(all.kept, 0);
+        assert_int_equal(part.solves + part.kept, all.solves);
+        assert_true(h == h_all);
     }
 }
 

@@ -713,14 +713,8 @@ static int find_moved_pairs(sc_broadphase *bp, const double *c, const double *r,
             const double *cj = &c[3 * j];
             if (!spheres_overlap(ci[0], ci[1], ci[2], r[i], cj[0], cj[1], cj[2], r[j]))
                 continue;
-            if (nf == bp->fresh_cap) {
-                int cap = bp->fresh_cap ? 2 * bp->fresh_cap : 64;
-                sc_pair *p = realloc(bp->fresh, (size_t)cap * sizeof *p);
-                if (!p)
-                    return SC_ENOMEM;
-                bp->fresh = p;
-                bp->fresh_cap = cap;
-            }
+            if (sc_grow((void **)&bp->fresh, &bp->fresh_cap, nf + 1, sizeof *bp->fresh, INT_MAX))
+                return SC_ENOMEM;
             bp->fresh[nf++] = (sc_pair){ i < j ? i : j, i < j ? j : i };
         }
     }
@@ -764,13 +758,8 @@ static int keep_last(sc_broadphase *bp, const double *c, const double *r,
         bp->moved = mv;
         bp->last_cap = n;
     }
-    if (bp->nout > bp->last_pair_cap) {
-        sc_pair *p = realloc(bp->last, (size_t)bp->nout * sizeof *p);
-        if (!p)
-            return SC_ENOMEM;
-        bp->last = p;
-        bp->last_pair_cap = bp->nout;
-    }
+    if (sc_grow((void **)&bp->last, &bp->last_pair_cap, bp->nout, sizeof *bp->last, INT_MAX))
+        return SC_ENOMEM;
     memcpy(bp->last_c, c, 3 * (size_t)n * sizeof *c);
     memcpy(bp->last_r, r, (size_t)n * sizeof *r);
     for (int i = 0; i < n; i++)

@@ -160,14 +160,8 @@ static dGeomID get_geom(sc_np_ctx *ctx, const sc_shape *s, int slot, int rep)
         if (ctx->slots[i].shape == s)
             gs = &ctx->slots[i];
     if (!gs) {
-        if (ctx->n == ctx->cap) {
-            int cap = ctx->cap ? 2 * ctx->cap : 8;
-            geom_slot *p = realloc(ctx->slots, (size_t)cap * sizeof *p);
-            if (!p)
-                return NULL;
-            ctx->slots = p;
-            ctx->cap = cap;
-        }
+        if (sc_grow((void **)&ctx->slots, &ctx->cap, ctx->n + 1, sizeof *ctx->slots, INT_MAX))
+            return NULL;
         gs = &ctx->slots[ctx->n++];
         memset(gs, 0, sizeof *gs);
         gs->shape = s;
