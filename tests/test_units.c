@@ -113,6 +113,23 @@ static uint64_t run_scene(int workers, int bin, int n, uint64_t seed, int frames
     return h;
 }
 
+/* The scene of run_scene() on 1, 2 and 4 workers (SAME_WORKERS), r[k]
+ * their figures: the same hash on all three. */
+#define SAME_WORKERS 3
+static const int same_workers[SAME_WORKERS] = { 1, 2, 4 };
+
+static void run_1_2_4(int bin, int n, uint64_t seed, int frames, run_sum r[SAME_WORKERS])
+{
+    uint64_t h[SAME_WORKERS];
+    for (int k = 0; k < SAME_WORKERS; k++) {
+        h[k] = run_scene(same_workers[k], bin, n, seed, frames, 0, &r[k]);
+        printf("  %s of %d, %d workers: hash %016llx\n", bin ? "bin" : "drop", n,
+               same_workers[k], (unsigned long long)h[k]);
+    }
+    for (int k = 1; k < SAME_WORKERS; k++)
+        assert_true(h[k] == h[0]);
+}
+
 /* A pile of 100 parts in a bin (local time of impact, motion groups, the
  * default world): its split islands share their blocks with the threads
  * that are idle (docs/DESIGN.md 11, shared blocks), which depends on
@@ -120,20 +137,15 @@ static uint64_t run_scene(int workers, int bin, int n, uint64_t seed, int frames
 static void test_pile_blocks_shared_same_bits_for_1_2_4_workers(void **state)
 {
     (void)state;
-    const int workers[] = { 1, 2, 4 };
-    uint64_t h[3];
-    for (int i = 0; i < 3; i++) {
-        run_sum r;
-        h[i] = run_scene(workers[i], 1, 100, 3, 150, 0, &r);
-        printf("  bin of 100, %d workers: %ld split solves, %ld block solves, %ld by helping "
-               "threads; hash %016llx\n",
-               workers[i], r.split, r.blocks, r.shared, (unsigned long long)h[i]);
-        assert_true(r.split > 0);
-        if (workers[i] == 1)
-            assert_int_equal(r.shared, 0);
+    run_sum r[SAME_WORKERS];
+    run_1_2_4(1, 100, 3, 150, r);
+    for (int k = 0; k < SAME_WORKERS; k++) {
+        printf("  %d workers: %ld split solves, %ld block solves, %ld by helping threads\n",
+               same_workers[k], r[k].split, r[k].blocks, r[k].shared);
+        assert_true(r[k].split > 0);
+        if (same_workers[k] == 1)
+            assert_int_equal(r[k].shared, 0);
     }
-    assert_true(h[1] == h[0]);
-    assert_true(h[2] == h[0]);
 }
 
 static void test_same_bits_for_random_assignments(void **state)
@@ -378,21 +390,16 @@ static void test_bad_worker_counts(void **state)
 static void test_groups_beside_a_pile_same_bits_for_1_2_4_workers(void **state)
 {
     (void)state;
-    const int workers[] = { 1, 2, 4 };
-    uint64_t h[3];
-    for (int i = 0; i < 3; i++) {
-        run_sum r;
-        h[i] = run_scene(workers[i], 0, 300, 5, 120, 0, &r);
-        printf("  drop of 300, %d workers: %ld units, %ld group units beside the pile; "
-               "hash %016llx\n",
-               workers[i], r.units, r.background, (unsigned long long)h[i]);
-        if (workers[i] == 1)
-            assert_int_equal(r.background, 0);
+    run_sum r[SAME_WORKERS];
+    run_1_2_4(0, 300, 5, 120, r);
+    for (int k = 0; k < SAME_WORKERS; k++) {
+        printf("  %d workers: %ld units, %ld group units beside the pile\n", same_workers[k],
+               r[k].units, r[k].background);
+        if (same_workers[k] == 1)
+            assert_int_equal(r[k].background, 0);
         else
-            assert_true(r.background > 0);
+            assert_true(r[k].background > 0);
     }
-    assert_true(h[1] == h[0]);
-    assert_true(h[2] == h[0]);
 }
 
 /* The contacts of a state copied out of a world, detected on a scratch of

@@ -148,7 +148,7 @@ struct sc_broadphase {
     int *out_cap, nout;
     /* the last sweep's input and output, for a call that moves few
      * bodies ("Few moved" above) */
-    int last_n, last_cap;          /* last_n 0: none */
+    int last_n;                    /* 0: none (per-body arrays: cap) */
     double *last_c, *last_r;
     unsigned char *last_act, *moved;
     sc_pair *last, *fresh;
@@ -242,22 +242,26 @@ static int reserve_bodies(sc_broadphase *bp, int n)
     if (cap > (size_t)INT_MAX - 1)
         cap = (size_t)INT_MAX - 1;
     /* each array keeps its contents; cap is raised only once all grew */
-#define BP_GROW(f, m) do {                                          \
-        void *p_ = realloc(bp->f, (cap + (m)) * sizeof *bp->f);     \
-        if (!p_)                                                    \
-            return SC_ENOMEM;                                       \
-        bp->f = p_;                                                 \
+#define BP_GROW(f, k, m) do {                                           \
+        void *p_ = realloc(bp->f, ((k) * cap + (m)) * sizeof *bp->f);  \
+        if (!p_)                                                        \
+            return SC_ENOMEM;                                           \
+        bp->f = p_;                                                     \
     } while (0)
-    BP_GROW(ent, 0);
-    BP_GROW(ent_tmp, 0);
-    BP_GROW(slot, 0);
-    BP_GROW(hi, 0);
-    BP_GROW(rkey, 1);
-    BP_GROW(rstart, 1);
-    BP_GROW(lrow, 1);
-    BP_GROW(lexp, 1);
-    BP_GROW(lwidth, 1);
-    BP_GROW(count, 1);
+    BP_GROW(ent, 1, 0);
+    BP_GROW(ent_tmp, 1, 0);
+    BP_GROW(slot, 1, 0);
+    BP_GROW(hi, 1, 0);
+    BP_GROW(rkey, 1, 1);
+    BP_GROW(rstart, 1, 1);
+    BP_GROW(lrow, 1, 1);
+    BP_GROW(lexp, 1, 1);
+    BP_GROW(lwidth, 1, 1);
+    BP_GROW(count, 1, 1);
+    BP_GROW(last_c, 3, 0);
+    BP_GROW(last_r, 1, 0);
+    BP_GROW(last_act, 1, 0);
+    BP_GROW(moved, 1, 0);
 #undef BP_GROW
     bp->cap = (int)cap;
     return SC_OK;
@@ -675,14 +679,6 @@ static int find_swept_pairs(sc_broadphase *bp, const double *c, const double *r,
 
 #define BP_FEW_MOVED 16        /* at most one body in this many moved */
 
-static int cmp_pairs(const void *x, const void *y)
-{
-    const sc_pair *a = x, *b = y;
-    if (a->a != b->a)
-        return (a->a > b->a) - (a->a < b->a);
-    return (a->b > b->b) - (a->b < b->b);
-}
-
 /* The pairs when few bodies moved since the last sweep; 1 if done so (into
  * the output), 0 if too many moved, or a code. */
 static int find_moved_pairs(sc_broadphase *bp, const double *c, const double *r,
@@ -719,7 +715,7 @@ static int find_moved_pairs(sc_broadphase *bp, const double *c, const double *r,
         }
     }
     if (nf > 1)
-        qsort(bp->fresh, (size_t)nf, sizeof *bp->fresh, cmp_pairs);
+        qsort(bp->fresh, (size_t)nf, sizeof *bp->fresh, sc_pair_cmp);
     /* merged with the last pairs of two unmoved bodies */
     int i = 0, j = 0;
     for (;;) {
@@ -727,7 +723,7 @@ static int find_moved_pairs(sc_broadphase *bp, const double *c, const double *r,
             i++;
         if (i == bp->nlast && j == nf)
             break;
-        int take_last = j == nf || (i < bp->nlast && cmp_pairs(&bp->last[i], &bp->fresh[j]) < 0);
+        int take_last = j == nf || (i < bp->nlast && sc_pair_cmp(&bp->last[i], &bp->fresh[j]) < 0);
         if (bp->nout == *bp->out_cap && grow_pairs(bp))
             return SC_ENOMEM;
         (*bp->out)[bp->nout++] = take_last ? bp->last[i++] : bp->fresh[j++];
@@ -742,23 +738,8 @@ static int keep_last(sc_broadphase *bp, const double *c, const double *r,
     bp->last_n = 0;
     if (n < 2 * BP_FEW_MOVED)
         return SC_OK;           /* find_moved_pairs() does not look */
-    if (n > bp->last_cap) {
-        double *lc = realloc(bp->last_c, 3 * (size_t)n * sizeof *lc);
-        if (lc)
-            bp->last_c = lc;
-        double *lr = lc ? realloc(bp->last_r, (size_t)n * sizeof *lr) : NULL;
-        if (lr)
-            bp->last_r = lr;
-        unsigned char *la = lr ? realloc(bp->last_act, (size_t)n) : NULL;
-        if (la)
-            bp->last_act = la;
-        unsigned char *mv = la ? realloc(bp->moved, (size_t)n) : NULL;
-        if (!mv)
-            return SC_ENOMEM;
-        bp->moved = mv;
-        bp->last_cap = n;
-    }
-    if (sc_grow((void **)&bp->last, &bp->last_pair_cap, bp->nout, sizeof *bp->last, INT_MAX))
+    if (reserve_bodies(bp, n) ||
+        sc_grow((void **)&bp->last, &bp->last_pair_cap, bp->nout, sizeof *bp->last, INT_MAX))
         return SC_ENOMEM;
     memcpy(bp->last_c, c, 3 * (size_t)n * sizeof *c);
     memcpy(bp->last_r, r, (size_t)n * sizeof *r);
@@ -772,6 +753,14 @@ static int keep_last(sc_broadphase *bp, const double *c, const double *r,
 }
 
 /* ---- API ---- */
+
+int sc_pair_cmp(const void *x, const void *y)
+{
+    const sc_pair *a = x, *b = y;
+    if (a->a != b->a)
+        return (a->a > b->a) - (a->a < b->a);
+    return (a->b > b->b) - (a->b < b->b);
+}
 
 sc_broadphase *sc_bp_create(void)
 {

@@ -452,6 +452,8 @@ int sc_mesh_parse(const void *buf, size_t len, double **xyz, int *nverts,
 
 /* ---- broad phase (broadphase.c) ---- */
 typedef struct sc_pair { int a, b; } sc_pair;   /* a < b */
+/* qsort() order of pairs: by a, then b. */
+int sc_pair_cmp(const void *x, const void *y);
 typedef struct sc_broadphase sc_broadphase;
 
 sc_broadphase *sc_bp_create(void);

@@ -9,14 +9,6 @@
 #include "frame.h"
 #include "vecmath.h"
 
-static int cmp_pair(const void *x, const void *y)
-{
-    const sc_pair *a = x, *b = y;
-    if (a->a != b->a)
-        return (a->a > b->a) - (a->a < b->a);
-    return (a->b > b->b) - (a->b < b->b);
-}
-
 /* Step 4, coarse: bounding spheres (or sweep and prune), plus every active
  * body against every static plane (planes have no bounding sphere). */
 static int broadphase(sc_frame *f, int *npairs)
@@ -93,7 +85,7 @@ static int broadphase(sc_frame *f, int *npairs)
         }
     }
     if (npl > 1)
-        qsort(scr->plane_pairs, (size_t)npl, sizeof *scr->plane_pairs, cmp_pair);
+        qsort(scr->plane_pairs, (size_t)npl, sizeof *scr->plane_pairs, sc_pair_cmp);
     if (npl > 0) {
         if (sc_grow((void **)&scr->pairs, &scr->pair_cap, np + npl, sizeof *scr->pairs,
                     INT_MAX) != SC_OK)
@@ -101,7 +93,7 @@ static int broadphase(sc_frame *f, int *npairs)
         /* from the back, so that the sweep's pairs move at most once */
         int i = np - 1, j = npl - 1;
         for (int o = np + npl - 1; o >= 0; o--) {
-            if (j < 0 || (i >= 0 && cmp_pair(&scr->pairs[i], &scr->plane_pairs[j]) > 0))
+            if (j < 0 || (i >= 0 && sc_pair_cmp(&scr->pairs[i], &scr->plane_pairs[j]) > 0))
                 scr->pairs[o] = scr->pairs[i--];
             else
                 scr->pairs[o] = scr->plane_pairs[j--];
@@ -180,10 +172,9 @@ static int pose_same(const sc_pose *a, const sc_pose *b)
  * the memo's pair index, or -1. */
 static int memo_find(const sc_np_memo *m, const sc_pose *poses, sc_pair p, int *j)
 {
-    while (*j < m->npairs &&
-           (m->pairs[*j].a < p.a || (m->pairs[*j].a == p.a && m->pairs[*j].b < p.b)))
+    while (*j < m->npairs && sc_pair_cmp(&m->pairs[*j], &p) < 0)
         (*j)++;
-    if (*j == m->npairs || m->pairs[*j].a != p.a || m->pairs[*j].b != p.b)
+    if (*j == m->npairs || sc_pair_cmp(&m->pairs[*j], &p) != 0)
         return -1;
     return pose_same(&m->poses[p.a], &poses[p.a]) && pose_same(&m->poses[p.b], &poses[p.b])
                ? *j

@@ -69,7 +69,8 @@ void sc_frame_scratch_free(sc_frame_scratch *s)
 /* ---- the frame: the paper's steps (3)-(7) ---------------------------- */
 
 /* The islands of is that hold a body marked in mask, into sub (arrays
- * from the arena, freed by sub_islands_free()). */
+ * from the arena, freed by sub_islands_free()); returns how many of those
+ * left out have contacts (islands kept), or SC_ENOMEM. */
 static int sub_islands(sc_arena *a, const sc_islands *is, const unsigned char *mask,
                        sc_islands *sub)
 {
@@ -82,10 +83,13 @@ static int sub_islands(sc_arena *a, const sc_islands *is, const unsigned char *m
     sub->contacts = sub->bodies ? sc_arena_alloc(a, (nc + 1) * sizeof(int)) : NULL;
     if (!sub->contacts)
         return SC_ENOMEM;
-    int m = 0, kb = 0, kc = 0;
+    int m = 0, kb = 0, kc = 0, kept = 0;
     for (int i = 0; i < is->count; i++) {
-        if (!mask[is->bodies[is->body_start[i]]])
-            continue;    /* an island is marked whole or not at all */
+        if (!mask[is->bodies[is->body_start[i]]]) {
+            /* an island is marked whole or not at all */
+            kept += is->contact_start[i + 1] > is->contact_start[i];
+            continue;
+        }
         sub->body_start[m] = kb;
         sub->contact_start[m] = kc;
         for (int j = is->body_start[i]; j < is->body_start[i + 1]; j++)
@@ -97,7 +101,7 @@ static int sub_islands(sc_arena *a, const sc_islands *is, const unsigned char *m
     sub->body_start[m] = kb;
     sub->contact_start[m] = kc;
     sub->count = m;
-    return SC_OK;
+    return kept;
 }
 
 static void sub_islands_free(sc_arena *a, sc_islands *sub)
@@ -209,16 +213,14 @@ static int substep(sc_frame *f, double h, sc_islands *is, unsigned char *touched
             if (mask[i] || !sc_body_movable(&rd->saved[i]))
                 st->bodies[i] = rd->saved[i];
         sc_apply_forces(f, h, mask);
-        rc = sub_islands(a, is, mask, &sub);
-        if (rc != SC_OK) {
+        int kept = sub_islands(a, is, mask, &sub);
+        if (kept < 0) {
             sub_islands_free(a, &sub);
             sc_arena_free(a, mask);
-            return rc;
+            return kept;
         }
         solve = &sub;
-        for (int i = 0; i < is->count; i++)
-            f->stats->lcp_kept += !mask[is->bodies[is->body_start[i]]] &&
-                                  is->contact_start[i + 1] > is->contact_start[i];
+        f->stats->lcp_kept += kept;
     }
     memset(touched, 0, (size_t)n);
     for (int k = 0; k < st->ncontacts; k++) {

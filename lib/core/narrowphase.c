@@ -390,24 +390,15 @@ static int collide_pieces(sc_np_ctx *ctx, const sc_shape *a, const sc_pose *pa,
     return rc == SC_OK ? emit(c, n, merge, out, max) : rc;
 }
 
-static int np_collide(sc_np_ctx *ctx, const sc_shape *a, const sc_pose *pa, const sc_shape *b,
-                      const sc_pose *pb, sc_contact *out, int max, double stop);
-
 int sc_np_collide(sc_np_ctx *ctx, const sc_shape *a, const sc_pose *pa, const sc_shape *b,
                   const sc_pose *pb, sc_contact *out, int max)
 {
-    return np_collide(ctx, a, pa, b, pb, out, max, INFINITY);
+    return sc_np_collide_until(ctx, a, pa, b, pb, out, max, INFINITY);
 }
 
 int sc_np_collide_until(sc_np_ctx *ctx, const sc_shape *a, const sc_pose *pa,
                         const sc_shape *b, const sc_pose *pb, sc_contact *out, int max,
                         double stop)
-{
-    return np_collide(ctx, a, pa, b, pb, out, max, stop);
-}
-
-static int np_collide(sc_np_ctx *ctx, const sc_shape *a, const sc_pose *pa, const sc_shape *b,
-                      const sc_pose *pb, sc_contact *out, int max, double stop)
 {
     if (!ctx || !a || !b || !pa || !pb || (!out && max > 0) || max < 0)
         return SC_EINVAL;

@@ -151,18 +151,17 @@ static double wait_nodes(sc_exec_nodes *x, const int *start)
     return cpu_others;
 }
 
-/* After a job: learn from it and account it in st (stage CPU of the other
- * nodes, makespan, scheduling time, the first unit error). */
+/* After a job: learn from it (learn 0: its units' times are no one's
+ * speed) and account it in st (stage CPU of the other nodes, makespan,
+ * scheduling time, the first unit error). */
 static int account(sc_exec_nodes *x, sc_job *job, int stage, sc_stats *st, double cpu_others,
-                   double makespan_s, double sched_s)
+                   double makespan_s, double sched_s, int learn)
 {
     double t2 = sc_wall_now();
     double bound = 0;
     int rc = SC_OK;
-    if (makespan_s >= 0)
+    if (learn)
         sc_sched_observe(&x->sched, job->units, job->nunits, &bound);
-    else
-        makespan_s = 0;    /* background: taken as threads fell idle */
     /* CPU of the other nodes is CPU of this stage too (Table 1); group
      * units count their own */
     if (stage >= 0) {
@@ -207,7 +206,7 @@ static int nodes_run(sc_exec *ex, sc_job *job, int stage, sc_stats *st)
     double cpu_others = wait_nodes(x, s->start);
     if (x->prov.ctx)
         x->prov.job_end(x->prov.ctx);
-    return account(x, job, stage, st, cpu_others, sc_wall_now() - t1, t1 - t0);
+    return account(x, job, stage, st, cpu_others, sc_wall_now() - t1, t1 - t0, 1);
 }
 
 /* start(): assign with the local nodes busy for home_busy_s, send the
@@ -280,7 +279,7 @@ static int nodes_finish(sc_exec *ex, sc_job *job, int stage, sc_stats *st)
         s->nodes[k].job_cap = x->pend.cap[k];   /* what it offered for this job */
     }
     return account(x, job, stage, st, cpu_others, x->pend.submit_s + sc_wall_now() - t1,
-                   x->pend.sched_s);
+                   x->pend.sched_s, 1);
 }
 
 /* background(): only with worker threads and no remote nodes (those get
@@ -303,7 +302,7 @@ static int nodes_drain(sc_exec *ex, sc_job *job, sc_stats *st)
         st->units_background += job->units[i].node != 0;
     /* the units' times are not the scheduler's to learn from: they ran
      * in gaps, not as assigned */
-    return account(x, job, -1, st, 0, -1, 0);
+    return account(x, job, -1, st, 0, 0, 0, 0);
 }
 
 int sc_exec_nodes_init(sc_exec_nodes *x, int nlocal, int extra)

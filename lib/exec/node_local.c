@@ -173,14 +173,22 @@ static void run_blocks(void *ctx, sc_block_batch *b, int count, sc_arena *a)
         cpu_relax();
 }
 
-/* Background unit i of b on n, timed and recorded as run by n. */
+/* Unit u of job on n, timed from *t (then the time it ended) and recorded
+ * as run by n. */
+static void run_timed(local_node *n, const sc_job *job, sc_unit *u, double *t)
+{
+    sc_unit_run(n->np, job, u);
+    double t1 = sc_wall_now();
+    u->time_s = t1 - *t;
+    u->node = n->base.id;
+    *t = t1;
+}
+
+/* Background unit i of b on n. */
 static void run_bg_unit(local_node *n, bg_batch *b, int i)
 {
-    sc_unit *u = &b->job->units[i];
     double t = sc_wall_now();
-    sc_unit_run(n->np, b->job, u);
-    u->time_s = sc_wall_now() - t;
-    u->node = n->base.id;
+    run_timed(n, b->job, &b->job->units[i], &t);
 }
 
 /* An idle worker takes one background unit (then looks for a batch of
@@ -260,12 +268,7 @@ static int take(local_node *m, int from_tail)
  * is finished. */
 static void run_one(local_node *n, local_node *m, int pos, double *t)
 {
-    sc_unit *u = &m->job->units[m->units[pos]];
-    sc_unit_run(n->np, m->job, u);
-    double t1 = sc_wall_now();
-    u->time_s = t1 - *t;
-    u->node = n->base.id;
-    *t = t1;
+    run_timed(n, m->job, &m->job->units[m->units[pos]], t);
     if (atomic_fetch_sub_explicit(&m->left, 1, memory_order_acq_rel) == 1 && m != n) {
         pthread_mutex_lock(&m->lock);
         pthread_cond_broadcast(&m->done);
