@@ -266,7 +266,8 @@ typedef struct test_runner {
 } test_runner;
 
 typedef struct half {
-    sc_block_batch *b;
+    sc_task_fn fn;
+    void *b;
     int count;
     sc_arena *a;
 } half;
@@ -275,11 +276,11 @@ static void *odd_blocks(void *arg)
 {
     half *h = arg;
     for (int i = 1; i < h->count; i += 2)
-        sc_block_run(h->b, i, h->a, 1);
+        h->fn(h->b, i, h->a, 1);
     return NULL;
 }
 
-static void test_run(void *ctx, sc_block_batch *b, int count, sc_arena *a)
+static void test_run(void *ctx, sc_task_fn fn, void *b, int count, sc_arena *a)
 {
     (void)a;
     test_runner *r = ctx;
@@ -287,15 +288,15 @@ static void test_run(void *ctx, sc_block_batch *b, int count, sc_arena *a)
     r->blocks += count;
     if (!r->threaded) {
         for (int i = count - 1; i >= 0; i--)
-            sc_block_run(b, i, &r->arena[0], 1);
+            fn(b, i, &r->arena[0], 1);
         return;
     }
     /* odd blocks on a thread, even ones here, at the same time */
-    half h = { b, count, &r->arena[1] };
+    half h = { fn, b, count, &r->arena[1] };
     pthread_t t;
     assert_int_equal(pthread_create(&t, NULL, odd_blocks, &h), 0);
     for (int i = 0; i < count; i += 2)
-        sc_block_run(b, i, &r->arena[0], 0);
+        fn(b, i, &r->arena[0], 0);
     assert_int_equal(pthread_join(t, NULL), 0);
 }
 
@@ -320,7 +321,7 @@ static void test_blocks_of_a_colour_give_the_same_bits_in_any_order_or_thread(vo
         sc_arena_init(&r.arena[0]);
         sc_arena_init(&r.arena[1]);
         sc_contact_params pr = p;
-        pr.runner = (sc_block_runner[]){ { test_run, &r } };
+        pr.runner = (sc_task_runner[]){ { test_run, &r } };
         solve_copy(&s, &pr, &i1, b1, c1);
         print_message("%d contacts, %s: %d colours handed out, %d blocks; %d block solves\n",
                       s.nc, threaded ? "two threads" : "reverse order", r.calls, r.blocks,

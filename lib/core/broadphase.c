@@ -66,6 +66,16 @@
  * predicate on the same bits), and each moved body is tested against
  * every body; both merged in order. The same set as a sweep.
  *
+ * Shared sweeps: the sweeps read only the sorted slots and the row and
+ * level tables, so with a task runner (sc_bp_find_pairs_on(); the frame's
+ * calling thread and its idle workers, docs/DESIGN.md 5.3) they run as
+ * tasks: BP_CHUNKS over the same-level rows (cut where the slots are, so
+ * each gets about as many bodies), BP_CHUNKS over the finer bodies of
+ * each pair of levels. Each task writes pairs of its own; the counting
+ * sort reads them all, so the output is the same array, in the same
+ * order, whoever ran which task and however the rows were cut. Without a
+ * runner there is one task of each kind, run in order.
+ *
  * Memory: per-body arrays grow with n and the pair scratch with the pair
  * count; nothing is allocated once they have reached their size.
  */
@@ -92,6 +102,11 @@
 #define SC_BP_LIMIT 1e150
 /* AUTO: all pairs below this many bodies, sweep and prune from it on. */
 #define SC_BP_AUTO_SAP_MIN 256
+
+/* Shared sweeps: from this many bodies on, a sweep with a runner is cut
+ * into BP_CHUNKS tasks per kind. */
+#define BP_SHARE_MIN 256
+#define BP_CHUNKS 8
 
 /* Slack of the pruning tests (see the exactness argument above). */
 #define BP_MARGIN_REL 1e-14
@@ -120,6 +135,13 @@ typedef struct bp_slot {
     int act;                  /* 0 or 1 */
 } bp_slot;
 
+/* The pairs one sweep task found (in sweep order). */
+typedef struct bp_out {
+    sc_pair *p;
+    int n, cap;
+    int rc;                   /* SC_OK or SC_ENOMEM */
+} bp_out;
+
 /* Inlining the candidate loop into its three callers is worth ~10 %. */
 #if defined(__GNUC__)
 #define BP_INLINE static inline __attribute__((always_inline))
@@ -143,6 +165,12 @@ struct sc_broadphase {
     int *count;               /* radix sort of the output, n + 1 */
     sc_pair *tmp;             /* radix sort scratch */
     int tmp_cap;
+    /* the sweep in tasks ("Shared sweeps" above): nchunk tasks over the
+     * same-level rows, then nchunk over each pair of levels, each with
+     * its own output */
+    int nchunk;
+    bp_out *chunk;
+    int chunk_cap;
     /* output while a call runs */
     sc_pair **out;
     int *out_cap, nout;
@@ -452,20 +480,19 @@ static void build_tables(sc_broadphase *bp, const double *c, const double *r,
  * by the end of i's: the activity and exact tests. The hot loop of the broad
  * phase, so without branches on the outcome (a mispredicted branch costs
  * more than a test): every candidate is written, only hits are kept. */
-BP_INLINE int scan(sc_broadphase *bp, int i, int k0, int k1)
+BP_INLINE int scan(const sc_broadphase *bp, bp_out *o, int i, int k0, int k1)
 {
     const bp_slot *restrict sl = bp->slot;
     double h = bp->hi[i], xi = sl[i].c[0], yi = sl[i].c[1], zi = sl[i].c[2], ri = sl[i].r;
     int idi = sl[i].id, ai = sl[i].act;
-    sc_pair *out = *bp->out;
-    int nout = bp->nout, cap = *bp->out_cap;
+    sc_pair *out = o->p;
+    int nout = o->n, cap = o->cap;
     for (int k = k0; k < k1 && sl[k].lo <= h; k++) {
         if (nout == cap) {
-            bp->nout = nout;
-            if (grow_pairs(bp))
+            if (sc_grow((void **)&o->p, &o->cap, nout + 1, sizeof *o->p, INT_MAX))
                 return SC_ENOMEM;
-            out = *bp->out;
-            cap = *bp->out_cap;
+            out = o->p;
+            cap = o->cap;
         }
         const bp_slot *o = &sl[k];
         int hit = (ai | o->act) &
@@ -475,15 +502,15 @@ BP_INLINE int scan(sc_broadphase *bp, int i, int k0, int k1)
         out[nout].b = idi < b ? b : idi;
         nout += hit;
     }
-    bp->nout = nout;
+    o->n = nout;
     return SC_OK;
 }
 
 /* Pairs within one row whose sweep intervals overlap. */
-static int sweep_self(sc_broadphase *bp, int i0, int i1)
+static int sweep_self(const sc_broadphase *bp, bp_out *o, int i0, int i1)
 {
     for (int i = i0; i < i1; i++)
-        if (scan(bp, i, i + 1, i1))
+        if (scan(bp, o, i, i + 1, i1))
             return SC_ENOMEM;
     return SC_OK;
 }
@@ -502,7 +529,8 @@ static inline double window_start(double lo, double width)
  * Cheaper than merging the two lists, where both sides scan: half the scans,
  * and a scan's end is a mispredicted branch. The cursor only moves forward:
  * what ends before lo_i ends before every later lo. */
-static int sweep_two(sc_broadphase *bp, int i0, int i1, int j0, int j1, double width)
+static int sweep_two(const sc_broadphase *bp, bp_out *o, int i0, int i1, int j0, int j1,
+                     double width)
 {
     const bp_slot *sl = bp->slot;
     int c = j0;
@@ -512,37 +540,8 @@ static int sweep_two(sc_broadphase *bp, int i0, int i1, int j0, int j1, double w
             c++;
         if (c == j1)
             break;
-        if (scan(bp, i, c, j1))
+        if (scan(bp, o, i, c, j1))
             return SC_ENOMEM;
-    }
-    return SC_OK;
-}
-
-/* Same-level pairs: each row with itself and its forward neighbours
- * (iu, iv+1), (iu+1, iv-1), (iu+1, iv), (iu+1, iv+1); the other four
- * neighbours see this row as theirs. Neighbour keys grow with the row key,
- * so four cursors walk the row table once. */
-static int sweep_levels(sc_broadphase *bp)
-{
-    const uint64_t du = (uint64_t)1 << BP_CELL_BITS;
-    const uint64_t step[4] = { 1, du - 1, du, du + 1 };
-    int cur[4] = { 0, 0, 0, 0 }, li = 0;
-    const uint64_t *rkey = bp->rkey;
-    const int *rs = bp->rstart;
-    for (int a = 0; a < bp->nrows; a++) {
-        if (a == bp->lrow[li + 1])
-            li++;
-        int rc = sweep_self(bp, rs[a], rs[a + 1]);
-        for (int t = 0; t < 4 && !rc; t++) {
-            uint64_t want = rkey[a] + step[t];
-            while (rkey[cur[t]] < want)
-                cur[t]++;
-            if (rkey[cur[t]] == want)
-                rc = sweep_two(bp, rs[a], rs[a + 1], rs[cur[t]], rs[cur[t] + 1],
-                               bp->lwidth[li]);
-        }
-        if (rc)
-            return rc;
     }
     return SC_OK;
 }
@@ -558,6 +557,42 @@ static int find_row(const uint64_t *rkey, int r0, int r1, uint64_t key)
             r1 = m;
     }
     return r0;
+}
+
+/* Same-level pairs of rows [a0, a1): each row with itself and its forward
+ * neighbours (iu, iv+1), (iu+1, iv-1), (iu+1, iv), (iu+1, iv+1); the
+ * other four neighbours see this row as theirs. Neighbour keys grow with
+ * the row key, so four cursors, found for the first row, walk the row
+ * table once. */
+static int sweep_levels(const sc_broadphase *bp, bp_out *o, int a0, int a1)
+{
+    if (a0 >= a1)
+        return SC_OK;
+    const uint64_t du = (uint64_t)1 << BP_CELL_BITS;
+    const uint64_t step[4] = { 1, du - 1, du, du + 1 };
+    const uint64_t *rkey = bp->rkey;
+    const int *rs = bp->rstart;
+    int cur[4], li = 0;
+    while (bp->lrow[li + 1] <= a0)
+        li++;
+    for (int t = 0; t < 4; t++)
+        cur[t] = find_row(rkey, a0, bp->nrows, rkey[a0] + step[t]);
+    for (int a = a0; a < a1; a++) {
+        if (a == bp->lrow[li + 1])
+            li++;
+        int rc = sweep_self(bp, o, rs[a], rs[a + 1]);
+        for (int t = 0; t < 4 && !rc; t++) {
+            uint64_t want = rkey[a] + step[t];
+            while (rkey[cur[t]] < want)
+                cur[t]++;
+            if (rkey[cur[t]] == want)
+                rc = sweep_two(bp, o, rs[a], rs[a + 1], rs[cur[t]], rs[cur[t] + 1],
+                               bp->lwidth[li]);
+        }
+        if (rc)
+            return rc;
+    }
+    return SC_OK;
 }
 
 /* First slot in [s0, s1) with lo >= x. */
@@ -586,10 +621,11 @@ static inline int walk_slot(const bp_slot *sl, int s0, int s1, int c, double x)
     return c;
 }
 
-/* Pairs between level li's bodies and the coarser level lj: each body of
- * li scans the 3 x 3 rows of lj around its cell (lj's cells are at least
- * twice li's diameters, so that holds every partner). */
-static int sweep_cross(sc_broadphase *bp, int li, int lj)
+/* Pairs between the bodies in slots [k0, k1) (of a finer level) and the
+ * coarser level lj: each scans the 3 x 3 rows of lj around its cell (lj's
+ * cells are at least twice the finer level's diameters, so that holds
+ * every partner). */
+static int sweep_cross(const sc_broadphase *bp, bp_out *o, int lj, int k0, int k1)
 {
     int ua = (bp->axis + 1) % 3, va = (bp->axis + 2) % 3;
     int level = bp->lexp[lj], r0 = bp->lrow[lj], r1 = bp->lrow[lj + 1];
@@ -597,7 +633,7 @@ static int sweep_cross(sc_broadphase *bp, int li, int lj)
     const bp_slot *sl = bp->slot;
     int row_lo[9], row_hi[9], cur[9], nr = 0;
     int64_t last_u = INT64_MIN, last_v = INT64_MIN;
-    for (int k = bp->rstart[bp->lrow[li]]; k < bp->rstart[bp->lrow[li + 1]]; k++) {
+    for (int k = k0; k < k1; k++) {
         int64_t iu = cell_of(sl[k].c[ua], scale), iv = cell_of(sl[k].c[va], scale);
         int fresh = iu != last_u || iv != last_v;
         if (fresh) {                             /* bodies of a row share it */
@@ -619,43 +655,96 @@ static int sweep_cross(sc_broadphase *bp, int li, int lj)
                 cur[t] = find_slot(sl, row_lo[t], row_hi[t], from);
             else
                 cur[t] = walk_slot(sl, row_lo[t], row_hi[t], cur[t], from);
-            if (scan(bp, k, cur[t], row_hi[t]))
+            if (scan(bp, o, k, cur[t], row_hi[t]))
                 return SC_ENOMEM;
         }
     }
     return SC_OK;
 }
 
-/* Sorts the output by (a, b): counting sort by b, then stable by a. */
-static int sort_pairs(sc_broadphase *bp, int n)
+/* The tasks' pairs into the caller's array, sorted by (a, b): counting
+ * sort by b from the tasks' outputs, then stable by a. */
+static int sort_pairs(sc_broadphase *bp, int n, int ntasks)
 {
-    int np = bp->nout;
-    if (np < 2)
-        return SC_OK;
-    if (np > bp->tmp_cap) {
-        sc_pair *t = realloc(bp->tmp, (size_t)np * sizeof *t);
-        if (!t)
+    int np = 0;
+    for (int t = 0; t < ntasks; t++) {
+        if (bp->chunk[t].n > INT_MAX - np)
             return SC_ENOMEM;
-        bp->tmp = t;
-        bp->tmp_cap = np;
+        np += bp->chunk[t].n;
     }
+    if (sc_grow((void **)bp->out, bp->out_cap, np, sizeof **bp->out, INT_MAX) ||
+        sc_grow((void **)&bp->tmp, &bp->tmp_cap, np, sizeof *bp->tmp, INT_MAX))
+        return SC_ENOMEM;
     sc_pair *p = *bp->out, *t = bp->tmp;
     int *cnt = bp->count;
-    for (int pass = 0; pass < 2; pass++) {
-        sc_pair *src = pass ? t : p, *dst = pass ? p : t;
-        memset(cnt, 0, ((size_t)n + 1) * sizeof *cnt);
-        for (int i = 0; i < np; i++)
-            cnt[(pass ? src[i].a : src[i].b) + 1]++;
-        for (int i = 0; i < n; i++)
-            cnt[i + 1] += cnt[i];
-        for (int i = 0; i < np; i++)
-            dst[cnt[pass ? src[i].a : src[i].b]++] = src[i];
-    }
+    memset(cnt, 0, ((size_t)n + 1) * sizeof *cnt);
+    for (int k = 0; k < ntasks; k++)
+        for (int i = 0; i < bp->chunk[k].n; i++)
+            cnt[bp->chunk[k].p[i].b + 1]++;
+    for (int i = 0; i < n; i++)
+        cnt[i + 1] += cnt[i];
+    for (int k = 0; k < ntasks; k++)
+        for (int i = 0; i < bp->chunk[k].n; i++)
+            t[cnt[bp->chunk[k].p[i].b]++] = bp->chunk[k].p[i];
+    memset(cnt, 0, ((size_t)n + 1) * sizeof *cnt);
+    for (int i = 0; i < np; i++)
+        cnt[t[i].a + 1]++;
+    for (int i = 0; i < n; i++)
+        cnt[i + 1] += cnt[i];
+    for (int i = 0; i < np; i++)
+        p[cnt[t[i].a]++] = t[i];
+    bp->nout = np;
     return SC_OK;
 }
 
-static int find_swept_pairs(sc_broadphase *bp, const double *c, const double *r,
-                            const unsigned char *active, int n, const double var[3])
+/* The first row of same-level task c of K: the rows are cut where the
+ * slots are (slot n K / c on), so that tasks get about as many bodies. */
+static int row_at(const sc_broadphase *bp, int c, int K)
+{
+    int target = (int)((long long)bp->n * c / K);
+    int lo = 0, hi = bp->nrows;     /* rstart[nrows] = n */
+    while (lo < hi) {
+        int m = lo + (hi - lo) / 2;
+        if (bp->rstart[m] < target)
+            lo = m + 1;
+        else
+            hi = m;
+    }
+    return lo;
+}
+
+/* Sweep task t (an sc_task_fn over bp): same-level rows for t < nchunk,
+ * else a share of one pair of levels' cross sweep. */
+static void sweep_task(void *arg, int t, sc_arena *a, int helper)
+{
+    (void)a;
+    (void)helper;
+    sc_broadphase *bp = arg;
+    /* on a copy: tasks' outputs lie side by side, and writing them back
+     * after every scan would pass their cache lines between threads */
+    bp_out out = bp->chunk[t], *o = &out;
+    int K = bp->nchunk, kind = t / K, c = t % K;
+    o->n = 0;
+    if (kind == 0) {
+        o->rc = sweep_levels(bp, o, row_at(bp, c, K), row_at(bp, c + 1, K));
+        bp->chunk[t] = out;
+        return;
+    }
+    int li = 0, lj = 1;
+    for (int x = kind - 1; x > 0; x--)
+        if (++lj == bp->nlevels) {
+            li++;
+            lj = li + 1;
+        }
+    int s0 = bp->rstart[bp->lrow[li]], m = bp->rstart[bp->lrow[li + 1]] - s0;
+    o->rc = sweep_cross(bp, o, lj, s0 + (int)((long long)m * c / K),
+                        s0 + (int)((long long)m * (c + 1) / K));
+    bp->chunk[t] = out;
+}
+
+static int find_swept_pairs(sc_broadphase *bp, const sc_task_runner *runner, const double *c,
+                            const double *r, const unsigned char *active, int n,
+                            const double var[3])
 {
     if (n < 2) {
         bp->n = 0;              /* nothing to sweep; start afresh next time */
@@ -666,13 +755,22 @@ static int find_swept_pairs(sc_broadphase *bp, const double *c, const double *r,
         return rc;
     update_order(bp, c, r, n, var);
     build_tables(bp, c, r, active);
-    rc = sweep_levels(bp);
-    for (int li = 0; li < bp->nlevels && !rc; li++)
-        for (int lj = li + 1; lj < bp->nlevels && !rc; lj++)
-            rc = sweep_cross(bp, li, lj);
-    if (rc)
-        return rc;
-    return sort_pairs(bp, n);
+    bp->nchunk = runner && n >= BP_SHARE_MIN ? BP_CHUNKS : 1;
+    int ntasks = bp->nchunk * (1 + bp->nlevels * (bp->nlevels - 1) / 2);
+    int had = bp->chunk_cap;
+    if (sc_grow((void **)&bp->chunk, &bp->chunk_cap, ntasks, sizeof *bp->chunk, INT_MAX))
+        return SC_ENOMEM;
+    if (bp->chunk_cap > had)
+        memset(&bp->chunk[had], 0, (size_t)(bp->chunk_cap - had) * sizeof *bp->chunk);
+    if (bp->nchunk > 1)
+        runner->run(runner->ctx, sweep_task, bp, ntasks, NULL);
+    else
+        for (int t = 0; t < ntasks; t++)
+            sweep_task(bp, t, NULL, 0);
+    for (int t = 0; t < ntasks; t++)
+        if (bp->chunk[t].rc)
+            return bp->chunk[t].rc;
+    return sort_pairs(bp, n, ntasks);
 }
 
 /* ---- sweep and prune: few moved ---- */
@@ -791,11 +889,21 @@ void sc_bp_destroy(sc_broadphase *bp)
     free(bp->moved);
     free(bp->last);
     free(bp->fresh);
+    for (int t = 0; t < bp->chunk_cap; t++)
+        free(bp->chunk[t].p);
+    free(bp->chunk);
     free(bp);
 }
 
 int sc_bp_find_pairs(sc_broadphase *bp, int method, const double *c, const double *r,
                      const unsigned char *active, int n, sc_pair **pairs, int *cap)
+{
+    return sc_bp_find_pairs_on(bp, NULL, method, c, r, active, n, pairs, cap);
+}
+
+int sc_bp_find_pairs_on(sc_broadphase *bp, const sc_task_runner *runner, int method,
+                        const double *c, const double *r, const unsigned char *active, int n,
+                        sc_pair **pairs, int *cap)
 {
     if (!bp || !pairs || !cap || n < 0 || *cap < 0 || (*cap > 0 && !*pairs) ||
         (n > 0 && (!c || !r)))
@@ -817,7 +925,7 @@ int sc_bp_find_pairs(sc_broadphase *bp, int method, const double *c, const doubl
         rc = find_moved_pairs(bp, c, r, active, n);
         if (rc == 0) {
             bp->nout = 0;
-            rc = find_swept_pairs(bp, c, r, active, n, var);
+            rc = find_swept_pairs(bp, runner, c, r, active, n, var);
         }
         if (rc >= 0 && keep_last(bp, c, r, active, n) != SC_OK)
             bp->last_n = 0;     /* only costs the next call a sweep */

@@ -671,8 +671,9 @@ static int block_settled(const gs_problem *pb, const blocks *bl, const double *z
     return rows_residual(pb, bl, z, u, bl->bstart[k], bl->bstart[k + 1]) <= skip;
 }
 
-void sc_block_run(sc_block_batch *b, int i, sc_arena *a, int helper)
+void sc_block_run(void *batch, int i, sc_arena *a, int helper)
 {
+    sc_block_batch *b = batch;
     memset(&b->info[i], 0, sizeof b->info[i]);
     b->rc[i] = SC_OK;
     if (block_settled(b->pb, b->bl, b->z, b->u, b->list[i], b->skip))
@@ -687,7 +688,7 @@ void sc_block_run(sc_block_batch *b, int i, sc_arena *a, int helper)
  * each block's solve sees the same numbers, and the first error in block
  * order is returned. */
 static int colour_solve(sc_arena *a, const gs_problem *pb, const blocks *bl, int c, double *z,
-                        double *u, int fail, double skip, const sc_block_runner *runner,
+                        double *u, int fail, double skip, const sc_task_runner *runner,
                         sc_solve_info *binfo, int *brc, sc_solve_info *info)
 {
     int n = bl->cstart[c + 1] - bl->cstart[c];
@@ -695,7 +696,7 @@ static int colour_solve(sc_arena *a, const gs_problem *pb, const blocks *bl, int
                          .list = &bl->order[bl->cstart[c]], .skip = skip, .info = binfo,
                          .rc = brc };
     if (runner && n >= 2)
-        runner->run(runner->ctx, &b, n, a);
+        runner->run(runner->ctx, sc_block_run, &b, n, a);
     else
         for (int i = 0; i < n; i++)
             sc_block_run(&b, i, a, 0);
@@ -722,7 +723,7 @@ static int block_gs(sc_arena *a, const gs_problem *pb, const blocks *bl, double 
 {
     size_t nz = (size_t)pb->nrows * sizeof *z, nub = (size_t)nu * sizeof *u;
     size_t nbl = (size_t)bl->count;
-    const sc_block_runner *runner = p->runner;
+    const sc_task_runner *runner = p->runner;
     double *zb = sc_arena_alloc(a, nz), *ub = zb ? sc_arena_alloc(a, nub) : NULL;
     sc_solve_info *binfo = ub ? sc_arena_alloc(a, nbl * sizeof *binfo) : NULL;
     int *brc = binfo ? sc_arena_alloc(a, nbl * sizeof *brc) : NULL;

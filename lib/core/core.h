@@ -149,22 +149,30 @@ typedef struct sc_body {
                                        in this frame, 0: none this frame */
 } sc_body;
 
+/* Shared tasks (docs/DESIGN.md 5.3): tasks 0 .. count - 1 of a batch,
+ * each run once as fn(arg, i, a, helper) by the thread that takes it,
+ * with scratch from that thread's arena a (helper: 1 when it is not the
+ * thread that handed the batch out). A task writes only its own outputs,
+ * so the result does not depend on who ran which. */
+typedef void (*sc_task_fn)(void *arg, int i, sc_arena *a, int helper);
+/* Runs tasks [0, count) of a batch (the calling thread with arena a, and
+ * idle threads of its pool) and returns when all are done. */
+typedef struct sc_task_runner {
+    void (*run)(void *ctx, sc_task_fn fn, void *arg, int count, sc_arena *a);
+    void *ctx;
+} sc_task_runner;
+
 /* A split island's blocks of one colour (contact.c; no two share a
  * movable body), to be solved anywhere, in any order: each is run by
  * sc_block_run() with scratch from the arena of whoever runs it, reads and
  * writes only its own rows and its bodies' local velocities, so the result
  * is the same bits whoever ran which (docs/DESIGN.md 11, shared blocks). */
 typedef struct sc_block_batch sc_block_batch;
-/* Block i of the batch (0 <= i < its count): passed over when it is close
- * enough to its answer, else solved with scratch from a; helper: 1 when a
- * thread other than the island's runs it (counted). */
-void sc_block_run(sc_block_batch *b, int i, sc_arena *a, int helper);
-/* Runs blocks [0, count) of a batch (sc_block_run() on each, the calling
- * thread with arena a) and returns when all are done. */
-typedef struct sc_block_runner {
-    void (*run)(void *ctx, sc_block_batch *b, int count, sc_arena *a);
-    void *ctx;
-} sc_block_runner;
+/* Block i of the batch (an sc_block_batch; 0 <= i < its count): passed
+ * over when it is close enough to its answer, else solved with scratch
+ * from a; helper: 1 when a thread other than the island's runs it
+ * (counted). An sc_task_fn. */
+void sc_block_run(void *batch, int i, sc_arena *a, int helper);
 
 /* Contact model constants (Baraff's velocity-level LCP, the paper's states)
  * and the solver's settings (docs/DESIGN.md section 11). */
@@ -186,7 +194,7 @@ typedef struct sc_contact_params {
                                        local mode, docs/DESIGN.md 3.4); 0: one
                                        LCP of both (the paper's, world mode) */
     int inject;                     /* tests only: SC_INJECT_* faults */
-    const sc_block_runner *runner;  /* NULL: a split island's blocks are
+    const sc_task_runner *runner;   /* NULL: a split island's blocks are
                                        solved one after another; else each
                                        colour's go to the runner (not sent:
                                        a daemon sets its own) */
@@ -266,8 +274,8 @@ typedef struct sc_np_ctx sc_np_ctx;     /* one per thread: owns ODE geoms */
 sc_arena *sc_np_arena(sc_np_ctx *ctx);
 /* The runner that shares the thread's split-island blocks with idle
  * threads (node_local.c), NULL: none (blocks solved one after another). */
-const sc_block_runner *sc_np_runner(const sc_np_ctx *ctx);
-void sc_np_set_runner(sc_np_ctx *ctx, const sc_block_runner *r);
+const sc_task_runner *sc_np_runner(const sc_np_ctx *ctx);
+void sc_np_set_runner(sc_np_ctx *ctx, const sc_task_runner *r);
 /* A slot for the thread's motion-group scratch (group.c), freed with the
  * context by free_fn. */
 void **sc_np_scratch(sc_np_ctx *ctx, void (**free_fn)(void *));
@@ -466,6 +474,11 @@ void sc_bp_destroy(sc_broadphase *bp);
  * negative code. */
 int sc_bp_find_pairs(sc_broadphase *bp, int method, const double *c, const double *r,
                      const unsigned char *active, int n, sc_pair **pairs, int *cap);
+/* The same, with the sweeps of a large SAP call handed to runner as tasks
+ * (NULL: run here); the same array either way. */
+int sc_bp_find_pairs_on(sc_broadphase *bp, const sc_task_runner *runner, int method,
+                        const double *c, const double *r, const unsigned char *active, int n,
+                        sc_pair **pairs, int *cap);
 
 /* ---- islands (island.c) ---- */
 typedef struct sc_islands {

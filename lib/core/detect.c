@@ -33,8 +33,8 @@ static int broadphase(sc_frame *f, int *npairs)
     }
     int method = f->cfg->broadphase;
     if (nplanes == 0) {
-        np = sc_bp_find_pairs(scr->bp, method, f->centre, f->radius, f->active, n, &scr->pairs,
-                              &scr->pair_cap);
+        np = sc_bp_find_pairs_on(scr->bp, f->ex->runner, method, f->centre, f->radius, f->active,
+                                 n, &scr->pairs, &scr->pair_cap);
         if (np < 0)
             return np;
         *npairs = np;
@@ -46,8 +46,8 @@ static int broadphase(sc_frame *f, int *npairs)
     for (int i = 0; i < n; i++)
         if (st->bodies[i].shape->kind == SC_SHAPE_PLANE)
             f->active[i] = 0;
-    np = sc_bp_find_pairs(scr->bp, method, f->centre, f->radius, f->active, n, &scr->pairs,
-                          &scr->pair_cap);
+    np = sc_bp_find_pairs_on(scr->bp, f->ex->runner, method, f->centre, f->radius, f->active, n,
+                             &scr->pairs, &scr->pair_cap);
     if (np < 0)
         return np;
     int k = 0;

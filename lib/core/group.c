@@ -148,7 +148,8 @@ static void groups_free(sc_arena *a, sc_groups *g)
  * the static bodies, and the last frame's contacts of each group in
  * contacts[cstart[k] .. cstart[k + 1]). */
 static int build_groups(const sc_frame_config *cfg, const sc_frame_state *st,
-                        sc_group_scratch *gs, sc_groups *g, double dt)
+                        sc_group_scratch *gs, sc_groups *g, double dt,
+                        const sc_task_runner *runner)
 {
     int n = st->nbodies;
     if (!gs->gbp && !(gs->gbp = sc_bp_create()))
@@ -176,8 +177,9 @@ static int build_groups(const sc_frame_config *cfg, const sc_frame_state *st,
         g->radius[i] = b->shape->bound_r + cfg->contact_tol_m + reach;
         g->active[i] = sc_body_movable(b);
     }
-    int np = sc_bp_find_pairs(gs->gbp, n < 256 ? SC_BROADPHASE_SPHERES : SC_BROADPHASE_SAP,
-                              g->centre, g->radius, g->active, n, &gs->gpairs, &gs->gpair_cap);
+    int np = sc_bp_find_pairs_on(gs->gbp, runner,
+                                 n < 256 ? SC_BROADPHASE_SPHERES : SC_BROADPHASE_SAP, g->centre,
+                                 g->radius, g->active, n, &gs->gpairs, &gs->gpair_cap);
     if (np < 0)
         return np;
     for (int k = 0; k < np; k++) {
@@ -535,7 +537,7 @@ int sc_groups_step(const sc_frame_config *cfg, sc_frame_state *st, double dt,
     sc_groups g;
     int rc = groups_alloc(a, &g, st->nbodies, st->contacts_valid ? st->ncontacts : 0);
     if (rc == SC_OK)
-        rc = build_groups(cfg, st, scr->groups, &g, dt);
+        rc = build_groups(cfg, st, scr->groups, &g, dt, ex->runner);
     sc_stage_add(stats, SC_STAGE_BROADPHASE, t0);
     if (rc == SC_OK)
         rc = step_groups(cfg, st, dt, scr, ex, stats, &g);

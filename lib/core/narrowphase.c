@@ -49,7 +49,7 @@ struct sc_np_ctx {
     void *scratch;                 /* the thread's motion-group scratch (group.c) */
     void (*scratch_free)(void *);
     sc_arena arena;                /* the thread's arena (island solves) */
-    const sc_block_runner *runner; /* the thread's node's, or NULL */
+    const sc_task_runner *runner; /* the thread's node's, or NULL */
 };
 
 sc_arena *sc_np_arena(sc_np_ctx *ctx)
@@ -57,12 +57,12 @@ sc_arena *sc_np_arena(sc_np_ctx *ctx)
     return &ctx->arena;
 }
 
-const sc_block_runner *sc_np_runner(const sc_np_ctx *ctx)
+const sc_task_runner *sc_np_runner(const sc_np_ctx *ctx)
 {
     return ctx->runner;
 }
 
-void sc_np_set_runner(sc_np_ctx *ctx, const sc_block_runner *r)
+void sc_np_set_runner(sc_np_ctx *ctx, const sc_task_runner *r)
 {
     ctx->runner = r;
 }

@@ -331,6 +331,7 @@ int sc_exec_nodes_init(sc_exec_nodes *x, int nlocal, int extra)
         x->private_ode += sc_node_local_private_ode(x->nodes[k]);
     }
     x->nlocal = x->nnodes;
+    x->base.runner = rc == SC_OK ? sc_local_pool_runner(x->pool) : NULL;
     return rc;
 }
 

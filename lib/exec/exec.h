@@ -54,6 +54,10 @@ sc_node *sc_node_local_create(sc_local_pool *pool, int id, int inline_node);
  * home node (the calling thread). */
 void sc_local_pool_background(sc_local_pool *p, const sc_job *job);
 void sc_local_pool_drain(sc_local_pool *p);
+/* The calling thread's task runner (its home node's): tasks handed to it
+ * are shared with the pool's idle worker threads. NULL without a home
+ * node or workers. */
+const sc_task_runner *sc_local_pool_runner(sc_local_pool *p);
 /* 1 when a local node runs on a private copy of ODE. */
 int sc_node_local_private_ode(const sc_node *n);
 

@@ -17,11 +17,12 @@
  * Handing work over is atomic; the mutex and condition variables are only
  * for sleeping.
  *
- * A split island's blocks are shared below the units: a node solving one
- * publishes each colour's blocks (sc_block_runner), and members of the
- * pool that are idle or waiting take blocks from it until none is left
- * (docs/DESIGN.md 11, shared blocks). The publisher takes blocks too, so
- * nothing waits for a helper that never comes. */
+ * Tasks are shared below the units: a node publishes a batch of tasks
+ * (sc_task_runner: a split island's blocks of one colour, docs/DESIGN.md
+ * 11, or the calling thread's sweep and prune, 5.3), and members of the
+ * pool that are idle or waiting take tasks from it until none is left.
+ * The publisher takes tasks too, so nothing waits for a helper that
+ * never comes. */
 #include <pthread.h>
 #include <stdatomic.h>
 #include <stdlib.h>
@@ -52,12 +53,12 @@ struct sc_local_pool {
     atomic_int bg_helpers;    /* workers looking at bg */
 };
 
-/* One colour of a split island's blocks, published by the node solving
- * it. */
+/* A batch of tasks, published by the node that runs it. */
 typedef struct help_batch {
-    sc_block_batch *b;
+    sc_task_fn fn;
+    void *arg;
     int count;
-    atomic_int next;          /* the next block to take */
+    atomic_int next;          /* the next task to take */
 } help_batch;
 
 struct local_node {
@@ -87,8 +88,8 @@ struct local_node {
     double latency;           /* EWMA of the wake-up time, 0 = none yet */
     int init_rc;              /* worker thread start-up */
     int started;
-    sc_block_runner runner;   /* its np's: shares its blocks with the pool */
-    _Atomic(help_batch *) help;   /* its published blocks, or NULL */
+    sc_task_runner runner;    /* its np's: shares its tasks with the pool */
+    _Atomic(help_batch *) help;   /* its published tasks, or NULL */
     atomic_int helpers;       /* threads looking at help */
 };
 
@@ -130,8 +131,8 @@ static inline void cpu_relax(void)
 #endif
 }
 
-/* Solve blocks that other members of n's pool published, with n's arena
- * (n is between units: its arena is free); 1 if it solved any. A helper
+/* Run tasks that other members of n's pool published, with n's arena
+ * (n is between units: its arena is free); 1 if it ran any. A helper
  * counts itself in m->helpers before it reads m->help, and the publisher
  * takes the batch back before it waits for helpers to reach 0 (both
  * sequentially consistent), so no helper is left holding a batch that
@@ -148,7 +149,7 @@ static int help_others(local_node *n)
         help_batch *h = atomic_load(&m->help);
         int i;
         while (h && (i = atomic_fetch_add_explicit(&h->next, 1, memory_order_relaxed)) < h->count) {
-            sc_block_run(h->b, i, sc_np_arena(n->np), 1);
+            h->fn(h->arg, i, sc_np_arena(n->np), 1);
             ran = 1;
         }
         atomic_fetch_sub(&m->helpers, 1);
@@ -156,18 +157,18 @@ static int help_others(local_node *n)
     return ran;
 }
 
-/* The runner of node ctx's narrow-phase context: publish the blocks, take
- * them with the others until none is left, withdraw them and wait for the
- * helpers still solving one. */
-static void run_blocks(void *ctx, sc_block_batch *b, int count, sc_arena *a)
+/* The runner of node ctx: publish the tasks, take them with the others
+ * until none is left, withdraw them and wait for the helpers still
+ * running one. */
+static void run_tasks(void *ctx, sc_task_fn fn, void *arg, int count, sc_arena *a)
 {
     local_node *n = ctx;
-    help_batch h = { .b = b, .count = count };
+    help_batch h = { .fn = fn, .arg = arg, .count = count };
     atomic_init(&h.next, 0);
     atomic_store(&n->help, &h);
     int i;
     while ((i = atomic_fetch_add_explicit(&h.next, 1, memory_order_relaxed)) < count)
-        sc_block_run(b, i, a, 0);
+        fn(arg, i, a, 0);
     atomic_store(&n->help, NULL);
     while (atomic_load(&n->helpers) > 0)
         cpu_relax();
@@ -446,7 +447,7 @@ sc_node *sc_node_local_create(sc_local_pool *pool, int id, int inline_node)
     n->base.ops = &local_ops;
     n->base.id = id;
     n->inline_node = inline_node;
-    n->runner = (sc_block_runner){ .run = run_blocks, .ctx = n };
+    n->runner = (sc_task_runner){ .run = run_tasks, .ctx = n };
     n->pool = pool;           /* before its thread starts: read there */
     pthread_mutex_init(&n->lock, NULL);
     pthread_cond_init(&n->go, NULL);
@@ -486,6 +487,13 @@ sc_node *sc_node_local_create(sc_local_pool *pool, int id, int inline_node)
         atomic_store_explicit(&pool->n, k + 1, memory_order_release);
     }
     return &n->base;
+}
+
+const sc_task_runner *sc_local_pool_runner(sc_local_pool *p)
+{
+    if (!p || !p->home || atomic_load(&p->n) < 2)
+        return NULL;
+    return &p->home->runner;
 }
 
 int sc_node_local_private_ode(const sc_node *base)
