@@ -34,7 +34,7 @@
 #include "vecmath.h"
 
 #define REACH_MARGIN 2e-3     /* m added to every body's reach */
-#define BIG_GROUP 0.5         /* share of the awake bodies, or of the groups'
+#define BIG_GROUP 0.35        /* share of the awake bodies, or of the groups'
                                  work, that makes a pile */
 #define WIRE_GROUP_HEADER 400 /* bytes: unit and result headers, settings, figures */
 #define WIRE_GROUP_BODY 496   /* per body out */
@@ -434,11 +434,12 @@ static int step_groups(const sc_frame_config *cfg, sc_frame_state *st, double dt
     for (int i = 0; i < st->nbodies; i++)
         awake += g->active[i];
     /* a pile: on the calling thread, its jobs over every node. It holds
-     * more than half the awake bodies, or more than half the work (as a
-     * unit would cost: a group of a few hundred bodies in contact can
-     * outweigh hundreds of lone falling bodies, and as one unit it would
-     * bound the frame); a group is one or the other on any executor, the
-     * same bits */
+     * more than BIG_GROUP of the awake bodies, or of the work (as a unit
+     * would cost: a group of a few hundred bodies in contact can outweigh
+     * hundreds of lone falling bodies, and as one unit it would bound the
+     * frame; the cost underestimates a large group, whose back-ups repeat
+     * all of it, hence less than half: docs/DESIGN.md 3.9); a group is one
+     * or the other on any executor, the same bits */
     int big = -1;
     double total = 0;
     for (int k = 0; k < ng; k++)
