@@ -402,6 +402,38 @@ static void test_groups_beside_a_pile_same_bits_for_1_2_4_workers(void **state)
     }
 }
 
+/* A world-wide frame of 300 parts (no motion groups: the frame runs on
+ * the world's executor over every body) hands its sweeps and its
+ * per-body passes (forces, positions) to the calling thread's runner,
+ * whose tasks idle workers share (docs/DESIGN.md 5.3), as soon as there
+ * is a worker: which thread ran which task depends on timing; the
+ * result does not. */
+static void test_shared_tasks_same_bits_for_1_2_4_workers(void **state)
+{
+    (void)state;
+    uint64_t h[SAME_WORKERS];
+    for (int k = 0; k < SAME_WORKERS; k++) {
+        sc_world_config c = sc_world_config_default();
+        c.workers = same_workers[k];
+        c.toi_mode = SC_TOI_WORLD;
+        c.motion_groups = 0;
+        sc_world *w = sc_world_create(&c);
+        assert_non_null(w);
+        /* the runner is there exactly when there are workers to share with */
+        assert_true((w->ex.base.runner != NULL) == (same_workers[k] > 1));
+        assert_int_equal(sc_scene_bolts_nuts(w, 300, 4), SC_OK);
+        assert_true(sc_world_body_count(w) >= 256);
+        for (int f = 0; f < 40; f++)
+            assert_int_equal(sc_world_step(w, 0.01), SC_OK);
+        h[k] = sc_world_hash(w);
+        printf("  world-wide drop of 300, %d workers: hash %016llx\n", same_workers[k],
+               (unsigned long long)h[k]);
+        sc_world_destroy(w);
+    }
+    for (int k = 1; k < SAME_WORKERS; k++)
+        assert_true(h[k] == h[0]);
+}
+
 /* The contacts of a state copied out of a world, detected on a scratch of
  * their own: into c (room for 4096), their count. */
 static int detect_copy(const sc_world *w, sc_frame_state *st, sc_frame_scratch *scr,
@@ -660,6 +692,7 @@ int main(void)
         cmocka_unit_test(test_groups_same_bits_for_1_2_3_8_workers),
         cmocka_unit_test(test_pile_blocks_shared_same_bits_for_1_2_4_workers),
         cmocka_unit_test(test_groups_beside_a_pile_same_bits_for_1_2_4_workers),
+        cmocka_unit_test(test_shared_tasks_same_bits_for_1_2_4_workers),
         cmocka_unit_test(test_narrow_phase_memo_answers_as_a_fresh_one),
         cmocka_unit_test(test_speculative_rounds_keep_islands_same_bits),
         cmocka_unit_test(test_longest_first_onto_earliest_finish),

@@ -42,11 +42,47 @@ static void gyroscopic(double wb[3], const double I[9], const double inv_I[9], d
         v3_scale(wb, wb, sqrt(e0 / e1));
 }
 
+/* The bodies of a frame in tasks (each body written by one task only, so
+ * the result does not depend on who ran which): with the executor's
+ * runner from SHARE_MIN bodies on, CHUNKS tasks; else one, here. */
+#define SHARE_MIN 256
+#define CHUNKS 8
+
+typedef struct body_pass {
+    sc_frame *f;
+    double h;
+    const unsigned char *only;
+    int chunks;
+    void (*fn)(const struct body_pass *p, int i0, int i1);
+} body_pass;
+
+static void body_task(void *arg, int t, sc_arena *a, int helper)
+{
+    (void)a;
+    (void)helper;
+    const body_pass *p = arg;
+    long long n = p->f->st->nbodies;
+    p->fn(p, (int)(n * t / p->chunks), (int)(n * (t + 1) / p->chunks));
+}
+
+static void run_pass(body_pass *p)
+{
+    const sc_task_runner *r = p->f->ex ? p->f->ex->runner : NULL;
+    p->chunks = r && p->f->st->nbodies >= SHARE_MIN ? CHUNKS : 1;
+    if (p->chunks > 1)
+        r->run(r->ctx, body_task, p, p->chunks, NULL);
+    else
+        body_task(p, 0, NULL, 0);
+}
+
 /* Step 3, first half: u* = u + h (g + F/m), gyroscopic term, and the world
  * inverse inertia the contact solve needs. v0/w0 keep u for restitution. */
-void sc_apply_forces(sc_frame *f, double h, const unsigned char *only)
+static void apply_forces(const body_pass *p, int i0, int i1)
 {
-    for (int i = 0; i < f->st->nbodies; i++) {
+    sc_frame *f = p->f;
+    double h = p->h;
+    const unsigned char *only = p->only;
+    for (int i = i0; i < i1; i++) {
         sc_body *b = &f->st->bodies[i];
         if (!sc_body_movable(b) || (only && !only[i]))
             continue;
@@ -69,13 +105,22 @@ void sc_apply_forces(sc_frame *f, double h, const unsigned char *only)
     }
 }
 
+void sc_apply_forces(sc_frame *f, double h, const unsigned char *only)
+{
+    body_pass p = { .f = f, .h = h, .only = only, .fn = apply_forces };
+    run_pass(&p);
+}
+
 /* Step 3, second half: positions. The trapezoid rule x += h (u0 + u') / 2
  * is exact for free fall and for a constant friction deceleration; a body
  * that collided this substep took its impulse at the start and then flew
  * under the external forces: x += h (u' - a h / 2). */
-void sc_integrate_positions(sc_frame *f, double h, const unsigned char *only)
+static void integrate_positions(const body_pass *p, int i0, int i1)
 {
-    for (int i = 0; i < f->st->nbodies; i++) {
+    sc_frame *f = p->f;
+    double h = p->h;
+    const unsigned char *only = p->only;
+    for (int i = i0; i < i1; i++) {
         sc_body *b = &f->st->bodies[i];
         if (!sc_body_movable(b) || (only && !only[i]))
             continue;
@@ -97,3 +142,8 @@ void sc_integrate_positions(sc_frame *f, double h, const unsigned char *only)
     }
 }
 
+void sc_integrate_positions(sc_frame *f, double h, const unsigned char *only)
+{
+    body_pass p = { .f = f, .h = h, .only = only, .fn = integrate_positions };
+    run_pass(&p);
+}
