@@ -229,6 +229,11 @@ typedef struct sc_world_config {
     double cluster_deadline_s; /* per job: results a daemon has not sent this
                                  long after the local nodes finished are
                                  recomputed locally; 0 = default 0.02 s */
+    double cluster_ship_share; /* a unit goes to a daemon only when shipping
+                                 it (packing, sealing, sending, receiving,
+                                 merging: this thread's time, measured) costs
+                                 at most this share of computing it here;
+                                 0 = default 0.5; negative: whatever it costs */
     int broadphase;           /* SC_BROADPHASE_*; AUTO = spheres below 256 bodies */
     double contact_tol_m;     /* allowed penetration, default 1e-3 */
     int motion_groups;        /* 1: bodies that cannot meet within a frame step

@@ -92,6 +92,10 @@ static sc_world *make_world(int cluster, const char *keyfile)
         c.cluster = url;
         c.key_file = keyfile;
         c.cluster_deadline_s = 0.05;
+        /* these tests are about what happens to units out on daemons:
+         * they go out whatever shipping them costs (a lone sphere's frame
+         * costs less than that, and the worth-it rule would keep it here) */
+        c.cluster_ship_share = -1;
     }
     sc_world *w = sc_world_create(&c);
     assert_non_null(w);

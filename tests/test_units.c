@@ -364,6 +364,53 @@ static void test_busy_nodes_get_work_only_where_it_still_pays(void **state)
     sc_sched_free(&s);
 }
 
+/* A daemon's units cost the calling thread their shipping (home_s): a
+ * unit goes out only where that is at most ship_share of computing it
+ * here, and what goes out makes the calling thread busier by it. Units
+ * of 1 s each (speed 1, 1000 bytes): shipping at 0.6 s a unit keeps all
+ * six home; at 0.4 s node 1 gets four (the calling thread, 0.4 s busier
+ * for each, would finish later with a third); free shipping, an even
+ * split; the rule off (a negative share), 0.6 s units go where they
+ * finish sooner, the shipping still counted: four. */
+static double fake_home;
+static double fake_home_s(const sc_node *n, size_t bytes)
+{
+    (void)n;
+    return fake_home * (double)bytes / 1000;
+}
+static const sc_node_ops fake_remote_ops = { .submit = fake_submit, .wait = fake_wait,
+                                             .transfer_s = fake_transfer,
+                                             .latency_s = fake_lat, .destroy = fake_destroy,
+                                             .home_s = fake_home_s };
+
+static void test_units_go_out_only_where_shipping_them_is_worth_it(void **state)
+{
+    (void)state;
+    sc_node n0 = { &fake_ops, 0 }, n1 = { &fake_remote_ops, 1 };
+    sc_node *nodes[2] = { &n0, &n1 };
+    sc_sched s;
+    assert_int_equal(sc_sched_init(&s, 2), SC_OK);
+    s.use_models = 0;
+    fake_latency = 0;
+    double cost[6] = { 1, 1, 1, 1, 1, 1 };
+    sc_unit u[6];
+    const double home[4] = { 0.6, 0.4, 0, 0.6 }, share[4] = { 0.5, 0.5, 0.5, -1 };
+    const int out[4] = { 0, 4, 3, 4 };
+    for (int c = 0; c < 4; c++) {
+        make_units(u, cost, 6);
+        for (int i = 0; i < 6; i++)
+            u[i].bytes = 1000;
+        fake_home = home[c];
+        s.ship_share = share[c];
+        assert_int_equal(sc_sched_assign(&s, nodes, u, 6), SC_OK);
+        printf("  shipping %.1f s a unit, share %.1f: %d of 6 out\n", home[c], share[c],
+               s.start[2] - s.start[1]);
+        assert_int_equal(s.start[2] - s.start[1], out[c]);
+    }
+    sc_sched_free(&s);
+    fake_home = 0;
+}
+
 static void test_bad_worker_counts(void **state)
 {
     (void)state;
@@ -700,6 +747,7 @@ int main(void)
         cmocka_unit_test(test_cost_model_is_fitted),
         cmocka_unit_test(test_latency_keeps_small_jobs_home),
         cmocka_unit_test(test_busy_nodes_get_work_only_where_it_still_pays),
+        cmocka_unit_test(test_units_go_out_only_where_shipping_them_is_worth_it),
         cmocka_unit_test(test_bad_worker_counts),
         cmocka_unit_test(test_worlds_come_and_go),
         cmocka_unit_test(test_frame_is_a_value),

@@ -20,6 +20,7 @@ SC_API sc_world *sc_world_create(const sc_world_config *cfg)
     }
     if (!sc_finite3(c.gravity) || c.workers < 0 || c.workers > SC_MAX_WORKERS || !(c.contact_tol_m > 0) ||
         !isfinite(c.contact_tol_m) || !(c.cluster_deadline_s >= 0) ||
+        !isfinite(c.cluster_ship_share) ||
         !isfinite(c.cluster_deadline_s) || (c.key_file && !c.cluster) || c.broadphase < SC_BROADPHASE_AUTO ||
         c.broadphase > SC_BROADPHASE_SAP || (c.motion_groups != 0 && c.motion_groups != 1) ||
         c.island_split < 0 || (c.toi_mode != SC_TOI_LOCAL && c.toi_mode != SC_TOI_WORLD)) {
@@ -49,6 +50,8 @@ SC_API sc_world *sc_world_create(const sc_world_config *cfg)
     int rc = sc_frame_scratch_init(&w->scr);
     if (rc == SC_OK)
         rc = sc_exec_nodes_init(&w->ex, nodes, c.cluster ? SC_MAX_DAEMONS : 0);
+    w->ex.sched.ship_share = c.cluster_ship_share == 0 ? SC_SHIP_SHARE_DEFAULT
+                                                        : c.cluster_ship_share;
     w->stats.private_ode = w->ex.private_ode;
     if (rc == SC_OK && c.cluster)
         rc = sc_cluster_create(&w->ex, &w->stats, &w->st, c.cluster, c.key_file,

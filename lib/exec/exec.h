@@ -30,6 +30,11 @@ typedef struct sc_node_ops {
      * owner-busy, or a kind it cannot run). Asked once per job. */
     double (*capacity)(const sc_node *n, int kind);
     void (*destroy)(sc_node *n);
+    /* NULL = 0. The calling thread's own time to ship a unit of this wire
+     * size to n and take its result in (packing, sealing, sending,
+     * receiving, merging): time it does not compute (the worth-it rule,
+     * docs/DESIGN.md 6.2). */
+    double (*home_s)(const sc_node *n, size_t bytes);
 } sc_node_ops;
 struct sc_node {
     const sc_node_ops *ops;
@@ -65,6 +70,7 @@ int sc_node_local_private_ode(const sc_node *n);
  * second, from recent response times) and a least-squares cost model
  * (time = c . feat, fitted with GSL over the last measurements). */
 #define SC_MODEL_WINDOW 128
+#define SC_SHIP_SHARE_DEFAULT 0.5       /* sc_world_config.cluster_ship_share */
 typedef struct sc_cost_model {
     double x[SC_MODEL_WINDOW][3], y[SC_MODEL_WINDOW];
     int n, pos, fresh;              /* samples held, next slot, since last fit */
@@ -82,6 +88,8 @@ typedef struct sc_sched_node {
     double done;                    /* cost done in the current job */
     double job_speed, job_latency;  /* for the current job's assignment */
     double job_tr0, job_tr1;        /* transfer: seconds fixed, per byte */
+    double job_home0, job_home1;    /* the calling thread's shipping time
+                                       (home_s): fixed, per byte */
     double job_cap;                 /* capacity offered in the current job */
     double busy_until;              /* wall clock (sc_wall_now) until which it is
                                        predicted busy with a started job's units
@@ -95,6 +103,10 @@ typedef struct sc_sched {
     int *assigned, *start, *cursor; /* per-node unit lists */
     int order_cap;
     int use_models;                 /* 0: the paper's cost / speed only */
+    double ship_share;              /* the worth-it rule: a unit goes to a node
+                                       with a shipping cost (home_s) only when
+                                       that is at most this share of computing
+                                       it at home; negative: no rule */
     uint64_t shuffle;               /* tests: != 0 seeds a random assignment */
     int learn_alone;                /* tests: learn with a single node too */
     double home_capacity;           /* node 0's capacity (1; benchmarks: 0 sends

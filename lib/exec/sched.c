@@ -49,6 +49,7 @@ int sc_sched_init(sc_sched *s, int nnodes)
     }
     s->nnodes = nnodes;
     s->use_models = 1;
+    s->ship_share = SC_SHIP_SHARE_DEFAULT;
     s->home_capacity = 1;
     return SC_OK;
 }
@@ -146,6 +147,11 @@ int sc_sched_assign(sc_sched *s, sc_node *const *nodes, sc_unit *units, int n)
         nd->job_tr1 = s->nnodes > 1
                           ? (nodes[k]->ops->transfer_s(nodes[k], 1 << 20) - nd->job_tr0) / (1 << 20)
                           : 0;
+        const sc_node_ops *ops = nodes[k]->ops;
+        nd->job_home0 = s->nnodes > 1 && k > 0 && ops->home_s ? ops->home_s(nodes[k], 0) : 0;
+        nd->job_home1 = s->nnodes > 1 && k > 0 && ops->home_s
+                            ? (ops->home_s(nodes[k], 1 << 20) - nd->job_home0) / (1 << 20)
+                            : 0;
     }
     /* the estimate to sort by: the calling thread's fitted model once it
      * has one (it always has measurements), else the paper's cost. Units
@@ -177,10 +183,16 @@ int sc_sched_assign(sc_sched *s, sc_node *const *nodes, sc_unit *units, int n)
         sc_unit *u = &units[key[i].idx];
         int best = 0;
         double best_t = INFINITY;
+        double at_home = s->nnodes > 1 ? predict(s, &s->nodes[0], s->nodes[0].job_speed, u) : 0;
         for (int k = 0; k < s->nnodes && s->nnodes > 1; k++) {
             const sc_sched_node *nd = &s->nodes[k];
             if (!(nd->job_cap > 0))
                 continue;    /* gone, owner-busy, or not for this kind */
+            /* worth it only when shipping it costs the calling thread at
+             * most ship_share of computing it there (docs/DESIGN.md 6.2) */
+            double home = nd->job_home0 + nd->job_home1 * (double)u->bytes;
+            if (k > 0 && s->ship_share >= 0 && home > s->ship_share * at_home)
+                continue;
             /* the first unit a node gets in a job pays its latency */
             double t = nd->ready + nd->job_tr0 + nd->job_tr1 * (double)u->bytes +
                        predict(s, nd, nd->job_speed, u) + (s->start[k + 1] ? 0 : nd->job_latency);
@@ -203,6 +215,9 @@ int sc_sched_assign(sc_sched *s, sc_node *const *nodes, sc_unit *units, int n)
         u->predict_s = s->nnodes > 1 ? predict(s, &s->nodes[best], s->nodes[best].job_speed, u) : 0;
         if (s->nnodes > 1)
             s->nodes[best].ready = best_t;
+        if (best > 0)                   /* the calling thread ships it */
+            s->nodes[0].ready +=
+                s->nodes[best].job_home0 + s->nodes[best].job_home1 * (double)u->bytes;
         u->node = best;
         s->start[best + 1]++;
     }

@@ -48,6 +48,10 @@
 #define MIN_CAPACITY 0.05       /* a daemon that is not owner-busy gets some */
 #define BATCH_BYTES (256u << 10) /* units sent together, at most */
 #define BYTE_S 1e-8             /* transfer estimate per byte (100 MB/s) */
+#define HOME_BYTE_S 8e-9        /* the calling thread's shipping time per byte
+                                   before any is measured */
+#define HOME_MEASURED 65536     /* bytes measured before the rate is used */
+#define HOME_WINDOW 16777216    /* bytes: past this the sums are halved */
 #define OVERHEAD_KEEP 0.8
 #define OVERHEAD_IDLE_DECAY 0.95 /* per job without work */
 #define MAX_WAIT_DEADLINES 10   /* a long prediction stretches the deadline
@@ -120,6 +124,8 @@ struct sc_cluster {
     size_t batch_len, batch_cap;
     long late;
     int64_t recv_us;            /* the message being handled: when it came */
+    double home_s, home_bytes;  /* shipping measured: the calling thread's
+                                   seconds and the bytes they moved */
 };
 
 static int64_t realtime_us(void)
@@ -294,6 +300,7 @@ static void on_result(sc_cluster *c, const sc_msg *m)
 {
     size_t off = 0;
     c->stats->result_messages++;
+    c->home_bytes += (double)m->len;
     while (off < m->len) {
         sc_msg_work r;
         if (sc_msg_work_next(SC_MSG_RESULT, m->payload, m->len, &off, &r) != SC_OK) {
@@ -371,7 +378,9 @@ static void pump(sc_cluster *c, double timeout_s)
         return;
     double t0 = sc_wall_now();
     sc_bus_handle(c->bus, 0);
-    c->stats->comm_s += sc_wall_now() - t0;
+    double t = sc_wall_now() - t0;
+    c->stats->comm_s += t;
+    c->home_s += t;
 }
 
 /* ---- the remote node ---- */
@@ -429,6 +438,7 @@ static int add_unit(sc_cluster *c, daemon_slot *d, const sc_job *job, int idx)
     if (rc != SC_OK)
         return rc;
     sc_wire_unit_pack(job, u, c->buf, n);
+    c->home_bytes += (double)n;
     sc_msg_work w = { c->cur->serial, idx, c->buf, n, 0 };
     uint8_t *p;
     size_t len;
@@ -470,7 +480,13 @@ static int remote_submit(sc_node *n, const sc_job *job, const int *units, int co
         add_unit(c, d, job, units[i]);
     }
     flush(c, d);
-    c->stats->comm_s += sc_wall_now() - t0;
+    double t = sc_wall_now() - t0;
+    c->stats->comm_s += t;
+    c->home_s += t;
+    if (c->home_bytes > HOME_WINDOW) {     /* a window: the recent rate */
+        c->home_s *= 0.5;
+        c->home_bytes *= 0.5;
+    }
     return SC_OK;
 }
 
@@ -563,6 +579,15 @@ static double remote_transfer(const sc_node *n, size_t bytes)
     return BYTE_S * (double)bytes;
 }
 
+/* The calling thread's shipping time for a unit of bytes (out and back):
+ * the rate measured over recent jobs (docs/DESIGN.md 6.2). */
+static double remote_home(const sc_node *n, size_t bytes)
+{
+    const sc_cluster *c = ((const remote_node *)n)->c;
+    double rate = c->home_bytes > HOME_MEASURED ? c->home_s / c->home_bytes : HOME_BYTE_S;
+    return rate * (double)bytes;
+}
+
 static double remote_latency(const sc_node *n)
 {
     const remote_node *r = (const remote_node *)n;
@@ -581,6 +606,7 @@ static const sc_node_ops remote_ops = {
     .latency_s = remote_latency,
     .capacity = capacity,
     .destroy = remote_destroy,
+    .home_s = remote_home,
 };
 
 /* ---- the cluster ---- */
