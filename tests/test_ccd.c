@@ -656,8 +656,9 @@ static void test_ca_before_tmax_keeps_the_full_answer(void **state)
 
 /* Pairs touching 0.3, 1.3 or 2.5 mm deep that dig in 5 mm while turning:
  * both deepening searches agree on which pairs pass the limit (one deeper
- * than twice the limit at the start is left alone, one past it is held a
- * tenth of the limit deeper); CA's answer is within the limit by the
+ * than twice the limit (the aim) at the start is left alone; one past the
+ * aim is held to the tolerance, aim / SC_TOI_AIM, and one past that a
+ * hundredth of the tolerance deeper); CA's answer is within the limit by the
  * shapes' penetration depth (EPA, exact for polytopes) and no earlier than
  * where the sampling search's narrow phase reads 0.7 of it. */
 static void test_ca_deepening_agrees_with_sampling(void **state)
@@ -690,7 +691,8 @@ static void test_ca_deepening_agrees_with_sampling(void **state)
             continue;
         hits[i % 3]++;
         double d0 = np_depth(np, a, &a0, &a1, b, &b0, &b1, 0);
-        double limit = d0 > TOL ? d0 + 0.1 * TOL : TOL;
+        double tol = TOL / SC_TOI_AIM;
+        double limit = d0 > tol ? d0 + 0.01 * tol : d0 > TOL ? tol : TOL;
         sc_pose pa, pb;
         sc_pose_lerp(&pa, &a0, &a1, tc);
         sc_pose_lerp(&pb, &b0, &b1, tc);

@@ -997,17 +997,19 @@ static void test_bad_fields_are_format_errors(void **state)
     int nisl = wu.islands.count, m = wu.nbodies, nm = wu.islands.body_start[nisl];
     sc_wire_unit_free(&wu);
     /* island header: magic, version, kind 8; bodies, members, contacts,
-     * islands 16; h, bounce_speed, slop, baumgarte, tol 40; split_contacts,
-     * block_contacts, max_sweeps, cold, impact_first 20; per island 8 */
-    const size_t tol = 8 + 16 + 32, ints = tol + 8, isl0 = ints + 20;
+     * islands 16; h, bounce_speed, slop, baumgarte, tol 40; gravity 24;
+     * split_contacts, block_contacts, max_sweeps, cold, impact_first 20;
+     * per island 8 */
+    const size_t tol = 8 + 16 + 32, grav = tol + 8, ints = grav + 24, isl0 = ints + 20;
     size_t ilen = sm.len[SC_UNIT_ISLAND];
     print_message("island sample: %d islands, %d members, %d bodies\n", nisl, nm, m);
     /* the offsets are right: other valid values there decode as such */
     struct { size_t at; uint64_t v; int n; } good[] = {
         { tol, bits(0.25), 8 }, { ints, 5, 4 }, { ints + 4, 1u << 16, 4 },
         { ints + 8, 10000, 4 }, { ints + 12, 1, 4 }, { ints + 16, 1, 4 },
+        { grav + 16, bits(-1.62), 8 },
     };
-    for (int k = 0; k < 6; k++) {
+    for (int k = 0; k < 7; k++) {
         unsigned char keep8[8];
         memcpy(keep8, ib + good[k].at, (size_t)good[k].n);
         for (int i = 0; i < good[k].n; i++)
@@ -1019,7 +1021,8 @@ static void test_bad_fields_are_format_errors(void **state)
                : k == 2 ? q->block_contacts == 1 << 16
                : k == 3 ? q->max_sweeps == 10000
                : k == 4 ? q->cold == 1
-                        : q->impact_first == 1;
+               : k == 5 ? q->impact_first == 1
+                        : q->gravity[2] == -1.62;
         assert_true(ok);
         assert_int_equal(q->inject, 0);
         sc_wire_unit_free(&wu);
@@ -1029,6 +1032,8 @@ static void test_bad_fields_are_format_errors(void **state)
     const double bad_tol[] = { NAN, INFINITY, -1e-3 };
     for (int k = 0; k < 3; k++)
         bad_at(ib, ilen, tol, bits(bad_tol[k]), 8);
+    for (int k = 0; k < 3; k++)                              /* gravity */
+        bad_at(ib, ilen, grav + 8 * (size_t)k, bits(k == 1 ? -INFINITY : NAN), 8);
     bad_at(ib, ilen, ints, (uint32_t)-1, 4);                 /* split_contacts */
     bad_at(ib, ilen, ints + 4, 0, 4);                        /* block_contacts */
     bad_at(ib, ilen, ints + 4, (uint32_t)-4, 4);

@@ -593,9 +593,12 @@ static void test_a_pile_never_gains_energy(void **state)
 }
 
 /* A region's frame in local mode may back up more often than the
- * world-wide mode's 15: the 1000-part bin needs 23 back-ups in a frame as
- * its first layer lands, and with 15 it let a part in 8.2 mm in its first
- * 30 frames (docs/DESIGN.md 3.1). */
+ * world-wide mode's 15: the 1000-part bin needed 23 back-ups in a frame as
+ * its first layer landed, and with 15 it let a part in 8.2 mm in its first
+ * 30 frames (docs/DESIGN.md 3.1). Which frame needs how many is chaotic:
+ * since free rotation keeps its energy and momentum (2026-12-03) seed 1
+ * needs 13 at most (and reaches 1.49 mm), seed 7 18, so the test runs
+ * seed 7. */
 static void test_a_landing_pile_may_back_up_more_than_15_times_a_frame(void **state)
 {
     (void)state;
@@ -603,7 +606,7 @@ static void test_a_landing_pile_may_back_up_more_than_15_times_a_frame(void **st
     c.workers = 1;
     sc_world *w = sc_world_create(&c);
     assert_non_null(w);
-    assert_int_equal(sc_scene_bin(w, 1000, 1), SC_OK);
+    assert_int_equal(sc_scene_bin(w, 1000, 7), SC_OK);
     double pen = 0;
     int most = 0;
     for (int k = 0; k < 30; k++) {

@@ -188,6 +188,9 @@ typedef struct sc_contact_params {
     int max_sweeps;                 /* outer sweeps at most */
     int cold;                       /* benchmarks: no warm starts (every solve
                                        from z = 0) */
+    double gravity[3];              /* m/s^2: the push-out's lift (its potential
+                                       energy) is paid from the island's
+                                       kinetic energy (contact.c) */
     int impact_first;               /* 1: an island's collisions are solved
                                        first, at the substep's start, then its
                                        resting contacts under the forces (the
@@ -394,11 +397,18 @@ int sc_toi_ctx(sc_np_ctx *ctx, const sc_shape *a, const sc_pose *a0, const sc_po
                const sc_shape *b, const sc_pose *b0, const sc_pose *b1, double tol_m,
                double *t);
 
+/* Back-ups aim at this share of the contact tolerance: the backed-up
+ * substep's impulses and push-out differ a little from the path the
+ * search interpolated. */
+#define SC_TOI_AIM 0.9
+
 /* For a pair already in contact: the last time in [0, 1] at which its
  * penetration is still <= limit_m, when it exceeds limit_m later (1 and
- * *t), 0 when it never does. A pair deeper than limit_m at t = 0 is held
- * to its depth there plus a tenth of limit_m, unless it is deeper than
- * twice limit_m (0: left to the push-out). */
+ * *t), 0 when it never does. limit_m is the aim, SC_TOI_AIM of the
+ * tolerance: a pair deeper than it at t = 0 is held to the tolerance, or
+ * past the tolerance to its depth there plus a hundredth of it (the
+ * sort-out's limits, impact.c), unless it is deeper than twice limit_m
+ * (0: left to the push-out). */
 int sc_toi_deepen_ctx(sc_np_ctx *ctx, const sc_shape *a, const sc_pose *a0, const sc_pose *a1,
                       const sc_shape *b, const sc_pose *b0, const sc_pose *b1, double limit_m,
                       double *t);

@@ -278,10 +278,6 @@ void sc_stats_add_solver(sc_stats *s, const sc_stats *s2);
 void sc_stats_add_frame(sc_stats *s, const sc_stats *g);
 /* Clearing the solver figures for a new frame. */
 void sc_stats_clear_solver(sc_stats *st);
-/* Back-ups aim at this share of the contact tolerance: the backed-up
- * substep's impulses and push-out differ a little from the path the
- * search interpolated. */
-#define SC_TOI_AIM 0.9
 /* Step 5 (impact.c): the earliest time of impact (fraction of the
  * substep) among the pairs whose contacts are marked 1 in fast, or, fast
  * NULL, among all contacts deeper than the tolerance; 1 when there is

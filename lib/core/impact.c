@@ -194,10 +194,11 @@ static void mark_held(const sc_frame_state *st, int a, int b, unsigned char *fas
 }
 
 /* How deep pair (a, b) may get in this substep: the tolerance for a new
- * pair; for one touching at the start (contacts in c0, *touching = 1)
- * the tolerance, or its deepest start depth plus a hundredth of it if
- * deeper. (A tenth let a pair 0.95 tolerances in reach 1.05: the 50-part
- * drop's 1.0075 mm; the bin and the drops took the same substeps.) */
+ * pair, and for one touching at the start (contacts in c0, *touching = 1)
+ * within it; one already past it, its deepest start depth plus a
+ * hundredth of the tolerance. (A tenth let a pair 0.95 tolerances in
+ * reach 1.05: the 50-part drop's 1.0075 mm; the hundredth still let one
+ * 0.9995 in reach 1.0095.) */
 static double pair_limit(const sc_contact *c0, int n0, int a, int b, double tol, int *touching)
 {
     double d0 = -1;
@@ -205,7 +206,7 @@ static double pair_limit(const sc_contact *c0, int n0, int a, int b, double tol,
     for (int j = pair_run(c0, n0, a, b, &j1); j < j1; j++)
         d0 = max_d(d0, c0[j].depth);
     *touching = d0 >= 0;
-    return d0 < 0 ? tol : max_d(tol, d0 + 0.01 * tol);
+    return d0 <= tol ? tol : d0 + 0.01 * tol;
 }
 
 /* Whether a pair with contacts s[0 .. n) at the substep's start is only

@@ -335,17 +335,22 @@ static int ca_deep_at(const sc_shape *a, const sc_pose *pa, const sc_shape *b,
 }
 
 /* The limit a deepening search holds a pair to that starts d deep: a
- * little past *limit (a backed-up substep left it there), it may not get
- * deeper by more than a tenth of the limit (a bolt that let it go ended
- * 7.9 mm in the floor); far past it (a pile at the substep cap), 0: not
- * held, the push-out works on it (holding those doubled the time of the
- * 1000-body drop). */
+ * little past the aim *limit (a backed-up substep left it there), the
+ * tolerance (*limit / SC_TOI_AIM), or past that its depth plus a
+ * hundredth of the tolerance: the sort-out's limits (impact.c), so that a
+ * pair sorted out for passing them has a time to back up to (the tenth
+ * of the aim held before let one start at 0.9995 mm and end at 1.0095,
+ * past the 1 mm it was sorted out for, with no time found; letting it go
+ * entirely, a bolt ended 7.9 mm in the floor); far past it (a pile at the
+ * substep cap), 0: not held, the push-out works on it (holding those
+ * doubled the time of the 1000-body drop). */
 static int held_limit(double d, double *limit)
 {
     if (d > 2 * *limit)
         return 0;
+    double tol = *limit / SC_TOI_AIM;
     if (d > *limit)
-        *limit = d + 0.1 * *limit;
+        *limit = d <= tol ? tol : d + 0.01 * tol;
     return 1;
 }
 

@@ -18,7 +18,7 @@
  *             exact), a0, b0, (TOI) a1, b1
  *   ISLAND unit (consecutive islands, each solved on its own): bodies u32,
  *             members u32, contacts u32, islands u32, h, bounce_speed, slop,
- *             baumgarte, tol f64, split_contacts, block_contacts, max_sweeps,
+ *             baumgarte, tol f64, gravity f64[3], split_contacts, block_contacts, max_sweeps,
  *             cold i32, impact_first i32, per island: members u32, contacts
  *             u32; per body: see
  *             put_body(), per contact: a contact (local body indices) and its
@@ -73,9 +73,10 @@
 
 #include "unit_wire.h"
 
-#define WIRE_VERSION 9       /* 6: island units carry impact_first, results inelastic, v0, w0;
+#define WIRE_VERSION 10      /* 6: island units carry impact_first, results inelastic, v0, w0;
                                 7: results carry energy_refused, restitution_scaled;
-                                8: and np_pairs, np_reused; 9: and lcp_kept */
+                                8: and np_pairs, np_reused; 9: and lcp_kept;
+                                10: island units carry gravity (the push-out's lift) */
 #define MAGIC_UNIT 0x55574353u        /* "SCWU" */
 #define MAGIC_RESULT 0x52574353u      /* "SCWR" */
 #define MAX_PAIRS (1 << 16)
@@ -387,6 +388,7 @@ out:
 static int params_ok(const sc_contact_params *p)
 {
     return isfinite(p->bounce_speed) && p->bounce_speed >= 0 && isfinite(p->slop) &&
+           isfinite(p->gravity[0]) && isfinite(p->gravity[1]) && isfinite(p->gravity[2]) &&
            p->slop >= 0 && isfinite(p->baumgarte) && p->baumgarte >= 0 && isfinite(p->tol) &&
            p->tol >= 0 && p->split_contacts >= 0 && p->block_contacts >= 1 &&
            p->block_contacts <= MAX_CONTACTS && p->max_sweeps >= 1 &&
@@ -404,8 +406,9 @@ static void write_island(wbuf *w, const void *job_, const void *im_)
     put(w, (uint64_t)im->nc, 4);
     put(w, (uint64_t)im->nisl, 4);
     const sc_contact_params *p = job->params;
-    double head[5] = { job->h, p->bounce_speed, p->slop, p->baumgarte, p->tol };
-    put_f64s(w, head, 5);
+    double head[8] = { job->h,         p->bounce_speed, p->slop,       p->baumgarte,
+                       p->tol,         p->gravity[0],   p->gravity[1], p->gravity[2] };
+    put_f64s(w, head, 8);
     put_i32(w, p->split_contacts);
     put_i32(w, p->block_contacts);
     put_i32(w, p->max_sweeps);
@@ -646,10 +649,10 @@ static int decode_island(rbuf *r, sc_wire_unit *wu)
 {
     uint32_t m = (uint32_t)get(r, 4), nm = (uint32_t)get(r, 4), nc = (uint32_t)get(r, 4);
     uint32_t nisl = (uint32_t)get(r, 4);
-    double head[5];
-    get_f64s(r, head, 5, 1);
+    double head[8];
+    get_f64s(r, head, 8, 1);
     sc_contact_params p = { .bounce_speed = head[1], .slop = head[2], .baumgarte = head[3],
-                            .tol = head[4] };
+                            .tol = head[4], .gravity = { head[5], head[6], head[7] } };
     p.split_contacts = get_i32(r);
     p.block_contacts = get_i32(r);
     p.max_sweeps = get_i32(r);
