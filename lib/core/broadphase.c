@@ -192,19 +192,12 @@ static inline int spheres_overlap(double xa, double ya, double za, double ra, do
     return dx * dx + dy * dy + dz * dz <= s * s;
 }
 
-/* Makes room for one more pair in the caller's array (doubling). */
+/* Makes room for one more pair in the caller's array. */
 static int grow_pairs(sc_broadphase *bp)
 {
-    int cap = *bp->out_cap;
-    if (cap == INT_MAX)
-        return SC_ENOMEM;
-    int ncap = cap < 32 ? 64 : cap > INT_MAX / 2 ? INT_MAX : 2 * cap;
-    sc_pair *p = realloc(*bp->out, (size_t)ncap * sizeof *p);
-    if (!p)
-        return SC_ENOMEM;
-    *bp->out = p;
-    *bp->out_cap = ncap;
-    return SC_OK;
+    return sc_grow((void **)bp->out, bp->out_cap, bp->nout + 1, sizeof **bp->out, INT_MAX)
+               ? SC_ENOMEM
+               : SC_OK;
 }
 
 /* ---- input ---- */
@@ -249,11 +242,8 @@ static int find_all_pairs(sc_broadphase *bp, const double *c, const double *r,
             const double *cb = &c[3 * b];
             if (!spheres_overlap(ca[0], ca[1], ca[2], r[a], cb[0], cb[1], cb[2], r[b]))
                 continue;
-            if (bp->nout == *bp->out_cap) {
-                int rc = grow_pairs(bp);
-                if (rc)
-                    return rc;
-            }
+            if (grow_pairs(bp))
+                return SC_ENOMEM;
             (*bp->out)[bp->nout++] = (sc_pair){ a, b };   /* already in order */
         }
     }
@@ -727,18 +717,17 @@ static void sweep_task(void *arg, int t, sc_arena *a, int helper)
     o->n = 0;
     if (kind == 0) {
         o->rc = sweep_levels(bp, o, row_at(bp, c, K), row_at(bp, c + 1, K));
-        bp->chunk[t] = out;
-        return;
+    } else {
+        int li = 0, lj = 1;
+        for (int x = kind - 1; x > 0; x--)
+            if (++lj == bp->nlevels) {
+                li++;
+                lj = li + 1;
+            }
+        int s0 = bp->rstart[bp->lrow[li]], m = bp->rstart[bp->lrow[li + 1]] - s0;
+        o->rc = sweep_cross(bp, o, lj, s0 + (int)((long long)m * c / K),
+                            s0 + (int)((long long)m * (c + 1) / K));
     }
-    int li = 0, lj = 1;
-    for (int x = kind - 1; x > 0; x--)
-        if (++lj == bp->nlevels) {
-            li++;
-            lj = li + 1;
-        }
-    int s0 = bp->rstart[bp->lrow[li]], m = bp->rstart[bp->lrow[li + 1]] - s0;
-    o->rc = sweep_cross(bp, o, lj, s0 + (int)((long long)m * c / K),
-                        s0 + (int)((long long)m * (c + 1) / K));
     bp->chunk[t] = out;
 }
 
@@ -762,11 +751,7 @@ static int find_swept_pairs(sc_broadphase *bp, const sc_task_runner *runner, con
         return SC_ENOMEM;
     if (bp->chunk_cap > had)
         memset(&bp->chunk[had], 0, (size_t)(bp->chunk_cap - had) * sizeof *bp->chunk);
-    if (bp->nchunk > 1)
-        runner->run(runner->ctx, sweep_task, bp, ntasks, NULL);
-    else
-        for (int t = 0; t < ntasks; t++)
-            sweep_task(bp, t, NULL, 0);
+    sc_tasks_run(bp->nchunk > 1 ? runner : NULL, sweep_task, bp, ntasks, NULL);
     for (int t = 0; t < ntasks; t++)
         if (bp->chunk[t].rc)
             return bp->chunk[t].rc;
@@ -822,7 +807,7 @@ static int find_moved_pairs(sc_broadphase *bp, const double *c, const double *r,
         if (i == bp->nlast && j == nf)
             break;
         int take_last = j == nf || (i < bp->nlast && sc_pair_cmp(&bp->last[i], &bp->fresh[j]) < 0);
-        if (bp->nout == *bp->out_cap && grow_pairs(bp))
+        if (grow_pairs(bp))
             return SC_ENOMEM;
         (*bp->out)[bp->nout++] = take_last ? bp->last[i++] : bp->fresh[j++];
     }

@@ -695,11 +695,7 @@ static int colour_solve(sc_arena *a, const gs_problem *pb, const blocks *bl, int
     sc_block_batch b = { .pb = pb, .bl = bl, .z = z, .u = u, .fail = fail,
                          .list = &bl->order[bl->cstart[c]], .skip = skip, .info = binfo,
                          .rc = brc };
-    if (runner && n >= 2)
-        runner->run(runner->ctx, sc_block_run, &b, n, a);
-    else
-        for (int i = 0; i < n; i++)
-            sc_block_run(&b, i, a, 0);
+    sc_tasks_run(runner, sc_block_run, &b, n, a);
     int rc = SC_OK;
     for (int i = 0; i < n; i++) {
         block_info_add(info, &binfo[i]);
@@ -958,53 +954,6 @@ static int push_out(sc_arena *a, const row *rows, const int *nsel, int nn, const
     return rc;
 }
 
-static double kinetic(const sc_body *b, const double v[3], const double w[3]);
-static int island_movable(sc_arena *a, const sc_body *bodies, const sc_contact *c, const int *ci,
-                          int nc, int **out);
-
-/* The push-out without the energy it would give: lifting bodies against
- * gravity raises their potential energy, which nothing paid for, so the
- * island's kinetic energy pays it (its velocities scaled down, every
- * contact row's sign kept), as far as it has any. A pile part whose
- * contacts hover just past the slop is pushed out in every substep; in a
- * bin of 200 one nut so gained 1-4e-5 J a frame while it tipped over an
- * edge and rocked for seconds (docs/DESIGN.md 3.5). */
-static int neutral_push_out(sc_arena *a, const row *rows, const int *nsel, int nn,
-                            const sc_contact *c, const int *ci, int nc, sc_body *bodies, double h,
-                            const sc_contact_params *p, int split, sc_solve_info *info)
-{
-    int *ids = NULL;
-    int nb = island_movable(a, bodies, c, ci, nc, &ids);
-    if (nb < 0)
-        return nb;
-    double *x0 = nb > 0 ? sc_arena_alloc(a, (size_t)nb * 3 * sizeof *x0) : NULL;
-    if (nb > 0 && !x0) {
-        sc_arena_free(a, ids);
-        return SC_ENOMEM;
-    }
-    for (int i = 0; i < nb; i++)
-        v3_copy(&x0[3 * i], bodies[ids[i]].x);
-    int rc = push_out(a, rows, nsel, nn, c, ci, bodies, h, p, split, info);
-    double lift = 0, ke = 0;
-    for (int i = 0; rc == SC_OK && i < nb; i++) {
-        const sc_body *b = &bodies[ids[i]];
-        double d[3];
-        v3_sub(d, b->x, &x0[3 * i]);
-        lift -= v3_dot(p->gravity, d) / b->inv_mass;
-        ke += kinetic(b, b->v, b->w);
-    }
-    if (lift > 0 && ke > 0) {
-        double s = sqrt(max_d(ke - lift, 0.0) / ke);
-        for (int i = 0; i < nb; i++) {
-            v3_scale(bodies[ids[i]].v, bodies[ids[i]].v, s);
-            v3_scale(bodies[ids[i]].w, bodies[ids[i]].w, s);
-        }
-    }
-    sc_arena_free(a, x0);
-    sc_arena_free(a, ids);
-    return rc;
-}
-
 /* One LCP over an island's rows, its impulses applied to the bodies'
  * velocities: exact (with the staggered and block fallbacks) or, split,
  * by blocks. buf holds q, lo, hi, mu, z, w and off (n = nrows doubles
@@ -1117,6 +1066,49 @@ static int island_movable(sc_arena *a, const sc_body *bodies, const sc_contact *
 }
 
 static double kinetic(const sc_body *b, const double v[3], const double w[3]);
+
+/* The push-out without the energy it would give: lifting bodies against
+ * gravity raises their potential energy, which nothing paid for, so the
+ * island's kinetic energy pays it (its velocities scaled down, every
+ * contact row's sign kept), as far as it has any. A pile part whose
+ * contacts hover just past the slop is pushed out in every substep; in a
+ * bin of 200 one nut so gained 1-4e-5 J a frame while it tipped over an
+ * edge and rocked for seconds (docs/DESIGN.md 3.5). */
+static int neutral_push_out(sc_arena *a, const row *rows, const int *nsel, int nn,
+                            const sc_contact *c, const int *ci, int nc, sc_body *bodies, double h,
+                            const sc_contact_params *p, int split, sc_solve_info *info)
+{
+    int *ids = NULL;
+    int nb = island_movable(a, bodies, c, ci, nc, &ids);
+    if (nb < 0)
+        return nb;
+    double *x0 = nb > 0 ? sc_arena_alloc(a, (size_t)nb * 3 * sizeof *x0) : NULL;
+    if (nb > 0 && !x0) {
+        sc_arena_free(a, ids);
+        return SC_ENOMEM;
+    }
+    for (int i = 0; i < nb; i++)
+        v3_copy(&x0[3 * i], bodies[ids[i]].x);
+    int rc = push_out(a, rows, nsel, nn, c, ci, bodies, h, p, split, info);
+    double lift = 0, ke = 0;
+    for (int i = 0; rc == SC_OK && i < nb; i++) {
+        const sc_body *b = &bodies[ids[i]];
+        double d[3];
+        v3_sub(d, b->x, &x0[3 * i]);
+        lift -= v3_dot(p->gravity, d) / b->inv_mass;
+        ke += kinetic(b, b->v, b->w);
+    }
+    if (lift > 0 && ke > 0) {
+        double s = sqrt(max_d(ke - lift, 0.0) / ke);
+        for (int i = 0; i < nb; i++) {
+            v3_scale(bodies[ids[i]].v, bodies[ids[i]].v, s);
+            v3_scale(bodies[ids[i]].w, bodies[ids[i]].w, s);
+        }
+    }
+    sc_arena_free(a, x0);
+    sc_arena_free(a, ids);
+    return rc;
+}
 
 /* The share s of a velocity change that brings the bodies' kinetic energy
  * to cap: k0 before the change, k1 after it, kd the change's own, so that

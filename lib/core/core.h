@@ -161,6 +161,17 @@ typedef struct sc_task_runner {
     void (*run)(void *ctx, sc_task_fn fn, void *arg, int count, sc_arena *a);
     void *ctx;
 } sc_task_runner;
+/* Tasks [0, count) of a batch: handed to r when there is one and more
+ * than one task, else run here one after another (helper 0). */
+static inline void sc_tasks_run(const sc_task_runner *r, sc_task_fn fn, void *arg, int count,
+                                sc_arena *a)
+{
+    if (r && count > 1)
+        r->run(r->ctx, fn, arg, count, a);
+    else
+        for (int i = 0; i < count; i++)
+            fn(arg, i, a, 0);
+}
 
 /* A split island's blocks of one colour (contact.c; no two share a
  * movable body), to be solved anywhere, in any order: each is run by

@@ -112,8 +112,9 @@ struct sc_exec {
     int (*background)(sc_exec *ex, sc_job *job);
     int (*drain)(sc_exec *ex, sc_job *job, sc_stats *st);
     /* NULL, or the calling thread's task runner: the serial stages of a
-     * frame on the calling thread (sweep and prune) hand it tasks that
-     * idle local threads share (docs/DESIGN.md 5.3). */
+     * frame on the calling thread (sweep and prune, integration's
+     * per-body passes) hand it tasks that idle local threads share
+     * (docs/DESIGN.md 5.3). */
     const sc_task_runner *runner;
 };
 /* The serial executor: every job as one unit on the calling thread, with

@@ -24,13 +24,14 @@
 #define ROT_MAX_PARTS 64
 #define ROT_MAX_ITER 100
 
-/* The body of inverse inertia inv_I at orientation q turning freely with the
- * world angular momentum L for h: q turned. 0, or -1 when the iteration
- * did not converge (q then turned by the body's angular velocity alone). */
-static int free_rotation(double q[4], const double inv_I[9], const double L[3], double h)
+/* The body of inverse inertia inv_I at orientation q (its matrix R)
+ * turning freely with the world angular momentum L for h: q turned. 0, or
+ * -1 when the iteration did not converge (q then turned by the body's
+ * angular velocity alone). */
+static int free_rotation(double q[4], const double R[9], const double inv_I[9], const double L[3],
+                         double h)
 {
-    double R[9], pi[3], om[3];
-    q_to_m3(R, q);
+    double pi[3], om[3];
     m3_tmulv(pi, R, L);
     m3_mulv(om, inv_I, pi);
     double rate = v3_len(om) * h;
@@ -125,10 +126,7 @@ static void run_pass(body_pass *p)
 {
     const sc_task_runner *r = p->f->ex ? p->f->ex->runner : NULL;
     p->chunks = r && p->f->st->nbodies >= SHARE_MIN ? CHUNKS : 1;
-    if (p->chunks > 1)
-        r->run(r->ctx, body_task, p, p->chunks, NULL);
-    else
-        body_task(p, 0, NULL, 0);
+    sc_tasks_run(r, body_task, p, p->chunks, NULL);
 }
 
 /* Step 3, first half: u* = u + h (g + F/m), w* = w + h I^-1 torque, and
@@ -203,7 +201,7 @@ static void integrate_positions(const body_pass *p, int i0, int i1)
         v3_madd(b->x, b->x, step, h);
         double q0[4];
         memcpy(q0, b->q, sizeof q0);
-        if (free_rotation(b->q, b->inv_inertia, Lrot, h) != 0) {
+        if (free_rotation(b->q, R, b->inv_inertia, Lrot, h) != 0) {
             /* no convergence (a spin far past any real one): turned by
              * its angular velocity, which keeps it as it is */
             memcpy(b->q, q0, sizeof q0);

@@ -106,6 +106,12 @@ static int cmp_key(const void *x, const void *y)
     return (a->idx > b->idx) - (a->idx < b->idx);
 }
 
+/* What shipping unit u to node nd costs the calling thread (home_s). */
+static double ship_s(const sc_sched_node *nd, const sc_unit *u)
+{
+    return nd->job_home0 + nd->job_home1 * (double)u->bytes;
+}
+
 int sc_sched_assign(sc_sched *s, sc_node *const *nodes, sc_unit *units, int n)
 {
     if (n > s->order_cap) {
@@ -190,8 +196,7 @@ int sc_sched_assign(sc_sched *s, sc_node *const *nodes, sc_unit *units, int n)
                 continue;    /* gone, owner-busy, or not for this kind */
             /* worth it only when shipping it costs the calling thread at
              * most ship_share of computing it there (docs/DESIGN.md 6.2) */
-            double home = nd->job_home0 + nd->job_home1 * (double)u->bytes;
-            if (k > 0 && s->ship_share >= 0 && home > s->ship_share * at_home)
+            if (k > 0 && s->ship_share >= 0 && ship_s(nd, u) > s->ship_share * at_home)
                 continue;
             /* the first unit a node gets in a job pays its latency */
             double t = nd->ready + nd->job_tr0 + nd->job_tr1 * (double)u->bytes +
@@ -216,8 +221,7 @@ int sc_sched_assign(sc_sched *s, sc_node *const *nodes, sc_unit *units, int n)
         if (s->nnodes > 1)
             s->nodes[best].ready = best_t;
         if (best > 0)                   /* the calling thread ships it */
-            s->nodes[0].ready +=
-                s->nodes[best].job_home0 + s->nodes[best].job_home1 * (double)u->bytes;
+            s->nodes[0].ready += ship_s(&s->nodes[best], u);
         u->node = best;
         s->start[best + 1]++;
     }

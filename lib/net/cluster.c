@@ -370,6 +370,15 @@ static void on_message(void *ctx, const char *channel, const uint8_t *data, size
 /* Handle what has come, waiting up to timeout_s for the first datagram;
  * one pass over what is pending (the callers loop), so that a flood of
  * datagrams cannot hold a frame past its deadline. */
+/* The calling thread's communication since t0, in the figures and in
+ * the shipping rate (remote_home()). */
+static void comm_since(sc_cluster *c, double t0)
+{
+    double t = sc_wall_now() - t0;
+    c->stats->comm_s += t;
+    c->home_s += t;
+}
+
 static void pump(sc_cluster *c, double timeout_s)
 {
     int ms = timeout_s > 0 ? (int)(timeout_s * 1000) + 1 : 0;
@@ -378,9 +387,7 @@ static void pump(sc_cluster *c, double timeout_s)
         return;
     double t0 = sc_wall_now();
     sc_bus_handle(c->bus, 0);
-    double t = sc_wall_now() - t0;
-    c->stats->comm_s += t;
-    c->home_s += t;
+    comm_since(c, t0);
 }
 
 /* ---- the remote node ---- */
@@ -480,9 +487,7 @@ static int remote_submit(sc_node *n, const sc_job *job, const int *units, int co
         add_unit(c, d, job, units[i]);
     }
     flush(c, d);
-    double t = sc_wall_now() - t0;
-    c->stats->comm_s += t;
-    c->home_s += t;
+    comm_since(c, t0);
     if (c->home_bytes > HOME_WINDOW) {     /* a window: the recent rate */
         c->home_s *= 0.5;
         c->home_bytes *= 0.5;
