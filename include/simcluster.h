@@ -349,6 +349,10 @@ typedef struct sc_stats {
                                  at several contacts at once added energy:
                                  solved again with the bounce scaled down
                                  (to none at most), no fallback */
+    int lcp_guessed;          /* LCPs (islands or blocks) whose friction
+                                 neither the fixed point nor Lemke's method
+                                 settled, solved exactly from a projected
+                                 Gauss-Seidel guess: no fallback */
     double lcp_residual;      /* largest complementarity error of an exact
                                  solve (w_i z_i etc., m/s), last frame */
     double lcp_outer_residual;/* largest outer residual of a split solve, m/s */

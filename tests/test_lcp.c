@@ -1407,6 +1407,55 @@ static void test_friction_of_a_separating_contact_is_zero(void **state)
     assert_true(z[0] == 0 && z[1] == 0 && z[2] == 0);
 }
 
+/* Solves a captured pile LCP (tests/data/friction/) with sc_lcp_boxed and
+ * checks the answer against Coulomb's conditions here; its info in *li. */
+static void solve_pile_file(const char *path, sc_lcp_info *li)
+{
+    FILE *fp = fopen(path, "r");
+    assert_non_null(fp);
+    int n, nc, rc0;
+    assert_int_equal(fscanf(fp, "%d %d %d", &n, &nc, &rc0), 3);
+    assert_true(n > 0 && n <= 64);
+    double *M = malloc((size_t)n * n * sizeof *M), *q = malloc(n * sizeof *q);
+    double *mu = malloc(n * sizeof *mu), *lo = malloc(n * sizeof *lo);
+    double *hi = malloc(n * sizeof *hi), *z = calloc(n, sizeof *z), *w = malloc(n * sizeof *w);
+    int *fx = malloc(n * sizeof *fx);
+    for (int i = 0; i < n * n; i++)
+        assert_int_equal(fscanf(fp, "%lf", &M[i]), 1);
+    for (int i = 0; i < n; i++) {
+        assert_int_equal(fscanf(fp, "%lf %d %lf %lf", &q[i], &fx[i], &mu[i], &lo[i]), 4);
+        hi[i] = INFINITY;
+        if (fx[i] >= 0)
+            lo[i] = -INFINITY;
+    }
+    fclose(fp);
+    assert_int_equal(sc_lcp_boxed(n, M, q, lo, hi, fx, mu, z, w, li), SC_OK);
+    double zs = 0, ws = 0;
+    for (int i = 0; i < n; i++) {
+        zs = fmax(zs, fabs(z[i]));
+        ws = fmax(ws, fabs(q[i]));
+    }
+    for (int i = 0; i < n; i++) {
+        double wi = q[i];
+        for (int j = 0; j < n; j++)
+            wi += M[i * n + j] * z[j];
+        double tz = 1e-9 * zs, tw = 1e-9 * ws;
+        if (fx[i] < 0) {          /* normal: z >= 0, w >= 0, z w = 0 */
+            assert_true(z[i] >= -tz && wi >= -tw);
+            assert_true(fmin(z[i], wi) <= fmax(tz, tw));
+        } else {                  /* friction: inside the box with w = 0,
+                                     or at a bound with w opposing */
+            double b = mu[i] * z[fx[i]];
+            assert_true(fabs(z[i]) <= b + tz);
+            if (fabs(z[i]) < b - tz)
+                assert_true(fabs(wi) <= tw);
+            else
+                assert_true(z[i] * wi <= tw * zs);
+        }
+    }
+    free(M), free(q), free(mu), free(lo), free(hi), free(z), free(w), free(fx);
+}
+
 /* Real pile islands on which the fixed point on the friction bounds
  * cycles (tests/data/friction/): solved exactly (by Lemke's method on the
  * friction LCP), checked here against Coulomb's conditions. */
@@ -1417,51 +1466,26 @@ static void test_pile_friction_that_cycles_is_solved_exactly(void **state)
                             "tests/data/friction/pile_4contacts_b.txt",
                             "tests/data/friction/pile_8contacts.txt" };
     for (size_t f = 0; f < sizeof files / sizeof *files; f++) {
-        FILE *fp = fopen(files[f], "r");
-        assert_non_null(fp);
-        int n, nc, rc0;
-        assert_int_equal(fscanf(fp, "%d %d %d", &n, &nc, &rc0), 3);
-        assert_true(n > 0 && n <= 64);
-        double *M = malloc((size_t)n * n * sizeof *M), *q = malloc(n * sizeof *q);
-        double *mu = malloc(n * sizeof *mu), *lo = malloc(n * sizeof *lo);
-        double *hi = malloc(n * sizeof *hi), *z = calloc(n, sizeof *z), *w = malloc(n * sizeof *w);
-        int *fx = malloc(n * sizeof *fx);
-        for (int i = 0; i < n * n; i++)
-            assert_int_equal(fscanf(fp, "%lf", &M[i]), 1);
-        for (int i = 0; i < n; i++) {
-            assert_int_equal(fscanf(fp, "%lf %d %lf %lf", &q[i], &fx[i], &mu[i], &lo[i]), 4);
-            hi[i] = INFINITY;
-            if (fx[i] >= 0)
-                lo[i] = -INFINITY;
-        }
-        fclose(fp);
         sc_lcp_info li;
-        assert_int_equal(sc_lcp_boxed(n, M, q, lo, hi, fx, mu, z, w, &li), SC_OK);
+        solve_pile_file(files[f], &li);
         assert_int_equal(li.lemke, 1);     /* the fixed point did cycle */
-        double zs = 0, ws = 0;
-        for (int i = 0; i < n; i++) {
-            zs = fmax(zs, fabs(z[i]));
-            ws = fmax(ws, fabs(q[i]));
-        }
-        for (int i = 0; i < n; i++) {
-            double wi = q[i];
-            for (int j = 0; j < n; j++)
-                wi += M[i * n + j] * z[j];
-            double tz = 1e-9 * zs, tw = 1e-9 * ws;
-            if (fx[i] < 0) {          /* normal: z >= 0, w >= 0, z w = 0 */
-                assert_true(z[i] >= -tz && wi >= -tw);
-                assert_true(fmin(z[i], wi) <= fmax(tz, tw));
-            } else {                  /* friction: inside the box with w = 0,
-                                         or at a bound with w opposing */
-                double b = mu[i] * z[fx[i]];
-                assert_true(fabs(z[i]) <= b + tz);
-                if (fabs(z[i]) < b - tz)
-                    assert_true(fabs(wi) <= tw);
-                else
-                    assert_true(z[i] * wi <= tw * zs);
-            }
-        }
-        free(M), free(q), free(mu), free(lo), free(hi), free(z), free(w), free(fx);
+        assert_int_equal(li.guessed, 0);
+    }
+}
+
+/* Pile LCPs on which the fixed point cycles and Lemke's method fails too
+ * (a secondary ray, or an answer that fails verification): solved exactly by the fixed point started
+ * from projected Gauss-Seidel's iterate. */
+static void test_pile_friction_that_lemke_misses_is_solved_from_a_guess(void **state)
+{
+    (void)state;
+    const char *files[] = { "tests/data/friction/pile_4contacts_guess.txt",
+                            "tests/data/friction/pile_8contacts_guess.txt" };
+    for (size_t f = 0; f < sizeof files / sizeof *files; f++) {
+        sc_lcp_info li;
+        solve_pile_file(files[f], &li);
+        assert_int_equal(li.lemke, 1);
+        assert_int_equal(li.guessed, 1);
     }
 }
 
@@ -1515,6 +1539,7 @@ int main(void)
         cmocka_unit_test(test_friction_sticks_below_and_slides_above_the_coulomb_limit),
         cmocka_unit_test(test_friction_of_a_separating_contact_is_zero),
         cmocka_unit_test(test_pile_friction_that_cycles_is_solved_exactly),
+        cmocka_unit_test(test_pile_friction_that_lemke_misses_is_solved_from_a_guess),
         cmocka_unit_test(test_warm_start_reuses_the_answer),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);

@@ -1231,7 +1231,7 @@ static void test_result_for_another_unit_is_a_format_error(void **state)
     }
     /* an island result whose contact count or counters are wrong changes
      * nothing (layout: header 8, members 4, rc 4, messages 8, pivots 8,
-     * failures ... restitution_scaled 17 x 4, residuals 16, contacts 4) */
+     * failures ... guessed 18 x 4, residuals 16, contacts 4) */
     int big = 0;
     for (int i = 1; i < ij.is.count; i++)
         if (island_unit(&ij.is, i, 1).count > island_unit(&ij.is, big, 1).count)
@@ -1242,7 +1242,7 @@ static void test_result_for_another_unit_is_a_format_error(void **state)
     free(res);
     buf = pack_unit(&ij.jr, &ui, &len);
     res = remote_run(np, buf, len, &cc, &rlen);
-    const size_t pivots = 24, counters = pivots + 8, ncont = counters + 68 + 16;
+    const size_t pivots = 24, counters = pivots + 8, ncont = counters + 72 + 16;
     assert_int_equal(rlen, ncont + 4 +
                                (size_t)(ij.is.body_start[big + 1] - ij.is.body_start[big]) *
                                    (19 * 8 + 4) +
@@ -1257,7 +1257,7 @@ static void test_result_for_another_unit_is_a_format_error(void **state)
         { ncont, 4, (uint64_t)ui.count + 1 }, { ncont, 4, (uint64_t)ui.count - 1 },
         { pivots, 8, (uint64_t)-1 },
     };
-    for (int k = 0; k < 3 + 17; k++) {
+    for (int k = 0; k < 3 + 18; k++) {
         size_t at = k < 3 ? wrong[k].at : counters + 4 * (size_t)(k - 3);
         int nbytes = k < 3 ? wrong[k].n : 4;
         uint64_t v = k < 3 ? wrong[k].v : (uint32_t)-1;   /* a negative counter */
@@ -1274,7 +1274,7 @@ static void test_result_for_another_unit_is_a_format_error(void **state)
     assert_memory_equal(contacts_before, ij.cr, ncb);
     /* the residuals are carried as they are */
     double odd = NAN;
-    memcpy(res + counters + 68, &odd, sizeof odd);
+    memcpy(res + counters + 72, &odd, sizeof odd);
     ui.info.residual_exact = 0;
     assert_int_equal(sc_wire_result_apply(&ij.jr, &ui, res, rlen), SC_OK);
     assert_true(isnan(ui.info.residual_exact));
@@ -1451,12 +1451,12 @@ static void test_bad_group_fields_are_format_errors(void **state)
 }
 
 /* A group result at its layout (header 8, members 4, rc 4, messages 8,
- * info 92; figures 264; per member 288: 35 doubles, state, collided; then
+ * info 96; figures 268; per member 288: 35 doubles, state, collided; then
  * contacts 4 and 88 each). */
 #define GR_RC 12
-#define GR_STATS 116
+#define GR_STATS 120
 #define GR_STAT_INTS (GR_STATS + 8 * 22)
-#define GR_MEMBER(i) (GR_STATS + 264 + 288 * (size_t)(i))
+#define GR_MEMBER(i) (GR_STATS + 268 + 288 * (size_t)(i))
 #define GR_CONTACTS(nm) GR_MEMBER(nm)
 
 /* The hook that sends results at units they do not fit, and malformed

@@ -89,7 +89,7 @@ r = json.load(open(sys.argv[1]))["solver"]
 ok = (r["island_split"] == 16 and r["split"] > 0 and r["blocks"] > 0 and r["solves"] >= r["split"]
       and r["max_outer_residual"] >= 0 and r["substeps"] >= 20 and r["nan_islands"] == 0 and r["inelastic_islands"] >= 0
       and 0 <= r["blocks_shared"] <= r["blocks"] and 0 <= r["energy_refused"] <= r["staggered_fallbacks"]
-      and r["restitution_scaled"] >= 0)
+      and r["restitution_scaled"] >= 0 and r["guessed"] >= 0)
 sys.exit(not ok)
 PY
 check "run --island-split 0" 0 "$tool" run "$dir/heap.scene" --frames 5 --island-split 0

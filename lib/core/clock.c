@@ -74,6 +74,7 @@ void sc_stats_add_solve(sc_stats *st, const sc_solve_info *info)
     st->lcp_inelastic += info->inelastic;
     st->lcp_energy_refused += info->energy_refused;
     st->lcp_restitution_scaled += info->restitution_scaled;
+    st->lcp_guessed += info->guessed;
     st->lcp_residual = max_d(st->lcp_residual, info->residual_exact);
     st->lcp_outer_residual = max_d(st->lcp_outer_residual, info->residual_split);
 }
@@ -99,6 +100,7 @@ void sc_stats_add_solver(sc_stats *s, const sc_stats *g)
     s->lcp_inelastic += g->lcp_inelastic;
     s->lcp_energy_refused += g->lcp_energy_refused;
     s->lcp_restitution_scaled += g->lcp_restitution_scaled;
+    s->lcp_guessed += g->lcp_guessed;
     s->lcp_residual = max_d(s->lcp_residual, g->lcp_residual);
     s->lcp_outer_residual = max_d(s->lcp_outer_residual, g->lcp_outer_residual);
     if (g->substeps > s->substeps)
@@ -130,6 +132,7 @@ void sc_stats_clear_solver(sc_stats *st)
     st->lcp_inelastic = 0;
     st->lcp_energy_refused = 0;
     st->lcp_restitution_scaled = 0;
+    st->lcp_guessed = 0;
     st->lcp_residual = 0;
     st->lcp_outer_residual = 0;
     st->substeps = 0;

@@ -185,6 +185,7 @@ static int solve(sc_arena *a, int n, double *A, const double *q, const double *l
     int rc = lcp_call(a, n, A, q, lo, hi, findex, mu, z, w, &li, warm);
     info->pivots += li.pivots;
     info->lemke += li.lemke;
+    info->guessed += li.guessed;
     if (rc == SC_OK)
         info->residual_exact = max_d(info->residual_exact, li.residual);
     if (rc == SC_OK || rc == SC_EINVAL || rc == SC_ENOMEM)
@@ -596,6 +597,7 @@ static int block_solve(sc_arena *a, const gs_problem *pb, const blocks *bl, int 
                    (pb->cold ? 0 : SOLVE_WARM) | (fail ? SOLVE_FAIL : 0));
         info->pivots += bi.pivots;
         info->lemke += bi.lemke;
+        info->guessed += bi.guessed;
         info->regularised += bi.regularised;
         if (rc == SC_OK) {
             for (int i = 0; i < m; i++) {
@@ -647,6 +649,7 @@ static void block_info_add(sc_solve_info *to, const sc_solve_info *from)
     to->blocks_shared += from->blocks_shared;
     to->pivots += from->pivots;
     to->lemke += from->lemke;
+    to->guessed += from->guessed;
     to->regularised += from->regularised;
     to->block_fallbacks += from->block_fallbacks;
 }

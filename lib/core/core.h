@@ -229,6 +229,9 @@ typedef struct sc_solve_info {
                                        regularised (solved staggered) */
     int regularised;                /* LCPs solved only after regularisation */
     int lemke;                      /* solved by the Lemke fallback */
+    int guessed;                    /* friction solved from projected
+                                       Gauss-Seidel's iterate after the fixed
+                                       point and Lemke failed (lcp.c) */
     int collisions;                 /* contacts resolved with restitution */
     int split;                      /* islands solved by blocks */
     int split_fallbacks;            /* of them, exact islands whose staggered

@@ -14,6 +14,10 @@ typedef struct sc_lcp_info {
     int lemke;                /* 1: principal pivoting stalled on a singular
                                  block and Lemke's method (also exact, also
                                  verified) gave the answer */
+    int guessed;              /* 1: neither the friction fixed point nor
+                                 Lemke's method settled, and a fixed point
+                                 started from projected Gauss-Seidel's
+                                 iterate did (exact, verified) */
 } sc_lcp_info;
 
 /* The standard LCP by Cottle-Dantzig principal pivoting; info may be NULL. */

@@ -36,7 +36,8 @@
  *             messages i64, pivots i64, failures, regularised, lemke,
  *             collisions, split, split_fallbacks, blocks, block_fallbacks,
  *             nan_islands, sweeps_max, unconverged, solves, diverged,
- *             cold_starts, inelastic i32, residual_exact, residual_split f64,
+ *             cold_starts, inelastic, energy_refused, restitution_scaled,
+ *             guessed i32, residual_exact, residual_split f64,
  *             then per pair: n u8 and n contacts (COLLIDE), toi f64 (TOI);
  *             (ISLAND) contacts u32, per member: x f64[3], q f64[4], v, w,
  *             v0, w0 f64[3], collided i32, per contact in the unit's contact order:
@@ -73,10 +74,11 @@
 
 #include "unit_wire.h"
 
-#define WIRE_VERSION 10      /* 6: island units carry impact_first, results inelastic, v0, w0;
+#define WIRE_VERSION 11      /* 6: island units carry impact_first, results inelastic, v0, w0;
                                 7: results carry energy_refused, restitution_scaled;
                                 8: and np_pairs, np_reused; 9: and lcp_kept;
-                                10: island units carry gravity (the push-out's lift) */
+                                10: island units carry gravity (the push-out's lift);
+                                11: results carry guessed, stats lcp_guessed */
 #define MAGIC_UNIT 0x55574353u        /* "SCWU" */
 #define MAGIC_RESULT 0x52574353u      /* "SCWR" */
 #define MAX_PAIRS (1 << 16)
@@ -839,7 +841,7 @@ void sc_wire_unit_free(sc_wire_unit *wu)
  * field added there must be added here; test_unit_wire compares whole
  * infos of a local and a remote run), and pivots. blocks_shared stays
  * home: a daemon's island shares no blocks. */
-#define INFO_INTS 17
+#define INFO_INTS 18
 
 static void info_ints(sc_solve_info *info, int *f[INFO_INTS])
 {
@@ -849,7 +851,7 @@ static void info_ints(sc_solve_info *info, int *f[INFO_INTS])
                           &info->nan_islands,     &info->sweeps_max,  &info->unconverged,
                           &info->solves,          &info->diverged,    &info->cold_starts,
                           &info->inelastic,       &info->energy_refused,
-                          &info->restitution_scaled };
+                          &info->restitution_scaled, &info->guessed };
     memcpy(f, p, sizeof p);
 }
 
@@ -887,7 +889,7 @@ static void get_info(rbuf *r, sc_solve_info *info)
 #define STAT_F64 (SC_STAGE_COUNT + 6)
 #define STAT_LONGS 8
 #define STAT_SIZES 2
-#define STAT_INTS 22
+#define STAT_INTS 23
 
 typedef struct stat_ptrs {
     double *d[STAT_F64];
@@ -913,7 +915,7 @@ static void stat_fields(sc_stats *s, stat_ptrs *p)
                           &s->substeps,       &s->backups,          &s->backup_regions,
                           &s->backup_bodies,  &s->spec_contacts,    &s->spec_rounds,
                           &s->lcp_inelastic,  &s->lcp_energy_refused,
-                          &s->lcp_restitution_scaled, &s->lcp_kept };
+                          &s->lcp_restitution_scaled, &s->lcp_kept, &s->lcp_guessed };
     _Static_assert(sizeof d / sizeof d[0] == STAT_F64 - SC_STAGE_COUNT, "stat doubles");
     memcpy(&p->d[SC_STAGE_COUNT], d, sizeof d);
     memcpy(p->l, l, sizeof l);
