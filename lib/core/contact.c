@@ -1072,11 +1072,19 @@ static double kinetic(const sc_body *b, const double v[3], const double w[3]);
 
 /* The push-out without the energy it would give: lifting bodies against
  * gravity raises their potential energy, which nothing paid for, so the
- * island's kinetic energy pays it (its velocities scaled down, every
- * contact row's sign kept), as far as it has any. A pile part whose
+ * island's kinetic energy of turning and of moving along gravity pays it
+ * (those velocities scaled down, every contact row's sign kept; a part
+ * pushed or sliding across the floor keeps its speed). Where the lift
+ * would cost more than that, the push-out goes only as far as it pays
+ * (every body's move and turn scaled by the same share) and those
+ * velocities stop: a resting part is not lifted for free. A part whose
  * contacts hover just past the slop is pushed out in every substep; in a
- * bin of 200 one nut so gained 1-4e-5 J a frame while it tipped over an
- * edge and rocked for seconds (docs/DESIGN.md 3.5). */
+ * bin of 200 a nut resting on two contacts was lifted 40 um at a time
+ * while still, tipped, and so rocked for seconds (docs/DESIGN.md 3.5).
+ * An island with a contact deeper than PUSH_PAID_DEPTH times the slop
+ * (bodies placed overlapping, a pair past the time of impact's tolerance)
+ * is pushed out whatever it costs. */
+#define PUSH_PAID_DEPTH 2.0
 static int neutral_push_out(sc_arena *a, const row *rows, const int *nsel, int nn,
                             const sc_contact *c, const int *ci, int nc, sc_body *bodies, double h,
                             const sc_contact_params *p, int split, sc_solve_info *info)
@@ -1085,27 +1093,54 @@ static int neutral_push_out(sc_arena *a, const row *rows, const int *nsel, int n
     int nb = island_movable(a, bodies, c, ci, nc, &ids);
     if (nb < 0)
         return nb;
-    double *x0 = nb > 0 ? sc_arena_alloc(a, (size_t)nb * 3 * sizeof *x0) : NULL;
+    double *x0 = nb > 0 ? sc_arena_alloc(a, (size_t)nb * 7 * sizeof *x0) : NULL;
     if (nb > 0 && !x0) {
         sc_arena_free(a, ids);
         return SC_ENOMEM;
     }
-    for (int i = 0; i < nb; i++)
-        v3_copy(&x0[3 * i], bodies[ids[i]].x);
+    for (int i = 0; i < nb; i++) {
+        v3_copy(&x0[7 * i], bodies[ids[i]].x);
+        memcpy(&x0[7 * i + 3], bodies[ids[i]].q, 4 * sizeof *x0);
+    }
+    double deep = 0;
+    for (int k = 0; k < nc; k++)
+        deep = max_d(deep, c[ci[k]].depth);
     int rc = push_out(a, rows, nsel, nn, c, ci, bodies, h, p, split, info);
-    double lift = 0, ke = 0;
+    /* g: gravity's direction (none: all of v may pay) */
+    double g[3], lift = 0, ke = 0;
+    v3_copy(g, p->gravity);
+    int along = v3_normalize(g) > 0;
     for (int i = 0; rc == SC_OK && i < nb; i++) {
         const sc_body *b = &bodies[ids[i]];
-        double d[3];
-        v3_sub(d, b->x, &x0[3 * i]);
+        double d[3], vg[3];
+        v3_sub(d, b->x, &x0[7 * i]);
         lift -= v3_dot(p->gravity, d) / b->inv_mass;
-        ke += kinetic(b, b->v, b->w);
+        v3_scale(vg, g, v3_dot(b->v, g));
+        ke += kinetic(b, along ? vg : b->v, b->w);
     }
-    if (lift > 0 && ke > 0) {
+    if (rc == SC_OK && lift > ke && deep <= PUSH_PAID_DEPTH * p->slop) {
+        double f = ke / lift;
+        for (int i = 0; i < nb; i++) {
+            sc_body *b = &bodies[ids[i]];
+            const double *q0 = &x0[7 * i + 3];
+            double sg = q_dot(q0, b->q) < 0 ? -1 : 1;
+            for (int j = 0; j < 3; j++)
+                b->x[j] = x0[7 * i + j] + f * (b->x[j] - x0[7 * i + j]);
+            for (int j = 0; j < 4; j++)
+                b->q[j] = q0[j] + f * (sg * b->q[j] - q0[j]);
+            q_normalize(b->q);
+        }
+        lift = ke;
+    }
+    if (rc == SC_OK && lift > 0 && ke > 0) {
         double s = sqrt(max_d(ke - lift, 0.0) / ke);
         for (int i = 0; i < nb; i++) {
-            v3_scale(bodies[ids[i]].v, bodies[ids[i]].v, s);
-            v3_scale(bodies[ids[i]].w, bodies[ids[i]].w, s);
+            sc_body *b = &bodies[ids[i]];
+            if (along)
+                v3_madd(b->v, b->v, g, (s - 1) * v3_dot(b->v, g));
+            else
+                v3_scale(b->v, b->v, s);
+            v3_scale(b->w, b->w, s);
         }
     }
     sc_arena_free(a, x0);

@@ -102,6 +102,10 @@ static inline void q_mul(double r[4], const double a[4], const double b[4])
     double z = a[0] * b[3] + a[1] * b[2] - a[2] * b[1] + a[3] * b[0];
     r[0] = w; r[1] = x; r[2] = y; r[3] = z;
 }
+static inline double q_dot(const double a[4], const double b[4])
+{
+    return a[0] * b[0] + a[1] * b[1] + a[2] * b[2] + a[3] * b[3];
+}
 static inline double q_normalize(double q[4])
 {
     double l = sqrt(q[0] * q[0] + q[1] * q[1] + q[2] * q[2] + q[3] * q[3]);
