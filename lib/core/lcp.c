@@ -759,19 +759,19 @@ typedef struct work {
     lcp s;
     double *lo, *hi, *shift, *qs, *blo, *bhi, *plo, *phi, *zfix, *zprev, *kmat;
     double *vsc;                 /* S_i of the w of the last verify() */
-    double *zpgs;                /* the projected Gauss-Seidel iterate
-                                    (friction_guess()) */
+    double *zpgs, *zsor;         /* the projected Gauss-Seidel iterates,
+                                    plain and over-relaxed (friction_guess()) */
 } work;
 
 /* Everything a call needs in two allocations (nothing is allocated in the
- * pivot loop): 22 vectors, kmat (n x n, friction only), two stamp arrays
+ * pivot loop): 23 vectors, kmat (n x n, friction only), two stamp arrays
  * and the set of each index in mem, the factorisation (whose size depends
  * on whether M is symmetric) in fmem. One pass over M finds its row sums
  * |M_i.|, whether it is symmetric and whether it is finite (SC_EINVAL if
  * not): the O(n^2) each call pays once. */
 static int work_init(sc_arena *arena, work *wk, int n, const double *M, int friction)
 {
-    enum { VECS = 22 };
+    enum { VECS = 23 };
     size_t nd = (size_t)n, nn = nd * nd;
     if (nd > SIZE_MAX / sizeof(double) / (nd + VECS) / 4)
         return SC_ENOMEM;
@@ -786,7 +786,7 @@ static int work_init(sc_arena *arena, work *wk, int n, const double *M, int fric
     double **vec[VECS] = { &s->z, &s->w, &s->dzc, &s->dw, &s->rowabs, &s->wtol, &s->tmp,
                            &s->wv, &s->wsc, &s->zref, &wk->lo, &wk->hi, &wk->shift,
                            &wk->qs, &wk->blo, &wk->bhi, &wk->plo, &wk->phi, &wk->zfix,
-                           &wk->zprev, &wk->vsc, &wk->zpgs };
+                           &wk->zprev, &wk->vsc, &wk->zpgs, &wk->zsor };
     for (int v = 0; v < VECS; v++, p += nd)
         *vec[v] = p;
     wk->kmat = friction ? p : NULL;
@@ -1245,45 +1245,57 @@ static int friction_lemke(work *wk, const double *q, const double *lo, const dou
  * failed (the bin: stick-slip on islands of 4-8 contacts, the fixed point
  * cycling and Lemke ending on a secondary ray or failing verification).
  * Projected Gauss-Seidel on the coupled problem (row by row z_i =
- * clamp(z_i - w_i / M_ii) into its bounds, friction rows' from the
- * current normals) always moves towards the answer of a PSD problem, if
- * slowly; the fixed point started from its iterate (pivot_guess() takes
- * the active set it points at) then finds the exact answer, which is
- * verified like any other. Tried after 10, 100, 1000 and 10000 sweeps;
- * each try is a whole fixed point, so a start that points at the wrong
- * sets costs rounds, never the answer. In 32 bins of 200 over 10 s it
- * solved 7-140 LCPs a run; of the LCPs of up to 8 contacts it still
- * missed (0-2 a run), 10^6 sweeps would have solved most, at 0.1-0.5 s
- * each (docs/DESIGN.md 11). A row with M_ii <= 0 moves nothing and is
- * left at 0. */
+ * clamp(z_i - omega w_i / M_ii) into its bounds, friction rows' from the
+ * current normals) moves towards the answer, if slowly on the
+ * ill-conditioned ones; the fixed point started from its iterate
+ * (pivot_guess() takes the active set it points at) then finds the exact
+ * answer, which is verified like any other. Two iterates go side by side,
+ * plain (omega 1) and over-relaxed (LCP_GUESS_SOR): each solves LCPs the
+ * other does not (docs/DESIGN.md 11). Tried after 10, 100, 1000 and 10000
+ * sweeps, plain first; each try is a whole fixed point, so a start that
+ * points at the wrong sets costs rounds, never the answer. A row with
+ * M_ii <= 0 moves nothing and is left at 0. */
 #define LCP_GUESS_TRIES 4
+#define LCP_GUESS_SOR 1.6
+static void pgs_sweep(int n, const double *M, const double *q, const double *lo,
+                      const double *hi, const int *findex, const double *mu, double omega,
+                      double *z)
+{
+    for (int i = 0; i < n; i++) {
+        double d = M[(size_t)i * n + i];
+        if (!(d > 0))
+            continue;
+        double b = findex[i] >= 0 ? mu[i] * fabs(z[findex[i]]) : 0;
+        double l = findex[i] >= 0 ? -b : lo[i], h = findex[i] >= 0 ? b : hi[i];
+        double wi = q[i] + row_dot(M, z, n, i);
+        z[i] = min_d(max_d(z[i] - omega * wi / d, l), h);
+    }
+}
+
 static int friction_guess(work *wk, const double *q, const double *lo, const double *hi,
                           const int *findex, const double *mu, double *z, double *w,
                           double *residual)
 {
     const int n = wk->s.n;
     const double *M = wk->s.M;
-    double *zg = wk->zpgs;
-    memset(zg, 0, (size_t)n * sizeof *zg);
+    double *zg[2] = { wk->zpgs, wk->zsor };
+    const double omega[2] = { 1.0, LCP_GUESS_SOR };
+    memset(zg[0], 0, (size_t)n * sizeof *zg[0]);
+    memset(zg[1], 0, (size_t)n * sizeof *zg[1]);
     long sweeps = 0, until = 10;
     int rc = SC_EMAXITER;
     for (int t = 0; t < LCP_GUESS_TRIES; t++, until *= 10) {
         for (; sweeps < until; sweeps++)
-            for (int i = 0; i < n; i++) {
-                double d = M[(size_t)i * n + i];
-                if (!(d > 0))
-                    continue;
-                double b = findex[i] >= 0 ? mu[i] * fabs(zg[findex[i]]) : 0;
-                double l = findex[i] >= 0 ? -b : lo[i], h = findex[i] >= 0 ? b : hi[i];
-                double wi = q[i] + row_dot(M, zg, n, i);
-                zg[i] = min_d(max_d(zg[i] - wi / d, l), h);
-            }
-        if (!all_finite(zg, (size_t)n))
-            return SC_ENUMERIC;
-        memcpy(z, zg, (size_t)n * sizeof *z);
-        rc = solve_friction(wk, q, lo, hi, findex, mu, START_GUESS, z, w, residual);
-        if (rc == SC_OK || rc == SC_ENOMEM)
-            return rc;
+            for (int k = 0; k < 2; k++)
+                pgs_sweep(n, M, q, lo, hi, findex, mu, omega[k], zg[k]);
+        for (int k = 0; k < 2; k++) {
+            if (!all_finite(zg[k], (size_t)n))
+                continue;
+            memcpy(z, zg[k], (size_t)n * sizeof *z);
+            rc = solve_friction(wk, q, lo, hi, findex, mu, START_GUESS, z, w, residual);
+            if (rc == SC_OK || rc == SC_ENOMEM)
+                return rc;
+        }
     }
     return rc;
 }
