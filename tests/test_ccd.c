@@ -431,6 +431,73 @@ static void test_bad_input_is_refused(void **state)
     sc_shape_release(bolt);
 }
 
+/* sc_np_deepest_until() is the deepest of sc_np_collide()'s contacts, to
+ * the bit, for a bolt, a nut and a UV sphere on a tilted plane in many
+ * poses (a mesh on a plane takes its own path, without contacts), and for
+ * a bolt on a nut (through the pieces); with a stop it says at least
+ * whether the deepest is deeper than the stop. */
+static void test_deepest_until_is_the_deepest_contact(void **state)
+{
+    (void)state;
+    sc_shape *shapes[3] = { sc_shape_bolt(), sc_shape_nut(), sc_shape_uv_sphere(0.02, 16, 8) };
+    sc_shape *plane = sc_shape_plane(0.1, 0.05, 1, 0.001);
+    sc_np_ctx *np = sc_np_create();
+    assert_non_null(np);
+    uint64_t r = 0x0ddba11u;
+    int deep = 0, apart = 0;
+    for (int k = 0; k < 600; k++) {
+        const sc_shape *m = shapes[k % 3];
+        double u[7];
+        for (int j = 0; j < 7; j++) {
+            r = r * 6364136223846793005ull + 1442695040888963407ull;
+            u[j] = (double)(r >> 11) / 9007199254740992.0;
+        }
+        sc_pose pm = { { 0.1 * u[0] - 0.05, 0.1 * u[1] - 0.05, 0.04 * u[2] - 0.01 },
+                       { u[3] - 0.5, u[4] - 0.5, u[5] - 0.5, u[6] - 0.5 } };
+        double ql = sqrt(pm.quat[0] * pm.quat[0] + pm.quat[1] * pm.quat[1] +
+                         pm.quat[2] * pm.quat[2] + pm.quat[3] * pm.quat[3]);
+        for (int j = 0; j < 4; j++)
+            pm.quat[j] /= ql;
+        sc_pose pp = { { 0, 0, 0 }, { 1, 0, 0, 0 } };
+        sc_contact c[SC_MAX_PAIR_CONTACTS];
+        for (int order = 0; order < 2; order++) {
+            const sc_shape *a = order ? plane : m, *b = order ? m : plane;
+            const sc_pose *pa = order ? &pp : &pm, *pb = order ? &pm : &pp;
+            int n = sc_np_collide(np, a, pa, b, pb, c, SC_MAX_PAIR_CONTACTS);
+            assert_true(n >= 0);
+            double want = -1, got, some;
+            for (int i = 0; i < n; i++)
+                want = fmax(want, c[i].depth);
+            assert_int_equal(sc_np_deepest_until(np, a, pa, b, pb, INFINITY, &got), SC_OK);
+            assert_true(got == want);
+            assert_int_equal(sc_np_deepest_until(np, a, pa, b, pb, 1e-3, &some), SC_OK);
+            assert_true((some > 1e-3) == (want > 1e-3));
+            assert_true(some <= want);
+            deep += want > 1e-3;
+            apart += want < 0;
+        }
+    }
+    assert_true(deep > 50 && apart > 50);
+    /* a pair through the pieces: the same value as the contacts' */
+    sc_pose pb = { { 0, 0, 0 }, { 1, 0, 0, 0 } }, pn = { { 0.004, 0, 0.01 }, { 1, 0, 0, 0 } };
+    sc_contact c[SC_MAX_PAIR_CONTACTS];
+    int n = sc_np_collide(np, shapes[0], &pb, shapes[1], &pn, c, SC_MAX_PAIR_CONTACTS);
+    assert_true(n > 0);
+    double want = -1, got;
+    for (int i = 0; i < n; i++)
+        want = fmax(want, c[i].depth);
+    assert_int_equal(sc_np_deepest_until(np, shapes[0], &pb, shapes[1], &pn, INFINITY, &got),
+                     SC_OK);
+    assert_true(got == want);
+    assert_int_equal(sc_np_deepest_until(np, shapes[0], &pb, NULL, &pn, INFINITY, &got),
+                     SC_EINVAL);
+    print_message("deepest: %d mesh-plane poses deeper than 1 mm, %d apart\n", deep, apart);
+    sc_np_destroy(np);
+    for (int i = 0; i < 3; i++)
+        sc_shape_release(shapes[i]);
+    sc_shape_release(plane);
+}
+
 /* ---- time of impact ---- */
 
 static double np_depth(sc_np_ctx *np, const sc_shape *a, const sc_pose *a0, const sc_pose *a1,
@@ -730,6 +797,7 @@ int main(void)
         cmocka_unit_test(test_ca_start_is_judged_by_the_narrow_phase),
         cmocka_unit_test(test_ca_before_tmax_keeps_the_full_answer),
         cmocka_unit_test(test_ca_deepening_agrees_with_sampling),
+        cmocka_unit_test(test_deepest_until_is_the_deepest_contact),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
 }

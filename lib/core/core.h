@@ -311,6 +311,11 @@ int sc_np_collide(sc_np_ctx *ctx, const sc_shape *a, const sc_pose *pa,
 int sc_np_collide_until(sc_np_ctx *ctx, const sc_shape *a, const sc_pose *pa,
                         const sc_shape *b, const sc_pose *pb, sc_contact *out, int max,
                         double stop);
+/* The deepest of sc_np_collide_until()'s contacts into *depth (-1: none),
+ * the same value; a mesh on a plane without making the contacts (its
+ * deepest vertex, the first deeper than stop). */
+int sc_np_deepest_until(sc_np_ctx *ctx, const sc_shape *a, const sc_pose *pa,
+                        const sc_shape *b, const sc_pose *pb, double stop, double *depth);
 /* Reduce n raw contacts in place to at most SC_MAX_PAIR_CONTACTS well-spread
  * ones (points closer than merge_dist merged); returns the new count. */
 int sc_manifold_reduce(sc_contact *c, int n, double merge_dist);

@@ -226,19 +226,30 @@ static int pose_ok(const sc_pose *p)
  * buffer is reduced (deepest and widest kept) before it takes more. The
  * normal points from a to b (the mesh is pushed out along the plane's). */
 #define MESH_PLANE_BUF 256
+
+/* The plane pl at pp in the frame of the mesh m at pm: a vertex vl is
+ * dl - nl . vl deep. n: the plane's world normal, R: the mesh's rotation.
+ * 0 when the mesh's bounding sphere is clear of it. */
+static int plane_in_mesh(const sc_shape *m, const sc_pose *pm, const sc_shape *pl,
+                         const sc_pose *pp, double n[3], double R[9], double nl[3], double *dl)
+{
+    q_rotate(n, pp->quat, pl->plane);
+    *dl = pl->plane[3] + v3_dot(n, pp->pos) - v3_dot(n, pm->pos);
+    if (*dl + m->bound_r < 0)
+        return 0;
+    q_to_m3(R, pm->quat);
+    m3_tmulv(nl, R, n);
+    return 1;
+}
+
 static int mesh_plane(const sc_shape *m, const sc_pose *pm, const sc_shape *pl,
                       const sc_pose *pp, int plane_is_a, sc_contact *c, double merge)
 {
-    double n[3], R[9];
-    q_rotate(n, pp->quat, pl->plane);
     /* the plane in the mesh's frame: one dot product a vertex; only the
      * vertices inside are carried to the world */
-    double dl = pl->plane[3] + v3_dot(n, pp->pos) - v3_dot(n, pm->pos);
-    if (dl + m->bound_r < 0)
+    double n[3], R[9], nl[3], dl;
+    if (!plane_in_mesh(m, pm, pl, pp, n, R, nl, &dl))
         return 0;                  /* the mesh's bounding sphere is clear */
-    double nl[3];
-    q_to_m3(R, pm->quat);
-    m3_tmulv(nl, R, n);
     int k = 0;
     for (int i = 0; i < m->nverts; i++) {
         const double *vl = &m->xyz[3 * i];
@@ -388,6 +399,50 @@ static int collide_pieces(sc_np_ctx *ctx, const sc_shape *a, const sc_pose *pa,
     if (pp != stack)
         sc_arena_free(&ctx->arena, pp);
     return rc == SC_OK ? emit(c, n, merge, out, max) : rc;
+}
+
+/* The deepest vertex of a mesh inside a plane, as the deepest of
+ * mesh_plane()'s contacts (the manifold keeps the deepest point and its
+ * depth as it is), without making them; it stops at the first vertex
+ * deeper than stop. */
+static double mesh_plane_deepest(const sc_shape *m, const sc_pose *pm, const sc_shape *pl,
+                                 const sc_pose *pp, double stop)
+{
+    double n[3], R[9], nl[3], dl, deepest = -1;
+    if (!plane_in_mesh(m, pm, pl, pp, n, R, nl, &dl))
+        return -1;
+    for (int i = 0; i < m->nverts && !(deepest > stop); i++) {
+        double depth = dl - v3_dot(nl, &m->xyz[3 * i]);
+        if (depth > 0 && depth > deepest)
+            deepest = depth;
+    }
+    return deepest;
+}
+
+int sc_np_deepest_until(sc_np_ctx *ctx, const sc_shape *a, const sc_pose *pa,
+                        const sc_shape *b, const sc_pose *pb, double stop, double *depth)
+{
+    if (!ctx || !a || !b || !pa || !pb || !depth)
+        return SC_EINVAL;
+    if (!pose_ok(pa) || !pose_ok(pb))
+        return SC_EINVAL;
+    int ra, rb;
+    choose_reps(a, b, &ra, &rb);
+    if ((ra == REP_TRIMESH && b->kind == SC_SHAPE_PLANE) ||
+        (rb == REP_TRIMESH && a->kind == SC_SHAPE_PLANE)) {
+        *depth = a->kind == SC_SHAPE_PLANE ? mesh_plane_deepest(b, pb, a, pa, stop)
+                                           : mesh_plane_deepest(a, pa, b, pb, stop);
+        return SC_OK;
+    }
+    sc_contact c[SC_MAX_PAIR_CONTACTS];
+    int k = sc_np_collide_until(ctx, a, pa, b, pb, c, SC_MAX_PAIR_CONTACTS, stop);
+    if (k < 0)
+        return k;
+    *depth = -1;
+    for (int i = 0; i < k; i++)
+        if (c[i].depth > *depth)
+            *depth = c[i].depth;
+    return SC_OK;
 }
 
 int sc_np_collide(sc_np_ctx *ctx, const sc_shape *a, const sc_pose *pa, const sc_shape *b,

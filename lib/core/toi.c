@@ -41,6 +41,8 @@ static int deepest_at(sc_np_ctx *ctx, const sc_shape *a, const sc_pose *a0, cons
         *depth = -1;
         return SC_OK;
     }
+    if (!n)
+        return sc_np_deepest_until(ctx, a, &pa, b, &pb, stop, depth);
     sc_contact c[SC_MAX_PAIR_CONTACTS];
     int k = sc_np_collide_until(ctx, a, &pa, b, &pb, c, SC_MAX_PAIR_CONTACTS, stop);
     if (k < 0)
