@@ -1081,13 +1081,14 @@ static double kinetic(const sc_body *b, const double v[3], const double w[3]);
  * contacts hover just past the slop is pushed out in every substep; in a
  * bin of 200 a nut resting on two contacts was lifted 40 um at a time
  * while still, tipped, and so rocked for seconds (docs/DESIGN.md 3.5).
- * An island with a contact deeper than PUSH_PAID_DEPTH times the slop
- * (bodies placed overlapping, a pair past the time of impact's tolerance)
- * is pushed out whatever it costs. */
+ * An island whose deepest contact (deep) is deeper than PUSH_PAID_DEPTH
+ * times the slop (bodies placed overlapping, a pair past the time of
+ * impact's tolerance) is pushed out whatever it costs. */
 #define PUSH_PAID_DEPTH 2.0
 static int neutral_push_out(sc_arena *a, const row *rows, const int *nsel, int nn,
-                            const sc_contact *c, const int *ci, int nc, sc_body *bodies, double h,
-                            const sc_contact_params *p, int split, sc_solve_info *info)
+                            const sc_contact *c, const int *ci, int nc, double deep,
+                            sc_body *bodies, double h, const sc_contact_params *p, int split,
+                            sc_solve_info *info)
 {
     int *ids = NULL;
     int nb = island_movable(a, bodies, c, ci, nc, &ids);
@@ -1102,9 +1103,6 @@ static int neutral_push_out(sc_arena *a, const row *rows, const int *nsel, int n
         v3_copy(&x0[7 * i], bodies[ids[i]].x);
         memcpy(&x0[7 * i + 3], bodies[ids[i]].q, 4 * sizeof *x0);
     }
-    double deep = 0;
-    for (int k = 0; k < nc; k++)
-        deep = max_d(deep, c[ci[k]].depth);
     int rc = push_out(a, rows, nsel, nn, c, ci, bodies, h, p, split, info);
     /* g: gravity's direction (none: all of v may pay) */
     double g[3], lift = 0, ke = 0;
@@ -1715,11 +1713,11 @@ rows_again:
         }
     }
     /* split impulse: push deep contacts out by pseudo velocities */
-    int deep = 0;
+    double deep = 0;
     for (int k = 0; k < nc; k++)
-        deep |= c[ci[k]].depth > p->slop;
-    if (deep)
-        rc = neutral_push_out(arena, rows, nsel, nn, c, ci, nc, bodies, h, p, split, info);
+        deep = max_d(deep, c[ci[k]].depth);
+    if (deep > p->slop)
+        rc = neutral_push_out(arena, rows, nsel, nn, c, ci, nc, deep, bodies, h, p, split, info);
     if (nspecc > 0)
         pull_in(rows, cstart, c, ci, nc, coll, z, pull, bodies);
     if (rc == SC_OK && p->impact_first && !inelastic && keep) {

@@ -401,6 +401,14 @@ static int collide_pieces(sc_np_ctx *ctx, const sc_shape *a, const sc_pose *pa,
     return rc == SC_OK ? emit(c, n, merge, out, max) : rc;
 }
 
+/* Whether a and b (their representations ra, rb: choose_reps()) are a
+ * triangle mesh and a plane, which meet by their vertices alone. */
+static int mesh_on_plane(const sc_shape *a, int ra, const sc_shape *b, int rb)
+{
+    return (ra == REP_TRIMESH && b->kind == SC_SHAPE_PLANE) ||
+           (rb == REP_TRIMESH && a->kind == SC_SHAPE_PLANE);
+}
+
 /* The deepest vertex of a mesh inside a plane, as the deepest of
  * mesh_plane()'s contacts (the manifold keeps the deepest point and its
  * depth as it is), without making them; it stops at the first vertex
@@ -428,8 +436,7 @@ int sc_np_deepest_until(sc_np_ctx *ctx, const sc_shape *a, const sc_pose *pa,
         return SC_EINVAL;
     int ra, rb;
     choose_reps(a, b, &ra, &rb);
-    if ((ra == REP_TRIMESH && b->kind == SC_SHAPE_PLANE) ||
-        (rb == REP_TRIMESH && a->kind == SC_SHAPE_PLANE)) {
+    if (mesh_on_plane(a, ra, b, rb)) {
         *depth = a->kind == SC_SHAPE_PLANE ? mesh_plane_deepest(b, pb, a, pa, stop)
                                            : mesh_plane_deepest(a, pa, b, pb, stop);
         return SC_OK;
@@ -465,8 +472,7 @@ int sc_np_collide_until(sc_np_ctx *ctx, const sc_shape *a, const sc_pose *pa,
     choose_reps(a, b, &ra, &rb);
     double size = min_d(a->bound_r, b->bound_r);
     double merge = 1e-3 * (isfinite(size) ? size : 1);
-    if ((ra == REP_TRIMESH && b->kind == SC_SHAPE_PLANE) ||
-        (rb == REP_TRIMESH && a->kind == SC_SHAPE_PLANE)) {   /* no ODE needed */
+    if (mesh_on_plane(a, ra, b, rb)) {   /* no ODE needed */
         sc_contact c[MESH_PLANE_BUF];
         int n = a->kind == SC_SHAPE_PLANE ? mesh_plane(b, pb, a, pa, 1, c, merge)
                                           : mesh_plane(a, pa, b, pb, 0, c, merge);
