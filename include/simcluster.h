@@ -332,7 +332,10 @@ typedef struct sc_stats {
                                  the best iterate */
     int lcp_cold_starts;      /* split solves started from 0 because last
                                  frame's impulses were a worse start */
-    int lcp_regularised;      /* exact solves that needed a raised diagonal */
+    int lcp_regularised;      /* solves that needed a raised diagonal (1e-9 to
+                                 1e-4 of its largest entry: singular or
+                                 near-redundant contacts); exact for that
+                                 compliance, no fallback */
     int lcp_split_fallbacks;  /* exact islands whose staggered solve failed too:
                                  solved as blocks instead */
     long lcp_block_fallbacks; /* block solves that failed: projected

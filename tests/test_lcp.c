@@ -1407,45 +1407,66 @@ static void test_friction_of_a_separating_contact_is_zero(void **state)
     assert_true(z[0] == 0 && z[1] == 0 && z[2] == 0);
 }
 
-/* Solves a captured pile LCP (tests/data/friction/) with sc_lcp_boxed and
- * checks the answer against Coulomb's conditions here; its info in *li. */
-static void solve_pile_file(const char *path, sc_lcp_info *li)
+/* A captured pile LCP (tests/data/friction/): n, M, q, lo, hi, findex,
+ * mu (the caller frees them). */
+typedef struct pile_lcp {
+    int n;
+    double *M, *q, *mu, *lo, *hi;
+    int *fx;
+} pile_lcp;
+
+static void load_pile_file(const char *path, pile_lcp *p)
 {
     FILE *fp = fopen(path, "r");
     assert_non_null(fp);
     int n, nc, rc0;
     assert_int_equal(fscanf(fp, "%d %d %d", &n, &nc, &rc0), 3);
     assert_true(n > 0 && n <= 64);
-    double *M = malloc((size_t)n * n * sizeof *M), *q = malloc(n * sizeof *q);
-    double *mu = malloc(n * sizeof *mu), *lo = malloc(n * sizeof *lo);
-    double *hi = malloc(n * sizeof *hi), *z = calloc(n, sizeof *z), *w = malloc(n * sizeof *w);
-    int *fx = malloc(n * sizeof *fx);
+    p->n = n;
+    p->M = malloc((size_t)n * n * sizeof *p->M);
+    p->q = malloc(n * sizeof *p->q);
+    p->mu = malloc(n * sizeof *p->mu);
+    p->lo = malloc(n * sizeof *p->lo);
+    p->hi = malloc(n * sizeof *p->hi);
+    p->fx = malloc(n * sizeof *p->fx);
     for (int i = 0; i < n * n; i++)
-        assert_int_equal(fscanf(fp, "%lf", &M[i]), 1);
+        assert_int_equal(fscanf(fp, "%lf", &p->M[i]), 1);
     for (int i = 0; i < n; i++) {
-        assert_int_equal(fscanf(fp, "%lf %d %lf %lf", &q[i], &fx[i], &mu[i], &lo[i]), 4);
-        hi[i] = INFINITY;
-        if (fx[i] >= 0)
-            lo[i] = -INFINITY;
+        assert_int_equal(fscanf(fp, "%lf %d %lf %lf", &p->q[i], &p->fx[i], &p->mu[i], &p->lo[i]),
+                         4);
+        p->hi[i] = INFINITY;
+        if (p->fx[i] >= 0)
+            p->lo[i] = -INFINITY;
     }
     fclose(fp);
-    assert_int_equal(sc_lcp_boxed(n, M, q, lo, hi, fx, mu, z, w, li), SC_OK);
+}
+
+static void free_pile(pile_lcp *p)
+{
+    free(p->M), free(p->q), free(p->mu), free(p->lo), free(p->hi), free(p->fx);
+}
+
+/* z against Coulomb's conditions for p with matrix M, within 1e-9 of the
+ * largest |z| and |q|, and velocities within slack besides. */
+static void check_coulomb(const pile_lcp *p, const double *M, const double *z, double slack)
+{
+    int n = p->n;
     double zs = 0, ws = 0;
     for (int i = 0; i < n; i++) {
         zs = fmax(zs, fabs(z[i]));
-        ws = fmax(ws, fabs(q[i]));
+        ws = fmax(ws, fabs(p->q[i]));
     }
     for (int i = 0; i < n; i++) {
-        double wi = q[i];
+        double wi = p->q[i];
         for (int j = 0; j < n; j++)
             wi += M[i * n + j] * z[j];
-        double tz = 1e-9 * zs, tw = 1e-9 * ws;
-        if (fx[i] < 0) {          /* normal: z >= 0, w >= 0, z w = 0 */
+        double tz = 1e-9 * zs, tw = 1e-9 * ws + slack;
+        if (p->fx[i] < 0) {       /* normal: z >= 0, w >= 0, z w = 0 */
             assert_true(z[i] >= -tz && wi >= -tw);
             assert_true(fmin(z[i], wi) <= fmax(tz, tw));
         } else {                  /* friction: inside the box with w = 0,
                                      or at a bound with w opposing */
-            double b = mu[i] * z[fx[i]];
+            double b = p->mu[i] * z[p->fx[i]];
             assert_true(fabs(z[i]) <= b + tz);
             if (fabs(z[i]) < b - tz)
                 assert_true(fabs(wi) <= tw);
@@ -1453,7 +1474,19 @@ static void solve_pile_file(const char *path, sc_lcp_info *li)
                 assert_true(z[i] * wi <= tw * zs);
         }
     }
-    free(M), free(q), free(mu), free(lo), free(hi), free(z), free(w), free(fx);
+}
+
+/* Solves a captured pile LCP with sc_lcp_boxed and checks the answer
+ * against Coulomb's conditions here; its info in *li. */
+static void solve_pile_file(const char *path, sc_lcp_info *li)
+{
+    pile_lcp p;
+    load_pile_file(path, &p);
+    double *z = calloc(p.n, sizeof *z), *w = malloc(p.n * sizeof *w);
+    assert_int_equal(sc_lcp_boxed(p.n, p.M, p.q, p.lo, p.hi, p.fx, p.mu, z, w, li), SC_OK);
+    check_coulomb(&p, p.M, z, 0);
+    free(z), free(w);
+    free_pile(&p);
 }
 
 /* Real pile islands on which the fixed point on the friction bounds
@@ -1486,6 +1519,49 @@ static void test_pile_friction_that_lemke_misses_is_solved_from_a_guess(void **s
         solve_pile_file(files[f], &li);
         assert_int_equal(li.lemke, 1);
         assert_int_equal(li.guessed, 1);
+    }
+}
+
+/* Pile LCPs of near-redundant contacts (eigenvalues 6e-5 to 131) on which
+ * the fixed point, Lemke's method and the guess all fail: solved by
+ * sc_lcp_raised_in() with the diagonal raised by at most 1e-6 of its
+ * largest entry, exactly for the raised matrix, and within that share
+ * times |z| for the captured one. */
+static void test_pile_friction_that_fails_is_solved_with_a_raised_diagonal(void **state)
+{
+    (void)state;
+    const char *files[] = { "tests/data/friction/pile_5contacts_raised.txt",
+                            "tests/data/friction/pile_16contacts_raised.txt" };
+    for (size_t f = 0; f < sizeof files / sizeof *files; f++) {
+        pile_lcp p;
+        load_pile_file(files[f], &p);
+        int n = p.n;
+        double *A = malloc((size_t)n * n * sizeof *A), *z = calloc(n, sizeof *z);
+        double *w = malloc(n * sizeof *w);
+        memcpy(A, p.M, (size_t)n * n * sizeof *A);
+        sc_lcp_info li;
+        assert_int_not_equal(sc_lcp_boxed(n, A, p.q, p.lo, p.hi, p.fx, p.mu, z, w, &li), SC_OK);
+        assert_int_equal(li.lemke, 1);
+        double share = -1, dmax = 0, zs = 0;
+        assert_int_equal(sc_lcp_raised_in(NULL, n, A, p.q, p.lo, p.hi, p.fx, p.mu, z, w, &li,
+                                          &share),
+                         SC_OK);
+        assert_true(share > 0 && share <= 1e-6);
+        for (int i = 0; i < n; i++) {
+            dmax = fmax(dmax, p.M[i * n + i]);
+            zs = fmax(zs, fabs(z[i]));
+        }
+        for (int i = 0; i < n; i++) {
+            /* the diagonal raised by that share, nothing else changed */
+            for (int j = 0; j < n; j++)
+                assert_true(i == j ? fabs(A[i * n + i] - p.M[i * n + i] - share * dmax) <=
+                                         1e-9 * share * dmax
+                                   : A[i * n + j] == p.M[i * n + j]);
+        }
+        check_coulomb(&p, A, z, 0);
+        check_coulomb(&p, p.M, z, 1.01 * share * dmax * zs);
+        free(A), free(z), free(w);
+        free_pile(&p);
     }
 }
 
@@ -1540,6 +1616,7 @@ int main(void)
         cmocka_unit_test(test_friction_of_a_separating_contact_is_zero),
         cmocka_unit_test(test_pile_friction_that_cycles_is_solved_exactly),
         cmocka_unit_test(test_pile_friction_that_lemke_misses_is_solved_from_a_guess),
+        cmocka_unit_test(test_pile_friction_that_fails_is_solved_with_a_raised_diagonal),
         cmocka_unit_test(test_warm_start_reuses_the_answer),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);

@@ -571,7 +571,7 @@ typedef struct totals {
     long duplicates;            /* duplicate daemon ids reported so far */
     /* the contact solver, summed (or the largest) over the frames */
     long solves, split, blocks, shared, pivots, staggered, refused, split_fb, block_fb, nan;
-    long inelastic, rscaled, unconverged, kept, guessed;
+    long inelastic, rscaled, unconverged, kept, guessed, regularised;
     long substeps, max_pivots, backups, spec;
     int max_sweeps, max_substeps, max_backups;
     double residual, outer_residual;
@@ -665,6 +665,7 @@ static int simulate(const options *o, sc_world *w, totals *t, int progress, reco
         t->refused += st.lcp_energy_refused;
         t->rscaled += st.lcp_restitution_scaled;
         t->guessed += st.lcp_guessed;
+        t->regularised += st.lcp_regularised;
         t->split_fb += st.lcp_split_fallbacks;
         t->block_fb += st.lcp_block_fallbacks;
         t->nan += st.lcp_nan_islands;
@@ -836,7 +837,7 @@ static int run_cmd(int argc, char **argv)
                "\"blocks\": %ld, \"blocks_shared\": %ld, \"pivots\": %ld, \"max_frame_pivots\": %ld, "
                "\"staggered_fallbacks\": %ld, \"energy_refused\": %ld, \"split_fallbacks\": %ld, "
                "\"block_fallbacks\": %ld, \"nan_islands\": %ld, \"inelastic_islands\": %ld, "
-               "\"restitution_scaled\": %ld, \"guessed\": %ld, "
+               "\"restitution_scaled\": %ld, \"guessed\": %ld, \"regularised\": %ld, "
                "\"unconverged\": %ld, "
                "\"max_sweeps\": %d, \"max_residual\": %.3g, \"max_outer_residual\": %.3g, "
                "\"substeps\": %ld, \"max_substeps\": %d}, "
@@ -853,7 +854,7 @@ static int run_cmd(int argc, char **argv)
                t.overlaps,
                island_split, t.solves, t.kept, t.split, t.blocks, t.shared, t.pivots, t.max_pivots, t.staggered,
                t.refused, t.split_fb, t.block_fb, t.nan, t.inelastic, t.rscaled, t.guessed,
-               t.unconverged,
+               t.regularised, t.unconverged,
                t.max_sweeps, t.residual,
                t.outer_residual, t.substeps, t.max_substeps,
                o.toi_mode == SC_TOI_LOCAL ? "local" : "world", t.backups, t.max_backups, t.spec,
@@ -894,6 +895,9 @@ static int run_cmd(int argc, char **argv)
         printf("  friction solved from a projected Gauss-Seidel guess (fixed point and Lemke "
                "failed; exact, no fallback): %ld\n",
                t.guessed);
+        printf("  LCPs solved with the diagonal raised (singular or near-redundant contacts; "
+               "exact for a compliance of at most 1e-4 of the diagonal, no fallback): %ld\n",
+               t.regularised);
         printf("  narrow phase: %ld pair tests, %ld of them (%.1f %%) answered by the frame's "
                "last detection\n",
                t.np_pairs, t.np_reused,

@@ -171,9 +171,9 @@ static int lcp_call(sc_arena *a, int n, double *A, const double *q, const double
               : sc_lcp_dantzig_in(a, n, A, q, z, w, li);
 }
 
-/* Solve, and on failure retry once with the diagonal raised by 1e-9 of its
- * largest entry (redundant contacts make A singular); counted, never hidden.
- * flags: SOLVE_*. */
+/* Solve, and on failure retry with the diagonal raised
+ * (sc_lcp_raised_in(): redundant or near-redundant contacts make A
+ * singular or ill-conditioned); counted, never hidden. flags: SOLVE_*. */
 static int solve(sc_arena *a, int n, double *A, const double *q, const double *lo,
                  const double *hi, const int *findex, const double *mu, double *z, double *w,
                  sc_solve_info *info, int flags)
@@ -190,13 +190,11 @@ static int solve(sc_arena *a, int n, double *A, const double *q, const double *l
         info->residual_exact = max_d(info->residual_exact, li.residual);
     if (rc == SC_OK || rc == SC_EINVAL || rc == SC_ENOMEM)
         return rc;
-    double dmax = 0;
-    for (int i = 0; i < n; i++)
-        dmax = max_d(dmax, A[i * n + i]);
-    for (int i = 0; i < n; i++)
-        A[i * n + i] += 1e-9 * dmax + 1e-300;
-    rc = lcp_call(a, n, A, q, lo, hi, findex, mu, z, w, &li, 0);
+    double share;
+    rc = sc_lcp_raised_in(a, n, A, q, lo, hi, findex, mu, z, w, &li, &share);
     info->pivots += li.pivots;
+    info->lemke += li.lemke;
+    info->guessed += li.guessed;
     if (rc == SC_OK) {
         info->regularised++;
         info->residual_exact = max_d(info->residual_exact, li.residual);

@@ -39,6 +39,21 @@ int sc_lcp_boxed_in(sc_arena *a, int n, const double *M, const double *q, const 
                     const double *hi, const int *findex, const double *mu, double *z,
                     double *w, sc_lcp_info *info);
 
+/* After a failed solve of M z + q (boxed when lo is not NULL, else the
+ * standard LCP; M is changed): the retries with M's diagonal raised in
+ * place, in turn by shares of its largest entry (RAISE in lcp.c; the
+ * first, 1e-9, makes a singular M of redundant contacts regular, the
+ * larger ones settle near-redundant, ill-conditioned ones), cold, each
+ * but the last without the dearest friction try (the fixed point from
+ * projected Gauss-Seidel's iterate), until one solves. A raised diagonal
+ * is a compliance: the answer is exact for M + s dmax I (*share: s, 0 if
+ * none solved), and off the given M's by s dmax |z| at most. info sums
+ * the tries' pivots, Lemke and guessed counts; its residual is the last
+ * try's. docs/DESIGN.md 11. */
+int sc_lcp_raised_in(sc_arena *a, int n, double *M, const double *q, const double *lo,
+                     const double *hi, const int *findex, const double *mu, double *z,
+                     double *w, sc_lcp_info *info, double *share);
+
 /* The same, started from z as a guess (warm start: last frame's impulses
  * or a block's last iterate): z in [lo, hi] strictly inside joins the
  * clamped set, at a bound starts there, 0 is driven as in a cold pass.
