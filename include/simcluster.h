@@ -348,10 +348,11 @@ typedef struct sc_stats {
                                  the solver found but refused because they
                                  added kinetic energy of their own (the
                                  rest: the solver failed) */
-    int lcp_restitution_scaled; /* coupled friction answers whose restitution
-                                 at several contacts at once added energy:
-                                 solved again with the bounce scaled down
-                                 (to none at most), no fallback */
+    int lcp_restitution_scaled; /* answers whose restitution at several
+                                 contacts at once added energy: solved again
+                                 with the bounce scaled down (to none at
+                                 most; e = 1: as far as it adds none), no
+                                 fallback */
     int lcp_guessed;          /* LCPs (islands or blocks) whose friction
                                  neither the fixed point nor Lemke's method
                                  settled, solved exactly from a projected

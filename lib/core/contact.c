@@ -24,8 +24,8 @@
  * way. The same block iteration is the last fallback of an exact island,
  * and a block whose Dantzig solve fails takes projected Gauss-Seidel: no
  * island fails for numerical reasons, and every fallback is counted
- * (sc_solve_info). A coupled friction answer whose restitution at several
- * contacts would add energy is solved again with the bounce scaled down
+ * (sc_solve_info). An answer whose restitution at several contacts would
+ * add energy is solved again with the bounce scaled down
  * (scale_restitution()); one that adds energy of its own is refused.
  *
  * Resting contacts keep a small penetration; deeper ones are pushed out by
@@ -233,30 +233,78 @@ static int adds_energy(const double *A, int n, const double *q, const double *of
     return lin + quad > 1e-6 * (fabs(lin) + quad) + 1e-12 ? ENERGY_TARGETS : ENERGY_NONE;
 }
 
-/* A coupled friction answer whose restitution targets add energy: solved
- * again with the targets (the negative offsets, -e times an approach)
- * scaled by 1/2, 1/4 and 0 until it adds none. Keeps the coupling of
- * friction and normals that the staggered fallback loses, and the bounce
- * as large as the energy allows. q, off, z, w: the island's (z and w get
- * the new answer); ENERGY_NONE when one was found. */
+/* An answer whose restitution targets add energy: solved again with the
+ * targets (the negative offsets, -e times an approach) scaled down until
+ * it adds none. Keeps the coupling of friction and normals that the
+ * staggered fallback loses. With e < 1 (keep 0) the shares 1/2, 1/4 and
+ * 0 are tried in turn: the collision loses energy, as such a collision
+ * does. A perfectly elastic island (keep 1: every collision's e is 1)
+ * takes the largest share that adds none, by bisection
+ * (RESTITUTION_HALVINGS) between none (the velocity LCP is then a
+ * projection and never adds) and all, so that it keeps its energy as
+ * nearly as it can (the shares alone lost up to half of it: bench_energy,
+ * docs/DESIGN.md 3.4). q, off, z, w: the island's (z and w get the new
+ * answer); ENERGY_NONE when one was found. */
+#define RESTITUTION_HALVINGS 8
+typedef struct bounce_try {
+    sc_arena *arena;
+    int n;
+    double *A;
+    const double *q, *off, *lo, *hi, *mu;
+    const int *findex;
+    double *q2, *off2;
+    sc_solve_info *info;
+} bounce_try;
+
+/* The answer with the restitution targets scaled by s, into z and w: its
+ * energy kind (ENERGY_OWN when the solve failed). */
+static int bounce_share(const bounce_try *b, double s, double *z, double *w)
+{
+    for (int i = 0; i < b->n; i++) {
+        b->off2[i] = b->off[i] < 0 ? s * b->off[i] : b->off[i];
+        b->q2[i] = b->q[i] - b->off[i] + b->off2[i];
+    }
+    int rc = solve(b->arena, b->n, b->A, b->q2, b->lo, b->hi, b->findex, b->mu, z, w, b->info, 0);
+    return rc == SC_OK ? adds_energy(b->A, b->n, b->q2, b->off2, z) : ENERGY_OWN;
+}
+
 static int scale_restitution(sc_arena *arena, int n, double *A, const double *q,
                              const double *off, const double *lo, const double *hi,
                              const int *findex, const double *mu, double *z, double *w,
-                             sc_solve_info *info)
+                             int keep, sc_solve_info *info)
 {
-    static const double scale[] = { 0.5, 0.25, 0 };
-    double *q2 = sc_arena_alloc(arena, 2 * (size_t)n * sizeof *q2);
+    static const double ladder[] = { 0.5, 0.25, 0 };
+    double *q2 = sc_arena_alloc(arena, 4 * (size_t)n * sizeof *q2);
     if (!q2)
         return ENERGY_TARGETS;
-    double *off2 = q2 + n;
+    bounce_try b = { .arena = arena, .n = n, .A = A, .q = q, .off = off, .lo = lo, .hi = hi,
+                     .mu = mu, .findex = findex, .q2 = q2, .off2 = q2 + n, .info = info };
+    double *zb = q2 + 2 * n, *wb = q2 + 3 * n;
     int kind = ENERGY_TARGETS;
-    for (size_t t = 0; t < sizeof scale / sizeof scale[0] && kind == ENERGY_TARGETS; t++) {
-        for (int i = 0; i < n; i++) {
-            off2[i] = off[i] < 0 ? scale[t] * off[i] : off[i];
-            q2[i] = q[i] - off[i] + off2[i];
+    if (!keep) {
+        for (size_t t = 0; t < sizeof ladder / sizeof *ladder && kind == ENERGY_TARGETS; t++)
+            kind = bounce_share(&b, ladder[t], z, w);
+    } else {
+        double ok = 0, bad = 1;
+        int found = 0;
+        for (int t = 0; t < RESTITUTION_HALVINGS; t++) {
+            double s = 0.5 * (ok + bad);
+            if (bounce_share(&b, s, z, w) == ENERGY_NONE) {
+                ok = s;
+                found = 1;
+                memcpy(zb, z, (size_t)n * sizeof *z);
+                memcpy(wb, w, (size_t)n * sizeof *w);
+            } else {
+                bad = s;
+            }
         }
-        int rc = solve(arena, n, A, q2, lo, hi, findex, mu, z, w, info, 0);
-        kind = rc == SC_OK ? adds_energy(A, n, q2, off2, z) : ENERGY_OWN;
+        if (found) {
+            memcpy(z, zb, (size_t)n * sizeof *z);
+            memcpy(w, wb, (size_t)n * sizeof *w);
+            kind = ENERGY_NONE;
+        } else {
+            kind = bounce_share(&b, 0, z, w);
+        }
     }
     sc_arena_free(arena, q2);
     return kind;
@@ -961,8 +1009,8 @@ static int push_out(sc_arena *a, const row *rows, const int *nsel, int nn, const
  * each); z is the warm start (used when warm) and returns the impulses. */
 static int solve_rows(sc_arena *arena, sc_body *bodies, row *rows, int nrows,
                       const int *nsel, int nn, const int *cstart, int nc, double *A, double *buf,
-                      const int *findex, int *sel, int friction, int split, int warm, double h,
-                      const sc_contact_params *p, sc_solve_info *info)
+                      const int *findex, int *sel, int friction, int split, int warm, int keep,
+                      double h, const sc_contact_params *p, sc_solve_info *info)
 {
     size_t n = (size_t)nrows;
     double *q = buf, *lo = buf + n, *hi = buf + 2 * n, *mu = buf + 3 * n, *z = buf + 4 * n,
@@ -975,9 +1023,10 @@ static int solve_rows(sc_arena *arena, sc_body *bodies, row *rows, int nrows,
         rc = solve(arena, nrows, A, q, lo, hi, friction ? findex : NULL, mu, z, w, info,
                    (warm && nc > WARM_MIN_CONTACTS && !p->cold ? SOLVE_WARM : 0) |
                        (p->inject & SC_INJECT_COUPLED ? SOLVE_FAIL : 0));
-        int gain = rc == SC_OK && friction ? adds_energy(A, nrows, q, off, z) : ENERGY_NONE;
+        int gain = rc == SC_OK ? adds_energy(A, nrows, q, off, z) : ENERGY_NONE;
         if (gain == ENERGY_TARGETS) {
-            gain = scale_restitution(arena, nrows, A, q, off, lo, hi, findex, mu, z, w, info);
+            gain = scale_restitution(arena, nrows, A, q, off, lo, hi, findex, mu, z, w, keep,
+                                     info);
             info->restitution_scaled += gain == ENERGY_NONE;
         }
         if (gain != ENERGY_NONE) {
@@ -1201,7 +1250,8 @@ static double work_budget(const sc_body *b, const double *k, double h)
 static int impacts(sc_arena *arena, sc_body *bodies, const sc_contact *c, const int *ci, int nc,
                    row *rows, int nrows, int *nsel, const int *cstart, const int *coll, double *A,
                    double *buf, const int *findex, int *sel, int friction, int split,
-                   int inelastic, double h, const sc_contact_params *p, sc_solve_info *info)
+                   int inelastic, int keep, double h, const sc_contact_params *p,
+                   sc_solve_info *info)
 {
     size_t n = (size_t)nrows;
     double *q = buf, *z = buf + 4 * n, *off = buf + 6 * n;
@@ -1242,7 +1292,7 @@ static int impacts(sc_arena *arena, sc_body *bodies, const sc_contact *c, const 
         }
     }
     int rc = solve_rows(arena, bodies, rows, nrows, nsel, nc, cstart, nc, A, buf, findex, sel,
-                        friction, split, 0, h, p, info);
+                        friction, split, 0, keep, h, p, info);
     for (int i = 0; i < nb; i++) {
         sc_body *b = &bodies[mb[i]];
         v3_copy(b->v0, b->v);
@@ -1571,10 +1621,11 @@ int sc_island_solve(sc_arena *arena, sc_body *bodies, sc_contact *c, const int *
         goto out;
     double *q = buf, *lo = buf + n, *hi = buf + 2 * n, *mu = buf + 3 * n, *z = buf + 4 * n,
            *off = buf + 6 * n;
-    int r, nn, friction, finite, ncollide, nspecc, elastic, inelastic = 0, nb = 0;
+    int r, nn, friction, finite, ncollide, nspecc, elastic, perfect, inelastic = 0, nb = 0;
     double ke_ref = 0;
 rows_again:
     r = nn = friction = ncollide = nspecc = elastic = 0;
+    perfect = 1;              /* every collision perfectly elastic */
     finite = 1;
     for (int k = 0; k < nc; k++) {
         sc_contact *ck = &c[ci[k]];
@@ -1593,6 +1644,7 @@ rows_again:
         int held = collide && ck->depth < 0;
         info->collisions += collide && !inelastic;
         elastic |= collide && e > 0;
+        perfect &= !collide || e >= 1;
         coll[k] = collide;
         ncollide += collide;
         nspecc += held;
@@ -1685,12 +1737,12 @@ rows_again:
     }
     if (p->impact_first && ncollide > 0 && nspecc == 0) {
         rc = impacts(arena, bodies, c, ci, nc, rows, nrows, nsel, cstart, coll, A, buf, findex, sel,
-                     friction, split, inelastic, h, p, info);
+                     friction, split, inelastic, perfect, h, p, info);
         if (rc != SC_OK)
             goto out;
     }
     rc = solve_rows(arena, bodies, rows, nrows, nsel, nn, cstart, nc, A, buf, findex, sel, friction,
-                    split, 1, h, p, info);
+                    split, 1, perfect, h, p, info);
     if (rc != SC_OK)
         goto out;
     if (elastic) {
