@@ -171,6 +171,16 @@ static int lcp_call(sc_arena *a, int n, double *A, const double *q, const double
               : sc_lcp_dantzig_in(a, n, A, q, z, w, li);
 }
 
+/* An LCP call's counters (and, solved, its residual) into info. */
+static void lcp_info_add(sc_solve_info *info, const sc_lcp_info *li, int rc)
+{
+    info->pivots += li->pivots;
+    info->lemke += li->lemke;
+    info->guessed += li->guessed;
+    if (rc == SC_OK)
+        info->residual_exact = max_d(info->residual_exact, li->residual);
+}
+
 /* Solve, and on failure retry with the diagonal raised
  * (sc_lcp_raised_in(): redundant or near-redundant contacts make A
  * singular or ill-conditioned); counted, never hidden. flags: SOLVE_*. */
@@ -183,22 +193,13 @@ static int solve(sc_arena *a, int n, double *A, const double *q, const double *l
     int warm = (flags & SOLVE_WARM) != 0;
     sc_lcp_info li = { 0 };
     int rc = lcp_call(a, n, A, q, lo, hi, findex, mu, z, w, &li, warm);
-    info->pivots += li.pivots;
-    info->lemke += li.lemke;
-    info->guessed += li.guessed;
-    if (rc == SC_OK)
-        info->residual_exact = max_d(info->residual_exact, li.residual);
+    lcp_info_add(info, &li, rc);
     if (rc == SC_OK || rc == SC_EINVAL || rc == SC_ENOMEM)
         return rc;
     double share;
     rc = sc_lcp_raised_in(a, n, A, q, lo, hi, findex, mu, z, w, &li, &share);
-    info->pivots += li.pivots;
-    info->lemke += li.lemke;
-    info->guessed += li.guessed;
-    if (rc == SC_OK) {
-        info->regularised++;
-        info->residual_exact = max_d(info->residual_exact, li.residual);
-    }
+    lcp_info_add(info, &li, rc);
+    info->regularised += rc == SC_OK;
     return rc;
 }
 

@@ -367,9 +367,6 @@ static void on_message(void *ctx, const char *channel, const uint8_t *data, size
     sc_msg_free(&m);
 }
 
-/* Handle what has come, waiting up to timeout_s for the first datagram;
- * one pass over what is pending (the callers loop), so that a flood of
- * datagrams cannot hold a frame past its deadline. */
 /* The calling thread's communication since t0, in the figures and in
  * the shipping rate (remote_home()). */
 static void comm_since(sc_cluster *c, double t0)
@@ -379,6 +376,9 @@ static void comm_since(sc_cluster *c, double t0)
     c->home_s += t;
 }
 
+/* Handle what has come, waiting up to timeout_s for the first datagram;
+ * one pass over what is pending (the callers loop), so that a flood of
+ * datagrams cannot hold a frame past its deadline. */
 static void pump(sc_cluster *c, double timeout_s)
 {
     int ms = timeout_s > 0 ? (int)(timeout_s * 1000) + 1 : 0;
