@@ -9,6 +9,11 @@
  *             waiting for daemons after the local work was done; the final
  *             state's hash is compared with the local run's ("-" without a
  *             0-daemon run in the same invocation).
+ *   model     a prediction of k one-thread daemons (up to 15) from
+ *             measured costs: the frame's work outside units, its jobs'
+ *             least makespan on n nodes (sc_stats.ideal_makespan_s), the
+ *             daemon's round trip and the master's time per message
+ *             (see model() below); checked against one daemon measured.
  *   fg        a CPU-bound program pinned to one CPU, alone and next to a
  *             one-thread daemon pinned to the same CPU that is kept full of
  *             units (the master sends it everything), with the daemon at
@@ -27,13 +32,15 @@
  *             set aside for the cluster: on a shared machine the others'
  *             load would otherwise make them offer little and run last).
  * usage: bench_cluster [-r RUNS] [-s SECONDS] [-n BODIES] [-d 0,1,2,...]
- *                      [-x DAEMON] [-u LCM-URL] [-p scaling,fg,busy]
+ *                      [-x DAEMON] [-u LCM-URL] [-p scaling,model,fg,busy]
  *                      [-t world|local] [-g] [-S drop|bin] [-D]
  * The daemon binary defaults to daemon/simclusterd next to this bench's
  * build directory (build/bench/../daemon/simclusterd). */
 #include <errno.h>
+#include <stddef.h>
 #include <fcntl.h>
 #include <inttypes.h>
+#include <math.h>
 #include <sched.h>
 #include <signal.h>
 #include <stdio.h>
@@ -123,10 +130,10 @@ static void stop_daemon(pid_t pid)
     waitpid(pid, &st, 0);
 }
 
-static sc_world *make_world(int n, int cluster)
+static sc_world *make_world_on(int n, int cluster, int workers)
 {
     sc_world_config c = sc_world_config_default();
-    c.workers = 1;
+    c.workers = workers;
     c.toi_mode = toi_mode;
     c.motion_groups = groups;
     if (cluster) {
@@ -139,6 +146,11 @@ static sc_world *make_world(int n, int cluster)
         exit(1);
     }
     return w;
+}
+
+static sc_world *make_world(int n, int cluster)
+{
+    return make_world_on(n, cluster, 1);
 }
 
 /* Heartbeats until the world knows k daemons (at most 5 s). */
@@ -271,6 +283,202 @@ static void scaling(int n, const int *ks, int nk, int runs, double seconds)
                median(min, runs), median(piped, runs), bits);
         fflush(stdout);
     }
+}
+
+/* ---- model: a prediction of k daemons from measured costs ----
+ *
+ * Three runs of the same scene (each -r times, medians):
+ *   A  one local worker, no daemons: T1, the wall time of a frame;
+ *   B  every CPU as local workers: per frame the unit work W, the jobs J,
+ *      the units' estimated wire bytes and ideal_makespan_s (sc_stats):
+ *      I(n), the least time the frame's jobs could take on n nodes of
+ *      this speed with free messages;
+ *   C  one local worker and one one-thread daemon on the other CPU: the
+ *      master's shipping time per wire byte (comm_s over the shipped
+ *      units' bytes; packing, sealing, sending, receiving, merging) and
+ *      the round trip less the work, L (remote_overhead_s / remote_jobs).
+ * The frame's work outside units (serial stages, and the sweeps and
+ * passes a master with daemons runs alone) is S = T1 - W. Shipping a
+ * share f of the unit work costs the master rho f W, rho = (time per
+ * byte) (bytes of all units) / W, as if every unit shipped alike. With k
+ * daemons of the master's speed the master takes M = S + (1 - f) W +
+ * rho f W and the daemons D = f W / k; f balances them (none if rho >=
+ * 1), and a frame takes
+ *   T(k) = max(M, D, S + I(k + 1)) + J L
+ * (every job that ships waits a round trip beyond the work: the
+ * protocol today), or with one exchange a frame (the coarse units of the
+ * plan) + L instead of + J L; S + I(k + 1) alone is the ceiling of free
+ * messages. It is a model: the greedy's own imbalance, the daemons'
+ * speed and units that ship cheaper than others are left out; run C
+ * checks it at k = 1. */
+typedef struct profile {
+    double wall, work, jobs, bytes, ideal[SC_STATS_IDEAL_NODES];
+    double density[SC_STATS_DENSITY_BINS];
+    double comm, overhead, remote_jobs, remote_bytes, remote_work, remote_units, units;
+    uint64_t hash;
+} profile;
+
+static int profile_run(int n, int workers, int k, double seconds, profile *p)
+{
+    sc_world *w = make_world_on(n, k > 0, workers);
+    if (k > 0 && wait_daemons(w, k) != 0) {
+        fprintf(stderr, "bench_cluster: only %d of %d daemons answered\n", w->stats.daemons, k);
+        sc_world_destroy(w);
+        return -1;
+    }
+    memset(p, 0, sizeof *p);
+    int frames = (int)(seconds / DT + 0.5);
+    double t0 = now_s();
+    for (int f = 0; f < frames; f++) {
+        int rc = sc_world_step(w, DT);
+        if (rc != SC_OK) {
+            fprintf(stderr, "bench_cluster: step: %s\n", sc_strerror(rc));
+            sc_world_destroy(w);
+            return -1;
+        }
+        sc_stats st;
+        sc_world_stats(w, &st);
+        p->work += st.unit_work_s;
+        p->jobs += (double)st.jobs;
+        p->bytes += st.unit_bytes;
+        for (int i = 0; i < SC_STATS_IDEAL_NODES; i++)
+            p->ideal[i] += st.ideal_makespan_s[i];
+        for (int i = 0; i < SC_STATS_DENSITY_BINS; i++)
+            p->density[i] += st.unit_work_by_density_s[i];
+        p->comm += st.comm_s;
+        p->overhead += st.remote_overhead_s;
+        p->remote_jobs += (double)st.remote_jobs;
+        p->remote_bytes += st.remote_bytes;
+        p->remote_work += st.remote_work_s;
+        p->remote_units += (double)st.remote_units;
+        p->units += (double)st.units;
+    }
+    p->wall = (now_s() - t0) / frames;
+    /* every figure a frame */
+    double *per[] = { &p->work,        &p->jobs,         &p->bytes,        &p->comm,
+                      &p->overhead,    &p->remote_jobs,  &p->remote_bytes, &p->remote_work,
+                      &p->remote_units, &p->units };
+    for (size_t i = 0; i < sizeof per / sizeof per[0]; i++)
+        *per[i] /= frames;
+    for (int i = 0; i < SC_STATS_IDEAL_NODES; i++)
+        p->ideal[i] /= frames;
+    for (int i = 0; i < SC_STATS_DENSITY_BINS; i++)
+        p->density[i] /= frames;
+    p->hash = sc_world_hash(w);
+    sc_world_destroy(w);
+    return 0;
+}
+
+/* The median over runs of a profile's double at byte offset off. */
+static double med_field(const profile *p, int runs, size_t off)
+{
+    double x[MAX_RUNS];
+    for (int r = 0; r < runs; r++)
+        memcpy(&x[r], (const char *)&p[r] + off, sizeof x[r]);
+    return median(x, runs);
+}
+
+#define MED(p, field) med_field(p, runs, offsetof(profile, field))
+
+/* The model's frame time with k daemons (see above): the master ships
+ * the units cheapest to ship first (density bins ascending), only those
+ * that cost it at most SHIP_SHARE of computing them (the scheduler's
+ * rule), until its own time meets the daemons'; *f the shipped share. */
+#define SHIP_SHARE 0.5
+static double model_frame(double s, double w, const double *density, double per_byte,
+                          double ideal, double waits, int k, double *f)
+{
+    double shipped = 0, m = s + w, d = 0;
+    for (int i = 0; i < SC_STATS_DENSITY_BINS && m > d; i++) {
+        double rho = per_byte * M_SQRT2 * 1e6 * ldexp(1, i);
+        if (rho > SHIP_SHARE)
+            break;
+        double x = fmin(density[i], (m - d) / (1 - rho + 1.0 / k));
+        shipped += x;
+        m -= x * (1 - rho);
+        d += x / k;
+    }
+    *f = w > 0 ? shipped / w : 0;
+    return fmax(fmax(m, d), s + ideal) + (shipped > 0 ? waits : 0);
+}
+
+static void model(int n, int runs, double seconds)
+{
+    if (ncpu < 2) {
+        printf("\nmodel: needs 2 CPUs, skipped\n");
+        return;
+    }
+    int workers = ncpu < SC_STATS_IDEAL_NODES ? ncpu : SC_STATS_IDEAL_NODES;
+    printf("\nmodel: %d bolts/nuts %s, %.2f s simulated%s, medians of %d runs: "
+           "A one worker, B %d workers, C one worker + one one-thread daemon\n",
+           n, bin_scene ? "in the bin" : "dropped", seconds,
+           toi_mode == SC_TOI_LOCAL ? ", local time of impact (motion groups)"
+           : groups                 ? ", motion groups"
+                                    : ", time of impact world-wide",
+           runs, workers);
+    profile a[MAX_RUNS], b[MAX_RUNS], c[MAX_RUNS];
+    pin(0, 0);
+    int ok = 1;
+    for (int r = 0; r < runs && ok; r++)
+        ok = profile_run(n, 1, 0, seconds, &a[r]) == 0;
+    unpin();
+    for (int r = 0; r < runs && ok; r++)
+        ok = profile_run(n, workers, 0, seconds, &b[r]) == 0;
+    pin(0, 0);
+    pid_t pid = start_daemon(150, 1, 1.0, 1);
+    for (int r = 0; r < runs && ok; r++)
+        ok = profile_run(n, 1, 1, seconds, &c[r]) == 0;
+    stop_daemon(pid);
+    unpin();
+    if (!ok)
+        return;
+    int same = 1;
+    for (int r = 0; r < runs; r++)
+        same = same && b[r].hash == a[0].hash && c[r].hash == a[0].hash && a[r].hash == a[0].hash;
+    double t1 = MED(a, wall), w = MED(b, work), jobs = MED(b, jobs), bytes = MED(b, bytes);
+    double ideal[SC_STATS_IDEAL_NODES];
+    for (int i = 0; i < SC_STATS_IDEAL_NODES; i++)
+        ideal[i] = med_field(b, runs, offsetof(profile, ideal) + (size_t)i * sizeof(double));
+    double tc = MED(c, wall), x[MAX_RUNS];
+    for (int r = 0; r < runs; r++)
+        x[r] = c[r].remote_bytes > 0 ? c[r].comm / c[r].remote_bytes : 0;
+    double per_byte = median(x, runs);
+    for (int r = 0; r < runs; r++)
+        x[r] = c[r].remote_jobs > 0 ? c[r].overhead / c[r].remote_jobs : 0;
+    double lat = median(x, runs);
+    double jr = MED(c, remote_jobs);
+    for (int r = 0; r < runs; r++)
+        x[r] = c[r].remote_work > 0 ? c[r].comm / c[r].remote_work : 0;
+    double rho_sent = median(x, runs);
+    for (int r = 0; r < runs; r++)
+        x[r] = c[r].work > 0 ? 100 * c[r].remote_work / c[r].work : 0;
+    double sent = median(x, runs);
+    double s = t1 - w, rho = w > 0 ? per_byte * bytes / w : 0;
+    printf("measured, a frame: A T1 %.2f ms; B unit work W %.2f ms in %.1f jobs, %.0f kB of "
+           "units; S = T1 - W %.2f ms; C %.2f ms (%.2f x), %.1f %% of the work shipped in %.1f "
+           "jobs, the master %.1f ns a byte (rho %.2f for what it shipped, %.2f for all "
+           "units), round trip less work L %.3f ms; bits %s\n",
+           1e3 * t1, 1e3 * w, jobs, bytes / 1e3, 1e3 * s, 1e3 * tc, t1 / tc, sent, jr,
+           1e9 * per_byte, rho_sent, rho, 1e3 * lat, same ? "same" : "DIFF");
+    printf("%8s %10s %10s %10s %10s %10s %12s %12s\n", "daemons", "ceiling x", "shipped %",
+           "T(k) ms", "today x", "waits ms", "1 exch. ms", "1 exch. x");
+    static const int ks[] = { 1, 3, 7, 15 };
+    for (size_t i = 0; i < sizeof ks / sizeof ks[0]; i++) {
+        int k = ks[i];
+        if (k + 1 > SC_STATS_IDEAL_NODES)
+            break;
+        double f, t = model_frame(s, w, b[0].density, per_byte, ideal[k], jr * lat, k, &f);
+        double t_one =
+            model_frame(s, w, b[0].density, per_byte, ideal[k], fmin(jr, 1) * lat, k, &f);
+        printf("%8d %10.2f %10.1f %10.2f %10.2f %10.2f %12.2f %12.2f\n", k,
+               t1 / (s + ideal[k]), 100 * f, 1e3 * t, t1 / t, 1e3 * jr * lat, 1e3 * t_one,
+               t1 / t_one);
+    }
+    double f1;
+    double t_1 = model_frame(s, w, b[0].density, per_byte, ideal[1], jr * lat, 1, &f1);
+    printf("check at k = 1: measured %.2f x with %.1f %% shipped; the model %.2f x with "
+           "%.1f %%\n", t1 / tc, sent, t1 / t_1, 100 * f1);
+    fflush(stdout);
 }
 
 /* A CPU-bound program: a fixed amount of arithmetic; its wall time. */
@@ -467,7 +675,7 @@ int main(int argc, char **argv)
                 ks[nk++] = atoi(t);
         } else {
             fprintf(stderr, "usage: bench_cluster [-r RUNS] [-s SECONDS] [-n BODIES] "
-                            "[-d 0,1,2,...] [-x DAEMON] [-u LCM-URL] [-p scaling,fg,busy] "
+                            "[-d 0,1,2,...] [-x DAEMON] [-u LCM-URL] [-p scaling,model,fg,busy] "
                             "[-t world|local] [-g] [-S drop|bin] [-D]\n");
             return 2;
         }
@@ -489,6 +697,8 @@ int main(int argc, char **argv)
     printf("bench_cluster: %d CPUs, LCM %s\n", ncpu, url);
     if (strstr(parts, "scaling"))
         scaling(n, ks, nk, runs, seconds);
+    if (strstr(parts, "model"))
+        model(n, runs, seconds);
     if (strstr(parts, "fg"))
         fg(runs);
     if (strstr(parts, "busy"))

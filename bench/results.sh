@@ -4,7 +4,8 @@
 #   (a) Table 1: CPU share per stage of the 27-sphere scene next to the paper's
 #   (b) peers: bench_drop, ODE QuickStep / dWorldStep against simcluster on
 #       1 thread and on every CPU, N = 10 50 200 1000
-#   (c) scaling: bench_cluster -p scaling, 1000 bodies, daemons up to the CPUs
+#   (c) scaling: bench_cluster -p scaling, 1000 bodies, daemons up to the CPUs;
+#       bench_cluster -p model, a prediction for 15 daemons
 #   (d) cycle stealing: bench_cluster -p fg,busy
 #   (e) Figs 3-4: bench/figs34.sh, when it exists
 #   (f) the dense pile: bench_drop -S bin, the 200-part parts bin, ODE
@@ -132,6 +133,9 @@ if [ $quick -eq 1 ]; then
     frames=500
     drop_args="-r 1 -T 0.5 -b 2 10 200"
     scale_args="-p scaling -n 200 -s 0.2 -r 1 -d 0,1"
+    model_modes="local"
+    model_n=200
+    model_args="-p model -n $model_n -s 0.2 -r 1"
     steal_args="-p fg,busy -r 1"
     pile_args="-S bin -r 1 -T 0.3 -F -b 10 -e qalL 200"
     island_args="-n 50 -t 0.5 -k 1 -r 1 -b 2"
@@ -152,6 +156,9 @@ else
     done
     [ "$ncpu" -lt 2 ] || dl="$dl,$((ncpu - 1))"
     scale_args="-p scaling -n 1000 -d $dl"
+    model_modes="local world"
+    model_n=1000
+    model_args="-p model -n $model_n"
     steal_args="-p fg,busy"
     # 10 s simulated, every run to the end (-F: the real-time factor over
     # the whole 10 s, the rest time recorded), 3 runs a cell; the world
@@ -306,6 +313,23 @@ v=$(awk '$1 ~ /^[0-9]+$/ && $1 > 0 && NF == 14 { if (n++ == 0 || $10 > m) { m = 
 target "(c) communication overhead <= 1 ms a frame" "$v"
 same=$(awk '$1 ~ /^[0-9]+$/ && NF == 14 && $14 == "DIFF"' "$tmp/c_scaling")
 [ -z "$same" ] || target "(c) same bits with daemons as without" "missed: a run ended in a different state"
+w ""
+w "### A model of more daemons than this machine has CPUs"
+w ""
+w "bench_cluster -p model: the frame's work outside units (S), its jobs' least"
+w "makespan on n nodes with free messages (sc_stats.ideal_makespan_s), the work by"
+w "wire bytes per second of it, and with one daemon the master's time per byte"
+w "shipped and the round trip less the work; from them the frame time with k"
+w "daemons (bench/bench_cluster.c, model()). A prediction, not a measurement."
+for mode in $model_modes; do
+    # shellcheck disable=SC2086 # the arguments are words
+    run "c_model_$mode" "$B/bench/bench_cluster" $model_args -t "$mode"
+    w ""
+    # rows: daemons ceiling shipped% T(k) today-x waits one-exchange-ms one-exchange-x
+    v=$(awk '$1 == 15 && NF == 8 { printf "predicted %.2fx with 15 daemons (one exchange a frame: %.2fx; free messages: %.2fx)", $5, $8, $2; f = 1 }
+            END { if (!f) print "not predicted (no row for 15 daemons)" }' "$tmp/c_model_$mode")
+    target "(c) cluster at $model_n bodies on 16 cores, the model ($mode time of impact; no 16-core machine here)" "$v"
+done
 w ""
 w "### Measured earlier (not this run)"
 w ""

@@ -294,6 +294,11 @@ enum {
     SC_STAGE_COUNT
 };
 
+/* sc_stats.ideal_makespan_s: node counts 1 .. SC_STATS_IDEAL_NODES */
+#define SC_STATS_IDEAL_NODES 16
+/* sc_stats.unit_work_by_density_s: bins of wire bytes per second of work */
+#define SC_STATS_DENSITY_BINS 16
+
 typedef struct sc_stats {
     /* seconds by stage: the thread's CPU time in world mode, its time in
      * the stage by the monotonic clock in local mode (docs/DESIGN.md 3.1) */
@@ -393,6 +398,27 @@ typedef struct sc_stats {
                                  total work / total speed and the largest unit */
     double makespan_ratio;    /* makespan_s / makespan_bound_s (>= 1, 1 ideal);
                                  0 when there was no work */
+    long jobs;                /* jobs handed to the nodes (each one a barrier
+                                 that every node with units waits at), last
+                                 frame */
+    double unit_work_s;       /* wall seconds of every unit where it ran,
+                                 summed over the frame's jobs, last frame */
+    double unit_bytes;        /* the units' estimated wire sizes (out and back),
+                                 summed, last frame */
+    double unit_work_by_density_s[SC_STATS_DENSITY_BINS];
+                              /* unit_work_s by the units' wire bytes per
+                                 second of their work: bin i from 2^i MB/s
+                                 (bin 0 also below, the last also above); what
+                                 shipping a unit costs the master is that
+                                 density times its time per byte, last frame */
+    double ideal_makespan_s[SC_STATS_IDEAL_NODES];
+                              /* makespan_s as it would be on i + 1 nodes of
+                                 the measured speed with free communication:
+                                 per job the larger of its unit work / (i + 1)
+                                 and its largest unit, detection and time of
+                                 impact taken as divisible (they are cut finer
+                                 for more nodes); last frame. bench_cluster -p
+                                 model predicts daemons' speedups from it */
     /* the cluster (sc_world_config.cluster), last frame but daemons */
     int daemons;              /* daemons heard from and not owner-busy, now */
     int daemons_busy;         /* daemons that say their owner is busy, now */
@@ -426,6 +452,17 @@ typedef struct sc_stats {
     long result_messages;     /* sealed messages of results received (a daemon
                                  thread sends what it has done together), last
                                  frame */
+    double remote_overhead_s; /* daemons' round trips less their work: from a
+                                 job's send to its last result's arrival in
+                                 the kernel (SO_TIMESTAMP), less the daemon's
+                                 compute time, summed over remote_jobs, last
+                                 frame */
+    long remote_jobs;         /* jobs a daemon answered in full (one per daemon
+                                 and job), last frame */
+    double remote_bytes;      /* unit_bytes of the units whose result came from
+                                 a daemon, last frame */
+    double remote_work_s;     /* the daemons' compute seconds of those units
+                                 (per thread), last frame */
     long pipelined_units;     /* motion groups' units sent to daemons before the
                                  pile's frame whose results were in when it
                                  ended (computed while it ran), last frame */

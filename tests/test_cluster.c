@@ -165,6 +165,14 @@ static uint64_t run(sc_world *w, daemon_thread *d, int stop_at, sc_stats *sum)
         sum->late_results += st.late_results;
         sum->unit_messages += st.unit_messages;
         sum->result_messages += st.result_messages;
+        /* the model's figures of the daemons (bench_cluster -p model) */
+        assert_true(st.remote_overhead_s >= 0 && st.remote_work_s >= 0 && st.remote_bytes >= 0);
+        assert_true(st.remote_units > 0 || (st.remote_work_s == 0 && st.remote_bytes == 0));
+        assert_true(st.remote_jobs <= st.jobs * 64);
+        sum->remote_jobs += st.remote_jobs;
+        sum->remote_overhead_s += st.remote_overhead_s;
+        sum->remote_bytes += st.remote_bytes;
+        sum->remote_work_s += st.remote_work_s;
         /* the solver's counters (remote units' come with their results) */
         sum->lcp_pivots += st.lcp_pivots;
         sum->lcp_split += st.lcp_split;
@@ -218,6 +226,12 @@ static void test_daemons_give_the_same_bits(void **state)
            n0.shapes, (double)sum.unit_messages / FRAMES, (double)sum.result_messages / FRAMES);
     assert_true(h == h0);
     assert_true(sum.remote_units > 0);
+    /* every answered job's round trip is counted, with the work and the
+     * wire bytes of what came back */
+    printf("  remote jobs %ld, round trip less work %.3f ms a job, %.0f bytes, %.4f s work\n",
+           sum.remote_jobs, 1e3 * sum.remote_overhead_s / (sum.remote_jobs ? sum.remote_jobs : 1),
+           sum.remote_bytes, sum.remote_work_s);
+    assert_true(sum.remote_jobs > 0 && sum.remote_bytes > 0 && sum.remote_work_s > 0);
     /* results came in messages of one or more, units went out in some */
     assert_true(sum.result_messages > 0 && sum.result_messages <= n0.results + n1.results);
     assert_true(sum.unit_messages > 0);

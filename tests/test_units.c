@@ -8,6 +8,7 @@
 #include <stdarg.h>
 #include <stddef.h>
 #include <stdint.h>
+#include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
@@ -19,6 +20,31 @@
 #define BODIES 50
 
 static int motion_groups;    /* the mode the determinism tests run in */
+
+/* The cluster model's figures (bench_cluster -p model) agree with each
+ * other: on one node a frame's least makespan is its unit work; more
+ * nodes never take longer, n nodes at least 1/n of it; the density bins
+ * hold the work of every unit that took time. */
+static void check_model_figures(const sc_stats *st)
+{
+    assert_true(st->jobs >= 0 && st->unit_work_s >= 0 && st->unit_bytes >= 0);
+    if (st->jobs == 0) {
+        assert_true(st->unit_work_s == 0 && st->ideal_makespan_s[0] == 0);
+        return;
+    }
+    assert_true(st->unit_bytes > 0);
+    assert_true(fabs(st->ideal_makespan_s[0] - st->unit_work_s) <= 1e-12 + 1e-9 * st->unit_work_s);
+    for (int k = 1; k < SC_STATS_IDEAL_NODES; k++) {
+        assert_true(st->ideal_makespan_s[k] <= st->ideal_makespan_s[k - 1] * (1 + 1e-12));
+        assert_true(st->ideal_makespan_s[k] >= st->unit_work_s / (k + 1) * (1 - 1e-9));
+    }
+    double binned = 0;
+    for (int k = 0; k < SC_STATS_DENSITY_BINS; k++) {
+        assert_true(st->unit_work_by_density_s[k] >= 0);
+        binned += st->unit_work_by_density_s[k];
+    }
+    assert_true(fabs(binned - st->unit_work_s) <= 1e-9 * st->unit_work_s + 1e-12);
+}
 
 static uint64_t run_bolts(int workers, uint64_t shuffle, int frames, sc_stats *st)
 {
@@ -39,6 +65,7 @@ static uint64_t run_bolts(int workers, uint64_t shuffle, int frames, sc_stats *s
             /* the bound is below the makespan (clock granularity aside) */
             assert_true(st->makespan_ratio >= 0.99);
         }
+        check_model_figures(st);
     }
     assert_true(units > frames);
     uint64_t h = sc_world_hash(w);

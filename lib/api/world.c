@@ -319,6 +319,11 @@ SC_API int sc_world_step(sc_world *w, double dt)
     st->sched_s = 0;
     st->makespan_s = 0;
     st->makespan_bound_s = 0;
+    st->jobs = 0;
+    st->unit_work_s = 0;
+    st->unit_bytes = 0;
+    memset(st->ideal_makespan_s, 0, sizeof st->ideal_makespan_s);
+    memset(st->unit_work_by_density_s, 0, sizeof st->unit_work_by_density_s);
     st->groups = 0;
     st->pairs = 0;
     st->contacts = 0;
@@ -332,6 +337,10 @@ SC_API int sc_world_step(sc_world *w, double dt)
     st->unit_messages = 0;
     st->result_messages = 0;
     st->pipelined_units = 0;
+    st->remote_overhead_s = 0;
+    st->remote_jobs = 0;
+    st->remote_bytes = 0;
+    st->remote_work_s = 0;
     if (w->cluster)
         sc_cluster_frame(w->cluster);
     int rc = sc_arena_reset(&w->scr.arena);

@@ -160,6 +160,13 @@ void sc_stats_add_frame(sc_stats *s, const sc_stats *g)
     s->sched_s += g->sched_s;
     s->makespan_s += g->makespan_s;
     s->makespan_bound_s += g->makespan_bound_s;
+    s->jobs += g->jobs;
+    s->unit_work_s += g->unit_work_s;
+    s->unit_bytes += g->unit_bytes;
+    for (int k = 0; k < SC_STATS_IDEAL_NODES; k++)
+        s->ideal_makespan_s[k] += g->ideal_makespan_s[k];
+    for (int k = 0; k < SC_STATS_DENSITY_BINS; k++)
+        s->unit_work_by_density_s[k] += g->unit_work_by_density_s[k];
     s->initial_overlaps += g->initial_overlaps;
     if (g->arena_bytes > s->unit_arena_bytes)
         s->unit_arena_bytes = g->arena_bytes;

@@ -151,6 +151,15 @@ static double wait_nodes(sc_exec_nodes *x, const int *start)
     return cpu_others;
 }
 
+/* sc_stats.unit_work_by_density_s's bin of bytes_per_s: from 2^i MB/s. */
+static int density_bin(double bytes_per_s)
+{
+    int bin = 0;
+    for (double at = 2e6; bin < SC_STATS_DENSITY_BINS - 1 && bytes_per_s >= at; at *= 2)
+        bin++;
+    return bin;
+}
+
 /* After a job: learn from it (learn 0: its units' times are no one's
  * speed) and account it in st (stage CPU of the other nodes, makespan,
  * scheduling time, the first unit error). */
@@ -171,6 +180,25 @@ static int account(sc_exec_nodes *x, sc_job *job, int stage, sc_stats *st, doubl
     st->units += job->nunits;
     st->makespan_s += makespan_s;
     st->makespan_bound_s += bound;
+    st->jobs++;
+    /* the least makespan on n equal nodes with free communication (the
+     * cluster model's input, bench_cluster -p model) */
+    double work = 0, largest = 0;
+    int divisible = job->kind == SC_UNIT_COLLIDE || job->kind == SC_UNIT_TOI;
+    for (int i = 0; i < job->nunits; i++) {
+        const sc_unit *u = &job->units[i];
+        work += u->time_s;
+        st->unit_bytes += (double)u->bytes;
+        if (u->time_s > 0)
+            st->unit_work_by_density_s[density_bin((double)u->bytes / u->time_s)] += u->time_s;
+        if (job->units[i].time_s > largest)
+            largest = job->units[i].time_s;
+    }
+    st->unit_work_s += work;
+    for (int k = 0; k < SC_STATS_IDEAL_NODES; k++) {
+        double share = work / (k + 1);
+        st->ideal_makespan_s[k] += divisible || share > largest ? share : largest;
+    }
     for (int i = 0; i < job->nunits; i++) {
         const sc_unit *u = &job->units[i];
         st->collider_warnings += u->messages;

@@ -75,6 +75,7 @@ typedef struct daemon_slot {
 typedef struct slot_job {
     int sent, done;
     int64_t submit_us, last_us;  /* real-time clock (the bus's receive stamps) */
+    int64_t arrive_us;           /* the last result's arrival in the kernel */
     double t_submit;
     double compute_s;
 } slot_job;
@@ -286,6 +287,8 @@ static void take_result(sc_cluster *c, sc_msg_work *r)
     u->time_s = sec / (threads > 0 ? threads : 1);
     dj->done++;
     dj->compute_s += u->time_s;
+    c->stats->remote_bytes += (double)u->bytes;
+    c->stats->remote_work_s += u->time_s;
     /* when it was there for the master: read now for the current job
      * (after the calling thread's own units: the round trip the scheduler
      * must weigh), at the kernel's arrival stamp for a started one (read
@@ -293,6 +296,8 @@ static void take_result(sc_cluster *c, sc_msg_work *r)
     int64_t at = cj->started ? c->recv_us : realtime_us();
     if (at > dj->last_us)
         dj->last_us = at;
+    if (c->recv_us > dj->arrive_us)
+        dj->arrive_us = c->recv_us;
     c->stats->remote_units++;
 }
 
@@ -477,7 +482,7 @@ static int remote_submit(sc_node *n, const sc_job *job, const int *units, int co
     daemon_slot *d = &c->d[r->slot];
     slot_job *dj = &c->cur->d[r->slot];
     double t0 = sc_wall_now();
-    dj->submit_us = dj->last_us = realtime_us();
+    dj->submit_us = dj->last_us = dj->arrive_us = realtime_us();
     dj->t_submit = t0;
     c->batch_len = 0;
     for (int i = 0; i < count; i++) {
@@ -572,6 +577,11 @@ static int remote_wait(sc_node *n, double *cpu_s)
         if (o < 0)
             o = 0;
         d->overhead = d->overhead > 0 ? OVERHEAD_KEEP * d->overhead + (1 - OVERHEAD_KEEP) * o : o;
+        /* the round trip itself, for the cluster model (bench_cluster -p
+         * model): to the kernel's arrival, not to when this thread read it */
+        double wire = 1e-6 * (double)(dj->arrive_us - dj->submit_us) - dj->compute_s;
+        c->stats->remote_overhead_s += wire > 0 ? wire : 0;
+        c->stats->remote_jobs++;
     }
     c->stats->remote_wait_s += sc_wall_now() - t_wait;
     *cpu_s = dj->compute_s;
