@@ -442,6 +442,74 @@ static void *mt_run(void *arg)
     return NULL;
 }
 
+/* The mesh-plane loops take the vertices two at a time (SSE2, from a copy
+ * by pairs whose last pair is padded): with an odd count the last vertex
+ * is seen, and no two contacts stand at one point. A cube with its
+ * top face dented (9 vertices, not convex: a trimesh), the dent first and
+ * a corner last, turned at random against a plane: the deepest contact is
+ * the deepest vertex by brute force, the corner last among them included. */
+static void test_mesh_on_plane_odd_vertex_count(void **state)
+{
+    (void)state;
+    const double xyz[] = { 0, 0, 0.2,                                      /* the dent */
+                           -0.5, -0.5, -0.5, 0.5, -0.5, -0.5, 0.5, 0.5, -0.5, -0.5, 0.5, -0.5,
+                           -0.5, -0.5, 0.5,  0.5, -0.5, 0.5,  0.5, 0.5, 0.5,  -0.5, 0.5, 0.5 };
+    const int tri[] = { 1, 3, 2, 1, 4, 3,                          /* bottom, outward -z */
+                        1, 2, 6, 1, 6, 5, 2, 3, 7, 2, 7, 6,        /* sides */
+                        3, 4, 8, 3, 8, 7, 4, 1, 5, 4, 5, 8,
+                        5, 6, 0, 6, 7, 0, 7, 8, 0, 8, 5, 0 };      /* the dented top */
+    sc_shape *m = sc_shape_mesh(xyz, 9, tri, 14), *floor = sc_shape_plane(0, 0, 1, 0);
+    assert_non_null(m);
+    const double *v;
+    int nv;
+    assert_int_equal(sc_shape_mesh_data(m, &v, &nv, NULL, NULL), SC_OK);
+    assert_int_equal(nv, 9);
+    sc_contact c[SC_MAX_PAIR_CONTACTS];
+    int last_deepest = 0;
+    srand(7);
+    for (int t = 0; t < 400; t++) {
+        double q[4], len = 0;
+        for (int k = 0; k < 4; k++) {
+            q[k] = (double)rand() / RAND_MAX - 0.5;
+            len += q[k] * q[k];
+        }
+        len = sqrt(len);
+        sc_pose pm = { { 0, 0, 0.3 + 0.4 * rand() / RAND_MAX }, { q[0] / len, q[1] / len,
+                                                                   q[2] / len, q[3] / len } };
+        double w = pm.quat[0], x = pm.quat[1], y = pm.quat[2], z = pm.quat[3];
+        /* each vertex's world z: the third row of the rotation */
+        double best = 0;
+        int bi = -1;
+        for (int i = 0; i < nv; i++) {
+            const double *p = &v[3 * i];
+            double wz = 2 * (x * z - w * y) * p[0] + 2 * (y * z + w * x) * p[1] +
+                        (1 - 2 * (x * x + y * y)) * p[2] + pm.pos[2];
+            if (-wz > best) {
+                best = -wz;
+                bi = i;
+            }
+        }
+        sc_pose pp = at(0, 0, 0);
+        int n = sc_collide(m, &pm, floor, &pp, c, SC_MAX_PAIR_CONTACTS);
+        assert_true(n >= 0);
+        if (bi < 0) {
+            assert_int_equal(n, 0);
+            continue;
+        }
+        assert_true(n > 0);
+        assert_true(fabs(max_depth(c, n) - best) < 1e-9);
+        /* no two contacts at one point (the padding repeats the last vertex) */
+        for (int i = 0; i < n; i++)
+            for (int j = 0; j < i; j++)
+                assert_true(fabs(c[i].pos[0] - c[j].pos[0]) + fabs(c[i].pos[1] - c[j].pos[1]) +
+                                fabs(c[i].pos[2] - c[j].pos[2]) > 1e-12);
+        last_deepest += bi == nv - 1;
+    }
+    assert_true(last_deepest > 0);
+    sc_shape_release(m);
+    sc_shape_release(floor);
+}
+
 /* Mesh against plane (lib/core/narrowphase.c: mesh_plane, our own vertex test
  * instead of ODE's trimesh-plane collider): the deepest vertex is always a
  * contact, with its exact depth, the normal is the plane's (flipped with
@@ -659,6 +727,7 @@ int main(void)
         cmocka_unit_test(test_convex_cubes_face_on_face_touch_on_the_overlap_corners),
         cmocka_unit_test(test_contacts_are_bit_identical_on_repeat),
         cmocka_unit_test(test_mesh_on_plane_every_vertex_counts),
+        cmocka_unit_test(test_mesh_on_plane_odd_vertex_count),
         cmocka_unit_test(test_threads_collide_shared_shapes_concurrently),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);

@@ -69,6 +69,9 @@ struct sc_shape {
     /* SC_SHAPE_MESH and SC_SHAPE_CONVEX: outward triangles */
     int nverts, ntris;
     double *xyz;
+    double *xyz_soa;          /* meshes: the vertices by pairs, x0 x1 y0 y1 z0 z1
+                                 ..., the last pair padded with the last vertex
+                                 (sc_soa_pairs(); the mesh-plane loops) */
     int *tri;
     int convex;               /* 1 if the mesh is convex (hulls always) */
     sc_mass_props mp;         /* per unit density */
@@ -84,7 +87,13 @@ struct sc_shape {
     int nfaces;
     int nface_xyz;
     double *face_xyz;         /* corners, 3 per point, shape frame */
+    double *face_soa;         /* the same corners by pairs, x0 x1 y0 y1 z0 z1
+                                 ..., the last pair padded with the last
+                                 corner (polyhedron.c corners_min()) */
     double *face_plane;       /* 4 per face: outward unit normal, offset */
+    double *face_plane_soa;   /* the same by pairs of faces, nx0 nx1 ny0 ny1 nz0
+                                 nz1 d0 d1 ..., the last pair padded with the
+                                 last face (ball_beyond_face()) */
     int *face_start;          /* face f: face_vert[face_start[f] .. face_start[f + 1]) */
     int *face_vert;           /* corner indices, counter-clockwise seen from out */
     unsigned char *face_inner; /* a mesh's convex piece: 1 for each face inside
@@ -325,16 +334,23 @@ int sc_manifold_reduce(sc_contact *c, int n, double merge_dist);
  * SC_ENOMEM. sc_poly_free() frees them. */
 int sc_poly_build(sc_shape *s);
 void sc_poly_free(sc_shape *s);
+/* n points (3 doubles each) by pairs for two-wide loops: x0 x1 y0 y1 z0
+ * z1 ..., the last pair padded with the last point; malloc'd, NULL when
+ * n is 0 or out of memory. */
+double *sc_soa_pairs(const double *xyz, int n);
+/* 1 if a face plane of a or b (inner faces of a mesh's pieces included)
+ * has all the other's corners beyond it: apart for sure; 0 when none does
+ * (touching, or parted only along an edge-edge axis), or either lacks faces.
+ * Ra, Rb: the rotations of the shapes at positions pa, pb (q_to_m3() of
+ * their quaternions: a mesh's pieces share their body's). */
+int sc_poly_apart(const sc_shape *a, const double Ra[9], const double pa[3], const sc_shape *b,
+                  const double Rb[9], const double pb[3]);
 /* The contacts of an overlapping convex pair (the collider's deepest
  * point depth deep) by clipping: the face of least penetration of either
  * shape is the reference, the other shape's face most opposed to it is
  * clipped by its sides; up to max points, each with its own depth, normals
  * from a to b. Returns 0 (keep the collider's contacts) when a shape has
  * no faces, is too big, or an edge-edge axis is clearly shallower. */
-/* 1 if a face plane of a or b (inner faces of a mesh's pieces included)
- * has all the other's corners beyond it: apart for sure; 0 when none does
- * (touching, or parted only along an edge-edge axis), or either lacks faces. */
-int sc_poly_apart(const sc_shape *a, const sc_pose *pa, const sc_shape *b, const sc_pose *pb);
 int sc_poly_clip(const sc_shape *a, const sc_pose *pa, const sc_shape *b, const sc_pose *pb,
                  double depth, sc_contact *out, int max);
 

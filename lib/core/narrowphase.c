@@ -23,6 +23,9 @@
 #include <pthread.h>
 #include <stdarg.h>
 #include <stdlib.h>
+#ifdef __SSE2__
+#include <emmintrin.h>
+#endif
 #include <string.h>
 
 #include "ode_table.h"
@@ -242,6 +245,25 @@ static int plane_in_mesh(const sc_shape *m, const sc_pose *pm, const sc_shape *p
     return 1;
 }
 
+/* mesh_plane()'s contact at vertex vl (mesh frame), depth deep, as c[k]
+ * (c reduced first when full); the new count. */
+static int vertex_contact(sc_contact *c, int k, const double R[9], const sc_pose *pm,
+                          const double *vl, const double n[3], int plane_is_a, double depth,
+                          double merge)
+{
+    double v[3];
+    m3_mulv(v, R, vl);
+    v3_add(v, v, pm->pos);
+    if (k == MESH_PLANE_BUF)
+        k = sc_manifold_reduce(c, k, merge);
+    sc_contact *ci = &c[k++];
+    ci->body_a = ci->body_b = -1;
+    v3_copy(ci->pos, v);
+    v3_scale(ci->normal, n, plane_is_a ? 1.0 : -1.0);
+    ci->depth = depth;
+    return k;
+}
+
 static int mesh_plane(const sc_shape *m, const sc_pose *pm, const sc_shape *pl,
                       const sc_pose *pp, int plane_is_a, sc_contact *c, double merge)
 {
@@ -251,22 +273,34 @@ static int mesh_plane(const sc_shape *m, const sc_pose *pm, const sc_shape *pl,
     if (!plane_in_mesh(m, pm, pl, pp, n, R, nl, &dl))
         return 0;                  /* the mesh's bounding sphere is clear */
     int k = 0;
-    for (int i = 0; i < m->nverts; i++) {
-        const double *vl = &m->xyz[3 * i];
-        double depth = dl - v3_dot(nl, vl);
-        if (!(depth > 0))
+#ifdef __SSE2__
+    /* two vertices at a time (the same products and sums as v3_dot(), so
+     * the same depths), in order; most are above the plane */
+    const __m128d ax = _mm_set1_pd(nl[0]), ay = _mm_set1_pd(nl[1]), az = _mm_set1_pd(nl[2]);
+    const __m128d dv = _mm_set1_pd(dl), zero = _mm_setzero_pd();
+    for (int p = 0; 2 * p < m->nverts; p++) {
+        const double *c2 = &m->xyz_soa[6 * p];
+        __m128d dot = _mm_add_pd(_mm_add_pd(_mm_mul_pd(ax, _mm_loadu_pd(c2)),
+                                            _mm_mul_pd(ay, _mm_loadu_pd(c2 + 2))),
+                                 _mm_mul_pd(az, _mm_loadu_pd(c2 + 4)));
+        __m128d d2 = _mm_sub_pd(dv, dot);
+        int in = _mm_movemask_pd(_mm_cmpgt_pd(d2, zero));
+        if (!in)
             continue;
-        double v[3];
-        m3_mulv(v, R, vl);
-        v3_add(v, v, pm->pos);
-        if (k == MESH_PLANE_BUF)
-            k = sc_manifold_reduce(c, k, merge);
-        sc_contact *ci = &c[k++];
-        ci->body_a = ci->body_b = -1;
-        v3_copy(ci->pos, v);
-        v3_scale(ci->normal, n, plane_is_a ? 1.0 : -1.0);
-        ci->depth = depth;
+        double two[2];
+        _mm_storeu_pd(two, d2);
+        for (int j = 0; j < 2 && 2 * p + j < m->nverts; j++)
+            if (in >> j & 1)
+                k = vertex_contact(c, k, R, pm, &m->xyz[3 * (2 * p + j)], n, plane_is_a, two[j],
+                                   merge);
     }
+#else
+    for (int i = 0; i < m->nverts; i++) {
+        double depth = dl - v3_dot(nl, &m->xyz[3 * i]);
+        if (depth > 0)
+            k = vertex_contact(c, k, R, pm, &m->xyz[3 * i], n, plane_is_a, depth, merge);
+    }
+#endif
     return k;
 }
 
@@ -372,6 +406,9 @@ static int collide_pieces(sc_np_ctx *ctx, const sc_shape *a, const sc_pose *pa,
     int ma = pieces_near(a, pa, pb->pos, b->bound_r, qa);
     int mb = pieces_near(b, pb, pa->pos, a->bound_r, qb);
     int n = 0, rc = SC_OK, deep = 0;
+    double Ra[9], Rb[9];             /* every piece turns as its body */
+    q_to_m3(Ra, pa->quat);
+    q_to_m3(Rb, pb->quat);
     for (int i = 0; i < ma && rc == SC_OK && !deep; i++)
         for (int j = 0; j < mb && rc == SC_OK && !deep; j++) {
             double d[3], r = qa[i].r + qb[j].r;
@@ -381,7 +418,7 @@ static int collide_pieces(sc_np_ctx *ctx, const sc_shape *a, const sc_pose *pa,
             /* most pieces whose balls overlap are apart (94 % in a bin):
              * a face plane that parts them says so faster than ODE's
              * collider finds no contact */
-            if (sc_poly_apart(qa[i].s, &qa[i].q, qb[j].s, &qb[j].q))
+            if (sc_poly_apart(qa[i].s, Ra, qa[i].q.pos, qb[j].s, Rb, qb[j].q.pos))
                 continue;
             int k = sc_np_collide(ctx, qa[i].s, &qa[i].q, qb[j].s, &qb[j].q, &c[n],
                                   SC_MAX_PAIR_CONTACTS);
@@ -419,11 +456,31 @@ static double mesh_plane_deepest(const sc_shape *m, const sc_pose *pm, const sc_
     double n[3], R[9], nl[3], dl, deepest = -1;
     if (!plane_in_mesh(m, pm, pl, pp, n, R, nl, &dl))
         return -1;
+#ifdef __SSE2__
+    /* as mesh_plane(): two at a time, then in order */
+    const __m128d ax = _mm_set1_pd(nl[0]), ay = _mm_set1_pd(nl[1]), az = _mm_set1_pd(nl[2]);
+    const __m128d dv = _mm_set1_pd(dl), zero = _mm_setzero_pd();
+    for (int p = 0; 2 * p < m->nverts && !(deepest > stop); p++) {
+        const double *c2 = &m->xyz_soa[6 * p];
+        __m128d dot = _mm_add_pd(_mm_add_pd(_mm_mul_pd(ax, _mm_loadu_pd(c2)),
+                                            _mm_mul_pd(ay, _mm_loadu_pd(c2 + 2))),
+                                 _mm_mul_pd(az, _mm_loadu_pd(c2 + 4)));
+        __m128d d2 = _mm_sub_pd(dv, dot);
+        if (!_mm_movemask_pd(_mm_cmpgt_pd(d2, zero)))
+            continue;
+        double two[2];
+        _mm_storeu_pd(two, d2);
+        for (int j = 0; j < 2 && 2 * p + j < m->nverts && !(deepest > stop); j++)
+            if (two[j] > 0 && two[j] > deepest)
+                deepest = two[j];
+    }
+#else
     for (int i = 0; i < m->nverts && !(deepest > stop); i++) {
         double depth = dl - v3_dot(nl, &m->xyz[3 * i]);
         if (depth > 0 && depth > deepest)
             deepest = depth;
     }
+#endif
     return deepest;
 }
 

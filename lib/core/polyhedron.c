@@ -20,6 +20,9 @@
  * shape is built (shapes are immutable afterwards).
  */
 #include <stdlib.h>
+#ifdef __SSE2__
+#include <emmintrin.h>
+#endif
 #include <string.h>
 
 #include "core.h"
@@ -44,6 +47,9 @@
 void sc_poly_free(sc_shape *s)
 {
     free(s->face_xyz);
+    free(s->face_soa);
+    free(s->face_plane_soa);
+    s->face_soa = s->face_plane_soa = NULL;
     free(s->face_plane);
     free(s->face_start);
     free(s->face_vert);
@@ -234,13 +240,49 @@ out:
     return rc;
 }
 
+double *sc_soa_pairs(const double *xyz, int n)
+{
+    int pairs = (n + 1) / 2;
+    double *out = n > 0 ? sc_alloc_array((size_t)pairs * 6, sizeof *out) : NULL;
+    for (int p = 0; out && p < pairs; p++)
+        for (int j = 0; j < 2; j++) {
+            int v = 2 * p + j < n ? 2 * p + j : n - 1;
+            for (int k = 0; k < 3; k++)
+                out[6 * p + 2 * k + j] = xyz[3 * v + k];
+        }
+    return out;
+}
+
+/* face_soa and face_plane_soa from face_xyz and face_plane: corners and
+ * face planes by pairs for corners_min() and ball_beyond_face(). */
+static int build_soa(sc_shape *s)
+{
+    if (s->nface_xyz == 0 || s->nfaces == 0)
+        return SC_OK;
+    int pairs = (s->nfaces + 1) / 2;
+    s->face_soa = sc_soa_pairs(s->face_xyz, s->nface_xyz);
+    s->face_plane_soa = sc_alloc_array((size_t)pairs * 8, sizeof *s->face_plane_soa);
+    if (!s->face_soa || !s->face_plane_soa) {
+        sc_poly_free(s);
+        return SC_ENOMEM;
+    }
+    for (int p = 0; p < pairs; p++)
+        for (int j = 0; j < 2; j++) {
+            int f = 2 * p + j < s->nfaces ? 2 * p + j : s->nfaces - 1;
+            for (int k = 0; k < 4; k++)
+                s->face_plane_soa[8 * p + 2 * k + j] = s->face_plane[4 * f + k];
+        }
+    return SC_OK;
+}
+
 int sc_poly_build(sc_shape *s)
 {
+    int rc = SC_OK;
     if (s->kind == SC_SHAPE_BOX)
-        return build_box(s);
-    if ((s->kind == SC_SHAPE_MESH || s->kind == SC_SHAPE_CONVEX) && s->convex)
-        return build_mesh(s);
-    return SC_OK;
+        rc = build_box(s);
+    else if ((s->kind == SC_SHAPE_MESH || s->kind == SC_SHAPE_CONVEX) && s->convex)
+        rc = build_mesh(s);
+    return rc == SC_OK ? build_soa(s) : rc;
 }
 
 /* The face of s (rotation R) whose outward normal is closest to dir (world). */
@@ -263,11 +305,37 @@ static int best_face(const sc_shape *s, const double R[9], const double dir[3])
 }
 
 /* The least projection of o's corners (rotation Ro) on world direction
- * nw, in o's frame; it stops at the first that brings it to stop or below. */
+ * nw, in o's frame; it stops at the first pair of corners that brings it
+ * to stop or below (callers compare the answer with stop only). With
+ * SSE2, two corners at a time from face_soa: each projection is the same
+ * products summed in the same order as v3_dot(), and MINPD with the new
+ * value first is min_d() (ties and NaN keep the old), so the answer is the
+ * same value (the 1000-part drop's and the bins' hashes are unchanged);
+ * 8.5 % of the drop's CPU was this loop. */
 static double corners_min(const sc_shape *o, const double Ro[9], const double nw[3], double stop)
 {
     double nl[3], lo = INFINITY;
     m3_tmulv(nl, Ro, nw);               /* the direction in o's frame */
+#ifdef __SSE2__
+    if (o->face_soa) {
+        const double *c = o->face_soa;
+        int pairs = (o->nface_xyz + 1) / 2;
+        __m128d ax = _mm_set1_pd(nl[0]), ay = _mm_set1_pd(nl[1]), az = _mm_set1_pd(nl[2]);
+        __m128d m = _mm_set1_pd(INFINITY), st = _mm_set1_pd(stop);
+        int check = stop > -INFINITY;
+        for (int p = 0; p < pairs; p++, c += 6) {
+            __m128d d = _mm_add_pd(_mm_add_pd(_mm_mul_pd(ax, _mm_loadu_pd(c)),
+                                              _mm_mul_pd(ay, _mm_loadu_pd(c + 2))),
+                                   _mm_mul_pd(az, _mm_loadu_pd(c + 4)));
+            m = _mm_min_pd(d, m);       /* d < m ? d : m: min_d(m, d) */
+            if (check && _mm_movemask_pd(_mm_cmple_pd(m, st)))
+                break;
+        }
+        double two[2];
+        _mm_storeu_pd(two, m);
+        return min_d(two[0], two[1]);
+    }
+#endif
     for (int v = 0; v < o->nface_xyz && !(lo <= stop); v++)
         lo = min_d(lo, v3_dot(nl, &o->face_xyz[3 * v]));
     return lo;
@@ -325,6 +393,22 @@ static int ball_beyond_face(const sc_shape *s, const double Rs[9], const double 
     double d[3], dl[3];
     v3_sub(d, po, ps);
     m3_tmulv(dl, Rs, d);                /* o's origin in s's frame */
+#ifdef __SSE2__
+    if (s->face_plane_soa) {
+        /* two faces at a time, the same products and sums as v3_dot() */
+        const double *q = s->face_plane_soa;
+        __m128d x = _mm_set1_pd(dl[0]), y = _mm_set1_pd(dl[1]), z = _mm_set1_pd(dl[2]);
+        __m128d r = _mm_set1_pd(o->bound_r);
+        for (int p = 0; 2 * p < s->nfaces; p++, q += 8) {
+            __m128d dot = _mm_add_pd(_mm_add_pd(_mm_mul_pd(_mm_loadu_pd(q), x),
+                                                _mm_mul_pd(_mm_loadu_pd(q + 2), y)),
+                                     _mm_mul_pd(_mm_loadu_pd(q + 4), z));
+            if (_mm_movemask_pd(_mm_cmpgt_pd(_mm_sub_pd(dot, _mm_loadu_pd(q + 6)), r)))
+                return 1;
+        }
+        return 0;
+    }
+#endif
     for (int f = 0; f < s->nfaces; f++) {
         const double *pl = &s->face_plane[4 * f];
         if (v3_dot(pl, dl) - pl[3] > o->bound_r)
@@ -333,17 +417,13 @@ static int ball_beyond_face(const sc_shape *s, const double Rs[9], const double 
     return 0;
 }
 
-int sc_poly_apart(const sc_shape *a, const sc_pose *pa, const sc_shape *b, const sc_pose *pb)
+int sc_poly_apart(const sc_shape *a, const double Ra[9], const double pa[3], const sc_shape *b,
+                  const double Rb[9], const double pb[3])
 {
     if (a->nfaces == 0 || b->nfaces == 0)
         return 0;
-    double Ra[9], Rb[9];
-    q_to_m3(Ra, pa->quat);
-    q_to_m3(Rb, pb->quat);
-    return ball_beyond_face(a, Ra, pa->pos, b, pb->pos) ||
-           ball_beyond_face(b, Rb, pb->pos, a, pa->pos) ||
-           face_separates(a, Ra, pa->pos, b, Rb, pb->pos) ||
-           face_separates(b, Rb, pb->pos, a, Ra, pa->pos);
+    return ball_beyond_face(a, Ra, pa, b, pb) || ball_beyond_face(b, Rb, pb, a, pa) ||
+           face_separates(a, Ra, pa, b, Rb, pb) || face_separates(b, Rb, pb, a, Ra, pa);
 }
 
 /* Face f of s in world coordinates into p (3 per point); returns the count. */

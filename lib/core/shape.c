@@ -29,6 +29,7 @@ static void shape_free(sc_shape *s)
     if (s->ode_tridata)
         dGeomTriMeshDataDestroy((dTriMeshDataID)s->ode_tridata);
     free(s->xyz);
+    free(s->xyz_soa);
     free(s->tri);
     free(s->ode_index);
     free(s->ode_planes);
@@ -402,6 +403,8 @@ static sc_shape *mesh_shape_take(int kind, double *xyz, int nverts, int *tri, in
         s->bound_r = max_d(s->bound_r, v3_len(&xyz[3 * i]));
     s->convex = kind == SC_SHAPE_CONVEX || mesh_is_convex(s);
     rc = build_ode_data(s);
+    if (rc == SC_OK && !(s->xyz_soa = sc_soa_pairs(xyz, nverts)))
+        rc = SC_ENOMEM;
     if (rc == SC_OK)
         rc = sc_poly_build(s);
     if (rc == SC_OK)
