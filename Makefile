@@ -62,6 +62,7 @@ LAYER_test_bus := net
 LAYER_test_unit_wire := api
 LAYER_test_compute := net
 LAYER_test_idle := core
+LAYER_test_narrowphase := core
 LAYER_test_cluster := api
 LAYER_bench_broadphase := core
 LAYER_bench_lcp := core

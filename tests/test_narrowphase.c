@@ -5,12 +5,14 @@
 #include <stdarg.h>
 #include <stddef.h>
 #include <stdint.h>
+#include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
 #include <cmocka.h>
 #include <pthread.h>
 
 #include "simcluster.h"
+#include "core.h"
 
 #define TOL 1e-9
 static const double S2 = 0.70710678118654752;   /* sin 45 degrees */
@@ -442,6 +444,73 @@ static void *mt_run(void *arg)
     return NULL;
 }
 
+/* Two convex shapes meet by this library's MPR (libccd's, as ODE runs it,
+ * with a two-wide support function): the same contact to the bit as ODE's
+ * own dCollide() on the same geoms, over the bolt's and the nut's pieces
+ * and a hull of an odd number of points, at random poses around contact. */
+static void test_convex_pairs_match_ode_to_the_bit(void **state)
+{
+    (void)state;
+    sc_shape *bolt = sc_shape_bolt(), *nut = sc_shape_nut();
+    double pts[7 * 3];
+    srand(11);
+    for (int i = 0; i < 21; i++)
+        pts[i] = 0.01 * ((double)rand() / RAND_MAX - 0.5);
+    sc_shape *odd = sc_shape_convex(pts, 7);
+    assert_non_null(bolt);
+    assert_non_null(nut);
+    assert_non_null(odd);
+    const sc_shape *s[] = { bolt->pieces[0], bolt->pieces[1], nut->pieces[0], nut->pieces[5],
+                            odd };
+    int ns = (int)(sizeof s / sizeof s[0]);
+    sc_np_ctx *ctx = sc_np_create();
+    assert_non_null(ctx);
+    int touching = 0, apart = 0;
+    for (int t = 0; t < 3000; t++) {
+        const sc_shape *a = s[t % ns], *b = s[(t / ns) % ns];
+        sc_pose pa = at(0, 0, 0), pb;
+        double q[2][4];
+        for (int j = 0; j < 2; j++) {
+            double len = 0;
+            for (int k = 0; k < 4; k++) {
+                q[j][k] = (double)rand() / RAND_MAX - 0.5;
+                len += q[j][k] * q[j][k];
+            }
+            for (int k = 0; k < 4; k++)
+                q[j][k] /= sqrt(len);
+        }
+        memcpy(pa.quat, q[0], sizeof q[0]);
+        double reach = a->bound_r + b->bound_r;
+        for (int k = 0; k < 3; k++)
+            pb.pos[k] = reach * 1.2 * ((double)rand() / RAND_MAX - 0.5);
+        memcpy(pb.quat, q[1], sizeof q[1]);
+        sc_contact ours, ode;
+        memset(&ours, 0, sizeof ours);
+        memset(&ode, 0, sizeof ode);
+        int r0 = sc_np_convex_raw(ctx, a, &pa, b, &pb, 0, &ours);
+        int r1 = sc_np_convex_raw(ctx, a, &pa, b, &pb, 1, &ode);
+        assert_true(r0 >= 0 && r0 == r1);
+        if (!r0) {
+            apart++;
+            continue;
+        }
+        touching++;
+        assert_memory_equal(ours.pos, ode.pos, sizeof ours.pos);
+        assert_memory_equal(ours.normal, ode.normal, sizeof ours.normal);
+        assert_memory_equal(&ours.depth, &ode.depth, sizeof ours.depth);
+    }
+    printf("  %d touching, %d apart: the same bits\n", touching, apart);
+    assert_true(touching > 300 && apart > 300);
+    /* a shape that is not convex is refused */
+    sc_pose p0 = at(0, 0, 0);
+    sc_contact c;
+    assert_int_equal(sc_np_convex_raw(ctx, bolt, &p0, nut, &p0, 0, &c), SC_EINVAL);
+    sc_np_destroy(ctx);
+    sc_shape_release(odd);
+    sc_shape_release(nut);
+    sc_shape_release(bolt);
+}
+
 /* The mesh-plane loops take the vertices two at a time (SSE2, from a copy
  * by pairs whose last pair is padded): with an odd count the last vertex
  * is seen, and no two contacts stand at one point. A cube with its
@@ -728,6 +797,7 @@ int main(void)
         cmocka_unit_test(test_contacts_are_bit_identical_on_repeat),
         cmocka_unit_test(test_mesh_on_plane_every_vertex_counts),
         cmocka_unit_test(test_mesh_on_plane_odd_vertex_count),
+        cmocka_unit_test(test_convex_pairs_match_ode_to_the_bit),
         cmocka_unit_test(test_threads_collide_shared_shapes_concurrently),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);

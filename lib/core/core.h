@@ -325,6 +325,13 @@ int sc_np_collide_until(sc_np_ctx *ctx, const sc_shape *a, const sc_pose *pa,
  * deepest vertex, the first deeper than stop). */
 int sc_np_deepest_until(sc_np_ctx *ctx, const sc_shape *a, const sc_pose *pa,
                         const sc_shape *b, const sc_pose *pb, double stop, double *depth);
+/* The raw contact of two convex shapes (each a convex mesh, hull or mesh
+ * piece) before clipping and reduction, normal as ODE gives it (from b to
+ * a): by this library's MPR (via_ode 0, what the narrow phase uses) or by
+ * ODE's dCollide() (1); 1 if they touch, 0 if not, or a code. Tests compare
+ * the two to the bit. */
+int sc_np_convex_raw(sc_np_ctx *ctx, const sc_shape *a, const sc_pose *pa, const sc_shape *b,
+                     const sc_pose *pb, int via_ode, sc_contact *c);
 /* Reduce n raw contacts in place to at most SC_MAX_PAIR_CONTACTS well-spread
  * ones (points closer than merge_dist merged); returns the new count. */
 int sc_manifold_reduce(sc_contact *c, int n, double merge_dist);

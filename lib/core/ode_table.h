@@ -12,6 +12,7 @@
     X(dCreateSphere) X(dCreateBox) X(dCreatePlane) X(dCreateConvex) X(dCreateTriMesh) \
     X(dGeomDestroy) X(dGeomPlaneSetParams) X(dGeomSetPosition) X(dGeomSetQuaternion) \
     X(dGeomGetClass) X(dGeomGetRotation) X(dGeomTriMeshSetLastTransform) X(dCollide) \
+    X(dGeomGetPosition) X(dGeomGetQuaternion) \
     X(dGeomTriMeshDataCreate) X(dGeomTriMeshDataBuildDouble) \
     X(dGeomTriMeshDataPreprocess2) X(dGeomTriMeshDataDestroy)
 
