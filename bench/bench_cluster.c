@@ -170,27 +170,45 @@ typedef struct result {
     uint64_t hash;
 } result;
 
-static int run(int n, int k, double seconds, result *r)
+/* A world of n bodies on workers local threads that has heard k daemons
+ * (none: no cluster); NULL, said, if they did not answer. */
+static sc_world *start_world(int n, int k, int workers)
 {
-    sc_world *w = make_world(n, k > 0);
+    sc_world *w = make_world_on(n, k > 0, workers);
     if (k > 0 && wait_daemons(w, k) != 0) {
         fprintf(stderr, "bench_cluster: only %d of %d daemons answered\n", w->stats.daemons, k);
         sc_world_destroy(w);
+        return NULL;
+    }
+    return w;
+}
+
+/* One frame and its figures; on an error it says so and ends the world. */
+static int step_frame(sc_world *w, sc_stats *st)
+{
+    int rc = sc_world_step(w, DT);
+    if (rc != SC_OK) {
+        fprintf(stderr, "bench_cluster: step: %s\n", sc_strerror(rc));
+        sc_world_destroy(w);
         return -1;
     }
+    sc_world_stats(w, st);
+    return 0;
+}
+
+static int run(int n, int k, double seconds, result *r)
+{
+    sc_world *w = start_world(n, k, 1);
+    if (!w)
+        return -1;
     int frames = (int)(seconds / DT + 0.5);
     long units = 0, remote = 0, recomputed = 0, late = 0, msgs_out = 0, msgs_in = 0, piped = 0;
     double comm = 0, wait = 0, local = 0;
     double t0 = now_s();
     for (int f = 0; f < frames; f++) {
-        int rc = sc_world_step(w, DT);
-        if (rc != SC_OK) {
-            fprintf(stderr, "bench_cluster: step: %s\n", sc_strerror(rc));
-            sc_world_destroy(w);
-            return -1;
-        }
         sc_stats st;
-        sc_world_stats(w, &st);
+        if (step_frame(w, &st) != 0)
+            return -1;
         units += st.units;
         remote += st.remote_units;
         recomputed += st.recomputed_units;
@@ -320,24 +338,16 @@ typedef struct profile {
 
 static int profile_run(int n, int workers, int k, double seconds, profile *p)
 {
-    sc_world *w = make_world_on(n, k > 0, workers);
-    if (k > 0 && wait_daemons(w, k) != 0) {
-        fprintf(stderr, "bench_cluster: only %d of %d daemons answered\n", w->stats.daemons, k);
-        sc_world_destroy(w);
+    sc_world *w = start_world(n, k, workers);
+    if (!w)
         return -1;
-    }
     memset(p, 0, sizeof *p);
     int frames = (int)(seconds / DT + 0.5);
     double t0 = now_s();
     for (int f = 0; f < frames; f++) {
-        int rc = sc_world_step(w, DT);
-        if (rc != SC_OK) {
-            fprintf(stderr, "bench_cluster: step: %s\n", sc_strerror(rc));
-            sc_world_destroy(w);
-            return -1;
-        }
         sc_stats st;
-        sc_world_stats(w, &st);
+        if (step_frame(w, &st) != 0)
+            return -1;
         p->work += st.unit_work_s;
         p->jobs += (double)st.jobs;
         p->bytes += st.unit_bytes;

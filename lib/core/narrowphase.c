@@ -635,6 +635,25 @@ static int convex_convex(const sc_ode *o, dGeomID ga, const sc_shape *a, dGeomID
     return 1;
 }
 
+/* The thread's ODE set up and the pair's geoms (representations ra, rb)
+ * placed at pa and pb. */
+static int placed_geoms(sc_np_ctx *ctx, const sc_shape *a, int ra, const sc_pose *pa,
+                        const sc_shape *b, int rb, const sc_pose *pb, dGeomID *ga, dGeomID *gb)
+{
+    const sc_ode *o = ctx->ode;
+    if (sc_ode_is_private(o))
+        o->dAllocateODEDataForThread(dAllocateMaskAll);
+    else
+        sc_ode_thread_init();
+    *ga = get_geom(ctx, a, 0, ra);
+    *gb = get_geom(ctx, b, 1, rb);
+    if (!*ga || !*gb)
+        return SC_ENOMEM;
+    place(o, *ga, a, pa);
+    place(o, *gb, b, pb);
+    return SC_OK;
+}
+
 int sc_np_convex_raw(sc_np_ctx *ctx, const sc_shape *a, const sc_pose *pa, const sc_shape *b,
                      const sc_pose *pb, int via_ode, sc_contact *c)
 {
@@ -645,15 +664,9 @@ int sc_np_convex_raw(sc_np_ctx *ctx, const sc_shape *a, const sc_pose *pa, const
     if (ra != REP_CONVEX || rb != REP_CONVEX || !a->xyz_soa || !b->xyz_soa)
         return SC_EINVAL;
     const sc_ode *o = ctx->ode;
-    if (sc_ode_is_private(o))
-        o->dAllocateODEDataForThread(dAllocateMaskAll);
-    else
-        sc_ode_thread_init();
-    dGeomID ga = get_geom(ctx, a, 0, ra), gb = get_geom(ctx, b, 1, rb);
-    if (!ga || !gb)
+    dGeomID ga, gb;
+    if (placed_geoms(ctx, a, ra, pa, b, rb, pb, &ga, &gb) != SC_OK)
         return SC_ENOMEM;
-    place(o, ga, a, pa);
-    place(o, gb, b, pb);
     dContactGeom raw[RAW_CONTACTS];
     int n = via_ode ? o->dCollide(ga, gb, RAW_CONTACTS, raw, sizeof raw[0])
                     : convex_convex(o, ga, a, gb, b, raw);
@@ -695,15 +708,9 @@ int sc_np_collide_until(sc_np_ctx *ctx, const sc_shape *a, const sc_pose *pa,
     if (a->npieces || b->npieces)
         return collide_pieces(ctx, a, pa, b, pb, merge, out, max, stop);
     const sc_ode *o = ctx->ode;
-    if (sc_ode_is_private(o))
-        o->dAllocateODEDataForThread(dAllocateMaskAll);
-    else
-        sc_ode_thread_init();
-    dGeomID ga = get_geom(ctx, a, 0, ra), gb = get_geom(ctx, b, 1, rb);
-    if (!ga || !gb)
+    dGeomID ga, gb;
+    if (placed_geoms(ctx, a, ra, pa, b, rb, pb, &ga, &gb) != SC_OK)
         return SC_ENOMEM;
-    place(o, ga, a, pa);
-    place(o, gb, b, pb);
     dContactGeom raw[RAW_CONTACTS];
     int lock = (ra == REP_TRIMESH || rb == REP_TRIMESH) && !sc_ode_is_private(o);
     int n;
