@@ -339,8 +339,8 @@ static int emit(sc_contact *c, int n, double merge, sc_contact *out, int max)
 /* Shape k of s's collision pieces (s itself if it has none), its pose q
  * in the world (a piece's frame is offset in s's) and its bounding radius
  * about q's origin. */
-static const sc_shape *piece_at(const sc_shape *s, const sc_pose *p, int k, sc_pose *q,
-                                double *r)
+static const sc_shape *piece_at(const sc_shape *s, const sc_pose *p, const double R[9], int k,
+                                sc_pose *q, double *r)
 {
     *q = *p;
     if (s->npieces == 0) {
@@ -348,7 +348,7 @@ static const sc_shape *piece_at(const sc_shape *s, const sc_pose *p, int k, sc_p
         return s;
     }
     const double *ball = &s->piece_ball[4 * k];
-    q_rotate(q->pos, p->quat, ball);
+    m3_mulv(q->pos, R, ball);        /* q_rotate(), its matrix made once */
     v3_add(q->pos, q->pos, p->pos);
     *r = ball[3];
     return s->pieces[k];
@@ -362,17 +362,18 @@ typedef struct placed_piece {
 } placed_piece;
 
 /* The pieces of s (s itself if it has none) that can reach a ball at c of
- * radius r, placed, into out; returns how many. */
+ * radius r, placed, into out; returns how many. R: s's rotation matrix
+ * (q_to_m3() of p's quaternion), made here. */
 static int pieces_near(const sc_shape *s, const sc_pose *p, const double c[3], double r,
-                       placed_piece *out)
+                       placed_piece *out, double R[9])
 {
+    q_to_m3(R, p->quat);
     if (s->npieces == 0) {
-        out[0].s = piece_at(s, p, 0, &out[0].q, &out[0].r);
+        out[0].s = piece_at(s, p, R, 0, &out[0].q, &out[0].r);
         return 1;
     }
     /* the ball in s's frame: a piece is placed only if it reaches it */
-    double R[9], d[3], cl[3];
-    q_to_m3(R, p->quat);
+    double d[3], cl[3];
     v3_sub(d, c, p->pos);
     m3_tmulv(cl, R, d);
     int m = 0;
@@ -383,7 +384,7 @@ static int pieces_near(const sc_shape *s, const sc_pose *p, const double c[3], d
         if (v3_dot(e, e) > reach * reach)
             continue;
         placed_piece *pp = &out[m++];
-        pp->s = piece_at(s, p, k, &pp->q, &pp->r);
+        pp->s = piece_at(s, p, R, k, &pp->q, &pp->r);
     }
     return m;
 }
@@ -406,12 +407,10 @@ static int collide_pieces(sc_np_ctx *ctx, const sc_shape *a, const sc_pose *pa,
         !(pp = sc_arena_alloc(&ctx->arena, (size_t)(na + nb) * sizeof *pp)))
         return SC_ENOMEM;
     placed_piece *qa = pp, *qb = pp + na;
-    int ma = pieces_near(a, pa, pb->pos, b->bound_r, qa);
-    int mb = pieces_near(b, pb, pa->pos, a->bound_r, qb);
-    int n = 0, rc = SC_OK, deep = 0;
     double Ra[9], Rb[9];             /* every piece turns as its body */
-    q_to_m3(Ra, pa->quat);
-    q_to_m3(Rb, pb->quat);
+    int ma = pieces_near(a, pa, pb->pos, b->bound_r, qa, Ra);
+    int mb = pieces_near(b, pb, pa->pos, a->bound_r, qb, Rb);
+    int n = 0, rc = SC_OK, deep = 0;
     for (int i = 0; i < ma && rc == SC_OK && !deep; i++)
         for (int j = 0; j < mb && rc == SC_OK && !deep; j++) {
             double d[3], r = qa[i].r + qb[j].r;
