@@ -205,7 +205,11 @@ static int solve(sc_arena *a, int n, double *A, const double *q, const double *l
 
 /* Whether a coupled friction answer z adds kinetic energy, and whose. With
  * row speeds s = q - off (J u*) and w = A z + q, applying z changes the
- * kinetic energy by z.s + z.A z / 2 = (z.w - z.A z / 2) - z.off. The
+ * kinetic energy by z.s + z.A z / 2 = (z.w - z.A z / 2) - z.off. ds (NULL:
+ * none) moves a row's speed to where its impulse acts: a collision's is
+ * taken at its impact (J u0 at the substep's start, the approach at the
+ * touch for a held one), not at J u* = s, which already holds the
+ * forces' pull of the whole substep (below, ELASTIC_IMPACT_SPEED). The
  * first part is the answer's own and is never positive for an exact one:
  * z.w = 0 on normals and free friction rows, and a friction row at its
  * bound opposes its sliding (z_t w_t <= 0); a positive one is rounding
@@ -215,7 +219,7 @@ static int solve(sc_arena *a, int n, double *A, const double *q, const double *l
  * A normal-only or a boxed LCP answer adds none of its own. */
 enum { ENERGY_NONE, ENERGY_TARGETS, ENERGY_OWN };
 static int adds_energy(const double *A, int n, const double *q, const double *off,
-                       const double *z)
+                       const double *ds, const double *z)
 {
     double zw = 0, quad = 0, zoff = 0;
     for (int i = 0; i < n; i++) {
@@ -226,7 +230,7 @@ static int adds_energy(const double *A, int n, const double *q, const double *of
             az += A[i * n + j] * z[j];
         zw += z[i] * (az + q[i]);
         quad += 0.5 * z[i] * az;
-        zoff += z[i] * off[i];
+        zoff += z[i] * (ds ? off[i] + ds[i] : off[i]);
     }
     if (zw - quad > 1e-6 * (fabs(zw) + quad) + 1e-12)
         return ENERGY_OWN;
@@ -254,6 +258,7 @@ typedef struct bounce_try {
     const double *q, *off, *lo, *hi, *mu;
     const int *findex;
     double *q2, *off2;
+    const double *ds;
     sc_solve_info *info;
 } bounce_try;
 
@@ -266,20 +271,21 @@ static int bounce_share(const bounce_try *b, double s, double *z, double *w)
         b->q2[i] = b->q[i] - b->off[i] + b->off2[i];
     }
     int rc = solve(b->arena, b->n, b->A, b->q2, b->lo, b->hi, b->findex, b->mu, z, w, b->info, 0);
-    return rc == SC_OK ? adds_energy(b->A, b->n, b->q2, b->off2, z) : ENERGY_OWN;
+    return rc == SC_OK ? adds_energy(b->A, b->n, b->q2, b->off2, b->ds, z) : ENERGY_OWN;
 }
 
 static int scale_restitution(sc_arena *arena, int n, double *A, const double *q,
-                             const double *off, const double *lo, const double *hi,
-                             const int *findex, const double *mu, double *z, double *w,
-                             int keep, sc_solve_info *info)
+                             const double *off, const double *ds, const double *lo,
+                             const double *hi, const int *findex, const double *mu, double *z,
+                             double *w, int keep, sc_solve_info *info)
 {
     static const double ladder[] = { 0.5, 0.25, 0 };
     double *q2 = sc_arena_alloc(arena, 4 * (size_t)n * sizeof *q2);
     if (!q2)
         return ENERGY_TARGETS;
     bounce_try b = { .arena = arena, .n = n, .A = A, .q = q, .off = off, .lo = lo, .hi = hi,
-                     .mu = mu, .findex = findex, .q2 = q2, .off2 = q2 + n, .info = info };
+                     .mu = mu, .findex = findex, .q2 = q2, .off2 = q2 + n, .ds = ds,
+                     .info = info };
     double *zb = q2 + 2 * n, *wb = q2 + 3 * n;
     int kind = ENERGY_TARGETS;
     if (!keep) {
@@ -1011,7 +1017,8 @@ static int push_out(sc_arena *a, const row *rows, const int *nsel, int nn, const
 static int solve_rows(sc_arena *arena, sc_body *bodies, row *rows, int nrows,
                       const int *nsel, int nn, const int *cstart, int nc, double *A, double *buf,
                       const int *findex, int *sel, int friction, int split, int warm, int keep,
-                      double h, const sc_contact_params *p, sc_solve_info *info)
+                      const double *ds, double h, const sc_contact_params *p,
+                      sc_solve_info *info)
 {
     size_t n = (size_t)nrows;
     double *q = buf, *lo = buf + n, *hi = buf + 2 * n, *mu = buf + 3 * n, *z = buf + 4 * n,
@@ -1024,9 +1031,9 @@ static int solve_rows(sc_arena *arena, sc_body *bodies, row *rows, int nrows,
         rc = solve(arena, nrows, A, q, lo, hi, friction ? findex : NULL, mu, z, w, info,
                    (warm && nc > WARM_MIN_CONTACTS && !p->cold ? SOLVE_WARM : 0) |
                        (p->inject & SC_INJECT_COUPLED ? SOLVE_FAIL : 0));
-        int gain = rc == SC_OK ? adds_energy(A, nrows, q, off, z) : ENERGY_NONE;
+        int gain = rc == SC_OK ? adds_energy(A, nrows, q, off, ds, z) : ENERGY_NONE;
         if (gain == ENERGY_TARGETS) {
-            gain = scale_restitution(arena, nrows, A, q, off, lo, hi, findex, mu, z, w, keep,
+            gain = scale_restitution(arena, nrows, A, q, off, ds, lo, hi, findex, mu, z, w, keep,
                                      info);
             info->restitution_scaled += gain == ENERGY_NONE;
         }
@@ -1293,7 +1300,7 @@ static int impacts(sc_arena *arena, sc_body *bodies, const sc_contact *c, const 
         }
     }
     int rc = solve_rows(arena, bodies, rows, nrows, nsel, nc, cstart, nc, A, buf, findex, sel,
-                        friction, split, 0, keep, h, p, info);
+                        friction, split, 0, keep, NULL, h, p, info);
     for (int i = 0; i < nb; i++) {
         sc_body *b = &bodies[mb[i]];
         v3_copy(b->v0, b->v);
@@ -1617,6 +1624,7 @@ int sc_island_solve(sc_arena *arena, sc_body *bodies, sc_contact *c, const int *
     double *pull = coll ? sc_arena_alloc(arena, 4 * (size_t)nc * sizeof *pull) : NULL;
     int *bid = NULL;                /* an elastic island's bodies, */
     double *keep = NULL;            /* what its solve changes on them */
+    double *ds = NULL;              /* a perfect island's impact speeds (solve_rows()) */
     int rc = SC_ENOMEM;
     if (!pull)
         goto out;
@@ -1742,8 +1750,29 @@ rows_again:
         if (rc != SC_OK)
             goto out;
     }
+    /* a perfectly elastic island's collisions checked at their impacts */
+    free(ds);                     /* a pass before this one's */
+    ds = NULL;
+    if (perfect && ncollide > 0 && !inelastic && !split) {
+        /* malloc'd: rare (elastic scenes), and freed out of the arena's order */
+        ds = malloc(n * sizeof *ds);
+        if (!ds) {
+            rc = SC_ENOMEM;
+            goto out;
+        }
+        for (int k = 0; k < nc; k++) {
+            int r0 = cstart[k], r1 = k + 1 < nc ? cstart[k + 1] : nrows;
+            for (int rr = r0; rr < r1; rr++)
+                ds[rr] = 0;
+            if (!coll[k])
+                continue;
+            double vpre = row_speed(&rows[r0], bodies, 1), speed = row_speed(&rows[r0], bodies, 0);
+            double at = c[ci[k]].depth < 0 ? -pull[2 * nc + k] : vpre;
+            ds[r0] = speed - at;
+        }
+    }
     rc = solve_rows(arena, bodies, rows, nrows, nsel, nn, cstart, nc, A, buf, findex, sel, friction,
-                    split, 1, perfect, h, p, info);
+                    split, 1, perfect, ds, h, p, info);
     if (rc != SC_OK)
         goto out;
     if (elastic) {
@@ -1787,6 +1816,7 @@ impulses:
             v3_madd(ck->impulse, ck->impulse, rows[j].jb, z[j]);
     }
 out:
+    free(ds);
     sc_arena_free(arena, keep);
     sc_arena_free(arena, bid);
     sc_arena_free(arena, pull);
