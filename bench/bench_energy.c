@@ -5,9 +5,10 @@
  * start and the worst drift |E/E0 - 1|, with the elastic re-solves and the
  * single frames that lost or gained more than 0.2 % of the start.
  *
- * Spheres sit on a cubic grid filling 3.2 m around the box's centre and
- * head off along n directions spread over the unit sphere (Fibonacci
- * spiral, as sc_scene_spheres_box()). The issue's target for every such
+ * The scene is sc_scene_elastic_box(): spheres on a cubic grid filling
+ * 3.2 m around the box's centre, heading off along n directions spread
+ * over the unit sphere (Fibonacci spiral, as sc_scene_spheres_box()),
+ * which test_physics runs too. The issue's target for every such
  * box: peak <= 1.001, drift <= 0.5 % over 5000 frames.
  *
  * usage: bench_energy [-f frames] [-n 8,27,64] [-r 0.1,0.2] [-v 1,3] */
@@ -49,46 +50,7 @@ static box_run run_box(int n, double r, double v, int mode, int frames)
     c.toi_mode = mode;
     c.workers = 1;
     sc_world *w = sc_world_create(&c);
-    static const double planes[6][4] = { { 0, 0, 1, 0 },   { 0, 0, -1, -4 }, { 1, 0, 0, -2 },
-                                         { -1, 0, 0, -2 }, { 0, 1, 0, -2 },  { 0, -1, 0, -2 } };
-    sc_shape *ball = w ? sc_shape_uv_sphere(r, 16, 8) : NULL;
-    if (!ball) {
-        b.rc = sc_last_error();
-        sc_world_destroy(w);
-        return b;
-    }
-    for (int i = 0; i < 6 && b.rc == SC_OK; i++) {
-        sc_body_desc d = sc_body_desc_default();
-        d.shape = sc_shape_plane(planes[i][0], planes[i][1], planes[i][2], planes[i][3]);
-        d.mass = 0;
-        d.restitution = 1;
-        d.friction = 0;
-        int id = sc_body_add(w, &d);
-        sc_shape_release(d.shape);
-        b.rc = id < 0 ? id : SC_OK;
-    }
-    int side = (int)ceil(cbrt((double)n));
-    double sp = 3.2 / side;
-    const double golden = M_PI * (3 - sqrt(5.0));
-    for (int i = 0; i < n && b.rc == SC_OK; i++) {
-        sc_body_desc d = sc_body_desc_default();
-        d.shape = ball;
-        d.mass = SC_MASS_FROM_DENSITY;
-        d.density = 7800;
-        d.restitution = 1;
-        d.friction = 0;
-        int ix = i % side, iy = (i / side) % side, iz = i / (side * side);
-        d.pos[0] = (ix - (side - 1) / 2.0) * sp;
-        d.pos[1] = (iy - (side - 1) / 2.0) * sp;
-        d.pos[2] = 2 + (iz - (side - 1) / 2.0) * sp;
-        double z = 1 - (2 * i + 1) / (double)n, rr = sqrt(1 - z * z), phi = golden * i;
-        d.vel[0] = v * rr * cos(phi);
-        d.vel[1] = v * rr * sin(phi);
-        d.vel[2] = v * z;
-        int id = sc_body_add(w, &d);
-        b.rc = id < 0 ? id : SC_OK;
-    }
-    sc_shape_release(ball);
+    b.rc = w ? sc_scene_elastic_box(w, n, r, v) : sc_last_error();
     double e0 = b.rc == SC_OK ? sc_world_energy(w) : 0, e = e0;
     for (int f = 0; f < frames && b.rc == SC_OK; f++) {
         double before = e;

@@ -520,6 +520,12 @@ SC_API int sc_cluster_wait(const sc_world_config *cfg, int k, double timeout_s);
 /* ---- the paper's scenes ---- */
 /* Add Table 1's 27 steel spheres (e = 1) moving in a closed 4 m box to w; SC_OK or a code. */
 SC_API int sc_scene_spheres_box(sc_world *w);
+/* The Table 1 box's walls and n (1..SC_ELASTIC_BOX_MAX) steel UV spheres of
+ * radius (0, 0.25) m, e = 1, no friction, on a grid filling the box's middle
+ * 3.2 m, moving at speed m/s along spread directions: the elastic boxes of
+ * bench_energy. SC_OK or a code. */
+#define SC_ELASTIC_BOX_MAX 1000
+SC_API int sc_scene_elastic_box(sc_world *w, int n, double radius, double speed);
 /* Add a floor and n (1..100000) bolts/nuts at random free poses from seed to w; SC_OK or a code. */
 SC_API int sc_scene_bolts_nuts(sc_world *w, int n, uint64_t seed);
 /* The parts bin: n bolts and nuts on a grid one part length apart, four

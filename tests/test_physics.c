@@ -355,50 +355,17 @@ static void test_table1_spheres_conserve_energy_in_local_mode(void **state)
  * over 5000 frames. A perfectly elastic island's answer is checked for
  * energy its restitution adds with each collision at its impact, not at
  * the speed the whole substep's gravity gives (contact.c solve_rows()):
- * checked there, this box drifted 0.21 %. n is read at run time, as
- * bench_energy reads it (the grid's side is ceil(cbrt(n))). */
+ * checked there, this box drifted 0.21 %. */
 static void test_crowded_elastic_box_keeps_its_energy(void **state)
 {
     (void)state;
-    volatile int n = 64;
+    int n = 64;
     sc_world_config c = sc_world_config_default();
     c.toi_mode = SC_TOI_WORLD;
     c.workers = 1;
     sc_world *w = sc_world_create(&c);
     assert_non_null(w);
-    static const double planes[6][4] = { { 0, 0, 1, 0 },   { 0, 0, -1, -4 }, { 1, 0, 0, -2 },
-                                         { -1, 0, 0, -2 }, { 0, 1, 0, -2 },  { 0, -1, 0, -2 } };
-    for (int i = 0; i < 6; i++) {
-        sc_body_desc d = sc_body_desc_default();
-        d.shape = sc_shape_plane(planes[i][0], planes[i][1], planes[i][2], planes[i][3]);
-        d.mass = 0;
-        d.restitution = 1;
-        d.friction = 0;
-        assert_true(sc_body_add(w, &d) >= 0);
-        sc_shape_release(d.shape);
-    }
-    sc_shape *ball = sc_shape_uv_sphere(0.2, 16, 8);
-    assert_non_null(ball);
-    int side = (int)ceil(cbrt((double)n));
-    double sp = 3.2 / side, golden = M_PI * (3 - sqrt(5.0));
-    for (int i = 0; i < n; i++) {
-        sc_body_desc d = sc_body_desc_default();
-        d.shape = ball;
-        d.mass = SC_MASS_FROM_DENSITY;
-        d.density = 7800;
-        d.restitution = 1;
-        d.friction = 0;
-        int ix = i % side, iy = (i / side) % side, iz = i / (side * side);
-        d.pos[0] = (ix - (side - 1) / 2.0) * sp;
-        d.pos[1] = (iy - (side - 1) / 2.0) * sp;
-        d.pos[2] = 2 + (iz - (side - 1) / 2.0) * sp;
-        double z = 1 - (2 * i + 1) / (double)n, rr = sqrt(1 - z * z), phi = golden * i;
-        d.vel[0] = 3 * rr * cos(phi);
-        d.vel[1] = 3 * rr * sin(phi);
-        d.vel[2] = 3 * z;
-        assert_true(sc_body_add(w, &d) >= 0);
-    }
-    sc_shape_release(ball);
+    assert_int_equal(sc_scene_elastic_box(w, n, 0.2, 3), SC_OK);
     double e0 = sc_world_energy(w), worst = 0, peak = 1;
     for (int f = 0; f < 5000; f++) {
         assert_int_equal(sc_world_step(w, DT), SC_OK);

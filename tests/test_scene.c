@@ -352,6 +352,44 @@ static void test_scenes_reject_bad_n_and_null_world(void **state)
     sc_world_destroy(w);
 }
 
+/* The elastic boxes (bench_energy's): six walls, then n spheres of the
+ * radius, steel, e = 1, no friction, all at the given speed, none
+ * overlapping another or a wall; bad arguments add nothing. */
+static void test_elastic_box_has_n_spheres_at_speed_and_rejects_bad_input(void **state)
+{
+    (void)state;
+    sc_world *w = sc_world_create(NULL);
+    assert_non_null(w);
+    const int bad_n[] = { 0, -1, SC_ELASTIC_BOX_MAX + 1 };
+    for (size_t i = 0; i < sizeof bad_n / sizeof *bad_n; i++)
+        assert_int_equal(sc_scene_elastic_box(w, bad_n[i], 0.1, 1), SC_EINVAL);
+    const double bad_r[] = { 0, -0.1, 0.25, NAN, INFINITY };
+    for (size_t i = 0; i < sizeof bad_r / sizeof *bad_r; i++)
+        assert_int_equal(sc_scene_elastic_box(w, 8, bad_r[i], 1), SC_EINVAL);
+    assert_int_equal(sc_scene_elastic_box(w, 8, 0.1, NAN), SC_EINVAL);
+    assert_int_equal(sc_scene_elastic_box(w, 8, 0.1, -1), SC_EINVAL);
+    assert_int_equal(sc_scene_elastic_box(NULL, 8, 0.1, 1), SC_EINVAL);
+    assert_int_equal(sc_world_body_count(w), 0);
+    assert_int_equal(sc_scene_elastic_box(w, 27, 0.2, 3), SC_OK);
+    assert_int_equal(sc_world_body_count(w), 6 + 27);
+    double pos[27][3];
+    for (int i = 0; i < 27; i++) {
+        double q[4], v[3], om[3];
+        sc_body_get_pose(w, 6 + i, pos[i], q);
+        sc_body_get_velocity(w, 6 + i, v, om);
+        assert_true(fabs(sqrt(v[0] * v[0] + v[1] * v[1] + v[2] * v[2]) - 3) < 1e-12);
+        for (int k = 0; k < 2; k++)
+            assert_true(fabs(pos[i][k]) + 0.2 < 2);
+        assert_true(pos[i][2] > 0.2 && pos[i][2] < 3.8);
+        for (int j = 0; j < i; j++) {
+            double dx = pos[i][0] - pos[j][0], dy = pos[i][1] - pos[j][1],
+                   dz = pos[i][2] - pos[j][2];
+            assert_true(sqrt(dx * dx + dy * dy + dz * dz) > 0.4);
+        }
+    }
+    sc_world_destroy(w);
+}
+
 int main(void)
 {
     const struct CMUnitTest tests[] = {
@@ -364,6 +402,7 @@ int main(void)
         cmocka_unit_test(test_bolts_nuts_same_seed_same_hash_other_seed_other_hash),
         cmocka_unit_test(test_bolts_nuts_go_after_bodies_already_in_the_world),
         cmocka_unit_test(test_scenes_reject_bad_n_and_null_world),
+        cmocka_unit_test(test_elastic_box_has_n_spheres_at_speed_and_rejects_bad_input),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
 }

@@ -95,14 +95,16 @@ static int add_box_walls(sc_world *w)
     return SC_OK;
 }
 
-SC_API int sc_scene_spheres_box(sc_world *w)
+/* n steel UV spheres of radius r (e = 1, no friction) on a cube grid of
+ * the given side and spacing around the box centre, x fastest, sphere i
+ * moving at speed along the i-th of n directions spread evenly over the
+ * unit sphere (Fibonacci spiral: z from +1 towards -1, azimuth in
+ * golden-angle steps), so that neighbours head off at different angles
+ * and meet each other and the walls within a few seconds. */
+static int add_sphere_grid(sc_world *w, int n, int side, double spacing, double r,
+                           double speed)
 {
-    if (!w)
-        return SC_EINVAL;
-    int rc = add_box_walls(w);
-    if (rc != SC_OK)
-        return rc;
-    sc_shape *ball = sc_shape_uv_sphere(SB_RADIUS, 16, 8);   /* 224 triangles */
+    sc_shape *ball = sc_shape_uv_sphere(r, 16, 8);
     if (!ball)
         return sc_last_error();
     sc_body_desc d = sc_body_desc_default();
@@ -111,27 +113,44 @@ SC_API int sc_scene_spheres_box(sc_world *w)
     d.density = STEEL_DENSITY;
     d.restitution = 1.0;
     d.friction = 0.0;
-    /* 3 x 3 x 3 at 1 m spacing around the box centre (0, 0, 2). Sphere i
-     * moves at 1 m/s along the i-th of 27 directions spread evenly over
-     * the unit sphere (Fibonacci spiral: z from +1 towards -1, azimuth in
-     * golden-angle steps), so neighbours head off at different angles and
-     * meet each other and the walls within a few seconds. */
     const double golden = M_PI * (3 - sqrt(5.0));
-    for (int i = 0; i < 27 && rc == SC_OK; i++) {
-        int ix = i % 3, iy = (i / 3) % 3, iz = i / 9;
-        d.pos[0] = (ix - 1) * SB_SPACING;
-        d.pos[1] = (iy - 1) * SB_SPACING;
-        d.pos[2] = 0.5 * SB_HEIGHT + (iz - 1) * SB_SPACING;
-        double z = 1 - (2 * i + 1) / 27.0, r = sqrt(1 - z * z), phi = golden * i;
-        d.vel[0] = SB_SPEED * r * cos(phi);
-        d.vel[1] = SB_SPEED * r * sin(phi);
-        d.vel[2] = SB_SPEED * z;
+    int rc = SC_OK;
+    for (int i = 0; i < n && rc == SC_OK; i++) {
+        int ix = i % side, iy = (i / side) % side, iz = i / (side * side);
+        d.pos[0] = (ix - (side - 1) / 2.0) * spacing;
+        d.pos[1] = (iy - (side - 1) / 2.0) * spacing;
+        d.pos[2] = 0.5 * SB_HEIGHT + (iz - (side - 1) / 2.0) * spacing;
+        double z = 1 - (2 * i + 1) / (double)n, rr = sqrt(1 - z * z), phi = golden * i;
+        d.vel[0] = speed * rr * cos(phi);
+        d.vel[1] = speed * rr * sin(phi);
+        d.vel[2] = speed * z;
         int id = sc_body_add(w, &d);
         if (id < 0)
             rc = id;
     }
     sc_shape_release(ball);
     return rc;
+}
+
+SC_API int sc_scene_spheres_box(sc_world *w)
+{
+    if (!w)
+        return SC_EINVAL;
+    int rc = add_box_walls(w);
+    /* 3 x 3 x 3 at 1 m spacing around the box centre (0, 0, 2), 224
+     * triangles each, 1 m/s */
+    return rc == SC_OK ? add_sphere_grid(w, 27, 3, SB_SPACING, SB_RADIUS, SB_SPEED) : rc;
+}
+
+SC_API int sc_scene_elastic_box(sc_world *w, int n, double radius, double speed)
+{
+    if (!w || n < 1 || n > SC_ELASTIC_BOX_MAX || !(radius > 0) || !(radius < 0.25) ||
+        !(speed >= 0) || !isfinite(speed))
+        return SC_EINVAL;
+    int rc = add_box_walls(w);
+    /* a cube grid of side ceil(cbrt(n)) filling the middle 3.2 m */
+    int side = (int)ceil(cbrt((double)n));
+    return rc == SC_OK ? add_sphere_grid(w, n, side, 3.2 / side, radius, speed) : rc;
 }
 
 /* ---- random non-overlapping poses for the bolt/nut drop ---- */
