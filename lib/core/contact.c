@@ -209,7 +209,8 @@ static int solve(sc_arena *a, int n, double *A, const double *q, const double *l
  * none) moves a row's speed to where its impulse acts: a collision's is
  * taken at its impact (J u0 at the substep's start, the approach at the
  * touch for a held one), not at J u* = s, which already holds the
- * forces' pull of the whole substep (below, ELASTIC_IMPACT_SPEED). The
+ * forces' pull of the whole substep (sc_island_solve() gives it for a
+ * perfectly elastic island only; docs/DESIGN.md 9, elastic boxes). The
  * first part is the answer's own and is never positive for an exact one:
  * z.w = 0 on normals and free friction rows, and a friction row at its
  * bound opposes its sliding (z_t w_t <= 0); a positive one is rounding
