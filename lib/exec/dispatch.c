@@ -181,26 +181,15 @@ static int account(sc_exec_nodes *x, sc_job *job, int stage, sc_stats *st, doubl
     st->makespan_s += makespan_s;
     st->makespan_bound_s += bound;
     st->jobs++;
-    /* the least makespan on n equal nodes with free communication (the
-     * cluster model's input, bench_cluster -p model) */
     double work = 0, largest = 0;
-    int divisible = job->kind == SC_UNIT_COLLIDE || job->kind == SC_UNIT_TOI;
     for (int i = 0; i < job->nunits; i++) {
         const sc_unit *u = &job->units[i];
         work += u->time_s;
+        if (u->time_s > largest)
+            largest = u->time_s;
         st->unit_bytes += (double)u->bytes;
         if (u->time_s > 0)
             st->unit_work_by_density_s[density_bin((double)u->bytes / u->time_s)] += u->time_s;
-        if (job->units[i].time_s > largest)
-            largest = job->units[i].time_s;
-    }
-    st->unit_work_s += work;
-    for (int k = 0; k < SC_STATS_IDEAL_NODES; k++) {
-        double share = work / (k + 1);
-        st->ideal_makespan_s[k] += divisible || share > largest ? share : largest;
-    }
-    for (int i = 0; i < job->nunits; i++) {
-        const sc_unit *u = &job->units[i];
         st->collider_warnings += u->messages;
         if (job->kind == SC_UNIT_ISLAND)
             sc_stats_add_solve(st, &u->info);
@@ -208,6 +197,14 @@ static int account(sc_exec_nodes *x, sc_job *job, int stage, sc_stats *st, doubl
             st->unit_arena_bytes = u->arena_high;
         if (u->rc != SC_OK && rc == SC_OK)
             rc = u->rc;    /* the first in unit order: the same for any assignment */
+    }
+    st->unit_work_s += work;
+    /* the least makespan on n equal nodes with free communication (the
+     * cluster model's input, bench_cluster -p model) */
+    int divisible = job->kind == SC_UNIT_COLLIDE || job->kind == SC_UNIT_TOI;
+    for (int k = 0; k < SC_STATS_IDEAL_NODES; k++) {
+        double share = work / (k + 1);
+        st->ideal_makespan_s[k] += divisible || share > largest ? share : largest;
     }
     st->sched_s += sched_s + (sc_wall_now() - t2);
     return rc;
