@@ -341,10 +341,10 @@ int sc_manifold_reduce(sc_contact *c, int n, double merge_dist);
  * SC_ENOMEM. sc_poly_free() frees them. */
 int sc_poly_build(sc_shape *s);
 void sc_poly_free(sc_shape *s);
-/* n points (3 doubles each) by pairs for two-wide loops: x0 x1 y0 y1 z0
- * z1 ..., the last pair padded with the last point; malloc'd, NULL when
- * n is 0 or out of memory. */
-double *sc_soa_pairs(const double *xyz, int n);
+/* n records of width doubles (points: 3, planes: 4) by pairs for two-wide
+ * loops: x0 x1 y0 y1 z0 z1 ..., the last pair padded with the last
+ * record; malloc'd, NULL when n is 0 or out of memory. */
+double *sc_soa_pairs(const double *src, int n, int width);
 /* 1 if a face plane of a or b (inner faces of a mesh's pieces included)
  * has all the other's corners beyond it: apart for sure; 0 when none does
  * (touching, or parted only along an edge-edge axis), or either lacks faces.

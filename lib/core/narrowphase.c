@@ -23,9 +23,6 @@
 #include <pthread.h>
 #include <stdarg.h>
 #include <stdlib.h>
-#ifdef __SSE2__
-#include <emmintrin.h>
-#endif
 #include <string.h>
 
 #include <ccd/ccd.h>
@@ -282,11 +279,7 @@ static int mesh_plane(const sc_shape *m, const sc_pose *pm, const sc_shape *pl,
     const __m128d ax = _mm_set1_pd(nl[0]), ay = _mm_set1_pd(nl[1]), az = _mm_set1_pd(nl[2]);
     const __m128d dv = _mm_set1_pd(dl), zero = _mm_setzero_pd();
     for (int p = 0; 2 * p < m->nverts; p++) {
-        const double *c2 = &m->xyz_soa[6 * p];
-        __m128d dot = _mm_add_pd(_mm_add_pd(_mm_mul_pd(ax, _mm_loadu_pd(c2)),
-                                            _mm_mul_pd(ay, _mm_loadu_pd(c2 + 2))),
-                                 _mm_mul_pd(az, _mm_loadu_pd(c2 + 4)));
-        __m128d d2 = _mm_sub_pd(dv, dot);
+        __m128d d2 = _mm_sub_pd(dv, v3_dot2(ax, ay, az, &m->xyz_soa[6 * p]));
         int in = _mm_movemask_pd(_mm_cmpgt_pd(d2, zero));
         if (!in)
             continue;
@@ -463,11 +456,7 @@ static double mesh_plane_deepest(const sc_shape *m, const sc_pose *pm, const sc_
     const __m128d ax = _mm_set1_pd(nl[0]), ay = _mm_set1_pd(nl[1]), az = _mm_set1_pd(nl[2]);
     const __m128d dv = _mm_set1_pd(dl), zero = _mm_setzero_pd();
     for (int p = 0; 2 * p < m->nverts && !(deepest > stop); p++) {
-        const double *c2 = &m->xyz_soa[6 * p];
-        __m128d dot = _mm_add_pd(_mm_add_pd(_mm_mul_pd(ax, _mm_loadu_pd(c2)),
-                                            _mm_mul_pd(ay, _mm_loadu_pd(c2 + 2))),
-                                 _mm_mul_pd(az, _mm_loadu_pd(c2 + 4)));
-        __m128d d2 = _mm_sub_pd(dv, dot);
+        __m128d d2 = _mm_sub_pd(dv, v3_dot2(ax, ay, az, &m->xyz_soa[6 * p]));
         if (!_mm_movemask_pd(_mm_cmpgt_pd(d2, zero)))
             continue;
         double two[2];
@@ -545,11 +534,8 @@ static void mpr_support(const void *obj, const ccd_vec3_t *dir_, ccd_vec3_t *v)
     __m128d m = _mm_set1_pd(-CCD_REAL_MAX), idx = _mm_set1_pd(-1), at = _mm_set_pd(1, 0);
     const __m128d two = _mm_set1_pd(2);
     for (int p = 0; 2 * p < s->nverts; p++, at = _mm_add_pd(at, two)) {
-        const double *c2 = &s->xyz_soa[6 * p];
-        /* ccdVec3Dot(dir, p): dir first, summed x, y, z */
-        __m128d d = _mm_add_pd(_mm_add_pd(_mm_mul_pd(dx, _mm_loadu_pd(c2)),
-                                          _mm_mul_pd(dy, _mm_loadu_pd(c2 + 2))),
-                               _mm_mul_pd(dz, _mm_loadu_pd(c2 + 4)));
+        /* ccdVec3Dot(dir, p): dir first, summed x, y, z, as v3_dot() */
+        __m128d d = v3_dot2(dx, dy, dz, &s->xyz_soa[6 * p]);
         __m128d up = _mm_cmpgt_pd(d, m);
         m = _mm_or_pd(_mm_and_pd(up, d), _mm_andnot_pd(up, m));
         idx = _mm_or_pd(_mm_and_pd(up, at), _mm_andnot_pd(up, idx));

@@ -20,9 +20,6 @@
  * shape is built (shapes are immutable afterwards).
  */
 #include <stdlib.h>
-#ifdef __SSE2__
-#include <emmintrin.h>
-#endif
 #include <string.h>
 
 #include "core.h"
@@ -240,15 +237,15 @@ out:
     return rc;
 }
 
-double *sc_soa_pairs(const double *xyz, int n)
+double *sc_soa_pairs(const double *src, int n, int width)
 {
     int pairs = (n + 1) / 2;
-    double *out = n > 0 ? sc_alloc_array((size_t)pairs * 6, sizeof *out) : NULL;
+    double *out = n > 0 ? sc_alloc_array((size_t)pairs * 2 * width, sizeof *out) : NULL;
     for (int p = 0; out && p < pairs; p++)
         for (int j = 0; j < 2; j++) {
             int v = 2 * p + j < n ? 2 * p + j : n - 1;
-            for (int k = 0; k < 3; k++)
-                out[6 * p + 2 * k + j] = xyz[3 * v + k];
+            for (int k = 0; k < width; k++)
+                out[2 * width * p + 2 * k + j] = src[width * v + k];
         }
     return out;
 }
@@ -259,19 +256,12 @@ static int build_soa(sc_shape *s)
 {
     if (s->nface_xyz == 0 || s->nfaces == 0)
         return SC_OK;
-    int pairs = (s->nfaces + 1) / 2;
-    s->face_soa = sc_soa_pairs(s->face_xyz, s->nface_xyz);
-    s->face_plane_soa = sc_alloc_array((size_t)pairs * 8, sizeof *s->face_plane_soa);
+    s->face_soa = sc_soa_pairs(s->face_xyz, s->nface_xyz, 3);
+    s->face_plane_soa = sc_soa_pairs(s->face_plane, s->nfaces, 4);
     if (!s->face_soa || !s->face_plane_soa) {
         sc_poly_free(s);
         return SC_ENOMEM;
     }
-    for (int p = 0; p < pairs; p++)
-        for (int j = 0; j < 2; j++) {
-            int f = 2 * p + j < s->nfaces ? 2 * p + j : s->nfaces - 1;
-            for (int k = 0; k < 4; k++)
-                s->face_plane_soa[8 * p + 2 * k + j] = s->face_plane[4 * f + k];
-        }
     return SC_OK;
 }
 
@@ -324,9 +314,7 @@ static double corners_min(const sc_shape *o, const double Ro[9], const double nw
         __m128d m = _mm_set1_pd(INFINITY), st = _mm_set1_pd(stop);
         int check = stop > -INFINITY;
         for (int p = 0; p < pairs; p++, c += 6) {
-            __m128d d = _mm_add_pd(_mm_add_pd(_mm_mul_pd(ax, _mm_loadu_pd(c)),
-                                              _mm_mul_pd(ay, _mm_loadu_pd(c + 2))),
-                                   _mm_mul_pd(az, _mm_loadu_pd(c + 4)));
+            __m128d d = v3_dot2(ax, ay, az, c);
             m = _mm_min_pd(d, m);       /* d < m ? d : m: min_d(m, d) */
             if (check && _mm_movemask_pd(_mm_cmple_pd(m, st)))
                 break;
@@ -400,9 +388,7 @@ static int ball_beyond_face(const sc_shape *s, const double Rs[9], const double 
         __m128d x = _mm_set1_pd(dl[0]), y = _mm_set1_pd(dl[1]), z = _mm_set1_pd(dl[2]);
         __m128d r = _mm_set1_pd(o->bound_r);
         for (int p = 0; 2 * p < s->nfaces; p++, q += 8) {
-            __m128d dot = _mm_add_pd(_mm_add_pd(_mm_mul_pd(_mm_loadu_pd(q), x),
-                                                _mm_mul_pd(_mm_loadu_pd(q + 2), y)),
-                                     _mm_mul_pd(_mm_loadu_pd(q + 4), z));
+            __m128d dot = v3_dot2(x, y, z, q);    /* v3_dot(pl, dl) */
             if (_mm_movemask_pd(_mm_cmpgt_pd(_mm_sub_pd(dot, _mm_loadu_pd(q + 6)), r)))
                 return 1;
         }

@@ -403,7 +403,7 @@ static sc_shape *mesh_shape_take(int kind, double *xyz, int nverts, int *tri, in
         s->bound_r = max_d(s->bound_r, v3_len(&xyz[3 * i]));
     s->convex = kind == SC_SHAPE_CONVEX || mesh_is_convex(s);
     rc = build_ode_data(s);
-    if (rc == SC_OK && !(s->xyz_soa = sc_soa_pairs(xyz, nverts)))
+    if (rc == SC_OK && !(s->xyz_soa = sc_soa_pairs(xyz, nverts, 3)))
         rc = SC_ENOMEM;
     if (rc == SC_OK)
         rc = sc_poly_build(s);

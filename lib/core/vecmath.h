@@ -4,6 +4,9 @@
 #define SC_VECMATH_H
 
 #include <math.h>
+#ifdef __SSE2__
+#include <emmintrin.h>
+#endif
 
 static inline void v3_set(double r[3], double x, double y, double z) { r[0] = x; r[1] = y; r[2] = z; }
 static inline void v3_copy(double r[3], const double a[3]) { r[0] = a[0]; r[1] = a[1]; r[2] = a[2]; }
@@ -18,6 +21,17 @@ static inline void v3_madd(double r[3], const double a[3], const double b[3], do
 { r[0] = a[0] + s * b[0]; r[1] = a[1] + s * b[1]; r[2] = a[2] + s * b[2]; }
 static inline double v3_dot(const double a[3], const double b[3])
 { return a[0] * b[0] + a[1] * b[1] + a[2] * b[2]; }
+#ifdef __SSE2__
+/* Two v3_dot(n, p) at once: n's components broadcast in x, y, z, the two
+ * points from a pair block x0 x1 y0 y1 z0 z1 (sc_soa_pairs()); the same
+ * products summed in the same order, so the same bits as v3_dot(). */
+static inline __m128d v3_dot2(__m128d x, __m128d y, __m128d z, const double *pair)
+{
+    return _mm_add_pd(_mm_add_pd(_mm_mul_pd(x, _mm_loadu_pd(pair)),
+                                 _mm_mul_pd(y, _mm_loadu_pd(pair + 2))),
+                      _mm_mul_pd(z, _mm_loadu_pd(pair + 4)));
+}
+#endif
 static inline void v3_cross(double r[3], const double a[3], const double b[3])
 {
     double x = a[1] * b[2] - a[2] * b[1], y = a[2] * b[0] - a[0] * b[2],
