@@ -1623,11 +1623,12 @@ int sc_island_solve(sc_arena *arena, sc_body *bodies, sc_contact *c, const int *
     int *cstart = sel ? sc_arena_alloc(arena, (size_t)nc * sizeof *cstart) : NULL;
     int *coll = cstart ? sc_arena_alloc(arena, (size_t)nc * sizeof *coll) : NULL;
     double *pull = coll ? sc_arena_alloc(arena, 4 * (size_t)nc * sizeof *pull) : NULL;
+    /* a perfect island's impact speeds (solve_rows()) */
+    double *dsbuf = pull ? sc_arena_alloc(arena, n * sizeof *dsbuf) : NULL, *ds = NULL;
     int *bid = NULL;                /* an elastic island's bodies, */
     double *keep = NULL;            /* what its solve changes on them */
-    double *ds = NULL;              /* a perfect island's impact speeds (solve_rows()) */
     int rc = SC_ENOMEM;
-    if (!pull)
+    if (!dsbuf)
         goto out;
     double *q = buf, *lo = buf + n, *hi = buf + 2 * n, *mu = buf + 3 * n, *z = buf + 4 * n,
            *off = buf + 6 * n;
@@ -1752,15 +1753,9 @@ rows_again:
             goto out;
     }
     /* a perfectly elastic island's collisions checked at their impacts */
-    free(ds);                     /* a pass before this one's */
     ds = NULL;
     if (perfect && ncollide > 0 && !inelastic && !split) {
-        /* malloc'd: rare (elastic scenes), and freed out of the arena's order */
-        ds = malloc(n * sizeof *ds);
-        if (!ds) {
-            rc = SC_ENOMEM;
-            goto out;
-        }
+        ds = dsbuf;
         for (int k = 0; k < nc; k++) {
             int r0 = cstart[k], r1 = k + 1 < nc ? cstart[k + 1] : nrows;
             for (int rr = r0; rr < r1; rr++)
@@ -1817,9 +1812,9 @@ impulses:
             v3_madd(ck->impulse, ck->impulse, rows[j].jb, z[j]);
     }
 out:
-    free(ds);
     sc_arena_free(arena, keep);
     sc_arena_free(arena, bid);
+    sc_arena_free(arena, dsbuf);
     sc_arena_free(arena, pull);
     sc_arena_free(arena, coll);
     sc_arena_free(arena, cstart);
