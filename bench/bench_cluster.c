@@ -12,8 +12,9 @@
  *   model     a prediction of k one-thread daemons (up to 15) from
  *             measured costs: the frame's work outside units, its jobs'
  *             least makespan on n nodes (sc_stats.ideal_makespan_s), the
- *             daemon's round trip and the master's time per message
- *             (see model() below); checked against one daemon measured.
+ *             work by wire bytes per second of it, the daemon's round trip
+ *             and the master's time per byte shipped (see model() below);
+ *             checked against one daemon measured.
  *   fg        a CPU-bound program pinned to one CPU, alone and next to a
  *             one-thread daemon pinned to the same CPU that is kept full of
  *             units (the master sends it everything), with the daemon at
@@ -316,19 +317,23 @@ static void scaling(int n, const int *ks, int nk, int runs, double seconds)
  *      units' bytes; packing, sealing, sending, receiving, merging) and
  *      the round trip less the work, L (remote_overhead_s / remote_jobs).
  * The frame's work outside units (serial stages, and the sweeps and
- * passes a master with daemons runs alone) is S = T1 - W. Shipping a
- * share f of the unit work costs the master rho f W, rho = (time per
- * byte) (bytes of all units) / W, as if every unit shipped alike. With k
- * daemons of the master's speed the master takes M = S + (1 - f) W +
- * rho f W and the daemons D = f W / k; f balances them (none if rho >=
- * 1), and a frame takes
- *   T(k) = max(M, D, S + I(k + 1)) + J L
- * (every job that ships waits a round trip beyond the work: the
- * protocol today), or with one exchange a frame (the coarse units of the
- * plan) + L instead of + J L; S + I(k + 1) alone is the ceiling of free
- * messages. It is a model: the greedy's own imbalance, the daemons'
- * speed and units that ship cheaper than others are left out; run C
- * checks it at k = 1. */
+ * passes a master with daemons runs alone) is S = T1 - W. A unit of
+ * density b (wire bytes per second of its work; B's bins of
+ * unit_work_by_density_s) costs the master rho = (time per byte) b per
+ * second of work to ship. With k daemons of the master's speed the master
+ * ships the cheapest bins first, only where rho <= SHIP_SHARE (the
+ * scheduler's rule), until its own time M = S + (W - shipped) + rho
+ * shipped meets the daemons' D = shipped / k (model_frame()), and a
+ * frame takes
+ *   T(k) = max(M, D, S + I(k + 1)) + Jr L
+ * when anything ships, Jr the jobs a frame that shipped with one daemon
+ * (each waits a round trip beyond the work: the protocol today), or with
+ * one exchange a frame (the coarse units of the plan) + min(Jr, 1) L;
+ * S + I(k + 1) alone is the ceiling of free messages. rho over all
+ * units as if they shipped alike is printed for comparison. It is a
+ * model: the greedy's own imbalance, the barriers' waits and the
+ * daemons' speed are left out (an upper bound); run C checks it at
+ * k = 1. */
 typedef struct profile {
     double wall, work, jobs, bytes, ideal[SC_STATS_IDEAL_NODES];
     double density[SC_STATS_DENSITY_BINS];
