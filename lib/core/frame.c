@@ -27,7 +27,7 @@
 sc_contact_params sc_frame_contact_params(const sc_frame_config *cfg)
 {
     return (sc_contact_params){
-        .bounce_speed = 0.1,      /* the paper's threshold speed */
+        .bounce_speed = SC_BOUNCE_SPEED,
         .slop = 0.5e-3,
         .baumgarte = 0.2,
         .split_contacts = cfg->island_split,

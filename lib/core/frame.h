@@ -259,6 +259,9 @@ typedef struct sc_frame {
 /* The contact model and solver settings a frame of cfg uses (frame.c;
  * docs/DESIGN.md section 11). */
 sc_contact_params sc_frame_contact_params(const sc_frame_config *cfg);
+/* m/s: an approach faster than this collides (restitution), the paper's
+ * threshold speed; sc_contact_params.bounce_speed of every frame */
+#define SC_BOUNCE_SPEED 0.1
 /* Adding the CPU time since t0 to a Table 1 row of f's figures. */
 void sc_stage_add(sc_stats *st, int stage, double t0);
 /* The clock a frame's stages time themselves with (sc_stats.stage_s): the

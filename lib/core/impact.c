@@ -263,8 +263,7 @@ static int pushed_in(const sc_frame *f, const sc_body *saved, const sc_contact *
  * energy: the elastic boxes of bench_energy drifted up to 3.3 % in the
  * local mode (docs/DESIGN.md 3.4). Inelastic pairs keep being held: they
  * lose energy anyway, and piles need it. */
-static int elastic_collision(const sc_frame *f, const sc_body *saved, const sc_contact *s,
-                             int n)
+static int elastic_collision(const sc_body *saved, const sc_contact *s, int n)
 {
     int k = -1;
     for (int i = 0; i < n; i++)
@@ -286,7 +285,7 @@ static int elastic_collision(const sc_frame *f, const sc_body *saved, const sc_c
         v3_add(v, b->v, wr);
         vrel += (side ? 1 : -1) * v3_dot(v, s[k].normal);
     }
-    return vrel < -sc_frame_contact_params(f->cfg).bounce_speed;
+    return vrel < -SC_BOUNCE_SPEED;
 }
 
 /* The contacts of the detection's pair run st->contacts[k0 .. k1) moved
@@ -309,7 +308,7 @@ static int end_contacts(sc_frame *f, const sc_body *saved, const sc_contact *c0,
     for (int k = k0; k < k1 && n < SC_MAX_PAIR_CONTACTS; k++)
         if (!touching || st->contacts[k].depth > limit)
             s[n++] = to_start(&st->contacts[k], &f->poses[a], &f->poses[b], &a0, &b0);
-    if (!hold && (pushed_in(f, saved, s, n, h) || elastic_collision(f, saved, s, n)))
+    if (!hold && (pushed_in(f, saved, s, n, h) || elastic_collision(saved, s, n)))
         return 0;
     int added = 0;
     for (int k = 0; k < n; k++) {
@@ -458,7 +457,7 @@ int sc_spec_touch(sc_frame *f, const sc_body *saved, const sc_contact *c0, int n
          * held where it ended) */
         int far = gap > margin;
         if (!hold && (far || pushed_in(f, saved, s, ncontact[i], h) ||
-                      elastic_collision(f, saved, s, ncontact[i])))
+                      elastic_collision(saved, s, ncontact[i])))
             continue;
         int added = 0;
         for (int k = 0; !far && k < ncontact[i] && rc == SC_OK; k++) {
