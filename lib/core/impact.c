@@ -209,6 +209,40 @@ static double pair_limit(const sc_contact *c0, int n0, int a, int b, double tol,
     return d0 <= tol ? tol : d0 + 0.01 * tol;
 }
 
+/* The deepest of contacts s[0 .. n) if it is a gap, else -1. */
+static int deepest_gap(const sc_contact *s, int n)
+{
+    int k = -1;
+    for (int i = 0; i < n; i++)
+        if (k < 0 || s[i].depth > s[k].depth)
+            k = i;
+    return k >= 0 && s[k].depth < 0 ? k : -1;
+}
+
+/* The bodies' relative speed along contact c's normal at its point from
+ * their velocities at the substep's start (after h of the external forces
+ * when f is given); negative closes. */
+static double normal_speed(const sc_frame *f, const sc_body *saved, const sc_contact *c, double h)
+{
+    double vrel = 0;
+    for (int side = 0; side < 2; side++) {
+        const sc_body *b = &saved[side ? c->body_b : c->body_a];
+        if (!sc_body_movable(b))
+            continue;
+        double v[3], r[3], wr[3];
+        v3_copy(v, b->v);
+        if (f) {
+            v3_madd(v, v, f->cfg->gravity, h);
+            v3_madd(v, v, b->force, h * b->inv_mass);
+        }
+        v3_sub(r, c->pos, b->x);
+        v3_cross(wr, b->w, r);
+        v3_add(v, v, wr);
+        vrel += (side ? 1 : -1) * v3_dot(v, c->normal);
+    }
+    return vrel;
+}
+
 /* Whether a pair with contacts s[0 .. n) at the substep's start is only
  * brought together by impulses of this substep: its own approach (each
  * movable body's velocity at the start, and after the external forces of
@@ -220,32 +254,12 @@ static double pair_limit(const sc_contact *c0, int n0, int a, int b, double tol,
  * one frame so). It is backed up to instead, which orders them. */
 static int pushed_in(const sc_frame *f, const sc_body *saved, const sc_contact *s, int n, double h)
 {
-    int k = -1;
-    for (int i = 0; i < n; i++)
-        if (k < 0 || s[i].depth > s[k].depth)
-            k = i;
-    if (k < 0 || s[k].depth >= 0)
+    int k = deepest_gap(s, n);
+    if (k < 0)
         return 0;
     double reach = 0;
-    for (int pass = 0; pass < 2; pass++) {
-        double vrel = 0;
-        for (int side = 0; side < 2; side++) {
-            const sc_body *b = &saved[side ? s[k].body_b : s[k].body_a];
-            if (!sc_body_movable(b))
-                continue;
-            double v[3], r[3], wr[3];
-            v3_copy(v, b->v);
-            if (pass) {
-                v3_madd(v, v, f->cfg->gravity, h);
-                v3_madd(v, v, b->force, h * b->inv_mass);
-            }
-            v3_sub(r, s[k].pos, b->x);
-            v3_cross(wr, b->w, r);
-            v3_add(v, v, wr);
-            vrel += (side ? 1 : -1) * v3_dot(v, s[k].normal);
-        }
-        reach = max_d(reach, -vrel * h);
-    }
+    for (int pass = 0; pass < 2; pass++)
+        reach = max_d(reach, -normal_speed(pass ? f : NULL, saved, &s[k], h) * h);
     /* the same test as contact.c's for a colliding speculative row: what
      * is held here bounces there */
     return -s[k].depth >= reach;
@@ -265,27 +279,10 @@ static int pushed_in(const sc_frame *f, const sc_body *saved, const sc_contact *
  * lose energy anyway, and piles need it. */
 static int elastic_collision(const sc_body *saved, const sc_contact *s, int n)
 {
-    int k = -1;
-    for (int i = 0; i < n; i++)
-        if (k < 0 || s[i].depth > s[k].depth)
-            k = i;
-    if (k < 0 || s[k].depth >= 0)
-        return 0;
-    const sc_body *body[2] = { &saved[s[k].body_a], &saved[s[k].body_b] };
-    if (!(max_d(body[0]->restitution, body[1]->restitution) >= 1))
-        return 0;
-    double vrel = 0;
-    for (int side = 0; side < 2; side++) {
-        const sc_body *b = body[side];
-        if (!sc_body_movable(b))
-            continue;
-        double v[3], r[3], wr[3];
-        v3_sub(r, s[k].pos, b->x);
-        v3_cross(wr, b->w, r);
-        v3_add(v, b->v, wr);
-        vrel += (side ? 1 : -1) * v3_dot(v, s[k].normal);
-    }
-    return vrel < -SC_BOUNCE_SPEED;
+    int k = deepest_gap(s, n);
+    return k >= 0 &&
+           max_d(saved[s[k].body_a].restitution, saved[s[k].body_b].restitution) >= 1 &&
+           normal_speed(NULL, saved, &s[k], 0) < -SC_BOUNCE_SPEED;
 }
 
 /* The contacts of the detection's pair run st->contacts[k0 .. k1) moved
