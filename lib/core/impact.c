@@ -243,46 +243,51 @@ static double normal_speed(const sc_frame *f, const sc_body *saved, const sc_con
     return vrel;
 }
 
-/* Whether a pair with contacts s[0 .. n) at the substep's start is only
- * brought together by impulses of this substep: its own approach (each
- * movable body's velocity at the start, and after the external forces of
- * h, at the contact point along the normal) cannot close its smallest gap
- * within h. Such a pair meets after another collision of the substep
- * (a sphere bounced off one neighbour into the next): held in the same
- * LCP, both collisions would be simultaneous, and Newton's restitution on
- * simultaneous contacts can add energy (the Table 1 box gained 0.5 % in
- * one frame so). It is backed up to instead, which orders them. */
-static int pushed_in(const sc_frame *f, const sc_body *saved, const sc_contact *s, int n, double h)
+/* Whether a pair whose deepest contact at the substep's start is c, a
+ * gap, is only brought together by impulses of this substep: its own
+ * approach (each movable body's velocity at the start, and after the
+ * external forces of h, at the contact point along the normal) cannot
+ * close that gap within h. Such a pair meets after another collision of
+ * the substep (a sphere bounced off one neighbour into the next): held
+ * in the same LCP, both collisions would be simultaneous, and Newton's
+ * restitution on simultaneous contacts can add energy (the Table 1 box
+ * gained 0.5 % in one frame so). It is backed up to instead, which orders
+ * them. */
+static int pushed_in(const sc_frame *f, const sc_body *saved, const sc_contact *c, double h)
 {
-    int k = deepest_gap(s, n);
-    if (k < 0)
-        return 0;
     double reach = 0;
     for (int pass = 0; pass < 2; pass++)
-        reach = max_d(reach, -normal_speed(pass ? f : NULL, saved, &s[k], h) * h);
+        reach = max_d(reach, -normal_speed(pass ? f : NULL, saved, c, h) * h);
     /* the same test as contact.c's for a colliding speculative row: what
      * is held here bounces there */
-    return -s[k].depth >= reach;
+    return -c->depth >= reach;
 }
 
-/* Whether a pair with contacts s[0 .. n) at the substep's start is a
- * perfectly elastic collision: restitution 1 (a pair's is the larger of
- * its bodies', as contact.c takes it) and its deepest contact, a gap,
- * closing faster than the bounce speed. Such a pair is not held: it backs
- * up to its touch, as in the world-wide mode, so that its collisions come
- * one at a time in their order. Held, several touches of one substep
+/* Whether a pair whose deepest contact at the substep's start is c, a
+ * gap, is a perfectly elastic collision: restitution 1 (a pair's is the
+ * larger of its bodies', as contact.c takes it) and c closing faster than
+ * the bounce speed. Such a pair is not held: it backs up to its touch, as
+ * in the world-wide mode, so that its collisions come one at a time in
+ * their order. Held, several touches of one substep
  * were solved at once (a faceted sphere's vertices, or a floor touch
  * that a hit on the same sphere earlier in the substep would have
  * prevented), and restitution on simultaneous contacts lost or gained
  * energy: the elastic boxes of bench_energy drifted up to 3.3 % in the
  * local mode (docs/DESIGN.md 3.4). Inelastic pairs keep being held: they
  * lose energy anyway, and piles need it. */
-static int elastic_collision(const sc_body *saved, const sc_contact *s, int n)
+static int elastic_collision(const sc_body *saved, const sc_contact *c)
+{
+    return max_d(saved[c->body_a].restitution, saved[c->body_b].restitution) >= 1 &&
+           normal_speed(NULL, saved, c, 0) < -SC_BOUNCE_SPEED;
+}
+
+/* Whether a pair with contacts s[0 .. n) at the substep's start backs up
+ * instead of being held: its deepest contact a gap that it is only pushed
+ * into, or a perfectly elastic collision. */
+static int backs_up(const sc_frame *f, const sc_body *saved, const sc_contact *s, int n, double h)
 {
     int k = deepest_gap(s, n);
-    return k >= 0 &&
-           max_d(saved[s[k].body_a].restitution, saved[s[k].body_b].restitution) >= 1 &&
-           normal_speed(NULL, saved, &s[k], 0) < -SC_BOUNCE_SPEED;
+    return k >= 0 && (pushed_in(f, saved, &s[k], h) || elastic_collision(saved, &s[k]));
 }
 
 /* The contacts of the detection's pair run st->contacts[k0 .. k1) moved
@@ -305,7 +310,7 @@ static int end_contacts(sc_frame *f, const sc_body *saved, const sc_contact *c0,
     for (int k = k0; k < k1 && n < SC_MAX_PAIR_CONTACTS; k++)
         if (!touching || st->contacts[k].depth > limit)
             s[n++] = to_start(&st->contacts[k], &f->poses[a], &f->poses[b], &a0, &b0);
-    if (!hold && (pushed_in(f, saved, s, n, h) || elastic_collision(saved, s, n)))
+    if (!hold && backs_up(f, saved, s, n, h))
         return 0;
     int added = 0;
     for (int k = 0; k < n; k++) {
@@ -453,8 +458,7 @@ int sc_spec_touch(sc_frame *f, const sc_body *saved, const sc_contact *c0, int n
          * backs up, unless the substep already backed up (then it is
          * held where it ended) */
         int far = gap > margin;
-        if (!hold && (far || pushed_in(f, saved, s, ncontact[i], h) ||
-                      elastic_collision(saved, s, ncontact[i])))
+        if (!hold && (far || backs_up(f, saved, s, ncontact[i], h)))
             continue;
         int added = 0;
         for (int k = 0; !far && k < ncontact[i] && rc == SC_OK; k++) {
