@@ -137,10 +137,11 @@ static void list_jump(box_run *b, const sc_world *w, const sphere_state *before,
     j->de = de;
     j->nbodies = 0;
     for (int i = 0; i < nb && j->nbodies < MAX_JUMP_BODIES; i++) {
+        if (sc_body_state(w, i) == SC_STATIC)
+            continue;
         sphere_state now;
         get_state(w, i, &now);
-        if (sc_body_state(w, i) == SC_STATIC ||
-            !(fabs(energy_per_kg(now.x) - energy_per_kg(before[i].x)) > 0.01))
+        if (!(fabs(energy_per_kg(now.x) - energy_per_kg(before[i].x)) > 0.01))
             continue;
         alone[j->nbodies] = before[i];
         j->ids[j->nbodies++] = i;
