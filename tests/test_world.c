@@ -623,6 +623,37 @@ static void test_a_landing_pile_may_back_up_more_than_15_times_a_frame(void **st
     sc_world_destroy(w);
 }
 
+/* A pair pressed in at its depth limit passes it again early in every
+ * substep; backing up to that point each time advanced the 200-part bin
+ * (seed 14, from frame 131 on) 0.6-5 % of the frame's time left per
+ * back-up, until the frame reached the cap of 31 (a frame of 422 ms).
+ * After a few back-ups such a pair is held where it ended (impact.c,
+ * CREEP_BACKUPS; docs/DESIGN.md 3.4): no frame near the cap, and the pair
+ * at most a hundredth of the tolerance past its limit. */
+static void test_a_pressed_pair_does_not_back_up_a_pile_to_the_cap(void **state)
+{
+    (void)state;
+    sc_world_config c = sc_world_config_default();
+    c.workers = 1;
+    sc_world *w = sc_world_create(&c);
+    assert_non_null(w);
+    assert_int_equal(sc_scene_bin(w, 200, 14), SC_OK);
+    double pen = 0;
+    int most = 0;
+    for (int k = 0; k < 140; k++) {
+        assert_int_equal(sc_world_step(w, 0.01), SC_OK);
+        sc_stats st;
+        sc_world_stats(w, &st);
+        pen = fmax(pen, st.max_penetration);
+        most = st.backups > most ? st.backups : most;
+    }
+    print_message("bin of 200, seed 14, 140 frames: most back-ups in a frame %d, deepest %.4f mm\n",
+                  most, 1e3 * pen);
+    assert_true(most < 16);
+    assert_true(pen <= 1.02 * c.contact_tol_m);
+    sc_world_destroy(w);
+}
+
 /* Steps a drop of n bolts and nuts for frames frames in mode: the deepest
  * contact of any frame and the mean substeps a frame. */
 static void drop_run(int mode, int n, int frames, double *pen, double *substeps)
@@ -688,6 +719,7 @@ int main(void)
         cmocka_unit_test(test_a_pile_never_gains_energy),
         cmocka_unit_test(test_local_mode_drop_stays_shallow),
         cmocka_unit_test(test_a_landing_pile_may_back_up_more_than_15_times_a_frame),
+        cmocka_unit_test(test_a_pressed_pair_does_not_back_up_a_pile_to_the_cap),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
 }

@@ -340,6 +340,7 @@ static int substeps(sc_frame *f, double dt, sc_body *saved, unsigned char *touch
              * hold at their touch are held where they ended (waiting for
              * the last back-up instead gained the Table 1 box 0.1 %) */
             int nfast = 0, nslow = 0;
+            f->backups = backups;
             int can_back = backups < MAX_BACKUPS_LOCAL && sub_backups < SPEC_BACKUPS;
             if (rounds < SPEC_ROUNDS || can_back)
                 nslow = sc_spec_sort_out(f, saved, c0, n0, h, &spec, fast, &nfast);

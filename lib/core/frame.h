@@ -254,6 +254,7 @@ typedef struct sc_frame {
     double *centre, *radius;
     unsigned char *active;
     sc_pose *poses;
+    int backups;              /* back-ups of this frame so far (local mode) */
 } sc_frame;
 
 /* The contact model and solver settings a frame of cfg uses (frame.c;
