@@ -527,6 +527,109 @@ static void test_sap_stays_exact_over_frames_of_moving_bodies(void **state)
     scene_free(&s);
 }
 
+/* The candidate list (sc_bp_find_pairs_skin()): over calls in which the
+ * bodies move within their skins, past them (a few teleport), exactly to
+ * a touch, change radius or activity, with skins of zero, with the list
+ * dropped between "frames" and the body count changed, both methods give
+ * the reference's pairs every time, and the list is reused. */
+static void test_skin_list_matches_reference_over_moving_calls(void **state)
+{
+    (void)state;
+    static const int meth[] = { SC_BROADPHASE_SPHERES, SC_BROADPHASE_SAP };
+    for (int m = 0; m < 2; m++) {
+        rng g = { 31 + (uint64_t)m };
+        scene s = scene_new(700, 1);
+        fill_pile(&s, &g);
+        double *skin = calloc((size_t)s.n, sizeof *skin);
+        assert_non_null(skin);
+        for (int i = 0; i < s.n; i++) {
+            s.act[i] = i % 7 != 0;
+            skin[i] = i % 11 == 0 ? 0 : uni(&g, 0.001, 0.03);
+        }
+        sc_broadphase *bp = sc_bp_create();
+        assert_non_null(bp);
+        sc_pair *p = NULL;
+        int cap = 0, n_full = s.n;
+        for (int call = 0; call < 120; call++) {
+            if (call % 10 == 0) {
+                sc_bp_list_drop(bp);     /* a new frame */
+                s.n = call == 60 ? n_full - 37 : n_full;
+            }
+            for (int i = 0; i < s.n; i++) {
+                double *c = centre(&s, i);
+                if (skin[i] > 0)          /* within the skin over a frame */
+                    for (int k = 0; k < 3; k++)
+                        c[k] += uni(&g, -0.05, 0.05) * skin[i];
+                if (call % 10 == 7 && rng_next(&g) % 300 == 0) /* past it */
+                    c[0] = uni(&g, 0, 2);
+                if (call % 10 == 3 && rng_next(&g) % 300 == 0)
+                    s.r[i] = uni(&g, 0.02, 0.08);
+                if (call % 10 == 8 && rng_next(&g) % 300 == 0)
+                    s.act[i] = !s.act[i];
+            }
+            if (call % 10 == 5) {
+                /* two bodies moved onto an exact touch along x */
+                int a = (int)(rng_next(&g) % (uint64_t)s.n), b = (a + 1) % s.n;
+                double *ca = centre(&s, a), *cb = centre(&s, b);
+                cb[1] = ca[1];
+                cb[2] = ca[2];
+                cb[0] = ca[0] + (s.r[a] + s.r[b]);
+            }
+            sc_pair *want;
+            int nwant = reference(&s, &want);
+            int np = sc_bp_find_pairs_skin(bp, NULL, meth[m], s.c, s.r, skin, s.act, s.n, &p,
+                                           &cap);
+            assert_same_pairs(want, nwant, p, np, meth[m] ? "skin list, SAP" : "skin list");
+            free(want);
+        }
+        assert_true(sc_bp_list_reused(bp) > 30);
+        free(p);
+        free(skin);
+        sc_bp_destroy(bp);
+        scene_free(&s);
+    }
+}
+
+/* Two spheres 2.5 skins apart (not candidates): one moving 0.9 of its
+ * skin and the other 1.9 of its own bring them into overlap; the list
+ * must be made again for the second, and the pair is found. Then from a
+ * new list both move a quarter past their skins onto an exact touch
+ * (r_a + r_b apart), found, and apart again. */
+static void test_skin_list_is_made_again_past_a_skin(void **state)
+{
+    (void)state;
+    for (int m = 0; m < 2; m++) {
+        int meth = m ? SC_BROADPHASE_SAP : SC_BROADPHASE_SPHERES;
+        double c[6] = { 0, 0, 0, 0, 0, 0 }, r[2] = { 0.5, 0.5 }, skin[2] = { 0.1, 0.1 };
+        sc_broadphase *bp = sc_bp_create();
+        assert_non_null(bp);
+        sc_pair *p = NULL;
+        int cap = 0;
+        c[3] = 1.0 + 2.5 * 0.1;
+        assert_int_equal(sc_bp_find_pairs_skin(bp, NULL, meth, c, r, skin, NULL, 2, &p, &cap), 0);
+        assert_int_equal(sc_bp_find_pairs_skin(bp, NULL, meth, c, r, skin, NULL, 2, &p, &cap), 0);
+        c[0] += 0.09;
+        c[3] -= 0.19;
+        assert_int_equal(sc_bp_find_pairs_skin(bp, NULL, meth, c, r, skin, NULL, 2, &p, &cap), 1);
+        assert_int_equal(p[0].a, 0);
+        assert_int_equal(p[0].b, 1);
+        /* apart again, a new list; then 0 moves exactly its skin onto an
+         * exact touch with 1 (1.0 apart: r_a + r_b) */
+        sc_bp_list_drop(bp);
+        c[0] = 0;
+        c[3] = 1.1;
+        assert_int_equal(sc_bp_find_pairs_skin(bp, NULL, meth, c, r, skin, NULL, 2, &p, &cap), 0);
+        assert_int_equal(sc_bp_find_pairs_skin(bp, NULL, meth, c, r, skin, NULL, 2, &p, &cap), 0);
+        c[0] = 0.125;
+        c[3] = 1.125;
+        assert_int_equal(sc_bp_find_pairs_skin(bp, NULL, meth, c, r, skin, NULL, 2, &p, &cap), 1);
+        c[0] = 0.1;
+        assert_int_equal(sc_bp_find_pairs_skin(bp, NULL, meth, c, r, skin, NULL, 2, &p, &cap), 0);
+        free(p);
+        sc_bp_destroy(bp);
+    }
+}
+
 /* The body count changes between calls on one broad phase (bodies added,
  * removed, all removed, methods alternated). */
 /* SAP after a call that moved few bodies tests only theirs again (its
@@ -844,6 +947,8 @@ int main(void)
         cmocka_unit_test(test_both_methods_match_reference_with_huge_and_tiny_radii_mixed),
         cmocka_unit_test(test_inactive_pairs_are_excluded),
         cmocka_unit_test(test_zero_one_and_two_bodies),
+        cmocka_unit_test(test_skin_list_matches_reference_over_moving_calls),
+        cmocka_unit_test(test_skin_list_is_made_again_past_a_skin),
         cmocka_unit_test(test_sap_stays_exact_over_frames_of_moving_bodies),
         cmocka_unit_test(test_sap_stays_exact_when_the_body_count_changes),
         cmocka_unit_test(test_sap_exact_when_few_bodies_moved),

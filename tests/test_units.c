@@ -519,17 +519,19 @@ static int detect_copy(const sc_world *w, sc_frame_state *st, sc_frame_scratch *
                        sc_exec *ex, sc_stats *fs, sc_contact *c)
 {
     int n = st->nbodies;
-    sc_frame f = { .cfg = &w->fcfg, .st = st, .scr = scr, .ex = ex, .stats = fs };
+    sc_frame f = { .cfg = &w->fcfg, .st = st, .scr = scr, .ex = ex, .stats = fs, .dt = 0.01 };
     f.centre = malloc((size_t)n * 3 * sizeof *f.centre);
     f.radius = malloc((size_t)n * sizeof *f.radius);
+    f.skin = malloc((size_t)n * sizeof *f.skin);
     f.active = malloc((size_t)n);
     f.poses = malloc((size_t)n * sizeof *f.poses);
-    assert_true(f.centre && f.radius && f.active && f.poses);
+    assert_true(f.centre && f.radius && f.skin && f.active && f.poses);
     assert_int_equal(sc_detect(&f), SC_OK);
     assert_true(st->ncontacts <= 4096);
     memcpy(c, st->contacts, (size_t)st->ncontacts * sizeof *c);
     free(f.centre);
     free(f.radius);
+    free(f.skin);
     free(f.active);
     free(f.poses);
     return st->ncontacts;

@@ -181,6 +181,17 @@ struct sc_broadphase {
     unsigned char *last_act, *moved;
     sc_pair *last, *fresh;
     int nlast, last_pair_cap, fresh_cap;
+    /* the candidate list ("Candidates within a skin" below): the pairs of
+     * spheres grown by their skins, and each body's centre, radius, skin
+     * and activity when it was made */
+    int list_n;                    /* 0: none */
+    int list_calls;                /* calls since sc_bp_list_drop() */
+    long list_reused;              /* calls answered from a list kept */
+    int list_body_cap;
+    double *list_c, *list_r, *list_skin, *list_grown;
+    unsigned char *list_act;
+    sc_pair *list;
+    int nlist, list_cap;
 };
 
 /* The predicate of the contract; every method goes through it. */
@@ -857,6 +868,12 @@ void sc_bp_destroy(sc_broadphase *bp)
 {
     if (!bp)
         return;
+    free(bp->list_c);
+    free(bp->list_r);
+    free(bp->list_skin);
+    free(bp->list_grown);
+    free(bp->list_act);
+    free(bp->list);
     free(bp->ent);
     free(bp->ent_tmp);
     free(bp->slot);
@@ -922,4 +939,135 @@ int sc_bp_find_pairs_on(sc_broadphase *bp, const sc_task_runner *runner, int met
         return rc;
     }
     return bp->nout;
+}
+
+/* ---- candidates within a skin ----
+ *
+ * Within a frame the same bodies are detected again after every substep,
+ * back-up and speculative round, and most have moved little. So a call
+ * with skins keeps the pairs of the spheres grown by them (radius r + skin,
+ * the same sweep) with the centres it made them at; a later call whose
+ * bodies all moved less than their skins (less a relative 1e-9, more
+ * than any rounding), with the same radii and activity, takes those
+ * candidates that pass the contract's predicate on this call's spheres:
+ * a pair that overlaps now was within r_a + r_b + |moved_a| + |moved_b|
+ * then, so it is a candidate, and the output is the same set in the same
+ * order as sc_bp_find_pairs_on() gives. Else the list is made again.
+ * (docs/DESIGN.md 4) */
+
+static int list_holds(const sc_broadphase *bp, const double *c, const double *r,
+                      const unsigned char *active, int n)
+{
+    if (bp->list_n != n || n == 0)
+        return 0;
+    for (int i = 0; i < n; i++) {
+        unsigned char act = !active || active[i];
+        if (act != bp->list_act[i] || memcmp(&r[i], &bp->list_r[i], sizeof *r) != 0)
+            return 0;
+        const double *ci = &c[3 * i], *li = &bp->list_c[3 * i];
+        double dx = ci[0] - li[0], dy = ci[1] - li[1], dz = ci[2] - li[2];
+        double size = fabs(ci[0]) + fabs(ci[1]) + fabs(ci[2]) + r[i] + bp->list_skin[i];
+        double room = bp->list_skin[i] - 1e-9 * (1 + size);
+        double moved = dx * dx + dy * dy + dz * dz;
+        if (moved != 0 && !(room > 0 && moved <= room * room))
+            return 0;
+    }
+    return 1;
+}
+
+static int list_make(sc_broadphase *bp, const sc_task_runner *runner, int method,
+                     const double *c, const double *r, const double *skin,
+                     const unsigned char *active, int n)
+{
+    bp->list_n = 0;
+    if (n > bp->list_body_cap) {
+        size_t m = (size_t)n;
+        double *lc = realloc(bp->list_c, 3 * m * sizeof *lc);
+        if (lc)
+            bp->list_c = lc;
+        double *lr = realloc(bp->list_r, m * sizeof *lr);
+        if (lr)
+            bp->list_r = lr;
+        double *ls = realloc(bp->list_skin, m * sizeof *ls);
+        if (ls)
+            bp->list_skin = ls;
+        double *lg = realloc(bp->list_grown, m * sizeof *lg);
+        if (lg)
+            bp->list_grown = lg;
+        unsigned char *la = realloc(bp->list_act, m);
+        if (la)
+            bp->list_act = la;
+        if (!lc || !lr || !ls || !lg || !la)
+            return SC_ENOMEM;
+        bp->list_body_cap = n;
+    }
+    for (int i = 0; i < n; i++) {
+        double sk = skin[i] >= 0 && skin[i] <= SC_BP_LIMIT ? skin[i] : 0;
+        bp->list_grown[i] = min_d(r[i] + sk, SC_BP_LIMIT);
+        bp->list_skin[i] = bp->list_grown[i] - r[i];
+        bp->list_act[i] = !active || active[i];
+    }
+    int np = sc_bp_find_pairs_on(bp, runner, method, c, bp->list_grown, active, n, &bp->list,
+                                 &bp->list_cap);
+    if (np < 0)
+        return np;
+    bp->nlist = np;
+    memcpy(bp->list_c, c, 3 * (size_t)n * sizeof *c);
+    memcpy(bp->list_r, r, (size_t)n * sizeof *r);
+    bp->list_n = n;
+    return SC_OK;
+}
+
+long sc_bp_list_reused(const sc_broadphase *bp)
+{
+    return bp ? bp->list_reused : 0;
+}
+
+void sc_bp_list_drop(sc_broadphase *bp)
+{
+    if (bp) {
+        bp->list_n = 0;
+        bp->list_calls = 0;
+    }
+}
+
+int sc_bp_find_pairs_skin(sc_broadphase *bp, const sc_task_runner *runner, int method,
+                          const double *c, const double *r, const double *skin,
+                          const unsigned char *active, int n, sc_pair **pairs, int *cap)
+{
+    if (!bp || !pairs || !cap || !skin || n < 0 || *cap < 0 || (*cap > 0 && !*pairs) ||
+        (n > 0 && (!c || !r)))
+        return SC_EINVAL;
+    /* the first call after a drop makes no list: a motion group of a few
+     * bodies in free flight is detected once a frame */
+    if (bp->list_calls++ == 0)
+        return sc_bp_find_pairs_on(bp, runner, method, c, r, active, n, pairs, cap);
+    double var[3];
+    if (check_bodies(c, r, n, var))
+        return SC_EINVAL;
+    if (!list_holds(bp, c, r, active, n)) {
+        int rc = list_make(bp, runner, method, c, r, skin, active, n);
+        if (rc != SC_OK) {
+            bp->list_n = 0;
+            /* without a list: the plain call (the same set) */
+            return rc == SC_ENOMEM ? sc_bp_find_pairs_on(bp, runner, method, c, r, active, n,
+                                                         pairs, cap)
+                                   : rc;
+        }
+    } else {
+        bp->list_reused++;
+    }
+    int k = 0;
+    for (int i = 0; i < bp->nlist; i++) {
+        int a = bp->list[i].a, b = bp->list[i].b;
+        if (!bp->list_act[a] && !bp->list_act[b])
+            continue;
+        const double *ca = &c[3 * a], *cb = &c[3 * b];
+        if (!spheres_overlap(ca[0], ca[1], ca[2], r[a], cb[0], cb[1], cb[2], r[b]))
+            continue;
+        if (sc_grow((void **)pairs, cap, k + 1, sizeof **pairs, INT_MAX))
+            return SC_ENOMEM;
+        (*pairs)[k++] = bp->list[i];
+    }
+    return k;
 }

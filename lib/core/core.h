@@ -531,6 +531,17 @@ int sc_bp_find_pairs(sc_broadphase *bp, int method, const double *c, const doubl
 int sc_bp_find_pairs_on(sc_broadphase *bp, const sc_task_runner *runner, int method,
                         const double *c, const double *r, const unsigned char *active, int n,
                         sc_pair **pairs, int *cap);
+/* The same set again, from a list of candidates kept between calls: the
+ * pairs of the spheres grown by skin[i] (>= 0), made again when a body
+ * moved farther than its skin since, or its radius or activity changed.
+ * A skin only changes the speed: how often the list is made, how long it
+ * is. sc_bp_list_drop() forgets the list (other bodies come next). */
+int sc_bp_find_pairs_skin(sc_broadphase *bp, const sc_task_runner *runner, int method,
+                          const double *c, const double *r, const double *skin,
+                          const unsigned char *active, int n, sc_pair **pairs, int *cap);
+void sc_bp_list_drop(sc_broadphase *bp);
+/* Calls of sc_bp_find_pairs_skin() answered from a list kept (tests). */
+long sc_bp_list_reused(const sc_broadphase *bp);
 
 /* ---- islands (island.c) ---- */
 typedef struct sc_islands {

@@ -30,11 +30,20 @@ static int broadphase(sc_frame *f, int *npairs)
         if (plane)
             v3_set(&f->centre[3 * i], 0, 0, 0);
         f->active[i] = b->inv_mass > 0 && b->state != SC_ASLEEP;
+        /* the skin: how far the centre (the pose's origin) can go in the
+         * frame at twice this speed, as the motion groups reckon it */
+        f->skin[i] = 0;
+        if (f->active[i]) {
+            double acc[3];
+            v3_madd(acc, f->cfg->gravity, b->force, b->inv_mass);
+            f->skin[i] = (2 * v3_len(b->v) + v3_len(b->w) * v3_len(b->com)) * f->dt +
+                         0.5 * v3_len(acc) * f->dt * f->dt + margin;
+        }
     }
     int method = f->cfg->broadphase;
     if (nplanes == 0) {
-        np = sc_bp_find_pairs_on(scr->bp, f->ex->runner, method, f->centre, f->radius, f->active,
-                                 n, &scr->pairs, &scr->pair_cap);
+        np = sc_bp_find_pairs_skin(scr->bp, f->ex->runner, method, f->centre, f->radius,
+                                   f->skin, f->active, n, &scr->pairs, &scr->pair_cap);
         if (np < 0)
             return np;
         *npairs = np;
@@ -46,8 +55,8 @@ static int broadphase(sc_frame *f, int *npairs)
     for (int i = 0; i < n; i++)
         if (st->bodies[i].shape->kind == SC_SHAPE_PLANE)
             f->active[i] = 0;
-    np = sc_bp_find_pairs_on(scr->bp, f->ex->runner, method, f->centre, f->radius, f->active, n,
-                             &scr->pairs, &scr->pair_cap);
+    np = sc_bp_find_pairs_skin(scr->bp, f->ex->runner, method, f->centre, f->radius, f->skin,
+                               f->active, n, &scr->pairs, &scr->pair_cap);
     if (np < 0)
         return np;
     int k = 0;

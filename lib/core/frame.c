@@ -446,20 +446,23 @@ int sc_frame_step(const sc_frame_config *cfg, sc_frame_state *st, double dt,
     if (n == 0)
         return SC_OK;
     sc_arena *a = &scr->arena;
-    sc_frame f = { .cfg = cfg, .st = st, .scr = scr, .ex = ex, .stats = stats };
+    sc_frame f = { .cfg = cfg, .st = st, .scr = scr, .ex = ex, .stats = stats, .dt = dt };
     scr->memo.valid = 0;    /* the last frame's (or another group's) bodies */
+    sc_bp_list_drop(scr->bp);
     /* the frame's arrays, last in first out */
     sc_body *saved = sc_arena_alloc(a, (size_t)n * sizeof *saved);
     unsigned char *touched = sc_arena_alloc(a, (size_t)n);
     f.centre = sc_arena_alloc(a, (size_t)n * 3 * sizeof *f.centre);
     f.radius = sc_arena_alloc(a, (size_t)n * sizeof *f.radius);
+    f.skin = sc_arena_alloc(a, (size_t)n * sizeof *f.skin);
     f.active = sc_arena_alloc(a, (size_t)n);
     f.poses = sc_arena_alloc(a, (size_t)n * sizeof *f.poses);
-    int rc = saved && touched && f.centre && f.radius && f.active && f.poses
+    int rc = saved && touched && f.centre && f.radius && f.skin && f.active && f.poses
                  ? substeps(&f, dt, saved, touched)
                  : SC_ENOMEM;
     sc_arena_free(a, f.poses);
     sc_arena_free(a, f.active);
+    sc_arena_free(a, f.skin);
     sc_arena_free(a, f.radius);
     sc_arena_free(a, f.centre);
     sc_arena_free(a, touched);

@@ -252,8 +252,11 @@ typedef struct sc_frame {
     sc_stats *stats;
     /* per frame, from the arena: of the last broad phase (detect.c) */
     double *centre, *radius;
+    double *skin;             /* how far each body may move before the
+                                 broad phase's candidates are made again */
     unsigned char *active;
     sc_pose *poses;
+    double dt;                /* the frame's length, s */
     int backups;              /* back-ups of this frame so far (local mode) */
 } sc_frame;
 
