@@ -24,7 +24,7 @@ VERSION := 0.1.0
 SOMAJOR := 0
 
 CC      ?= cc
-OPT     ?= -O2
+OPT     ?= -O3
 WERROR  ?=
 SANFLAGS := -fsanitize=address,undefined -fno-sanitize-recover=all -fno-omit-frame-pointer
 ifeq ($(SAN),1)

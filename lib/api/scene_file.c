@@ -213,7 +213,7 @@ static int numbers(reader *r, int k, int n, const char *what, double lo, double 
 
 static int integer(reader *r, int k, const char *what, int lo, int hi, int *out)
 {
-    double v;
+    double v = 0;
     int rc = number(r, k, what, lo, hi, &v);
     if (rc != SC_OK)
         return rc;
