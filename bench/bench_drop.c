@@ -92,7 +92,11 @@
  * timing, so only the times differ between runs. Without -r a cell gets 3
  * runs, or 1 when its first run is cut by the wall budget (repeating it
  * would triple the cost of the largest cells; the "runs" column says how
- * many were made); with -r R every cell gets exactly R.
+ * many were made); with -r R every cell gets exactly R. The runs go round
+ * the engines in turn (quick, sl1, slN, quick, ...), so that a slow spell
+ * of the shared machine falls on every engine of a ratio alike: made a
+ * cell after another, five runs of QuickStep and then five of ours put
+ * the drop's slN over quick anywhere from 0.92 to 1.36 (2026-12-04).
  *
  * Ratios, ours (sc1, scN) over each peer (quick, step) and scN over sc1,
  * follow each body count. Runs cut by the wall budget reach different
@@ -975,22 +979,24 @@ int main(int argc, char **argv)
             return 1;
         }
         print_walls(n, &sc);
-        static result med[ENG_COUNT], rs[MAX_RUNS];
-        int have[ENG_COUNT] = { 0 };
+        static result med[ENG_COUNT], rs[ENG_COUNT][MAX_RUNS];
+        int have[ENG_COUNT] = { 0 }, made[ENG_COUNT] = { 0 }, cut[ENG_COUNT] = { 0 };
+        memset(rs, 0, sizeof rs);
+        for (int k = 0; k < runs; k++)
+            for (int e = 0; e < ENG_COUNT; e++) {
+                if (!use[e] || cut[e])
+                    continue;
+                run_child(&sc, e, &rs[e][made[e]++]);
+                /* a cut cell is not repeated (see the top) */
+                cut[e] = !runs_opt && rs[e][0].end == END_BUDGET;
+            }
         for (int e = 0; e < ENG_COUNT; e++) {
             if (!use[e])
                 continue;
-            memset(rs, 0, sizeof rs);
-            int made = 0;
-            while (made < runs) {
-                run_child(&sc, e, &rs[made++]);
-                if (!runs_opt && rs[0].end == END_BUDGET)
-                    break;          /* a cut cell is not repeated (see the top) */
-            }
-            qsort(rs, (size_t)made, sizeof rs[0], cmp_rtf);
-            med[e] = rs[made / 2];
+            qsort(rs[e], (size_t)made[e], sizeof rs[e][0], cmp_rtf);
+            med[e] = rs[e][made[e] / 2];
             have[e] = 1;
-            print_row(n, e, made, &med[e]);
+            print_row(n, e, made[e], &med[e]);
             print_solver(e, &med[e]);
             fflush(stdout);
         }
