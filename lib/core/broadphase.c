@@ -953,7 +953,7 @@ int sc_bp_find_pairs_on(sc_broadphase *bp, const sc_task_runner *runner, int met
  * a pair that overlaps now was within r_a + r_b + |moved_a| + |moved_b|
  * then, so it is a candidate, and the output is the same set in the same
  * order as sc_bp_find_pairs_on() gives. Else the list is made again.
- * (docs/DESIGN.md 4) */
+ * (docs/DESIGN.md 3.2) */
 
 static int list_holds(const sc_broadphase *bp, const double *c, const double *r,
                       const unsigned char *active, int n)
