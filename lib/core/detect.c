@@ -9,22 +9,18 @@
 #include "frame.h"
 #include "vecmath.h"
 
-/* Step 4, coarse: bounding spheres (or sweep and prune), plus every active
- * body against every static plane (planes have no bounding sphere). */
-static int broadphase(sc_frame *f, int *npairs)
+/* Bodies [i0, i1)'s poses (kept for the narrow phase), spheres, activity
+ * and skins for the broad phase. */
+static void spheres(sc_frame *f, int i0, int i1)
 {
     const sc_frame_state *st = f->st;
-    sc_frame_scratch *scr = f->scr;
-    int n = st->nbodies, np = 0;
-    int nplanes = 0;
     double margin = f->cfg->contact_tol_m;
-    for (int i = 0; i < n; i++) {
+    for (int i = i0; i < i1; i++) {
         const sc_body *b = &st->bodies[i];
-        sc_pose *p = &f->poses[i];    /* kept for the narrow phase */
+        sc_pose *p = &f->poses[i];
         sc_body_pose(b, p);
         v3_copy(&f->centre[3 * i], p->pos);
         int plane = b->shape->kind == SC_SHAPE_PLANE;
-        nplanes += plane;
         /* planes join the sweep as far-away points and pair below */
         f->radius[i] = plane ? 0 : b->shape->bound_r + margin;
         if (plane)
@@ -40,6 +36,37 @@ static int broadphase(sc_frame *f, int *npairs)
                          0.5 * v3_len(acc) * f->dt * f->dt + margin;
         }
     }
+}
+
+/* spheres() in tasks of the frame's runner from SHARE_MIN bodies on (a
+ * pile is detected some twenty times a frame, and the idle worker waited
+ * through it), else here: each body's are its own, the same bits. */
+#define SHARE_MIN 256
+#define CHUNKS 8
+static void spheres_task(void *arg, int t, sc_arena *a, int helper)
+{
+    (void)a;
+    (void)helper;
+    sc_frame *f = arg;
+    long long n = f->st->nbodies;
+    spheres(f, (int)(n * t / CHUNKS), (int)(n * (t + 1) / CHUNKS));
+}
+
+/* Step 4, coarse: bounding spheres (or sweep and prune), plus every active
+ * body against every static plane (planes have no bounding sphere). */
+static int broadphase(sc_frame *f, int *npairs)
+{
+    const sc_frame_state *st = f->st;
+    sc_frame_scratch *scr = f->scr;
+    int n = st->nbodies, np = 0;
+    int nplanes = 0;
+    const sc_task_runner *r = f->ex ? f->ex->runner : NULL;
+    if (r && n >= SHARE_MIN)
+        sc_tasks_run(r, spheres_task, f, CHUNKS, NULL);
+    else
+        spheres(f, 0, n);
+    for (int i = 0; i < n; i++)
+        nplanes += st->bodies[i].shape->kind == SC_SHAPE_PLANE;
     int method = f->cfg->broadphase;
     if (nplanes == 0) {
         np = sc_bp_find_pairs_skin(scr->bp, f->ex->runner, method, f->centre, f->radius,
