@@ -1299,6 +1299,8 @@ static void test_result_for_another_unit_is_a_format_error(void **state)
 #define G_BODY(q) (76 + 496 * (size_t)(q))
 #define GB_MASS 8
 #define GB_INV_MASS 16
+#define GB_INERTIA 24
+#define GB_INV_INERTIA 96
 #define GB_X 208
 #define GB_REST 480
 #define GB_STATE 488
@@ -1390,6 +1392,13 @@ static void test_bad_group_fields_are_format_errors(void **state)
     GROUP_BAD(G_BODY(member) + GB_INV_MASS, bits(-1), 8);
     GROUP_BAD(G_BODY(member) + GB_INV_MASS, bits(NAN), 8);
     GROUP_BAD(G_BODY(member) + GB_MASS, bits(-1), 8);
+    /* a member's inverses not its mass's and inertia's (a corrupted
+     * off-diagonal entry of the inverse inertia ran a frame for 16 s) */
+    GROUP_BAD(G_BODY(member) + GB_INV_INERTIA + 6 * 8, bits(-1.8769e69), 8);
+    GROUP_BAD(G_BODY(member) + GB_INV_INERTIA, bits(0), 8);
+    GROUP_BAD(G_BODY(member) + GB_INERTIA + 4 * 8, bits(1e3), 8);
+    GROUP_BAD(G_BODY(member) + GB_MASS, bits(1e3), 8);
+    GROUP_BAD(G_BODY(member) + GB_INV_MASS, bits(1e-3), 8);
     GROUP_BAD(G_BODY(member) + GB_X + 8, bits(INFINITY), 8);
     GROUP_BAD(G_BODY(member) + GB_REST, bits(NAN), 8);
     GROUP_BAD(G_BODY(member) + GB_STATE, SC_STATIC, 4);

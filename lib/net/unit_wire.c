@@ -73,6 +73,7 @@
 #include <string.h>
 
 #include "unit_wire.h"
+#include "vecmath.h"
 
 #define WIRE_VERSION 11      /* 6: island units carry impact_first, results inelastic, v0, w0;
                                 7: results carry energy_refused, restitution_scaled;
@@ -462,8 +463,27 @@ static void get_gbody_f64(rbuf *r, sc_body *b, int from, int to, int finite)
         get_f64s(r, f[k], gbody_n[k], finite);
 }
 
-/* A unit's body: static exactly when its inverse mass is 0 (world.c), its
- * shape one the receiver holds under that hash. */
+/* Whether a member's mass and inertia are the inverses of the inverse
+ * mass and inverse inertia its frame uses, as sc_body_add() makes them
+ * (to rounding: 1e-12 and 1e-6 of the identity). A decoded group unit
+ * whose inverse inertia was corrupted (one off-diagonal entry 1e69 or
+ * 1e180, finite and otherwise in range) ran its frame for 10-16 s
+ * (test_unit_wire). */
+static int inverses_ok(const sc_body *b)
+{
+    if (!(fabs(b->mass * b->inv_mass - 1) <= 1e-12))
+        return 0;
+    double p[9];
+    m3_mul(p, b->inertia, b->inv_inertia);
+    for (int i = 0; i < 9; i++)
+        if (!(fabs(p[i] - (i % 4 == 0)) <= 1e-6))
+            return 0;
+    return 1;
+}
+
+/* A unit's body: static exactly when its inverse mass is 0 (world.c), a
+ * member's inverses its mass's and inertia's, its shape one the receiver
+ * holds under that hash. */
 static void get_gbody(rbuf *r, sc_body *b, sc_shape_lookup_fn lookup, void *ctx)
 {
     uint64_t hash = get(r, 8);
@@ -472,7 +492,7 @@ static void get_gbody(rbuf *r, sc_body *b, sc_shape_lookup_fn lookup, void *ctx)
     b->collided = get_i32(r);
     if (!(b->inv_mass >= 0) || !(b->mass >= 0) || b->state < SC_FREE ||
         b->state > SC_STATIC || (b->inv_mass > 0) != (b->state != SC_STATIC) ||
-        b->collided < 0 || b->collided > 2)
+        b->collided < 0 || b->collided > 2 || (b->inv_mass > 0 && !inverses_ok(b)))
         r->bad = 1;
     if (r->bad)
         return;
