@@ -104,9 +104,9 @@
 #define SC_BP_AUTO_SAP_MIN 256
 
 /* Shared sweeps: from this many bodies on, a sweep with a runner is cut
- * into BP_CHUNKS tasks per kind. */
-#define BP_SHARE_MIN 256
-#define BP_CHUNKS 8
+ * into BP_CHUNKS tasks per kind (the frame's shared work's, core.h). */
+#define BP_SHARE_MIN SC_SHARE_MIN
+#define BP_CHUNKS SC_SHARE_CHUNKS
 
 /* Slack of the pruning tests (see the exactness argument above). */
 #define BP_MARGIN_REL 1e-14
@@ -184,10 +184,9 @@ struct sc_broadphase {
     /* the candidate list ("Candidates within a skin" below): the pairs of
      * spheres grown by their skins, and each body's centre, radius, skin
      * and activity when it was made */
-    int list_n;                    /* 0: none */
+    int list_n;                    /* 0: none (per-body arrays: cap) */
     int list_calls;                /* calls since sc_bp_list_drop() */
     long list_reused;              /* calls answered from a list kept */
-    int list_body_cap;
     double *list_c, *list_r, *list_skin, *list_grown;
     unsigned char *list_act;
     sc_pair *list;
@@ -291,6 +290,11 @@ static int reserve_bodies(sc_broadphase *bp, int n)
     BP_GROW(last_r, 1, 0);
     BP_GROW(last_act, 1, 0);
     BP_GROW(moved, 1, 0);
+    BP_GROW(list_c, 3, 0);
+    BP_GROW(list_r, 1, 0);
+    BP_GROW(list_skin, 1, 0);
+    BP_GROW(list_grown, 1, 0);
+    BP_GROW(list_act, 1, 0);
 #undef BP_GROW
     bp->cap = (int)cap;
     return SC_OK;
@@ -980,27 +984,8 @@ static int list_make(sc_broadphase *bp, const sc_task_runner *runner, int method
                      const unsigned char *active, int n)
 {
     bp->list_n = 0;
-    if (n > bp->list_body_cap) {
-        size_t m = (size_t)n;
-        double *lc = realloc(bp->list_c, 3 * m * sizeof *lc);
-        if (lc)
-            bp->list_c = lc;
-        double *lr = realloc(bp->list_r, m * sizeof *lr);
-        if (lr)
-            bp->list_r = lr;
-        double *ls = realloc(bp->list_skin, m * sizeof *ls);
-        if (ls)
-            bp->list_skin = ls;
-        double *lg = realloc(bp->list_grown, m * sizeof *lg);
-        if (lg)
-            bp->list_grown = lg;
-        unsigned char *la = realloc(bp->list_act, m);
-        if (la)
-            bp->list_act = la;
-        if (!lc || !lr || !ls || !lg || !la)
-            return SC_ENOMEM;
-        bp->list_body_cap = n;
-    }
+    if (reserve_bodies(bp, n) != SC_OK)
+        return SC_ENOMEM;
     for (int i = 0; i < n; i++) {
         double sk = skin[i] >= 0 && skin[i] <= SC_BP_LIMIT ? skin[i] : 0;
         bp->list_grown[i] = min_d(r[i] + sk, SC_BP_LIMIT);
@@ -1048,8 +1033,8 @@ int sc_bp_find_pairs_skin(sc_broadphase *bp, const sc_task_runner *runner, int m
     if (!list_holds(bp, c, r, active, n)) {
         int rc = list_make(bp, runner, method, c, r, skin, active, n);
         if (rc != SC_OK) {
-            bp->list_n = 0;
-            /* without a list: the plain call (the same set) */
+            /* without a list (list_make() left none): the plain call,
+             * the same set */
             return rc == SC_ENOMEM ? sc_bp_find_pairs_on(bp, runner, method, c, r, active, n,
                                                          pairs, cap)
                                    : rc;

@@ -16,6 +16,14 @@ void sc_body_pose(const sc_body *b, sc_pose *p)
     memcpy(p->quat, b->q, sizeof p->quat);
 }
 
+double sc_body_reach(const sc_frame_config *cfg, const sc_body *b, double dt)
+{
+    double a[3];
+    v3_madd(a, cfg->gravity, b->force, b->inv_mass);
+    return (2 * v3_len(b->v) + v3_len(b->w) * v3_len(b->com)) * dt +
+           0.5 * v3_len(a) * dt * dt;
+}
+
 double sc_cpu_now(void)
 {
     struct timespec ts;

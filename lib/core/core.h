@@ -170,6 +170,10 @@ typedef struct sc_task_runner {
     void (*run)(void *ctx, sc_task_fn fn, void *arg, int count, sc_arena *a);
     void *ctx;
 } sc_task_runner;
+/* Work over a frame's bodies is shared with a runner from this many
+ * bodies on, in this many tasks (integrate.c, detect.c, broadphase.c) */
+#define SC_SHARE_MIN 256
+#define SC_SHARE_CHUNKS 8
 /* Tasks [0, count) of a batch: handed to r when there is one and more
  * than one task, else run here one after another (helper 0). */
 static inline void sc_tasks_run(const sc_task_runner *r, sc_task_fn fn, void *arg, int count,

@@ -27,29 +27,21 @@ static void spheres(sc_frame *f, int i0, int i1)
             v3_set(&f->centre[3 * i], 0, 0, 0);
         f->active[i] = b->inv_mass > 0 && b->state != SC_ASLEEP;
         /* the skin: how far the centre (the pose's origin) can go in the
-         * frame at twice this speed, as the motion groups reckon it */
-        f->skin[i] = 0;
-        if (f->active[i]) {
-            double acc[3];
-            v3_madd(acc, f->cfg->gravity, b->force, b->inv_mass);
-            f->skin[i] = (2 * v3_len(b->v) + v3_len(b->w) * v3_len(b->com)) * f->dt +
-                         0.5 * v3_len(acc) * f->dt * f->dt + margin;
-        }
+         * frame, as the motion groups reckon it */
+        f->skin[i] = f->active[i] ? sc_body_reach(f->cfg, b, f->dt) + margin : 0;
     }
 }
 
-/* spheres() in tasks of the frame's runner from SHARE_MIN bodies on (a
+/* spheres() in tasks of the frame's runner from SC_SHARE_MIN bodies on (a
  * pile is detected some twenty times a frame, and the idle worker waited
  * through it), else here: each body's are its own, the same bits. */
-#define SHARE_MIN 256
-#define CHUNKS 8
 static void spheres_task(void *arg, int t, sc_arena *a, int helper)
 {
     (void)a;
     (void)helper;
     sc_frame *f = arg;
     long long n = f->st->nbodies;
-    spheres(f, (int)(n * t / CHUNKS), (int)(n * (t + 1) / CHUNKS));
+    spheres(f, (int)(n * t / SC_SHARE_CHUNKS), (int)(n * (t + 1) / SC_SHARE_CHUNKS));
 }
 
 /* Step 4, coarse: bounding spheres (or sweep and prune), plus every active
@@ -61,8 +53,8 @@ static int broadphase(sc_frame *f, int *npairs)
     int n = st->nbodies, np = 0;
     int nplanes = 0;
     const sc_task_runner *r = f->ex ? f->ex->runner : NULL;
-    if (r && n >= SHARE_MIN)
-        sc_tasks_run(r, spheres_task, f, CHUNKS, NULL);
+    if (r && n >= SC_SHARE_MIN)
+        sc_tasks_run(r, spheres_task, f, SC_SHARE_CHUNKS, NULL);
     else
         spheres(f, 0, n);
     for (int i = 0; i < n; i++)

@@ -260,6 +260,10 @@ typedef struct sc_frame {
     int backups;              /* back-ups of this frame so far (local mode) */
 } sc_frame;
 
+/* How far body b's shape origin can go in dt at twice its speed, turning
+ * and under gravity and its force (clock.c): the motion groups' reach
+ * (group.c) and the broad phase's skin (detect.c), without their margins. */
+double sc_body_reach(const sc_frame_config *cfg, const sc_body *b, double dt);
 /* The contact model and solver settings a frame of cfg uses (frame.c;
  * docs/DESIGN.md section 11). */
 sc_contact_params sc_frame_contact_params(const sc_frame_config *cfg);

@@ -170,10 +170,7 @@ static int build_groups(const sc_frame_config *cfg, const sc_frame_state *st,
         sc_pose p;
         sc_body_pose(b, &p);
         v3_copy(&g->centre[3 * i], p.pos);
-        double a[3];
-        v3_madd(a, cfg->gravity, b->force, b->inv_mass);
-        double reach = (2 * v3_len(b->v) + v3_len(b->w) * v3_len(b->com)) * dt +
-                       0.5 * v3_len(a) * dt * dt + REACH_MARGIN;
+        double reach = sc_body_reach(cfg, b, dt) + REACH_MARGIN;
         g->radius[i] = b->shape->bound_r + cfg->contact_tol_m + reach;
         g->active[i] = sc_body_movable(b);
     }

@@ -133,9 +133,8 @@ static void momentum(double L[3], const double R[9], const double I[9], const do
 
 /* The bodies of a frame in tasks (each body written by one task only, so
  * the result does not depend on who ran which): with the executor's
- * runner from SHARE_MIN bodies on, CHUNKS tasks; else one, here. */
-#define SHARE_MIN 256
-#define CHUNKS 8
+ * runner from SC_SHARE_MIN bodies on, SC_SHARE_CHUNKS tasks; else one,
+ * here. */
 
 typedef struct body_pass {
     sc_frame *f;
@@ -157,7 +156,7 @@ static void body_task(void *arg, int t, sc_arena *a, int helper)
 static void run_pass(body_pass *p)
 {
     const sc_task_runner *r = p->f->ex ? p->f->ex->runner : NULL;
-    p->chunks = r && p->f->st->nbodies >= SHARE_MIN ? CHUNKS : 1;
+    p->chunks = r && p->f->st->nbodies >= SC_SHARE_MIN ? SC_SHARE_CHUNKS : 1;
     sc_tasks_run(r, body_task, p, p->chunks, NULL);
 }
 
