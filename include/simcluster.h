@@ -384,6 +384,10 @@ typedef struct sc_stats {
     /* work units and the scheduler (docs/DESIGN.md sections 5 and 6), last frame */
     int groups;               /* motion groups stepped apart (bodies that cannot
                                  meet within the frame), last frame */
+    int group_retries;        /* times the frame's groups were stepped again
+                                 because bodies of two groups came close
+                                 (docs/DESIGN.md 3.9), last frame */
+    long group_retries_total; /* the same, all frames */
     int nodes;                /* nodes the scheduler used (local threads) */
     int private_ode;          /* of them, with their own copy of ODE (trimesh
                                  pairs run concurrently only on those) */

@@ -1465,7 +1465,19 @@ static void test_bad_group_fields_are_format_errors(void **state)
 #define GR_RC 12
 #define GR_STATS 120
 #define GR_STAT_INTS (GR_STATS + 8 * 22)
-#define GR_MEMBER(i) (GR_STATS + 268 + 288 * (size_t)(i))
+/* Member i of a group result: 288 bytes of state, then its track: dev
+ * f64, points u32 and 32 bytes a point. */
+static size_t gr_member(const unsigned char *res, int i)
+{
+    size_t at = GR_STATS + 268;
+    for (int j = 0; j < i; j++) {
+        uint32_t n;
+        memcpy(&n, res + at + 296, 4);
+        at += 300 + 32 * (size_t)n;
+    }
+    return at;
+}
+#define GR_MEMBER(i) gr_member(res, (int)(i))
 #define GR_CONTACTS(nm) GR_MEMBER(nm)
 
 /* The hook that sends results at units they do not fit, and malformed
@@ -1533,6 +1545,15 @@ static void group_hostile_results(group_exec *gx, sc_job *job)
     uint32_t nc;
     memcpy(&nc, res + GR_CONTACTS(nm), 4);
     int m = nm + g->nstatics;
+    /* a member with a track of two points at least */
+    int tracked = -1;
+    for (int i = 0; i < nm && tracked < 0; i++) {
+        uint32_t n;
+        memcpy(&n, res + GR_MEMBER(i) + 296, 4);
+        if (n >= 2)
+            tracked = i;
+    }
+    assert_true(tracked >= 0);
     struct { size_t at; int n; uint64_t v; } wrong[] = {
         { 8, 4, (uint64_t)nm + 1 },                       /* members */
         { GR_STATS + 8 * 12, 8, (uint64_t)-1 },           /* lcp_pivots < 0 */
@@ -1547,6 +1568,12 @@ static void group_hostile_results(group_exec *gx, sc_job *job)
         { GR_CONTACTS(nm) + 8, 4, (uint64_t)m },          /* ... its body_b */
         { GR_RC, 4, (uint32_t)SC_ENUMERIC },              /* failed, with contacts */
         { GR_RC, 4, 1 },                                  /* rc > 0 */
+        { GR_MEMBER(0) + 288, 8, bits(-1e-3) },           /* track: dev < 0 */
+        { GR_MEMBER(0) + 288, 8, bits(NAN) },
+        { GR_MEMBER(0) + 296, 4, SC_TRACK_MAX + 1 },      /* points */
+        { GR_MEMBER(tracked) + 300 + 32, 8, bits(-1e-3) },/* its second point's t < 0 */
+        { GR_MEMBER(tracked) + 300 + 32, 8, bits(1.0) },  /* ... past the frame */
+        { GR_MEMBER(tracked) + 300, 8, bits(0.5) },       /* ... before its first */
     };
     assert_true(nc >= 1);
     for (size_t k = 0; k < sizeof wrong / sizeof wrong[0]; k++) {

@@ -537,6 +537,55 @@ static void test_slow_approach_is_speculative_in_local_mode(void **state)
     assert_true(gl <= 1e-9);
 }
 
+/* Three balls in a row, no gravity: A flies at B, which rests 10 mm short
+ * of C. A and B are one motion group (their gap closes within the
+ * frame), C another (B and C do not move at the frame's start); A's hit
+ * sends B into C within the same frame. The groups' check (group.c) must
+ * find that B's path came within touching distance of C's and step the
+ * frame again with the three together, so that B hits C in that frame
+ * instead of going into it; the same bits on 1 and 2 workers. */
+static void knock_into_another_group(int workers, sc_stats *st, double *vc, uint64_t *hash)
+{
+    sc_world_config c = sc_world_config_default();
+    c.gravity[2] = 0;
+    c.workers = workers;
+    sc_world *w = sc_world_create(&c);
+    sc_shape *s = sc_shape_sphere(0.1);
+    sc_body_desc d = sc_body_desc_default();
+    d.shape = s;
+    d.vel[0] = 3;
+    assert_int_equal(sc_body_add(w, &d), 0);
+    d.vel[0] = 0;
+    d.pos[0] = 0.21;
+    assert_int_equal(sc_body_add(w, &d), 1);
+    d.pos[0] = 0.42;
+    assert_int_equal(sc_body_add(w, &d), 2);
+    assert_int_equal(sc_world_step(w, 0.01), SC_OK);
+    sc_world_stats(w, st);
+    double v[3], om[3];
+    sc_body_get_velocity(w, 2, v, om);
+    *vc = v[0];
+    *hash = sc_world_hash(w);
+    sc_shape_release(s);
+    sc_world_destroy(w);
+}
+
+static void test_a_body_knocked_into_another_group_is_stepped_with_it(void **state)
+{
+    (void)state;
+    sc_stats s1, s2;
+    double v1, v2;
+    uint64_t h1, h2;
+    knock_into_another_group(1, &s1, &v1, &h1);
+    knock_into_another_group(2, &s2, &v2, &h2);
+    assert_true(s1.group_retries >= 1);
+    assert_int_equal(s1.groups, 1);         /* the groups that stood: one */
+    assert_true(v1 > 0.5);                  /* C was hit in the frame */
+    assert_true(s1.max_penetration <= 1e-3 + 1e-9);
+    assert_true(h1 == h2);
+    assert_int_equal(s2.group_retries, s1.group_retries);
+}
+
 static void test_toi_mode_must_be_one_of_the_two(void **state)
 {
     (void)state;
@@ -720,6 +769,7 @@ int main(void)
         cmocka_unit_test(test_local_mode_drop_stays_shallow),
         cmocka_unit_test(test_a_landing_pile_may_back_up_more_than_15_times_a_frame),
         cmocka_unit_test(test_a_pressed_pair_does_not_back_up_a_pile_to_the_cap),
+        cmocka_unit_test(test_a_body_knocked_into_another_group_is_stepped_with_it),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
 }

@@ -572,7 +572,7 @@ typedef struct totals {
     /* the contact solver, summed (or the largest) over the frames */
     long solves, split, blocks, shared, pivots, staggered, refused, split_fb, block_fb, nan;
     long inelastic, rscaled, unconverged, kept, guessed, regularised;
-    long substeps, max_pivots, backups, spec;
+    long substeps, max_pivots, backups, spec, groups, retried;
     int max_sweeps, max_substeps, max_backups;
     double residual, outer_residual;
 } totals;
@@ -677,6 +677,8 @@ static int simulate(const options *o, sc_world *w, totals *t, int progress, reco
         t->substeps += st.substeps;
         t->max_substeps = st.substeps > t->max_substeps ? st.substeps : t->max_substeps;
         t->backups += st.backups;
+        t->groups += st.groups;
+        t->retried += st.group_retries;
         t->max_backups = st.backups > t->max_backups ? st.backups : t->max_backups;
         t->spec += st.spec_contacts;
         if (st.initial_overlaps > t->overlaps)
@@ -842,7 +844,7 @@ static int run_cmd(int argc, char **argv)
                "\"max_sweeps\": %d, \"max_residual\": %.3g, \"max_outer_residual\": %.3g, "
                "\"substeps\": %ld, \"max_substeps\": %d}, "
                "\"toi\": {\"mode\": \"%s\", \"backups\": %ld, \"max_frame_backups\": %d, "
-               "\"speculative_contacts\": %ld}, "
+               "\"speculative_contacts\": %ld, \"groups\": %ld, \"groups_retried\": %ld}, "
                "\"hash\": \"%016llx\", \"interrupted\": %s%s%s, \"error\": %s%s%s}\n",
                sc_world_body_count(w), seed, (int)(st.nodes - st.daemons), t.frames,
                sim, t.wall, t.wall > 0 ? sim / t.wall : 0, t.at_rest ? "true" : "false",
@@ -858,7 +860,7 @@ static int run_cmd(int argc, char **argv)
                t.max_sweeps, t.residual,
                t.outer_residual, t.substeps, t.max_substeps,
                o.toi_mode == SC_TOI_LOCAL ? "local" : "world", t.backups, t.max_backups, t.spec,
-               hash,
+               t.groups, t.retried, hash,
                t.interrupted ? "\"" : "null", t.interrupted ? signal_name(t.interrupted) : "",
                t.interrupted ? "\"" : "", rc ? "\"" : "null",
                rc ? sc_strerror(rc) : "", rc ? "\"" : "");
@@ -888,6 +890,10 @@ static int run_cmd(int argc, char **argv)
                "contacts %ld\n",
                o.toi_mode == SC_TOI_LOCAL ? "local" : "world",
                t.frames ? (double)t.backups / (double)t.frames : 0.0, t.max_backups, t.spec);
+        if (t.groups)
+            printf("  motion groups %.1f a frame, %ld of them stepped again (bodies of two "
+                   "groups came close)\n",
+                   t.frames ? (double)t.groups / (double)t.frames : 0.0, t.retried);
         printf("  fallbacks: staggered friction %ld (%ld of them answers refused for adding "
                "energy), blocks after staggered %ld, projected Gauss-Seidel blocks %ld, "
                "non-finite islands %ld, inelastic re-solves %ld, restitution scaled down %ld\n",

@@ -325,6 +325,7 @@ SC_API int sc_world_step(sc_world *w, double dt)
     memset(st->ideal_makespan_s, 0, sizeof st->ideal_makespan_s);
     memset(st->unit_work_by_density_s, 0, sizeof st->unit_work_by_density_s);
     st->groups = 0;
+    st->group_retries = 0;
     st->pairs = 0;
     st->contacts = 0;
     st->islands = 0;
@@ -352,6 +353,7 @@ SC_API int sc_world_step(sc_world *w, double dt)
     if (rc == SC_OK) {
         st->frames++;
         st->backups_total += st->backups;
+        st->group_retries_total += st->group_retries;
         if (st->backups > st->backups_max)
             st->backups_max = st->backups;
         st->makespan_ratio = st->makespan_bound_s > 0 ? st->makespan_s / st->makespan_bound_s

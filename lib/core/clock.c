@@ -24,6 +24,28 @@ double sc_body_reach(const sc_frame_config *cfg, const sc_body *b, double dt)
            0.5 * v3_len(a) * dt * dt;
 }
 
+void sc_body_drift(const sc_frame_config *cfg, const sc_body *b, double d[9])
+{
+    sc_pose p;
+    sc_body_pose(b, &p);
+    v3_copy(d, p.pos);
+    v3_set(d + 3, 0, 0, 0);
+    v3_set(d + 6, 0, 0, 0);
+    if (sc_body_movable(b)) {
+        double r[3], wr[3];
+        v3_sub(r, p.pos, b->x);
+        v3_cross(wr, b->w, r);
+        v3_add(d + 3, b->v, wr);
+        v3_madd(d + 6, cfg->gravity, b->force, b->inv_mass);
+    }
+}
+
+void sc_drift_at(const double d[9], double t, double p[3])
+{
+    v3_madd(p, d, d + 3, t);
+    v3_madd(p, p, d + 6, 0.5 * t * t);
+}
+
 double sc_cpu_now(void)
 {
     struct timespec ts;

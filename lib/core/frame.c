@@ -159,6 +159,49 @@ static int kept_impulses(const sc_frame_state *st, const sc_islands *is,
     return 1;
 }
 
+void sc_track_copy(sc_track *to, int i, const sc_track *from, int j)
+{
+    to->dev[i] = from->dev[j];
+    to->count[i] = from->count[j];
+    if (from->count[j] > 0)
+        memcpy(&to->pt[(size_t)i * SC_TRACK_MAX * 4], &from->pt[(size_t)j * SC_TRACK_MAX * 4],
+               (size_t)from->count[j] * 4 * sizeof *to->pt);
+}
+
+/* Body i's track (st->track) gets its shape origin at time t of the frame
+ * as a point; past SC_TRACK_MAX points it keeps none (count beyond). */
+static void track_point(const sc_frame *f, int i, double t)
+{
+    sc_track *tr = f->st->track;
+    int k = tr->count[i];
+    if (k < SC_TRACK_MAX) {
+        sc_pose p;
+        sc_body_pose(&f->st->bodies[i], &p);
+        double *q = &tr->pt[((size_t)i * SC_TRACK_MAX + (size_t)k) * 4];
+        q[0] = t;
+        v3_copy(q + 1, p.pos);
+    }
+    tr->count[i] = k + (k <= SC_TRACK_MAX);
+}
+
+/* Body i's track dev grown to its shape origin's distance at the end t of
+ * a substep of h from its drift (sc_body_drift()), plus how far the
+ * drift's parabola leaves its chord over h (|a| h^2 / 8): between
+ * substep ends the frame moves a shape origin along the chord (the time
+ * of impact's poses, toi.c), so the path stays within the sweep of the
+ * drift. */
+static void sweep_extend(const sc_frame *f, int i, double t, double h)
+{
+    const sc_body *b = &f->st->bodies[i];
+    const double *d = &f->drift[9 * i];
+    sc_pose p;
+    sc_body_pose(b, &p);
+    double at[3];
+    sc_drift_at(d, t, at);
+    double dev = v3_dist(p.pos, at) + v3_len(d + 6) * h * h / 8;
+    f->st->track->dev[i] = max_d(f->st->track->dev[i], dev);
+}
+
 /* Steps (4)-(7) once over h: islands, contact impulses, positions; with
  * rd, only the islands that hold a dirty body, the others' bodies kept. */
 static int substep(sc_frame *f, double h, sc_islands *is, unsigned char *touched,
@@ -257,6 +300,8 @@ static int substep(sc_frame *f, double h, sc_islands *is, unsigned char *touched
         sc_body *b = &st->bodies[i];
         if (sc_body_movable(b) && (!sc_finite3(b->x) || !sc_finite3(b->v) || !sc_finite3(b->w)))
             return SC_ENUMERIC;
+        if (st->track && b->inv_mass > 0)
+            sweep_extend(f, i, f->t + h, h);
     }
     return SC_OK;
 }
@@ -302,6 +347,7 @@ static int substeps(sc_frame *f, double dt, sc_body *saved, unsigned char *touch
         movable += st->bodies[i].inv_mass > 0;
     double left = dt;
     for (int sub = 0; rc == SC_OK && left > 0; sub++) {
+        f->t = dt - left;
         /* keep the start of the substep: contacts and state */
         memcpy(saved, st->bodies, (size_t)n * sizeof *saved);
         int n0 = st->ncontacts;
@@ -426,6 +472,9 @@ static int substeps(sc_frame *f, double dt, sc_body *saved, unsigned char *touch
         left -= h;
         if (left < 1e-9 * dt)
             left = 0;
+        for (int i = 0; st->track && rc == SC_OK && i < n; i++)
+            if (st->bodies[i].inv_mass > 0)
+                track_point(f, i, dt - left);
     }
     free(spec.c);
     free(solved.c);
@@ -450,6 +499,19 @@ int sc_frame_step(const sc_frame_config *cfg, sc_frame_state *st, double dt,
     scr->memo.valid = 0;    /* the last frame's (or another group's) bodies */
     sc_bp_list_drop(scr->bp);
     /* the frame's arrays, last in first out */
+    sc_track *tr = st->track;
+    if (tr) {
+        if (!(f.drift = sc_arena_alloc(a, (size_t)n * 9 * sizeof *f.drift)))
+            return SC_ENOMEM;
+        for (int i = 0; i < n; i++) {
+            tr->dev[i] = 0;
+            tr->count[i] = 0;
+            if (st->bodies[i].inv_mass > 0) {
+                sc_body_drift(cfg, &st->bodies[i], &f.drift[9 * i]);
+                track_point(&f, i, 0);
+            }
+        }
+    }
     sc_body *saved = sc_arena_alloc(a, (size_t)n * sizeof *saved);
     unsigned char *touched = sc_arena_alloc(a, (size_t)n);
     f.centre = sc_arena_alloc(a, (size_t)n * 3 * sizeof *f.centre);
@@ -467,10 +529,16 @@ int sc_frame_step(const sc_frame_config *cfg, sc_frame_state *st, double dt,
     sc_arena_free(a, f.centre);
     sc_arena_free(a, touched);
     sc_arena_free(a, saved);
+    sc_arena_free(a, f.drift);
     if (a->high > stats->arena_bytes)
         stats->arena_bytes = a->high;
     if (rc != SC_OK)
         return rc;
+    /* a body near its drift is checked by it; one with too many points
+     * by its distance from it */
+    for (int i = 0; tr && i < n; i++)
+        if (tr->dev[i] <= SC_TRACK_DEV || tr->count[i] > SC_TRACK_MAX)
+            tr->count[i] = 0;
     for (int i = 0; i < n; i++) {
         v3_set(st->bodies[i].force, 0, 0, 0);
         v3_set(st->bodies[i].torque, 0, 0, 0);

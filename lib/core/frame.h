@@ -145,7 +145,29 @@ typedef struct sc_frame_state {
     sc_contact *contacts;
     int ncontacts, contact_cap;
     int contacts_valid;             /* contacts match the current bodies */
+    struct sc_track *track;         /* NULL, or where the bodies went in
+                                       the frame (motion groups, group.c) */
 } sc_frame_state;
+
+/* Where the bodies of a frame went, for the motion groups' check
+ * (group.c): how far each body's shape origin went from its drift
+ * (sc_body_drift()) at any time of the frame, and, for a body that went
+ * farther than SC_TRACK_DEV, its origin at the frame's start and at the
+ * end of every substep (t, x, y, z; between two the frame moves it along
+ * the chord: the time of impact's poses, toi.c). Arrays by body, written by
+ * sc_frame_step(). */
+#define SC_TRACK_MAX 34       /* points: the start and 1 + 31 back-ups'
+                                 substeps (frame.c MAX_BACKUPS_LOCAL), one
+                                 spare; a body with more keeps none */
+#define SC_TRACK_DEV 2e-4     /* m */
+typedef struct sc_track {
+    double *dev;
+    int *count;                     /* points kept (0: none) */
+    double *pt;                     /* SC_TRACK_MAX * 4 a body */
+} sc_track;
+
+/* Body j of track from written as body i of to. */
+void sc_track_copy(sc_track *to, int i, const sc_track *from, int j);
 
 /* Scratch a frame needs, kept between frames: the arena (reset by the
  * caller between frames), the broad phase's sort order and pair list, the
@@ -231,6 +253,8 @@ typedef struct sc_group_job {
     const sc_groups *g;
     double dt;
     sc_group_out *out;
+    sc_track *track;                /* the master's: by world body, each
+                                       member's from its group's frame */
 } sc_group_job;
 
 /* Group k's bodies in the order its copy has them: its members and the
@@ -257,6 +281,8 @@ typedef struct sc_frame {
     unsigned char *active;
     sc_pose *poses;
     double dt;                /* the frame's length, s */
+    double t;                 /* the substep's start in the frame, s */
+    double *drift;            /* with st->sweep: 9 a body, sc_body_drift() */
     int backups;              /* back-ups of this frame so far (local mode) */
 } sc_frame;
 
@@ -264,6 +290,16 @@ typedef struct sc_frame {
  * and under gravity and its force (clock.c): the motion groups' reach
  * (group.c) and the broad phase's skin (detect.c), without their margins. */
 double sc_body_reach(const sc_frame_config *cfg, const sc_body *b, double dt);
+/* Where b's shape origin goes in a frame if nothing touches it, to first
+ * order in its turn: o0 + v t + a t^2 / 2, from its pose o0, the
+ * origin's velocity v (the centre's and the turn's) and a from gravity
+ * and its force (integration is exact for that but for the turn: the
+ * origin leaves the line by at most |com| (|w| t)^2 / 2). A body that
+ * cannot move stays. d[0..8] = o0, v, a (clock.c). The motion groups'
+ * joins and their check (group.c). */
+void sc_body_drift(const sc_frame_config *cfg, const sc_body *b, double d[9]);
+/* Where that is at time t of the frame. */
+void sc_drift_at(const double d[9], double t, double p[3]);
 /* The contact model and solver settings a frame of cfg uses (frame.c;
  * docs/DESIGN.md section 11). */
 sc_contact_params sc_frame_contact_params(const sc_frame_config *cfg);

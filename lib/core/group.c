@@ -8,9 +8,10 @@
  * frame (its bound, the contact tolerance, twice its speed times dt, the
  * sweep of its shape origin about the centre of mass, half its
  * acceleration times dt^2, a margin); of the bodies whose spheres overlap,
- * those whose gap can close within the frame at twice their relative speed
- * (may_meet(): bodies falling side by side do not) are joined, and bodies
- * joined directly or through others form a group. Each group runs the whole
+ * those whose gap can close within the frame as they move at its start
+ * (may_meet(): bodies falling side by side do not) are joined, as are
+ * bodies touching at the end of the last frame, and bodies joined directly
+ * or through others form a group. Each group runs the whole
  * frame (sc_frame_step(): substeps, back-ups, islands, states) on a copy
  * of its bodies and the static ones. Static bodies join no group:
  * they are only read. A group with no awake body is asleep and skipped.
@@ -22,12 +23,18 @@
  * most of the awake bodies (a pile) instead runs on the calling thread
  * with its jobs spread over every node as before.
  *
- * A body set moving faster within the frame by a collision than its sphere
- * allowed for can reach a body of another group before the frame ends;
- * the contact is then found at the start of the next frame (the doubled
- * speed and the margin make that rare; the split impulse handles it).
+ * A body turned by a collision within the frame can still reach a body of
+ * another group. So every group's frame keeps where its bodies went (a
+ * track: sc_track, frame.c), and after all groups ran, bodies of
+ * different groups whose tracks came within touching distance
+ * (check_groups()) are joined and the frame is stepped again from its
+ * start for the groups that changed (sc_groups_step(); the others keep
+ * their results: the same inputs give the same bits). The groups that
+ * stand are a function of the bodies alone, whoever ran what.
+ * docs/DESIGN.md 3.9.
  */
 #include <limits.h>
+#include <math.h>
 #include <stdlib.h>
 
 #include "frame.h"
@@ -38,8 +45,16 @@
                                  work, that makes a pile */
 #define WIRE_GROUP_HEADER 400 /* bytes: unit and result headers, settings, figures */
 #define WIRE_GROUP_BODY 496   /* per body out */
-#define WIRE_GROUP_MEMBER 288 /* per member's state back */
+#define WIRE_GROUP_MEMBER 300 /* per member's state back, with its track's
+                                 distance and count (its points: 32 bytes
+                                 each, only a body that was turned) */
 #define WIRE_GROUP_CONTACT 88 /* per contact, with its impulse */
+#define JOIN_MARGIN 1e-3      /* m: bodies whose gap can close within the
+                                 frame, as they move at its start, to
+                                 under this are joined (more than the
+                                 parabola-to-chord distance of a falling
+                                 body over a frame, |g| dt^2 / 8 = 0.34 mm at
+                                 60 Hz, twice: check_groups() counts it) */
 #define PILE_KEEP 0.5         /* moving average of the pile's frame time */
 
 /* A group's frame runs on a copy of its bodies: this holds the copy and a
@@ -57,6 +72,11 @@ typedef struct sc_group_scratch {
     int gpair_cap;
     double pile_s;                  /* the parent's: wall seconds of the last
                                        piles' frames (moving average) */
+    sc_track track;                 /* the copy's */
+    int track_cap;
+    sc_broadphase *cbp;             /* the parent's: the boxes' check */
+    sc_pair *cpairs;
+    int cpair_cap;
 } sc_group_scratch;
 
 static sc_group_scratch *group_scratch_create(void)
@@ -80,6 +100,11 @@ static void group_scratch_destroy(sc_group_scratch *gs)
     free(gs->ids);
     sc_bp_destroy(gs->gbp);
     free(gs->gpairs);
+    free(gs->track.dev);
+    free(gs->track.count);
+    free(gs->track.pt);
+    sc_bp_destroy(gs->cbp);
+    free(gs->cpairs);
     free(gs);
 }
 
@@ -88,24 +113,27 @@ static void group_scratch_free(void *p)
     group_scratch_destroy(p);
 }
 
-/* Whether bodies a and b (spheres overlapping) can touch within dt: the
- * gap between their bounds closes at most at twice their relative speed,
- * plus the sweep of their shape origins, their relative acceleration and a
- * margin. Bodies falling side by side do not meet. */
-static int may_meet(const sc_frame_config *cfg, const sc_frame_state *st, const sc_groups *g,
-                    int a, int b, double dt)
+/* Whether bodies A and B (a and b, spheres overlapping) may come to touch
+ * within dt as they move at its start (sc_body_drift(): the gap between
+ * their bounds closes at most by their relative speed, half their relative
+ * acceleration and their turns' second-order terms), to within
+ * JOIN_MARGIN. Bodies falling side by side do not meet. A pair that meets
+ * anyway, turned by a collision, is found by check_groups(). */
+static int may_meet(const sc_frame_config *cfg, const sc_groups *g, const sc_body *A,
+                    const sc_body *B, int a, int b, double dt)
 {
-    const sc_body *A = &st->bodies[a], *B = &st->bodies[b];
-    double dv[3], acc[3], aa[3], ab[3];
-    v3_sub(dv, A->v, B->v);
-    v3_madd(aa, cfg->gravity, A->force, A->inv_mass);
-    v3_madd(ab, cfg->gravity, B->force, B->inv_mass);
-    v3_sub(acc, aa, ab);
+    double da[9], db[9], dv[3], dacc[3];
+    sc_body_drift(cfg, A, da);
+    sc_body_drift(cfg, B, db);
+    v3_sub(dv, da + 3, db + 3);
+    v3_sub(dacc, da + 6, db + 6);
     double gap = v3_dist(&g->centre[3 * a], &g->centre[3 * b]) - A->shape->bound_r -
                  B->shape->bound_r - 2 * cfg->contact_tol_m;
-    double close = (2 * v3_len(dv) + v3_len(A->w) * v3_len(A->com) +
-                    v3_len(B->w) * v3_len(B->com)) * dt +
-                   0.5 * v3_len(acc) * dt * dt + 2 * REACH_MARGIN;
+    double wa = v3_len(A->w), wb = v3_len(B->w);
+    double close = v3_len(dv) * dt +
+                   0.5 * (v3_len(dacc) + wa * wa * v3_len(A->com) + wb * wb * v3_len(B->com)) *
+                       dt * dt +
+                   JOIN_MARGIN;
     return gap < close;
 }
 
@@ -149,7 +177,7 @@ static void groups_free(sc_arena *a, sc_groups *g)
  * contacts[cstart[k] .. cstart[k + 1]). */
 static int build_groups(const sc_frame_config *cfg, const sc_frame_state *st,
                         sc_group_scratch *gs, sc_groups *g, double dt,
-                        const sc_task_runner *runner)
+                        const sc_task_runner *runner, int *forced)
 {
     int n = st->nbodies;
     if (!gs->gbp && !(gs->gbp = sc_bp_create()))
@@ -182,7 +210,7 @@ static int build_groups(const sc_frame_config *cfg, const sc_frame_state *st,
     for (int k = 0; k < np; k++) {
         const sc_pair *pr = &gs->gpairs[k];
         if (st->bodies[pr->a].inv_mass > 0 && st->bodies[pr->b].inv_mass > 0 &&
-            may_meet(cfg, st, g, pr->a, pr->b, dt))
+            may_meet(cfg, g, &st->bodies[pr->a], &st->bodies[pr->b], pr->a, pr->b, dt))
             sc_uf_unite(g->parent, pr->a, pr->b);
     }
     /* bodies touching at the end of the last frame stay together, asleep
@@ -192,6 +220,10 @@ static int build_groups(const sc_frame_config *cfg, const sc_frame_state *st,
         if (st->bodies[c->body_a].inv_mass > 0 && st->bodies[c->body_b].inv_mass > 0)
             sc_uf_unite(g->parent, c->body_a, c->body_b);
     }
+    /* bodies that met in an earlier try of this frame (sc_groups_step) */
+    for (int i = 0; i < n; i++)
+        if (sc_uf_find(forced, i) != i)
+            sc_uf_unite(g->parent, i, sc_uf_find(forced, i));
     /* a group needs an awake body; groups numbered by their first member */
     for (int i = 0; i < n; i++)
         if (g->active[i])
@@ -309,10 +341,29 @@ static void group_frame(const sc_group_job *gj, sc_group_scratch *gs, int k, sc_
     }
     st->ncontacts = nc;
     st->contacts_valid = ps->contacts_valid;
+    st->track = NULL;
+    if (gj->track) {
+        if (m > gs->track_cap) {
+            free(gs->track.dev);
+            free(gs->track.count);
+            free(gs->track.pt);
+            gs->track.dev = sc_alloc_array((size_t)m, sizeof *gs->track.dev);
+            gs->track.count = sc_alloc_array((size_t)m, sizeof *gs->track.count);
+            gs->track.pt = sc_alloc_array((size_t)m, SC_TRACK_MAX * 4 * sizeof *gs->track.pt);
+            gs->track_cap = gs->track.dev && gs->track.count && gs->track.pt ? m : 0;
+            if (!gs->track_cap)
+                return;
+        }
+        st->track = &gs->track;
+    }
     out->rc = group_copy_step(gj->cfg, st, gj->dt, &gs->scr, ex, &out->stats);
     for (int q = 0; q < m; q++)
-        if (st->bodies[q].inv_mass > 0)
+        if (st->bodies[q].inv_mass > 0) {
             ps->bodies[ids[q]] = st->bodies[q];
+            if (st->track)
+                sc_track_copy(gj->track, ids[q], st->track, q);
+        }
+    st->track = NULL;
     if (out->rc != SC_OK || st->ncontacts == 0)
         return;
     out->contacts = sc_alloc_array((size_t)st->ncontacts, sizeof *out->contacts);
@@ -415,21 +466,19 @@ static double group_cost(const sc_groups *g, int k)
 
 /* The groups' frames, with the groups built in g. */
 static int step_groups(const sc_frame_config *cfg, sc_frame_state *st, double dt,
-                       sc_frame_scratch *scr, sc_exec *ex, sc_stats *stats, sc_groups *g)
+                       sc_frame_scratch *scr, sc_exec *ex, sc_stats *stats, sc_groups *g,
+                       sc_group_out *out, sc_track *track, const unsigned char *todo)
 {
     sc_arena *a = &scr->arena;
     int ng = g->ngroups;
     stats->groups = ng;
-    sc_group_out *out = sc_arena_calloc(a, (size_t)ng, sizeof *out);
-    sc_unit *units = out ? sc_arena_calloc(a, (size_t)ng, sizeof *units) : NULL;
-    if (!units) {
-        sc_arena_free(a, out);
+    sc_unit *units = sc_arena_calloc(a, (size_t)ng, sizeof *units);
+    if (!units)
         return SC_ENOMEM;
-    }
-    sc_group_job gj = { .cfg = cfg, .st = st, .g = g, .dt = dt, .out = out };
+    sc_group_job gj = { .cfg = cfg, .st = st, .g = g, .dt = dt, .out = out, .track = track };
     int awake = 0;
     for (int i = 0; i < st->nbodies; i++)
-        awake += g->active[i];
+        awake += g->active[i] && todo[g->gid[i]];
     /* a pile: on the calling thread, its jobs over every node. It holds
      * more than BIG_GROUP of the awake bodies, or of the work (as a unit
      * would cost: a group of a few hundred bodies in contact can outweigh
@@ -440,9 +489,9 @@ static int step_groups(const sc_frame_config *cfg, sc_frame_state *st, double dt
     int big = -1;
     double total = 0;
     for (int k = 0; k < ng; k++)
-        total += group_cost(g, k);
+        total += todo[k] ? group_cost(g, k) : 0;
     for (int k = 0; k < ng && ex->width(ex) > 1; k++)
-        if ((g->start[k + 1] - g->start[k] > BIG_GROUP * awake ||
+        if (todo[k] && (g->start[k + 1] - g->start[k] > BIG_GROUP * awake ||
              group_cost(g, k) > BIG_GROUP * total) &&
             (big < 0 || group_cost(g, k) > group_cost(g, big)))
             big = k;
@@ -450,7 +499,7 @@ static int step_groups(const sc_frame_config *cfg, sc_frame_state *st, double dt
     /* the others: one unit each */
     int nu = 0;
     for (int k = 0; k < ng; k++) {
-        if (k == big)
+        if (k == big || !todo[k])
             continue;
         int nm = g->start[k + 1] - g->start[k];
         int nc = g->cstart[k + 1] - g->cstart[k];
@@ -506,24 +555,169 @@ static int step_groups(const sc_frame_config *cfg, sc_frame_state *st, double dt
             rc = drc;
     } else if (nu > 0 && rc == SC_OK)
         rc = started ? ex->finish(ex, &job, -1, stats) : ex->run(ex, &job, -1, stats);
-    for (int k = 0; k < ng; k++) {
-        sc_stats_add_frame(stats, &out[k].stats);
-        if (out[k].rc != SC_OK && rc == SC_OK)
-            rc = out[k].rc;
-    }
-    if (rc == SC_OK)
-        rc = merge_contacts(a, st, out, ng);
     for (int k = 0; k < ng; k++)
-        free(out[k].contacts);
+        if (todo[k] && out[k].rc != SC_OK && rc == SC_OK)
+            rc = out[k].rc;
     sc_arena_free(a, units);
-    sc_arena_free(a, out);
     return rc;
+}
+
+/* Body i's shape origin at time t of the frame: on its track (linear
+ * between points) if it has one, else on its drift d (9 doubles). */
+static void origin_at(const sc_track *tr, int i, const double *d, double t, double p[3])
+{
+    int n = tr ? tr->count[i] : 0;
+    if (n == 0) {
+        sc_drift_at(d, t, p);
+        return;
+    }
+    const double *q = &tr->pt[(size_t)i * SC_TRACK_MAX * 4];
+    int k = 0;
+    while (k + 2 < n && q[4 * (k + 1)] <= t)
+        k++;
+    if (n == 1) {
+        v3_copy(p, q + 1);
+        return;
+    }
+    const double *x = &q[4 * k], *y = &q[4 * (k + 1)];
+    double s = y[0] > x[0] ? (t - x[0]) / (y[0] - x[0]) : 1;
+    s = min_d(1, max_d(0, s));
+    for (int c = 0; c < 3; c++)
+        p[c] = x[1 + c] + s * (y[1 + c] - x[1 + c]);
+}
+
+/* The closest bodies a and b came in the frame of dt, less how far a
+ * body without a track may have been from where its drift puts it (its
+ * dev, and the parabola's distance from its chord over the intervals
+ * here): at every point of either track, and between two along both
+ * chords. */
+static double track_gap(const sc_track *tr, const double *drift, int a, int b, int ran_a,
+                        int ran_b, double dt)
+{
+    const int ab[2] = { a, b }, ran[2] = { ran_a, ran_b };
+    double ts[2 * SC_TRACK_MAX + 2];
+    int nt = 0;
+    ts[nt++] = 0;
+    ts[nt++] = dt;
+    for (int s = 0; s < 2; s++) {
+        int n = ran[s] ? tr->count[ab[s]] : 0;
+        const double *q = &tr->pt[(size_t)ab[s] * SC_TRACK_MAX * 4];
+        for (int k = 0; k < n; k++)
+            ts[nt++] = min_d(dt, max_d(0, q[4 * k]));
+    }
+    /* sort the times (a few dozen) */
+    for (int i = 1; i < nt; i++)
+        for (int j = i; j > 0 && ts[j - 1] > ts[j]; j--) {
+            double x = ts[j];
+            ts[j] = ts[j - 1];
+            ts[j - 1] = x;
+        }
+    double hmax = 0;
+    for (int i = 1; i < nt; i++)
+        hmax = max_d(hmax, ts[i] - ts[i - 1]);
+    double pad = 0;
+    for (int s = 0; s < 2; s++)
+        if (!ran[s] || tr->count[ab[s]] == 0)
+            pad += (ran[s] ? tr->dev[ab[s]] : 0) +
+                   v3_len(&drift[9 * ab[s] + 6]) * hmax * hmax / 8;
+    const sc_track *ta = ran_a ? tr : NULL, *tb = ran_b ? tr : NULL;
+    double best = INFINITY, r0[3], pa[3], pb[3];
+    origin_at(ta, a, &drift[9 * a], ts[0], pa);
+    origin_at(tb, b, &drift[9 * b], ts[0], pb);
+    v3_sub(r0, pa, pb);
+    best = v3_len(r0);
+    for (int i = 1; i < nt; i++) {
+        double r1[3], dr[3];
+        origin_at(ta, a, &drift[9 * a], ts[i], pa);
+        origin_at(tb, b, &drift[9 * b], ts[i], pb);
+        v3_sub(r1, pa, pb);
+        v3_sub(dr, r1, r0);
+        double dd = v3_dot(dr, dr);
+        double s = dd > 0 ? min_d(1, max_d(0, -v3_dot(r0, dr) / dd)) : 0;
+        double at[3];
+        v3_madd(at, r0, dr, s);
+        best = min_d(best, v3_len(at));
+        v3_copy(r0, r1);
+    }
+    return best - pad;
+}
+
+/* Pairs of bodies of different groups (or of a group and a sleeping body
+ * in none) that may have come close enough to touch in the frame: first
+ * by their drifts (sc_body_drift(), from their states at the frame's
+ * start, start[i]) and how far each went from it (tr->dev), then, where
+ * that does not keep them apart and one has a track, by their tracks
+ * (track_gap()). The frame is then stepped again with them in one group
+ * (sc_groups_step). United in forced; returns how many pairs. */
+static int check_groups(const sc_frame_config *cfg, const sc_body *start, int n,
+                        sc_group_scratch *gs, sc_groups *g, const sc_track *tr, double dt,
+                        const sc_task_runner *runner, int *forced)
+{
+    double *drift = sc_alloc_array((size_t)n, 9 * sizeof *drift);
+    if (!drift)
+        return SC_ENOMEM;
+    if (!gs->cbp && !(gs->cbp = sc_bp_create())) {
+        free(drift);
+        return SC_ENOMEM;
+    }
+    for (int i = 0; i < n; i++) {
+        const sc_body *b = &start[i];
+        g->active[i] = b->inv_mass > 0 && g->gid[i] >= 0;
+        if (b->inv_mass == 0) {
+            v3_set(&g->centre[3 * i], 0, 0, 0);
+            g->radius[i] = 0;
+            continue;
+        }
+        double *d = &drift[9 * i];
+        sc_body_drift(cfg, b, d);
+        double dev = g->active[i] ? tr->dev[i] : 0;
+        v3_madd(&g->centre[3 * i], d, d + 3, 0.5 * dt);
+        g->radius[i] = 0.5 * dt * v3_len(d + 3) + 0.5 * dt * dt * v3_len(d + 6) + dev +
+                       b->shape->bound_r + cfg->contact_tol_m;
+    }
+    int np = sc_bp_find_pairs_on(gs->cbp, runner,
+                                 n < 256 ? SC_BROADPHASE_SPHERES : SC_BROADPHASE_SAP, g->centre,
+                                 g->radius, g->active, n, &gs->cpairs, &gs->cpair_cap);
+    int met = 0;
+    for (int k = 0; k < np; k++) {
+        int a = gs->cpairs[k].a, b = gs->cpairs[k].b;
+        if (start[a].inv_mass == 0 || start[b].inv_mass == 0 ||
+            (g->gid[a] == g->gid[b] && g->gid[a] >= 0))
+            continue;
+        int ran_a = g->gid[a] >= 0, ran_b = g->gid[b] >= 0;
+        const double *A = &drift[9 * a], *B = &drift[9 * b];
+        double d0[3], dv[3], dacc[3];
+        v3_sub(d0, A, B);
+        v3_sub(dv, A + 3, B + 3);
+        v3_sub(dacc, A + 6, B + 6);
+        /* the nearest approach within the frame of the relative line, the
+         * relative acceleration (the same gravity: mostly none) taken as a
+         * bound */
+        double vv = v3_dot(dv, dv);
+        double t = vv > 0 ? min_d(dt, max_d(0, -v3_dot(d0, dv) / vv)) : 0;
+        double at[3];
+        v3_madd(at, d0, dv, t);
+        double touch = start[a].shape->bound_r + start[b].shape->bound_r +
+                       2 * cfg->contact_tol_m;
+        double reach = touch + 0.5 * v3_len(dacc) * dt * dt + (ran_a ? tr->dev[a] : 0) +
+                       (ran_b ? tr->dev[b] : 0);
+        if (v3_len(at) >= reach)
+            continue;
+        if (((ran_a && tr->count[a] > 0) || (ran_b && tr->count[b] > 0)) &&
+            track_gap(tr, drift, a, b, ran_a, ran_b, dt) >= touch)
+            continue;
+        sc_uf_unite(forced, a, b);
+        met++;
+    }
+    free(drift);
+    return np < 0 ? np : met;
 }
 
 int sc_groups_step(const sc_frame_config *cfg, sc_frame_state *st, double dt,
                    sc_frame_scratch *scr, sc_exec *ex, sc_stats *stats)
 {
-    if (st->nbodies == 0)
+    int n = st->nbodies;
+    if (n == 0)
         return SC_OK;
     if (!scr->groups) {
         if (!(scr->groups = group_scratch_create()))
@@ -531,21 +725,126 @@ int sc_groups_step(const sc_frame_config *cfg, sc_frame_state *st, double dt,
         scr->groups_free = group_scratch_destroy;
     }
     sc_arena *a = &scr->arena;
-    double t0 = sc_cpu_now();
-    sc_groups g;
-    int rc = groups_alloc(a, &g, st->nbodies, st->contacts_valid ? st->ncontacts : 0);
-    if (rc == SC_OK)
-        rc = build_groups(cfg, st, scr->groups, &g, dt, ex->runner);
-    sc_stage_add(stats, SC_STAGE_BROADPHASE, t0);
-    if (rc == SC_OK)
-        rc = step_groups(cfg, st, dt, scr, ex, stats, &g);
-    groups_free(a, &g);
+    /* Groups are joined by how the bodies move at the frame's start; a
+     * body turned by a collision in the frame may still reach another
+     * group. So each group keeps the box its bodies stayed in, and bodies
+     * of different groups whose boxes came within touching distance are
+     * joined and the frame is stepped again from its start (the groups
+     * that did not change give the same bits again). The groups are a
+     * function of the bodies alone, so the result does not depend on who
+     * ran what. */
+    sc_body *start = sc_arena_alloc(a, (size_t)n * sizeof *start);
+    sc_track track = { 0 };
+    track.dev = start ? sc_arena_alloc(a, (size_t)n * sizeof *track.dev) : NULL;
+    track.count = track.dev ? sc_arena_alloc(a, (size_t)n * sizeof *track.count) : NULL;
+    track.pt = track.count ? sc_arena_alloc(a, (size_t)n * SC_TRACK_MAX * 4 * sizeof *track.pt)
+                           : NULL;
+    int *forced = track.pt ? sc_arena_alloc(a, (size_t)n * sizeof *forced) : NULL;
+    int *prev_gid = forced ? sc_arena_alloc(a, (size_t)n * sizeof *prev_gid) : NULL;
+    if (!prev_gid) {
+        sc_arena_free(a, forced);
+        sc_arena_free(a, track.pt);
+        sc_arena_free(a, track.count);
+        sc_arena_free(a, track.dev);
+        sc_arena_free(a, start);
+        return SC_ENOMEM;
+    }
+    memcpy(start, st->bodies, (size_t)n * sizeof *start);
+    for (int i = 0; i < n; i++)
+        forced[i] = i;
+    int rc = SC_OK;
+    sc_group_out *prev = NULL;    /* the last try's outputs, by its groups */
+    int prev_ng = 0;
+    for (int round = 0; rc == SC_OK; round++) {
+        double t0 = sc_cpu_now();
+        sc_groups g;
+        rc = groups_alloc(a, &g, n, st->contacts_valid ? st->ncontacts : 0);
+        if (rc == SC_OK)
+            rc = build_groups(cfg, st, scr->groups, &g, dt, ex->runner, forced);
+        int ng = rc == SC_OK ? g.ngroups : 0;
+        sc_group_out *out = rc == SC_OK ? sc_alloc_array((size_t)ng + 1, sizeof *out) : NULL;
+        unsigned char *todo = out ? malloc((size_t)ng + 1) : NULL;
+        if (rc == SC_OK && !todo)
+            rc = SC_ENOMEM;
+        if (rc == SC_OK) {
+            memset(out, 0, ((size_t)ng + 1) * sizeof *out);
+            /* a group of the last try that is a group again keeps what it
+             * did (the same inputs give the same bits); the others start
+             * again from the frame's start */
+            int *size = prev ? calloc((size_t)prev_ng + 1, sizeof *size) : NULL;
+            if (prev && !size)
+                rc = SC_ENOMEM;
+            for (int i = 0; size && i < n; i++)
+                if (prev_gid[i] >= 0)
+                    size[prev_gid[i]]++;
+            for (int k = 0; rc == SC_OK && k < ng; k++) {
+                int m0 = g.members[g.start[k]], nm = g.start[k + 1] - g.start[k];
+                int q = prev ? prev_gid[m0] : -1;
+                int same = q >= 0 && size[q] == nm;
+                for (int j = g.start[k]; same && j < g.start[k + 1]; j++)
+                    same = prev_gid[g.members[j]] == q;
+                todo[k] = !same;
+                if (same) {
+                    out[k] = prev[q];
+                    prev[q].contacts = NULL;
+                } else if (prev) {
+                    for (int j = g.start[k]; j < g.start[k + 1]; j++)
+                        st->bodies[g.members[j]] = start[g.members[j]];
+                    stats->group_retries++;
+                }
+            }
+            free(size);
+        }
+        for (int k = 0; prev && k < prev_ng; k++)
+            free(prev[k].contacts);
+        free(prev);
+        prev = NULL;
+        sc_stage_add(stats, SC_STAGE_BROADPHASE, t0);
+        if (rc == SC_OK)
+            rc = step_groups(cfg, st, dt, scr, ex, stats, &g, out, &track, todo);
+        int met = 0;
+        if (rc == SC_OK) {
+            t0 = sc_cpu_now();
+            met = check_groups(cfg, start, n, scr->groups, &g, &track, dt, ex->runner, forced);
+            sc_stage_add(stats, SC_STAGE_BROADPHASE, t0);
+            if (met < 0)
+                rc = met;
+        }
+        if (rc == SC_OK && met == 0) {
+            for (int k = 0; k < ng; k++)
+                sc_stats_add_frame(stats, &out[k].stats);
+            rc = merge_contacts(a, st, out, ng);
+        }
+        if (rc == SC_OK && met > 0) {
+            /* again, with the pairs that met joined */
+            prev = out;
+            prev_ng = ng;
+            memcpy(prev_gid, g.gid, (size_t)n * sizeof *prev_gid);
+        } else {
+            for (int k = 0; out && k < ng; k++)
+                free(out[k].contacts);
+            free(out);
+        }
+        free(todo);
+        groups_free(a, &g);
+        if (rc != SC_OK || met == 0)
+            break;
+    }
+    for (int k = 0; prev && k < prev_ng; k++)
+        free(prev[k].contacts);
+    free(prev);
+    sc_arena_free(a, prev_gid);
+    sc_arena_free(a, forced);
+    sc_arena_free(a, track.pt);
+    sc_arena_free(a, track.count);
+    sc_arena_free(a, track.dev);
+    sc_arena_free(a, start);
     if (a->high > stats->arena_bytes)
         stats->arena_bytes = a->high;
     if (rc != SC_OK)
         return rc;
     stats->contacts = st->ncontacts;
-    for (int i = 0; i < st->nbodies; i++) {
+    for (int i = 0; i < n; i++) {
         v3_set(st->bodies[i].force, 0, 0, 0);
         v3_set(st->bodies[i].torque, 0, 0, 0);
     }

@@ -45,7 +45,10 @@
  *             (GROUP) the frame's figures that sc_stats_add_frame() merges
  *             (stat_fields(): f64s, i64s, u64s, i32s), per member in the
  *             unit's order: the doubles a frame writes (gbody_fields() from
- *             x on), state i32, collided i32; contacts u32 (0 unless rc is
+ *             x on), state i32, collided i32, its track (group.c's check:
+ *             sc_track): dev f64 (>= 0), points u32 (at most SC_TRACK_MAX)
+ *             and per point t (within the frame, in order), x, y, z f64;
+ *             contacts u32 (0 unless rc is
  *             0) and the frame's new contacts with their impulses (local
  *             indices, canonical order)
  * A unit's counts are bounded and its length checked exactly before
@@ -75,11 +78,12 @@
 #include "unit_wire.h"
 #include "vecmath.h"
 
-#define WIRE_VERSION 11      /* 6: island units carry impact_first, results inelastic, v0, w0;
+#define WIRE_VERSION 12      /* 6: island units carry impact_first, results inelastic, v0, w0;
                                 7: results carry energy_refused, restitution_scaled;
                                 8: and np_pairs, np_reused; 9: and lcp_kept;
                                 10: island units carry gravity (the push-out's lift);
-                                11: results carry guessed, stats lcp_guessed */
+                                11: results carry guessed, stats lcp_guessed;
+                                12: group results carry the members' tracks */
 #define MAGIC_UNIT 0x55574353u        /* "SCWU" */
 #define MAGIC_RESULT 0x52574353u      /* "SCWR" */
 #define MAX_PAIRS (1 << 16)
@@ -772,8 +776,14 @@ static int decode_group(rbuf *r, sc_shape_lookup_fn lookup, void *ctx, sc_wire_u
     sc_frame_state *st = &wu->gst;
     wu->bodies = sc_calloc_array(m, sizeof *wu->bodies);
     st->contacts = sc_calloc_array(nc > 0 ? nc : 1, sizeof *st->contacts);
+    wu->track.dev = sc_calloc_array(m, sizeof *wu->track.dev);
+    wu->track.count = sc_calloc_array(m, sizeof *wu->track.count);
+    wu->track.pt = sc_alloc_array(m, SC_TRACK_MAX * 4 * sizeof *wu->track.pt);
     unsigned char *stat = sc_alloc_array(m, 1);
-    int rc = wu->bodies && st->contacts && stat ? SC_OK : SC_ENOMEM;
+    int rc = wu->bodies && st->contacts && stat && wu->track.dev && wu->track.count &&
+                     wu->track.pt
+                 ? SC_OK
+                 : SC_ENOMEM;
     uint32_t members = 0;
     for (uint32_t k = 0; k < m && rc == SC_OK; k++) {
         get_gbody(r, &wu->bodies[k], lookup, ctx);
@@ -800,6 +810,7 @@ static int decode_group(rbuf *r, sc_shape_lookup_fn lookup, void *ctx, sc_wire_u
     st->ncontacts = (int)nc;
     st->contact_cap = nc > 0 ? (int)nc : 1;
     st->contacts_valid = valid;
+    st->track = &wu->track;
     /* the unit's own group, stepped in place (group.c) */
     wu->group = (sc_group_job){ .cfg = &wu->cfg, .st = st, .g = NULL, .dt = head[0],
                                 .out = &wu->gout };
@@ -851,6 +862,9 @@ void sc_wire_unit_free(sc_wire_unit *wu)
     free(wu->bodies);
     free(wu->c);
     free(wu->gst.contacts);
+    free(wu->track.dev);
+    free(wu->track.count);
+    free(wu->track.pt);
     sc_islands_free(&wu->islands);
     memset(wu, 0, sizeof *wu);
 }
@@ -999,6 +1013,13 @@ static void write_group_result(wbuf *w, const sc_wire_unit *wu)
         put_gbody_f64(w, *b, GBODY_KEEP, GBODY_F64);
         put_i32(w, b->state);
         put_i32(w, b->collided);
+        /* its track (group.c's check) */
+        int n = st->track ? st->track->count[q] : 0;
+        double dev = st->track ? st->track->dev[q] : 0;
+        put_f64s(w, &dev, 1);
+        put(w, (uint64_t)n, 4);
+        if (n > 0)
+            put_f64s(w, &st->track->pt[(size_t)q * SC_TRACK_MAX * 4], 4 * n);
     }
     int nc = wu->unit.rc == SC_OK ? st->ncontacts : 0;
     put(w, (uint64_t)nc, 4);
@@ -1093,6 +1114,26 @@ static int read_group_result(rbuf *r, const sc_job *job, const sc_unit *u, int w
             return SC_EFORMAT;
         b->state = state;
         b->collided = collided;
+        /* its track: how far it went from its drift, and its points (times
+         * within the frame, in order) */
+        double dev;
+        get_f64s(r, &dev, 1, 1);
+        uint32_t n = (uint32_t)get(r, 4);
+        if (r->bad || !(dev >= 0) || n > SC_TRACK_MAX)
+            return SC_EFORMAT;
+        double pt[SC_TRACK_MAX * 4];
+        get_f64s(r, pt, 4 * (int)n, 1);
+        for (uint32_t k = 0; k < n && !r->bad; k++)
+            if (pt[4 * k] < 0 || pt[4 * k] > gj->dt || (k > 0 && pt[4 * k] < pt[4 * (k - 1)]))
+                return SC_EFORMAT;
+        if (r->bad)
+            return SC_EFORMAT;
+        if (write && gj->track) {
+            gj->track->dev[mem[i]] = dev;
+            gj->track->count[mem[i]] = (int)n;
+            memcpy(&gj->track->pt[(size_t)mem[i] * SC_TRACK_MAX * 4], pt,
+                   (size_t)n * 4 * sizeof *pt);
+        }
     }
     uint32_t nc = (uint32_t)get(r, 4);
     if (r->bad || nc > MAX_CONTACTS || (rc != SC_OK && nc > 0) ||

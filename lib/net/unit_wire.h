@@ -32,6 +32,7 @@ typedef struct sc_wire_unit {
     sc_frame_state gst;
     sc_group_job group;
     sc_group_out gout;
+    sc_track track;           /* where its bodies went (owned arrays) */
 } sc_wire_unit;
 /* Decode; SC_EFORMAT for anything malformed (truncated, bad version/kind,
  * counts or solver or frame settings out of range, NaN, unknown shape
