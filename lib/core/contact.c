@@ -1443,7 +1443,8 @@ static double row_lin_accel(const row *rw, const sc_body *bodies, double h)
  * into the floor, did no better on the 50-part drop: 3 of 6 seeds past
  * 1 mm instead of 1, and it unsettled the Table 1 box.) */
 static void pull_in(const row *rows, const int *cstart, const sc_contact *c, const int *ci,
-                    int nc, const int *coll, const double *z, const double *pull, sc_body *bodies)
+                    int nc, const int *coll, const double *z, const double *pull, double slop,
+                    sc_body *bodies)
 {
     for (int k0 = 0, k1; k0 < nc; k0 = k1) {
         int best = -1;
@@ -1456,8 +1457,22 @@ static void pull_in(const row *rows, const int *cstart, const sc_contact *c, con
             continue;
         const row *rw = &rows[cstart[best]];
         double arr = a_entry(rw, rw);
-        if (arr > 0)
-            apply(rw, -pull[best] / arr, bodies, 1, 1.0);
+        if (!(arr > 0))
+            continue;
+        /* no further than takes another contact of the island (of this
+         * pair or of its bodies' others) deeper than it is or than the
+         * slop, to first order: the pull moves the bodies along one row
+         * and knows nothing of the others */
+        double lam = -pull[best] / arr, s = 1;
+        for (int k = 0; k < nc; k++) {
+            if (k == best)
+                continue;
+            double close = -a_entry(&rows[cstart[k]], rw) * lam;    /* depth it adds */
+            double room = max_d(c[ci[k]].depth, slop) - c[ci[k]].depth;
+            if (close > 0 && close * s > room)
+                s = max_d(0.0, room / close);
+        }
+        apply(rw, s * lam, bodies, 1, 1.0);
     }
 }
 
@@ -1797,7 +1812,7 @@ rows_again:
     if (deep > p->slop)
         rc = neutral_push_out(arena, rows, nsel, nn, c, ci, nc, deep, bodies, h, p, split, info);
     if (nspecc > 0)
-        pull_in(rows, cstart, c, ci, nc, coll, z, pull, bodies);
+        pull_in(rows, cstart, c, ci, nc, coll, z, pull, p->slop, bodies);
     if (rc == SC_OK && p->impact_first && !inelastic && keep) {
         double cap = 0;
         for (int i = 0; i < nb; i++)
