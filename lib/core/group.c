@@ -759,8 +759,12 @@ int sc_groups_step(const sc_frame_config *cfg, sc_frame_state *st, double dt,
         double t0 = sc_cpu_now();
         sc_groups g;
         rc = groups_alloc(a, &g, n, st->contacts_valid ? st->ncontacts : 0);
+        /* joined by the states at the frame's start (a try's groups
+         * have moved st's bodies on) */
+        sc_frame_state st0 = *st;
+        st0.bodies = start;
         if (rc == SC_OK)
-            rc = build_groups(cfg, st, scr->groups, &g, dt, ex->runner, forced);
+            rc = build_groups(cfg, &st0, scr->groups, &g, dt, ex->runner, forced);
         int ng = rc == SC_OK ? g.ngroups : 0;
         sc_group_out *out = rc == SC_OK ? sc_alloc_array((size_t)ng + 1, sizeof *out) : NULL;
         unsigned char *todo = out ? malloc((size_t)ng + 1) : NULL;
