@@ -120,11 +120,10 @@ static void group_scratch_free(void *p)
  * JOIN_MARGIN. Bodies falling side by side do not meet. A pair that meets
  * anyway, turned by a collision, is found by check_groups(). */
 static int may_meet(const sc_frame_config *cfg, const sc_groups *g, const sc_body *A,
-                    const sc_body *B, int a, int b, double dt)
+                    const sc_body *B, int a, int b, const double *drift, double dt)
 {
-    double da[9], db[9], dv[3], dacc[3];
-    sc_body_drift(cfg, A, da);
-    sc_body_drift(cfg, B, db);
+    const double *da = &drift[9 * a], *db = &drift[9 * b];
+    double dv[3], dacc[3];
     v3_sub(dv, da + 3, db + 3);
     v3_sub(dacc, da + 6, db + 6);
     double gap = v3_dist(&g->centre[3 * a], &g->centre[3 * b]) - A->shape->bound_r -
@@ -176,7 +175,7 @@ static void groups_free(sc_arena *a, sc_groups *g)
  * the static bodies, and the last frame's contacts of each group in
  * contacts[cstart[k] .. cstart[k + 1]). */
 static int build_groups(const sc_frame_config *cfg, const sc_frame_state *st,
-                        sc_group_scratch *gs, sc_groups *g, double dt,
+                        sc_group_scratch *gs, sc_groups *g, const double *drift, double dt,
                         const sc_task_runner *runner, int *forced)
 {
     int n = st->nbodies;
@@ -210,7 +209,7 @@ static int build_groups(const sc_frame_config *cfg, const sc_frame_state *st,
     for (int k = 0; k < np; k++) {
         const sc_pair *pr = &gs->gpairs[k];
         if (st->bodies[pr->a].inv_mass > 0 && st->bodies[pr->b].inv_mass > 0 &&
-            may_meet(cfg, g, &st->bodies[pr->a], &st->bodies[pr->b], pr->a, pr->b, dt))
+            may_meet(cfg, g, &st->bodies[pr->a], &st->bodies[pr->b], pr->a, pr->b, drift, dt))
             sc_uf_unite(g->parent, pr->a, pr->b);
     }
     /* bodies touching at the end of the last frame stay together, asleep
@@ -650,16 +649,12 @@ static double track_gap(const sc_track *tr, const double *drift, int a, int b, i
  * (track_gap()). The frame is then stepped again with them in one group
  * (sc_groups_step). United in forced; returns how many pairs. */
 static int check_groups(const sc_frame_config *cfg, const sc_body *start, int n,
-                        sc_group_scratch *gs, sc_groups *g, const sc_track *tr, double dt,
-                        const sc_task_runner *runner, int *forced)
+                        sc_group_scratch *gs, sc_groups *g, const sc_track *tr,
+                        const double *drift, double dt, const sc_task_runner *runner,
+                        int *forced)
 {
-    double *drift = sc_alloc_array((size_t)n, 9 * sizeof *drift);
-    if (!drift)
+    if (!gs->cbp && !(gs->cbp = sc_bp_create()))
         return SC_ENOMEM;
-    if (!gs->cbp && !(gs->cbp = sc_bp_create())) {
-        free(drift);
-        return SC_ENOMEM;
-    }
     for (int i = 0; i < n; i++) {
         const sc_body *b = &start[i];
         g->active[i] = b->inv_mass > 0 && g->gid[i] >= 0;
@@ -668,8 +663,7 @@ static int check_groups(const sc_frame_config *cfg, const sc_body *start, int n,
             g->radius[i] = 0;
             continue;
         }
-        double *d = &drift[9 * i];
-        sc_body_drift(cfg, b, d);
+        const double *d = &drift[9 * i];
         double dev = g->active[i] ? tr->dev[i] : 0;
         v3_madd(&g->centre[3 * i], d, d + 3, 0.5 * dt);
         g->radius[i] = 0.5 * dt * v3_len(d + 3) + 0.5 * dt * dt * v3_len(d + 6) + dev +
@@ -709,7 +703,6 @@ static int check_groups(const sc_frame_config *cfg, const sc_body *start, int n,
         sc_uf_unite(forced, a, b);
         met++;
     }
-    free(drift);
     return np < 0 ? np : met;
 }
 
@@ -741,7 +734,9 @@ int sc_groups_step(const sc_frame_config *cfg, sc_frame_state *st, double dt,
                            : NULL;
     int *forced = track.pt ? sc_arena_alloc(a, (size_t)n * sizeof *forced) : NULL;
     int *prev_gid = forced ? sc_arena_alloc(a, (size_t)n * sizeof *prev_gid) : NULL;
-    if (!prev_gid) {
+    double *drift = prev_gid ? sc_arena_alloc(a, (size_t)n * 9 * sizeof *drift) : NULL;
+    if (!drift) {
+        sc_arena_free(a, prev_gid);
         sc_arena_free(a, forced);
         sc_arena_free(a, track.pt);
         sc_arena_free(a, track.count);
@@ -750,8 +745,12 @@ int sc_groups_step(const sc_frame_config *cfg, sc_frame_state *st, double dt,
         return SC_ENOMEM;
     }
     memcpy(start, st->bodies, (size_t)n * sizeof *start);
-    for (int i = 0; i < n; i++)
+    /* every body's drift from the frame's start: the joins and the check */
+    for (int i = 0; i < n; i++) {
         forced[i] = i;
+        if (start[i].inv_mass > 0)
+            sc_body_drift(cfg, &start[i], &drift[9 * i]);
+    }
     int rc = SC_OK;
     sc_group_out *prev = NULL;    /* the last try's outputs, by its groups */
     int prev_ng = 0;
@@ -764,7 +763,7 @@ int sc_groups_step(const sc_frame_config *cfg, sc_frame_state *st, double dt,
         sc_frame_state st0 = *st;
         st0.bodies = start;
         if (rc == SC_OK)
-            rc = build_groups(cfg, &st0, scr->groups, &g, dt, ex->runner, forced);
+            rc = build_groups(cfg, &st0, scr->groups, &g, drift, dt, ex->runner, forced);
         int ng = rc == SC_OK ? g.ngroups : 0;
         sc_group_out *out = rc == SC_OK ? sc_alloc_array((size_t)ng + 1, sizeof *out) : NULL;
         unsigned char *todo = out ? malloc((size_t)ng + 1) : NULL;
@@ -809,7 +808,8 @@ int sc_groups_step(const sc_frame_config *cfg, sc_frame_state *st, double dt,
         int met = 0;
         if (rc == SC_OK) {
             t0 = sc_cpu_now();
-            met = check_groups(cfg, start, n, scr->groups, &g, &track, dt, ex->runner, forced);
+            met = check_groups(cfg, start, n, scr->groups, &g, &track, drift, dt, ex->runner,
+                               forced);
             sc_stage_add(stats, SC_STAGE_BROADPHASE, t0);
             if (met < 0)
                 rc = met;
@@ -837,6 +837,7 @@ int sc_groups_step(const sc_frame_config *cfg, sc_frame_state *st, double dt,
     for (int k = 0; prev && k < prev_ng; k++)
         free(prev[k].contacts);
     free(prev);
+    sc_arena_free(a, drift);
     sc_arena_free(a, prev_gid);
     sc_arena_free(a, forced);
     sc_arena_free(a, track.pt);
