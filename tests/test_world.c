@@ -5,6 +5,7 @@
 #include <stdarg.h>
 #include <stddef.h>
 #include <stdint.h>
+#include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
 #include <cmocka.h>
@@ -586,6 +587,27 @@ static void test_a_body_knocked_into_another_group_is_stepped_with_it(void **sta
     assert_int_equal(s2.group_retries, s1.group_retries);
 }
 
+/* A bin of 100 parts over 3 s: it settles and its islands fall asleep
+ * one by one. Two sleeping neighbours, one in a group that an awake body
+ * keeps running and one in none, did not move; the groups' check must not
+ * count them as meeting (it did: every such frame was stepped twice, 232
+ * groups again in these 300 frames, 2026-12-04). */
+static void test_sleeping_neighbours_do_not_step_a_frame_again(void **state)
+{
+    (void)state;
+    sc_world_config c = sc_world_config_default();
+    c.workers = 1;
+    sc_world *w = sc_world_create(&c);
+    assert_int_equal(sc_scene_bin(w, 100, 5), SC_OK);
+    for (int f = 0; f < 300; f++)
+        assert_int_equal(sc_world_step(w, 0.01), SC_OK);
+    sc_stats st;
+    sc_world_stats(w, &st);
+    printf("  groups stepped again in 300 frames: %ld\n", st.group_retries_total);
+    assert_true(st.group_retries_total < 30);
+    sc_world_destroy(w);
+}
+
 static void test_toi_mode_must_be_one_of_the_two(void **state)
 {
     (void)state;
@@ -770,6 +792,7 @@ int main(void)
         cmocka_unit_test(test_a_landing_pile_may_back_up_more_than_15_times_a_frame),
         cmocka_unit_test(test_a_pressed_pair_does_not_back_up_a_pile_to_the_cap),
         cmocka_unit_test(test_a_body_knocked_into_another_group_is_stepped_with_it),
+        cmocka_unit_test(test_sleeping_neighbours_do_not_step_a_frame_again),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
 }

@@ -648,8 +648,8 @@ static double track_gap(const sc_track *tr, const double *drift, int a, int b, i
  * that does not keep them apart and one has a track, by their tracks
  * (track_gap()). The frame is then stepped again with them in one group
  * (sc_groups_step). United in forced; returns how many pairs. */
-static int check_groups(const sc_frame_config *cfg, const sc_body *start, int n,
-                        sc_group_scratch *gs, sc_groups *g, const sc_track *tr,
+static int check_groups(const sc_frame_config *cfg, const sc_body *start, const sc_body *now,
+                        int n, sc_group_scratch *gs, sc_groups *g, const sc_track *tr,
                         const double *drift, double dt, const sc_task_runner *runner,
                         int *forced)
 {
@@ -677,6 +677,12 @@ static int check_groups(const sc_frame_config *cfg, const sc_body *start, int n,
         int a = gs->cpairs[k].a, b = gs->cpairs[k].b;
         if (start[a].inv_mass == 0 || start[b].inv_mass == 0 ||
             (g->gid[a] == g->gid[b] && g->gid[a] >= 0))
+            continue;
+        /* two bodies asleep from the frame's start to its end did not
+         * move (a body woken in the frame has no rest time left to fall
+         * asleep again by its end: state.c) */
+        if (start[a].state == SC_ASLEEP && start[b].state == SC_ASLEEP &&
+            now[a].state == SC_ASLEEP && now[b].state == SC_ASLEEP)
             continue;
         int ran_a = g->gid[a] >= 0, ran_b = g->gid[b] >= 0;
         const double *A = &drift[9 * a], *B = &drift[9 * b];
@@ -808,8 +814,8 @@ int sc_groups_step(const sc_frame_config *cfg, sc_frame_state *st, double dt,
         int met = 0;
         if (rc == SC_OK) {
             t0 = sc_cpu_now();
-            met = check_groups(cfg, start, n, scr->groups, &g, &track, drift, dt, ex->runner,
-                               forced);
+            met = check_groups(cfg, start, st->bodies, n, scr->groups, &g, &track, drift, dt,
+                               ex->runner, forced);
             sc_stage_add(stats, SC_STAGE_BROADPHASE, t0);
             if (met < 0)
                 rc = met;
