@@ -712,6 +712,45 @@ static int check_groups(const sc_frame_config *cfg, const sc_body *start, const 
     return np < 0 ? np : met;
 }
 
+/* The arrays the tries of a frame share (sc_groups_step()): the bodies at
+ * its start, where the groups' bodies went, the pairs that met, the last
+ * try's groups, every body's drift. From arena a, freed in reverse. */
+typedef struct tries {
+    sc_body *start;
+    sc_track track;
+    int *forced, *prev_gid;
+    double *drift;
+} tries;
+
+static void tries_free(sc_arena *a, tries *t)
+{
+    sc_arena_free(a, t->drift);
+    sc_arena_free(a, t->prev_gid);
+    sc_arena_free(a, t->forced);
+    sc_arena_free(a, t->track.pt);
+    sc_arena_free(a, t->track.count);
+    sc_arena_free(a, t->track.dev);
+    sc_arena_free(a, t->start);
+}
+
+static int tries_alloc(sc_arena *a, tries *t, int n)
+{
+    size_t N = (size_t)n;
+    memset(t, 0, sizeof *t);
+    t->start = sc_arena_alloc(a, N * sizeof *t->start);
+    t->track.dev = t->start ? sc_arena_alloc(a, N * sizeof *t->track.dev) : NULL;
+    t->track.count = t->track.dev ? sc_arena_alloc(a, N * sizeof *t->track.count) : NULL;
+    t->track.pt = t->track.count ? sc_arena_alloc(a, N * SC_TRACK_MAX * 4 * sizeof *t->track.pt)
+                                 : NULL;
+    t->forced = t->track.pt ? sc_arena_alloc(a, N * sizeof *t->forced) : NULL;
+    t->prev_gid = t->forced ? sc_arena_alloc(a, N * sizeof *t->prev_gid) : NULL;
+    t->drift = t->prev_gid ? sc_arena_alloc(a, N * 9 * sizeof *t->drift) : NULL;
+    if (t->drift)
+        return SC_OK;
+    tries_free(a, t);
+    return SC_ENOMEM;
+}
+
 int sc_groups_step(const sc_frame_config *cfg, sc_frame_state *st, double dt,
                    sc_frame_scratch *scr, sc_exec *ex, sc_stats *stats)
 {
@@ -732,24 +771,13 @@ int sc_groups_step(const sc_frame_config *cfg, sc_frame_state *st, double dt,
      * that did not change give the same bits again). The groups are a
      * function of the bodies alone, so the result does not depend on who
      * ran what. */
-    sc_body *start = sc_arena_alloc(a, (size_t)n * sizeof *start);
-    sc_track track = { 0 };
-    track.dev = start ? sc_arena_alloc(a, (size_t)n * sizeof *track.dev) : NULL;
-    track.count = track.dev ? sc_arena_alloc(a, (size_t)n * sizeof *track.count) : NULL;
-    track.pt = track.count ? sc_arena_alloc(a, (size_t)n * SC_TRACK_MAX * 4 * sizeof *track.pt)
-                           : NULL;
-    int *forced = track.pt ? sc_arena_alloc(a, (size_t)n * sizeof *forced) : NULL;
-    int *prev_gid = forced ? sc_arena_alloc(a, (size_t)n * sizeof *prev_gid) : NULL;
-    double *drift = prev_gid ? sc_arena_alloc(a, (size_t)n * 9 * sizeof *drift) : NULL;
-    if (!drift) {
-        sc_arena_free(a, prev_gid);
-        sc_arena_free(a, forced);
-        sc_arena_free(a, track.pt);
-        sc_arena_free(a, track.count);
-        sc_arena_free(a, track.dev);
-        sc_arena_free(a, start);
+    tries t;
+    if (tries_alloc(a, &t, n) != SC_OK)
         return SC_ENOMEM;
-    }
+    sc_body *start = t.start;
+    sc_track track = t.track;
+    int *forced = t.forced, *prev_gid = t.prev_gid;
+    double *drift = t.drift;
     memcpy(start, st->bodies, (size_t)n * sizeof *start);
     /* every body's drift from the frame's start: the joins and the check */
     for (int i = 0; i < n; i++) {
@@ -843,13 +871,7 @@ int sc_groups_step(const sc_frame_config *cfg, sc_frame_state *st, double dt,
     for (int k = 0; prev && k < prev_ng; k++)
         free(prev[k].contacts);
     free(prev);
-    sc_arena_free(a, drift);
-    sc_arena_free(a, prev_gid);
-    sc_arena_free(a, forced);
-    sc_arena_free(a, track.pt);
-    sc_arena_free(a, track.count);
-    sc_arena_free(a, track.dev);
-    sc_arena_free(a, start);
+    tries_free(a, &t);
     if (a->high > stats->arena_bytes)
         stats->arena_bytes = a->high;
     if (rc != SC_OK)
