@@ -184,13 +184,14 @@ static void track_point(const sc_frame *f, int i, double t)
     tr->count[i] = k + (k <= SC_TRACK_MAX);
 }
 
-/* Body i's track dev grown to its shape origin's distance at the end t of
- * a substep of h from its drift (sc_body_drift()), plus how far the
- * drift's parabola leaves its chord over h (|a| h^2 / 8): between
- * substep ends the frame moves a shape origin along the chord (the time
- * of impact's poses, toi.c), so the path stays within the sweep of the
- * drift. */
-static void sweep_extend(const sc_frame *f, int i, double t, double h)
+/* Body i's track distance (st->track->dev) grown to its shape origin's
+ * distance at the end t of a substep of h from its drift
+ * (sc_body_drift()), plus how far the drift's parabola leaves its chord
+ * over h (|a| h^2 / 8): between substep ends the frame moves a shape origin
+ * along the chord (the time of impact's poses, toi.c), so the whole path
+ * stays within that distance of the drift. Every substep counts, those a
+ * back-up undoes too (a bound only). */
+static void track_dev(const sc_frame *f, int i, double t, double h)
 {
     const sc_body *b = &f->st->bodies[i];
     const double *d = &f->drift[9 * i];
@@ -301,7 +302,7 @@ static int substep(sc_frame *f, double h, sc_islands *is, unsigned char *touched
         if (sc_body_movable(b) && (!sc_finite3(b->x) || !sc_finite3(b->v) || !sc_finite3(b->w)))
             return SC_ENUMERIC;
         if (st->track && b->inv_mass > 0)
-            sweep_extend(f, i, f->t + h, h);
+            track_dev(f, i, f->t + h, h);
     }
     return SC_OK;
 }

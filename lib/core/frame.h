@@ -159,7 +159,9 @@ typedef struct sc_frame_state {
 #define SC_TRACK_MAX 34       /* points: the start and 1 + 31 back-ups'
                                  substeps (frame.c MAX_BACKUPS_LOCAL), one
                                  spare; a body with more keeps none */
-#define SC_TRACK_DEV 2e-4     /* m */
+#define SC_TRACK_DEV 2e-4     /* m: a body that stayed this close to its
+                                 drift keeps no points (the check takes
+                                 its drift and distance) */
 typedef struct sc_track {
     double *dev;
     int *count;                     /* points kept (0: none) */
@@ -282,7 +284,7 @@ typedef struct sc_frame {
     sc_pose *poses;
     double dt;                /* the frame's length, s */
     double t;                 /* the substep's start in the frame, s */
-    double *drift;            /* with st->sweep: 9 a body, sc_body_drift() */
+    double *drift;            /* with st->track: 9 a body, sc_body_drift() */
     int backups;              /* back-ups of this frame so far (local mode) */
 } sc_frame;
 
