@@ -168,6 +168,32 @@ void sc_track_copy(sc_track *to, int i, const sc_track *from, int j)
                (size_t)from->count[j] * 4 * sizeof *to->pt);
 }
 
+int sc_track_reserve(sc_track *t, int *cap, int n)
+{
+    if (n <= *cap)
+        return SC_OK;
+    sc_track_free(t);
+    *cap = 0;
+    size_t N = (size_t)n;
+    t->dev = sc_calloc_array(N, sizeof *t->dev);
+    t->count = sc_calloc_array(N, sizeof *t->count);
+    t->pt = sc_alloc_array(N, SC_TRACK_MAX * 4 * sizeof *t->pt);
+    if (!t->dev || !t->count || !t->pt) {
+        sc_track_free(t);
+        return SC_ENOMEM;
+    }
+    *cap = n;
+    return SC_OK;
+}
+
+void sc_track_free(sc_track *t)
+{
+    free(t->dev);
+    free(t->count);
+    free(t->pt);
+    memset(t, 0, sizeof *t);
+}
+
 /* Body i's track (st->track) gets its shape origin at time t of the frame
  * as a point; past SC_TRACK_MAX points it keeps none (count beyond). */
 static void track_point(const sc_frame *f, int i, double t)
@@ -502,11 +528,12 @@ int sc_frame_step(const sc_frame_config *cfg, sc_frame_state *st, double dt,
     /* the frame's arrays, last in first out */
     sc_track *tr = st->track;
     if (tr) {
+        /* empty first: a frame that fails leaves no stale points */
+        memset(tr->dev, 0, (size_t)n * sizeof *tr->dev);
+        memset(tr->count, 0, (size_t)n * sizeof *tr->count);
         if (!(f.drift = sc_arena_alloc(a, (size_t)n * 9 * sizeof *f.drift)))
             return SC_ENOMEM;
         for (int i = 0; i < n; i++) {
-            tr->dev[i] = 0;
-            tr->count[i] = 0;
             if (st->bodies[i].inv_mass > 0) {
                 sc_body_drift(cfg, &st->bodies[i], &f.drift[9 * i]);
                 track_point(&f, i, 0);

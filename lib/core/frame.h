@@ -170,6 +170,11 @@ typedef struct sc_track {
 
 /* Body j of track from written as body i of to. */
 void sc_track_copy(sc_track *to, int i, const sc_track *from, int j);
+/* Room in t's malloc'd arrays for n bodies (*cap: the room it has; the
+ * arrays are made again, zeroed, when it is less), or SC_ENOMEM with t
+ * empty; sc_track_free() frees them. */
+int sc_track_reserve(sc_track *t, int *cap, int n);
+void sc_track_free(sc_track *t);
 
 /* Scratch a frame needs, kept between frames: the arena (reset by the
  * caller between frames), the broad phase's sort order and pair list, the

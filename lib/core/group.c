@@ -74,7 +74,7 @@ typedef struct sc_group_scratch {
                                        piles' frames (moving average) */
     sc_track track;                 /* the copy's */
     int track_cap;
-    sc_broadphase *cbp;             /* the parent's: the boxes' check */
+    sc_broadphase *cbp;             /* the parent's: the tracks' check */
     sc_pair *cpairs;
     int cpair_cap;
 } sc_group_scratch;
@@ -100,9 +100,7 @@ static void group_scratch_destroy(sc_group_scratch *gs)
     free(gs->ids);
     sc_bp_destroy(gs->gbp);
     free(gs->gpairs);
-    free(gs->track.dev);
-    free(gs->track.count);
-    free(gs->track.pt);
+    sc_track_free(&gs->track);
     sc_bp_destroy(gs->cbp);
     free(gs->cpairs);
     free(gs);
@@ -342,17 +340,8 @@ static void group_frame(const sc_group_job *gj, sc_group_scratch *gs, int k, sc_
     st->contacts_valid = ps->contacts_valid;
     st->track = NULL;
     if (gj->track) {
-        if (m > gs->track_cap) {
-            free(gs->track.dev);
-            free(gs->track.count);
-            free(gs->track.pt);
-            gs->track.dev = sc_alloc_array((size_t)m, sizeof *gs->track.dev);
-            gs->track.count = sc_alloc_array((size_t)m, sizeof *gs->track.count);
-            gs->track.pt = sc_alloc_array((size_t)m, SC_TRACK_MAX * 4 * sizeof *gs->track.pt);
-            gs->track_cap = gs->track.dev && gs->track.count && gs->track.pt ? m : 0;
-            if (!gs->track_cap)
-                return;
-        }
+        if (sc_track_reserve(&gs->track, &gs->track_cap, m) != SC_OK)
+            return;
         st->track = &gs->track;
     }
     out->rc = group_copy_step(gj->cfg, st, gj->dt, &gs->scr, ex, &out->stats);
@@ -765,12 +754,12 @@ int sc_groups_step(const sc_frame_config *cfg, sc_frame_state *st, double dt,
     sc_arena *a = &scr->arena;
     /* Groups are joined by how the bodies move at the frame's start; a
      * body turned by a collision in the frame may still reach another
-     * group. So each group keeps the box its bodies stayed in, and bodies
-     * of different groups whose boxes came within touching distance are
-     * joined and the frame is stepped again from its start (the groups
-     * that did not change give the same bits again). The groups are a
-     * function of the bodies alone, so the result does not depend on who
-     * ran what. */
+     * group. So each group keeps where its bodies went (their tracks), and
+     * bodies of different groups whose tracks came within touching
+     * distance are joined and the frame is stepped again from its start
+     * (the groups that did not change give the same bits again). The
+     * groups are a function of the bodies alone, so the result does not
+     * depend on who ran what. */
     tries t;
     if (tries_alloc(a, &t, n) != SC_OK)
         return SC_ENOMEM;

@@ -776,12 +776,10 @@ static int decode_group(rbuf *r, sc_shape_lookup_fn lookup, void *ctx, sc_wire_u
     sc_frame_state *st = &wu->gst;
     wu->bodies = sc_calloc_array(m, sizeof *wu->bodies);
     st->contacts = sc_calloc_array(nc > 0 ? nc : 1, sizeof *st->contacts);
-    wu->track.dev = sc_calloc_array(m, sizeof *wu->track.dev);
-    wu->track.count = sc_calloc_array(m, sizeof *wu->track.count);
-    wu->track.pt = sc_alloc_array(m, SC_TRACK_MAX * 4 * sizeof *wu->track.pt);
+    int track_cap = 0;
     unsigned char *stat = sc_alloc_array(m, 1);
-    int rc = wu->bodies && st->contacts && stat && wu->track.dev && wu->track.count &&
-                     wu->track.pt
+    int rc = wu->bodies && st->contacts && stat &&
+                     sc_track_reserve(&wu->track, &track_cap, (int)m) == SC_OK
                  ? SC_OK
                  : SC_ENOMEM;
     uint32_t members = 0;
@@ -862,9 +860,7 @@ void sc_wire_unit_free(sc_wire_unit *wu)
     free(wu->bodies);
     free(wu->c);
     free(wu->gst.contacts);
-    free(wu->track.dev);
-    free(wu->track.count);
-    free(wu->track.pt);
+    sc_track_free(&wu->track);
     sc_islands_free(&wu->islands);
     memset(wu, 0, sizeof *wu);
 }
