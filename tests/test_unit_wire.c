@@ -541,11 +541,12 @@ struct group_exec {
     sc_np_ctx *local, *remote;
     cache cc;
     /* what the units held */
-    int units, warm, found, backups, spec, asleep, nodes;
+    int units, warm, found, backups, spec, asleep, nodes, groups_max, members;
+    size_t bytes;
     /* capture: the unit with the most bodies and contacts */
     unsigned char *sample;
     size_t sample_len;
-    int sample_size, sample_nm, sample_m, sample_nc;
+    int sample_size, sample_nm, sample_m, sample_nc, sample_ng;
 };
 
 static int gx_run(sc_exec *ex, sc_job *job, int stage, sc_stats *st)
@@ -615,10 +616,27 @@ static void assert_same_figures(const sc_stats *a, const sc_stats *b)
     assert_memory_equal(&x, &y, sizeof x);
 }
 
-/* Each unit of a GROUP job run here on a copy of the state and through
- * the wire on the job itself: the members, the unit's rc, messages and
- * info, and the group's contacts (impulses included) and figures agree
- * bit for bit; the static bodies are not written. */
+/* A body's state as a frame leaves it for the next: every field but the
+ * shape pointer (each world has its own shapes) and v0, w0, iw, which a
+ * substep sets before anything reads them (integrate.c), so a group unit
+ * leaves them home both ways (unit_wire.c). */
+static void assert_same_state(const sc_body *a, const sc_body *b)
+{
+    sc_body x = *a, y = *b;
+    x.shape = y.shape = NULL;
+    memset(x.v0, 0, sizeof x.v0);
+    memset(x.w0, 0, sizeof x.w0);
+    memset(x.iw, 0, sizeof x.iw);
+    memset(y.v0, 0, sizeof y.v0);
+    memset(y.w0, 0, sizeof y.w0);
+    memset(y.iw, 0, sizeof y.iw);
+    assert_memory_equal(&x, &y, sizeof x);
+}
+
+/* Each unit of a GROUP job (several groups) run here on a copy of the
+ * state and through the wire on the job itself: the members, the unit's
+ * rc, messages and info, and each group's contacts (impulses included)
+ * and figures agree bit for bit; the static bodies are not written. */
 static void group_both_ways(group_exec *gx, sc_job *job)
 {
     const sc_group_job *gj = job->group;
@@ -642,7 +660,6 @@ static void group_both_ways(group_exec *gx, sc_job *job)
     gx->nodes = job->nunits > gx->nodes ? job->nunits : gx->nodes;
     for (int i = 0; i < job->nunits; i++) {
         sc_unit *u = &job->units[i];
-        int k = u->first;
         sc_unit ul = *u;
         sc_unit_run(gx->local, &jl, &ul);
         size_t len, rlen;
@@ -655,28 +672,36 @@ static void group_both_ways(group_exec *gx, sc_job *job)
         assert_int_equal(u->rc, ul.rc);
         assert_int_equal(u->messages, ul.messages);
         assert_memory_equal(&u->info, &ul.info, sizeof ul.info);
-        const sc_group_out *a = &out_l[k], *b = &gj->out[k];
-        assert_int_equal(b->rc, a->rc);
-        assert_int_equal(b->ncontacts, a->ncontacts);
-        if (a->ncontacts)
-            assert_memory_equal(b->contacts, a->contacts, (size_t)a->ncontacts * sizeof *a->contacts);
-        assert_same_figures(&a->stats, &b->stats);
-        /* the daemon's CPU time came with them */
-        double cpu = 0;
-        for (int s = 0; s < SC_STAGE_COUNT; s++)
-            cpu += b->stats.stage_s[s];
-        assert_true(cpu > 0);
+        gx->groups_max = u->islands > gx->groups_max ? u->islands : gx->groups_max;
+        gx->bytes += len + rlen;
+        gx->members += u->count;
+        for (int j = u->first; j < u->first + u->islands; j++) {
+            int k = gj->list[j];
+            const sc_group_out *a = &out_l[k], *b = &gj->out[k];
+            assert_int_equal(b->rc, a->rc);
+            assert_int_equal(b->ncontacts, a->ncontacts);
+            if (a->ncontacts)
+                assert_memory_equal(b->contacts, a->contacts,
+                                    (size_t)a->ncontacts * sizeof *a->contacts);
+            assert_same_figures(&a->stats, &b->stats);
+            /* the daemon's CPU time came with them */
+            double cpu = 0;
+            for (int s = 0; s < SC_STAGE_COUNT; s++)
+                cpu += b->stats.stage_s[s];
+            assert_true(cpu > 0);
+            gx->warm += g->cstart[k + 1] > g->cstart[k];
+            gx->found += b->ncontacts > 0;
+            gx->backups += b->stats.backups;
+            gx->spec += b->stats.spec_contacts;
+            for (int q = g->start[k]; q < g->start[k + 1]; q++)
+                gx->asleep += gj->st->bodies[g->members[q]].state == SC_ASLEEP;
+        }
         gx->units++;
-        gx->warm += g->cstart[k + 1] > g->cstart[k];
-        gx->found += b->ncontacts > 0;
-        gx->backups += b->stats.backups;
-        gx->spec += b->stats.spec_contacts;
-        for (int j = g->start[k]; j < g->start[k + 1]; j++)
-            gx->asleep += gj->st->bodies[g->members[j]].state == SC_ASLEEP;
         free(buf);
         free(res);
     }
-    assert_memory_equal(cp.bodies, gj->st->bodies, nb * sizeof *cp.bodies);
+    for (size_t q = 0; q < nb; q++)
+        assert_same_state(&cp.bodies[q], &gj->st->bodies[q]);
     for (int j = 0; j < g->nstatics; j++)
         assert_memory_equal(&gj->st->bodies[g->statics[j]], &before[g->statics[j]],
                             sizeof *before);
@@ -686,13 +711,6 @@ static void group_both_ways(group_exec *gx, sc_job *job)
     free(before);
     free(cp.bodies);
     free(cp.contacts);
-}
-
-/* A body's bytes but its shape pointer (each world has its own shapes). */
-static void assert_same_body(const sc_body *a, const sc_body *b)
-{
-    size_t at = offsetof(sc_body, mass);
-    assert_memory_equal((const char *)a + at, (const char *)b + at, sizeof *a - at);
 }
 
 /* Every group unit of 150 frames of falling, landing and settling bolts
@@ -714,18 +732,21 @@ static void test_group_units_through_wire_are_bit_identical(void **state)
             assert_true(sc_world_hash(w) == sc_world_hash(ref));
             assert_int_equal(w->st.nbodies, ref->st.nbodies);
             for (int i = 0; i < w->st.nbodies; i++)
-                assert_same_body(&w->st.bodies[i], &ref->st.bodies[i]);
+                assert_same_state(&w->st.bodies[i], &ref->st.bodies[i]);
             assert_int_equal(w->st.ncontacts, ref->st.ncontacts);
             if (w->st.ncontacts)
                 assert_memory_equal(w->st.contacts, ref->st.contacts,
                                     (size_t)w->st.ncontacts * sizeof *w->st.contacts);
         }
-        print_message("group units (%s): %d, at most %d a frame; %d with last frame's contacts, "
+        print_message("group units (%s): %d, at most %d a frame and %d groups a unit, %.0f "
+                      "bytes a member both ways; groups: %d with last frame's contacts, "
                       "%d with new ones; %d back-ups, %d speculative contacts, %d asleep "
                       "members\n",
-                      mode == 0 ? "local mode" : "motion groups", gx.units, gx.nodes, gx.warm,
-                      gx.found, gx.backups, gx.spec, gx.asleep);
+                      mode == 0 ? "local mode" : "motion groups", gx.units, gx.nodes,
+                      gx.groups_max, (double)gx.bytes / gx.members, gx.warm, gx.found,
+                      gx.backups, gx.spec, gx.asleep);
         assert_true(gx.units > 150);
+        assert_true(gx.groups_max > 1);
         assert_true(gx.warm > 0 && gx.found > 0);
         assert_true(gx.backups > 0);
         gx_free(&gx);
@@ -761,9 +782,12 @@ static void group_frame_of_copy(const sc_world *w, group_exec *gx)
 static void group_capture(group_exec *gx, sc_job *job)
 {
     const sc_groups *g = job->group->g;
+    const int *list = job->group->list;
     for (int i = 0; i < job->nunits; i++) {
         sc_unit *u = &job->units[i];
-        int k = u->first, nm = g->start[k + 1] - g->start[k], nc = g->cstart[k + 1] - g->cstart[k];
+        int nm = u->count, nc = 0;
+        for (int j = u->first; j < u->first + u->islands; j++)
+            nc += g->cstart[list[j] + 1] - g->cstart[list[j]];
         if (nm + 4 * nc > gx->sample_size) {
             free(gx->sample);
             gx->sample = pack_unit(job, u, &gx->sample_len);
@@ -771,19 +795,20 @@ static void group_capture(group_exec *gx, sc_job *job)
             gx->sample_nm = nm;
             gx->sample_m = nm + g->nstatics;
             gx->sample_nc = nc;
+            gx->sample_ng = u->islands;
         }
         sc_unit_run(gx->local, job, u);
     }
 }
 
 /* Whether the group sample of a frame of s->gw (samples_init()) has two
- * members and two contacts. */
+ * members, two contacts and two groups. */
 static int group_sample_ok(const scene *s)
 {
     group_exec gx;
     gx_init(&gx, s->w, group_capture);
     group_frame_of_copy(s->gw, &gx);
-    int ok = gx.sample && gx.sample_nm >= 2 && gx.sample_nc >= 2;
+    int ok = gx.sample && gx.sample_nm >= 2 && gx.sample_nc >= 2 && gx.sample_ng >= 2;
     gx_free(&gx);
     return ok;
 }
@@ -1288,24 +1313,70 @@ static void test_result_for_another_unit_is_a_format_error(void **state)
     outputs_free(&o);
 }
 
-/* A GROUP unit's layout (see unit_wire.c's header): the header; bodies,
- * members, contacts, contacts_valid at 8; dt, gravity, tol at 24;
- * broadphase, island_split, toi_mode at 64; bodies from 76, 496 bytes
- * each (hash, 60 doubles, state, collided); then contacts, 88 each. */
-#define G_DT 24
-#define G_GRAVITY 32
-#define G_TOL 56
-#define G_INTS 64
-#define G_BODY(q) (76 + 496 * (size_t)(q))
-#define GB_MASS 8
-#define GB_INV_MASS 16
-#define GB_INERTIA 24
-#define GB_INV_INERTIA 96
-#define GB_X 208
-#define GB_REST 480
-#define GB_STATE 488
-#define GB_COLLIDED 492
-#define G_CONTACT(m, k) (G_BODY(m) + 88 * (size_t)(k))
+/* A GROUP unit's layout (see unit_wire.c's header): the header; groups,
+ * statics, profiles, members, contacts, contacts_valid at 8; dt, gravity,
+ * tol at 32; broadphase, island_split, toi_mode at 72; the static bodies
+ * from 84, 500 bytes each (world id, hash, 60 doubles, state, collided);
+ * the profiles, 208 each (hash, 25 doubles); each group's members and
+ * contacts, 8 each; the members, 121 bytes each (world id, profile,
+ * flags, x, q, v, w, rest_s) and 48 more with force and torque; then the
+ * contacts, 88 each, by group. */
+#define G_NG 8
+#define G_NS 12
+#define G_NP 16
+#define G_NM 20
+#define G_NC 24
+#define G_VALID 28
+#define G_DT 32
+#define G_GRAVITY 40
+#define G_TOL 64
+#define G_INTS 72
+#define G_STATIC(j) (84 + 500 * (size_t)(j))
+#define GS_HASH 4
+#define GS_INV_MASS 20
+#define GS_STATE 492
+#define GP_MASS 8
+#define GP_INV_MASS 16
+#define GP_INERTIA 24
+#define GP_INV_INERTIA 96
+#define GM_PROFILE 4
+#define GM_FLAGS 8
+#define GM_X 9
+#define GM_REST 113
+
+static uint32_t u32_at(const unsigned char *p)
+{
+    return (uint32_t)p[0] | (uint32_t)p[1] << 8 | (uint32_t)p[2] << 16 | (uint32_t)p[3] << 24;
+}
+
+/* Where a packed group unit's parts are. */
+typedef struct glayout {
+    uint32_t ng, ns, np, nm, nc;
+    size_t profiles, counts, members, contacts;
+} glayout;
+
+static glayout group_layout(const unsigned char *b)
+{
+    glayout l = { u32_at(b + G_NG), u32_at(b + G_NS), u32_at(b + G_NP), u32_at(b + G_NM),
+                  u32_at(b + G_NC), 0, 0, 0, 0 };
+    l.profiles = G_STATIC(l.ns);
+    l.counts = l.profiles + 208 * (size_t)l.np;
+    l.members = l.counts + 8 * (size_t)l.ng;
+    size_t at = l.members;
+    for (uint32_t q = 0; q < l.nm; q++)
+        at += 121 + 48 * (size_t)(b[at + GM_FLAGS] >> 4 & 1);
+    l.contacts = at;
+    return l;
+}
+
+/* Member q's offset. */
+static size_t g_member(const unsigned char *b, const glayout *l, uint32_t q)
+{
+    size_t at = l->members;
+    for (uint32_t i = 0; i < q; i++)
+        at += 121 + 48 * (size_t)(b[at + GM_FLAGS] >> 4 & 1);
+    return at;
+}
 
 /* n little-endian bytes of v at at, with the world's shapes to look up:
  * the decode's answer, then put back. */
@@ -1329,8 +1400,9 @@ static int group_decode_with(unsigned char *buf, size_t len, const cache *cc, si
 #define GROUP_GOOD(at, v, n) \
     assert_int_equal(group_decode_with(b, len, &cc, (at), (v), (n)), SC_OK)
 
-/* A group unit's counts, frame settings, bodies and contacts out of range
- * are format errors; other valid values at the same places decode. */
+/* A group unit's counts, frame settings, bodies, body constants and
+ * contacts out of range are format errors; other valid values at the same
+ * places decode. */
 static void test_bad_group_fields_are_format_errors(void **state)
 {
     const scene *s = *state;
@@ -1341,28 +1413,38 @@ static void test_bad_group_fields_are_format_errors(void **state)
     size_t len = sm.len[SC_UNIT_GROUP];
     sc_wire_unit wu;
     assert_int_equal(sc_wire_unit_decode(b, len, lookup, &cc, &wu), SC_OK);
-    int m = wu.nbodies, nm = wu.unit.count, nc = wu.gst.ncontacts, member = -1, fixed = -1;
-    for (int q = 0; q < m; q++) {
-        if (wu.bodies[q].inv_mass > 0 && member < 0)
-            member = q;
-        if (wu.bodies[q].inv_mass == 0 && fixed < 0)
-            fixed = q;
-    }
-    assert_true(wu.gst.contacts_valid == 1 && wu.group.dt == DT && !wu.group.g);
+    glayout l = group_layout(b);
+    assert_true(wu.gst.contacts_valid == 1 && wu.group.dt == DT && wu.group.g == &wu.g);
     assert_true(wu.cfg.toi_mode == SC_TOI_LOCAL && wu.cfg.contact_tol_m == s->w->cfg.contact_tol_m);
+    assert_int_equal(wu.g.ngroups, (int)l.ng);
+    assert_int_equal(wu.unit.islands, (int)l.ng);
+    assert_int_equal(wu.unit.count, (int)l.nm);
+    assert_int_equal(wu.nbodies, (int)(l.nm + l.ns));
+    assert_int_equal(wu.gst.ncontacts, (int)l.nc);
+    /* the bodies in world order, each group's members ascending */
+    for (int q = 1; q < wu.nbodies; q++)
+        assert_true(wu.g.gid[q] >= -1 && wu.g.gid[q] < (int)l.ng);
     sc_wire_unit_free(&wu);
-    print_message("group sample: %d bodies, %d members, %d contacts\n", m, nm, nc);
-    assert_true(member >= 0 && fixed >= 0 && nc >= 2);
+    print_message("group sample: %u groups, %u static bodies, %u profiles, %u members, %u "
+                  "contacts, %zu bytes\n", l.ng, l.ns, l.np, l.nm, l.nc, len);
+    assert_true(l.ng >= 2 && l.ns >= 1 && l.nm >= 2 && l.nc >= 2);
+    assert_int_equal(l.contacts + 88 * (size_t)l.nc, len);
     /* without a lookup the shapes cannot be had */
     assert_int_equal(sc_wire_unit_decode(b, len, NULL, NULL, &wu), SC_EINVAL);
-    /* counts: members beyond the bodies, none, or not the bodies with mass */
-    GROUP_BAD(8, (uint64_t)nm - 1, 4);
-    GROUP_BAD(12, 0, 4);
-    GROUP_BAD(12, (uint64_t)nm + 1, 4);
-    GROUP_BAD(12, (uint64_t)nm - 1, 4);
-    GROUP_BAD(16, (uint64_t)nc + 1, 4);
-    GROUP_BAD(20, 2, 4);                          /* contacts_valid */
-    GROUP_BAD(20, 0, 4);                          /* ... 0 with contacts */
+    /* counts: no group, more groups than members, the parts' counts off
+     * (the length no longer adds up), no profile or more than members */
+    GROUP_BAD(G_NG, 0, 4);
+    GROUP_BAD(G_NG, (uint64_t)l.nm + 1, 4);
+    GROUP_BAD(G_NG, (uint64_t)l.ng + 1, 4);
+    GROUP_BAD(G_NS, (uint64_t)l.ns + 1, 4);
+    GROUP_BAD(G_NS, (uint32_t)-1, 4);
+    GROUP_BAD(G_NP, 0, 4);
+    GROUP_BAD(G_NP, (uint64_t)l.nm + 1, 4);
+    GROUP_BAD(G_NM, (uint64_t)l.nm - 1, 4);
+    GROUP_BAD(G_NM, (uint64_t)l.nm + 1, 4);
+    GROUP_BAD(G_NC, (uint64_t)l.nc + 1, 4);
+    GROUP_BAD(G_VALID, 2, 4);                     /* contacts_valid */
+    GROUP_BAD(G_VALID, 0, 4);                     /* ... 0 with contacts */
     /* frame settings */
     const double bad_dt[] = { NAN, INFINITY, 0, -DT };
     for (int k = 0; k < 4; k++)
@@ -1378,60 +1460,80 @@ static void test_bad_group_fields_are_format_errors(void **state)
     GROUP_BAD(G_INTS + 8, 2, 4);                  /* toi_mode */
     GROUP_BAD(G_INTS + 8, (uint32_t)-1, 4);
     /* the offsets are right: other valid settings decode as such */
+    size_t m0 = l.members, m1 = g_member(b, &l, 1);
     GROUP_GOOD(G_DT, bits(0.5), 8);
     GROUP_GOOD(G_TOL, bits(0.25), 8);
     GROUP_GOOD(G_INTS, SC_BROADPHASE_SAP, 4);
     GROUP_GOOD(G_INTS + 4, 0, 4);
     GROUP_GOOD(G_INTS + 8, SC_TOI_WORLD, 4);
-    GROUP_GOOD(G_BODY(member) + GB_REST, bits(2.5), 8);
-    /* bodies: a shape nobody has, negative or NaN masses, a position at
-     * infinity, a member marked static, a static given mass (or a member
-     * made static: the member count no longer holds), states and
-     * collided out of range */
-    GROUP_BAD(G_BODY(member), s->w->st.bodies[1].shape->hash ^ 0x1234, 8);
-    GROUP_BAD(G_BODY(member) + GB_INV_MASS, bits(-1), 8);
-    GROUP_BAD(G_BODY(member) + GB_INV_MASS, bits(NAN), 8);
-    GROUP_BAD(G_BODY(member) + GB_MASS, bits(-1), 8);
-    /* a member's inverses not its mass's and inertia's (a corrupted
-     * off-diagonal entry of the inverse inertia ran a frame for 16 s) */
-    GROUP_BAD(G_BODY(member) + GB_INV_INERTIA + 6 * 8, bits(-1.8769e69), 8);
-    GROUP_BAD(G_BODY(member) + GB_INV_INERTIA, bits(0), 8);
-    GROUP_BAD(G_BODY(member) + GB_INERTIA + 4 * 8, bits(1e3), 8);
-    GROUP_BAD(G_BODY(member) + GB_MASS, bits(1e3), 8);
-    GROUP_BAD(G_BODY(member) + GB_INV_MASS, bits(1e-3), 8);
-    GROUP_BAD(G_BODY(member) + GB_X + 8, bits(INFINITY), 8);
-    GROUP_BAD(G_BODY(member) + GB_REST, bits(NAN), 8);
-    GROUP_BAD(G_BODY(member) + GB_STATE, SC_STATIC, 4);
-    GROUP_BAD(G_BODY(member) + GB_STATE, SC_STATIC + 1, 4);
-    GROUP_BAD(G_BODY(member) + GB_STATE, (uint32_t)-1, 4);
-    GROUP_BAD(G_BODY(fixed) + GB_INV_MASS, bits(1), 8);
-    GROUP_BAD(G_BODY(fixed) + GB_STATE, SC_FREE, 4);
-    GROUP_BAD(G_BODY(member) + GB_COLLIDED, 3, 4);
-    GROUP_BAD(G_BODY(member) + GB_COLLIDED, (uint32_t)-1, 4);
-    GROUP_GOOD(G_BODY(member) + GB_STATE, SC_ASLEEP, 4);
-    GROUP_GOOD(G_BODY(member) + GB_COLLIDED, 2, 4);
-    {
-        /* a member turned static whole: the counts no longer match */
-        unsigned char keep[8];
-        size_t at = G_BODY(member) + GB_INV_MASS;
-        memcpy(keep, b + at, 8);
-        put_u64(b + at, bits(0));
-        GROUP_BAD(G_BODY(member) + GB_STATE, SC_STATIC, 4);
-        memcpy(b + at, keep, 8);
+    GROUP_GOOD(m0 + GM_REST, bits(2.5), 8);
+    GROUP_GOOD(m0 + GM_FLAGS, SC_ASLEEP | 2 << 2, 1);
+    /* static bodies: a shape nobody has, given mass, not static, a world
+     * id out of range or a member's */
+    GROUP_BAD(G_STATIC(0) + GS_HASH, s->w->st.bodies[1].shape->hash ^ 0x1234, 8);
+    GROUP_BAD(G_STATIC(0) + GS_INV_MASS, bits(1), 8);
+    GROUP_BAD(G_STATIC(0) + GS_STATE, SC_FREE, 4);
+    GROUP_BAD(G_STATIC(0), 0x80000000u, 4);
+    GROUP_BAD(G_STATIC(0), u32_at(b + m0), 4);
+    if (l.ns >= 2)                                /* ids ascending */
+        GROUP_BAD(G_STATIC(1), u32_at(b + G_STATIC(0)), 4);
+    /* profiles: a shape nobody has, negative or NaN masses, inverses not
+     * the mass's and inertia's (a corrupted off-diagonal entry of the
+     * inverse inertia ran a frame for 16 s) */
+    size_t p0 = l.profiles;
+    GROUP_BAD(p0, s->w->st.bodies[1].shape->hash ^ 0x1234, 8);
+    GROUP_BAD(p0 + GP_INV_MASS, bits(-1), 8);
+    GROUP_BAD(p0 + GP_INV_MASS, bits(NAN), 8);
+    GROUP_BAD(p0 + GP_INV_MASS, bits(0), 8);
+    GROUP_BAD(p0 + GP_MASS, bits(-1), 8);
+    GROUP_BAD(p0 + GP_INV_INERTIA + 6 * 8, bits(-1.8769e69), 8);
+    GROUP_BAD(p0 + GP_INV_INERTIA, bits(0), 8);
+    GROUP_BAD(p0 + GP_INERTIA + 4 * 8, bits(1e3), 8);
+    GROUP_BAD(p0 + GP_MASS, bits(1e3), 8);
+    GROUP_BAD(p0 + GP_INV_MASS, bits(1e-3), 8);
+    /* the groups' counts: an empty group, members or contacts that do not
+     * add up */
+    GROUP_BAD(l.counts, 0, 4);
+    GROUP_BAD(l.counts, (uint64_t)u32_at(b + l.counts) + 1, 4);
+    GROUP_BAD(l.counts + 4, (uint64_t)u32_at(b + l.counts + 4) + 1, 4);
+    GROUP_BAD(l.counts + 4, (uint32_t)-1, 4);
+    /* members: a world id out of range, twice or a static body's, a
+     * profile beyond the table, flags out of range (collided 3, unknown
+     * bits, a force and torque that are not there), a position at
+     * infinity, a NaN rest time */
+    GROUP_BAD(m0, 0x80000000u, 4);
+    GROUP_BAD(m1, u32_at(b + m0), 4);
+    GROUP_BAD(m0, u32_at(b + G_STATIC(0)), 4);
+    GROUP_BAD(m0 + GM_PROFILE, l.np, 4);
+    GROUP_BAD(m0 + GM_PROFILE, (uint32_t)-1, 4);
+    GROUP_BAD(m0 + GM_FLAGS, 3 << 2, 1);
+    GROUP_BAD(m0 + GM_FLAGS, 1 << 5, 1);
+    GROUP_BAD(m0 + GM_FLAGS, (uint64_t)(b[m0 + GM_FLAGS] | 1 << 4), 1);
+    GROUP_BAD(m0 + GM_X + 8, bits(INFINITY), 8);
+    GROUP_BAD(m0 + GM_REST, bits(NAN), 8);
+    /* contacts: those of the group with the most; ends out of range (its
+     * copy's), reversed, on one body, out of pair order, not finite */
+    uint32_t best = 0, first = 0, at = 0, mk = 0;
+    for (uint32_t j = 0; j < l.ng; j++) {
+        uint32_t nc = u32_at(b + l.counts + 8 * j + 4);
+        if (nc > best) {
+            best = nc;
+            first = at;
+            mk = u32_at(b + l.counts + 8 * j) + l.ns;
+        }
+        at += nc;
     }
-    /* contacts: ends out of range, reversed, on one body, between two
-     * static bodies, out of pair order, not finite */
-    size_t c0 = G_CONTACT(m, 0), cl = G_CONTACT(m, nc - 1);
+    assert_true(best >= 1);
+    size_t c0 = l.contacts + 88 * (size_t)first, cl = c0 + 88 * (size_t)(best - 1);
     GROUP_BAD(c0, (uint32_t)-1, 4);
-    GROUP_BAD(c0 + 4, (uint64_t)m, 4);
+    GROUP_BAD(c0 + 4, (uint64_t)mk, 4);
     GROUP_BAD(c0 + 4, b[c0], 4);                  /* body_b = body_a */
-    GROUP_BAD(c0, (uint64_t)m - 1, 4);            /* body_a > body_b */
-    GROUP_BAD(c0 + 4, (uint64_t)fixed, 4);        /* fixed: then both static, or a > b */
+    GROUP_BAD(c0, (uint64_t)mk - 1, 4);           /* body_a > body_b */
     GROUP_BAD(c0 + 56, bits(NAN), 8);             /* depth */
     GROUP_BAD(c0 + 64 + 16, bits(INFINITY), 8);   /* impulse */
     GROUP_BAD(cl + 64, bits(-INFINITY), 8);
-    if (memcmp(b + c0, b + cl, 8) != 0) {
-        /* the first and last contacts swapped (other pairs: out of order) */
+    if (best >= 2 && memcmp(b + c0, b + cl, 8) != 0) {
+        /* the first and last contacts swapped: out of pair order */
         unsigned char *t = malloc(88);
         assert_non_null(t);
         memcpy(t, b + c0, 88);
@@ -1441,18 +1543,6 @@ static void test_bad_group_fields_are_format_errors(void **state)
         memcpy(b + cl, b + c0, 88);
         memcpy(b + c0, t, 88);
         free(t);
-    } else {
-        /* all of one pair (a, b), a a member: the first one made (a, b +
-         * 1), or the last (a - 1, b), is a valid pair out of order */
-        uint32_t a0 = (uint32_t)b[c0] | (uint32_t)b[c0 + 1] << 8 | (uint32_t)b[c0 + 2] << 16 |
-                      (uint32_t)b[c0 + 3] << 24;
-        uint32_t b0 = (uint32_t)b[c0 + 4] | (uint32_t)b[c0 + 5] << 8 |
-                      (uint32_t)b[c0 + 6] << 16 | (uint32_t)b[c0 + 7] << 24;
-        assert_true((int)a0 < nm && ((int)b0 + 1 < m || a0 > 0));
-        if ((int)b0 + 1 < m)
-            GROUP_BAD(c0 + 4, (uint64_t)b0 + 1, 4);
-        else
-            GROUP_BAD(cl, (uint64_t)a0 - 1, 4);
     }
     assert_int_equal(sc_wire_unit_decode(b, len, lookup, &cc, &wu), SC_OK);
     sc_wire_unit_free(&wu);
@@ -1460,25 +1550,54 @@ static void test_bad_group_fields_are_format_errors(void **state)
 }
 
 /* A group result at its layout (header 8, members 4, rc 4, messages 8,
- * info 96; figures 268; per member 288: 35 doubles, state, collided; then
- * contacts 4 and 88 each). */
+ * info 96), then per group: rc 4, its figures (a mask u64 and the fields
+ * it names: 22 of 8 bytes, then 23 of 4), per member 122 bytes (flags,
+ * 14 doubles, dev, points u8) and 32 a point, then contacts 4 and 88
+ * each. */
 #define GR_RC 12
-#define GR_STATS 120
-#define GR_STAT_INTS (GR_STATS + 8 * 22)
-/* Member i of a group result: 288 bytes of state, then its track: dev
- * f64, points u32 and 32 bytes a point. */
-static size_t gr_member(const unsigned char *res, int i)
+#define GR_GROUPS 120
+
+/* Where group j of a result for u (of job) is. */
+typedef struct gr_at {
+    size_t rc, stats, first_int, members, contacts;
+    int nm;
+} gr_at;
+
+static int popcount64(uint64_t v)
 {
-    size_t at = GR_STATS + 268;
-    for (int j = 0; j < i; j++) {
-        uint32_t n;
-        memcpy(&n, res + at + 296, 4);
-        at += 300 + 32 * (size_t)n;
-    }
-    return at;
+    int n = 0;
+    for (; v; v &= v - 1)
+        n++;
+    return n;
 }
-#define GR_MEMBER(i) gr_member(res, (int)(i))
-#define GR_CONTACTS(nm) GR_MEMBER(nm)
+
+static size_t gr_member_len(const unsigned char *res, size_t at)
+{
+    return 122 + 32 * (size_t)res[at + 121];
+}
+
+static gr_at gr_group(const unsigned char *res, const sc_job *job, const sc_unit *u, int j)
+{
+    const sc_groups *g = job->group->g;
+    size_t at = GR_GROUPS;
+    gr_at r = { 0 };
+    for (int i = 0; i <= j; i++) {
+        int k = job->group->list[u->first + i];
+        r.nm = g->start[k + 1] - g->start[k];
+        r.rc = at;
+        r.stats = at + 4;
+        uint64_t mask;
+        memcpy(&mask, res + r.stats, 8);
+        r.first_int = r.stats + 8 + 8 * (size_t)popcount64(mask & ((1u << 22) - 1));
+        at = r.first_int + 4 * (size_t)popcount64(mask >> 22);
+        r.members = at;
+        for (int q = 0; q < r.nm; q++)
+            at += gr_member_len(res, at);
+        r.contacts = at;
+        at += 4 + 88 * (size_t)u32_at(res + at);
+    }
+    return r;
+}
 
 /* The hook that sends results at units they do not fit, and malformed
  * ones: refused, nothing written; then the right ones, and the rest here. */
@@ -1487,133 +1606,132 @@ static void group_hostile_results(group_exec *gx, sc_job *job)
     const sc_group_job *gj = job->group;
     const sc_groups *g = gj->g;
     size_t nb = (size_t)gj->st->nbodies;
-    /* the unit with the most contacts of the last frame whose result
-     * has contacts too (the checks below change them; a group whose
-     * bodies bounce apart ends with none), and one with another member
+    /* a unit of two groups at least, one with contacts in its result and
+     * one member with a track of two points; and one with another member
      * count */
-    int a = -1, o = -1, nm = 0;
-    size_t len, rlen;
+    int a = -1, o = -1, cj = -1, tj = -1, tq = -1;
+    size_t len = 0, rlen = 0;
     unsigned char *buf = NULL, *res = NULL;
-    char *tried = calloc((size_t)job->nunits, 1);
-    assert_non_null(tried);
-    for (;;) {
-        a = -1;
-        for (int i = 0; i < job->nunits; i++) {
-            int k = job->units[i].first, ka = a >= 0 ? job->units[a].first : 0;
-            if (!tried[i] && (a < 0 || g->cstart[k + 1] - g->cstart[k] >
-                                           g->cstart[ka + 1] - g->cstart[ka]))
-                a = i;
-        }
-        assert_true(a >= 0);
-        tried[a] = 1;
-        buf = pack_unit(job, &job->units[a], &len);
+    for (int i = 0; i < job->nunits && a < 0; i++) {
+        sc_unit *u = &job->units[i];
+        if (u->islands < 2)
+            continue;
+        buf = pack_unit(job, u, &len);
         res = remote_run(gx->remote, buf, len, &gx->cc, &rlen);
-        int k = job->units[a].first;
-        nm = g->start[k + 1] - g->start[k];
-        uint32_t n;
-        memcpy(&n, res + GR_CONTACTS(nm), 4);
-        if (n >= 1)
+        cj = tj = tq = -1;
+        for (int j = 0; j < u->islands; j++) {
+            gr_at at = gr_group(res, job, u, j);
+            if (cj < 0 && u32_at(res + at.contacts) >= 1)
+                cj = j;
+            size_t m = at.members;
+            for (int q = 0; q < at.nm && tj < 0; q++, m += gr_member_len(res, m))
+                if (res[m + 121] >= 2) {
+                    tj = j;
+                    tq = q;
+                }
+        }
+        if (cj >= 0 && tj >= 0) {
+            a = i;
             break;
+        }
         free(buf);
         free(res);
+        buf = res = NULL;
     }
-    free(tried);
+    assert_true(a >= 0);
     sc_unit *ua = &job->units[a];
-    int ka = ua->first;
-    for (int i = 0; i < job->nunits && o < 0; i++) {
-        int k = job->units[i].first;
-        if (g->start[k + 1] - g->start[k] != nm)
+    for (int i = 0; i < job->nunits && o < 0; i++)
+        if (job->units[i].count != ua->count)
             o = i;
-    }
     sc_body *before = malloc(nb * sizeof *before);
-    assert_non_null(before);
+    sc_group_out *out0 = malloc((size_t)g->ngroups * sizeof *out0);
+    assert_true(before && out0);
     memcpy(before, gj->st->bodies, nb * sizeof *before);
-    sc_group_out out0[2] = { gj->out[ka], { 0 } };
-    if (o >= 0) {
-        out0[1] = gj->out[job->units[o].first];
+    memcpy(out0, gj->out, (size_t)g->ngroups * sizeof *out0);
+    if (o >= 0)
         assert_int_equal(sc_wire_result_apply(job, &job->units[o], res, rlen), SC_EFORMAT);
-    }
-    /* a result for a unit of another kind, or beyond the groups */
+    /* a result for a unit beyond the groups */
     sc_unit bad = *ua;
-    bad.first = g->ngroups;
+    bad.first = gj->nlist;
+    assert_int_equal(sc_wire_result_apply(job, &bad, res, rlen), SC_EINVAL);
+    bad = *ua;
+    bad.islands = 0;
     assert_int_equal(sc_wire_result_apply(job, &bad, res, rlen), SC_EINVAL);
     for (size_t k = 0; k < rlen; k++)
         assert_int_equal(sc_wire_result_apply(job, ua, res, k), SC_EFORMAT);
     /* a unit buffer is not a result */
     assert_int_equal(sc_wire_result_apply(job, ua, buf, len), SC_EFORMAT);
-    /* counts and states out of range */
-    uint32_t nc;
-    memcpy(&nc, res + GR_CONTACTS(nm), 4);
-    int m = nm + g->nstatics;
-    /* a member with a track of two points at least */
-    int tracked = -1;
-    for (int i = 0; i < nm && tracked < 0; i++) {
-        uint32_t n;
-        memcpy(&n, res + GR_MEMBER(i) + 296, 4);
-        if (n >= 2)
-            tracked = i;
-    }
-    assert_true(tracked >= 0);
+    /* counts, figures and states out of range */
+    gr_at c = gr_group(res, job, ua, cj), t = gr_group(res, job, ua, tj);
+    uint32_t nc = u32_at(res + c.contacts);
+    int k = gj->list[ua->first + cj];
+    int m = g->start[k + 1] - g->start[k] + g->nstatics;
+    size_t tm = t.members;
+    for (int q = 0; q < tq; q++)
+        tm += gr_member_len(res, tm);
+    uint64_t mask;
+    memcpy(&mask, res + c.stats, 8);
+    assert_true(mask >> 22 != 0);                         /* an int field is there */
     struct { size_t at; int n; uint64_t v; } wrong[] = {
-        { 8, 4, (uint64_t)nm + 1 },                       /* members */
-        { GR_STATS + 8 * 12, 8, (uint64_t)-1 },           /* lcp_pivots < 0 */
-        { GR_STAT_INTS, 4, (uint32_t)-1 },                /* pairs < 0 */
-        { GR_STAT_INTS + 4 * 17, 4, (uint32_t)-1 },       /* spec_rounds < 0 */
-        { GR_MEMBER(0) + 280, 4, SC_STATIC },             /* a member made static */
-        { GR_MEMBER(nm - 1) + 280, 4, (uint32_t)-1 },
-        { GR_MEMBER(0) + 284, 4, 3 },                     /* collided */
-        { GR_CONTACTS(nm), 4, (uint64_t)nc + 1 },         /* contacts */
-        { GR_CONTACTS(nm), 4, (uint64_t)nc - 1 },
-        { GR_CONTACTS(nm) + 4, 4, (uint32_t)-1 },         /* contact 0's body_a */
-        { GR_CONTACTS(nm) + 8, 4, (uint64_t)m },          /* ... its body_b */
-        { GR_RC, 4, (uint32_t)SC_ENUMERIC },              /* failed, with contacts */
-        { GR_RC, 4, 1 },                                  /* rc > 0 */
-        { GR_MEMBER(0) + 288, 8, bits(-1e-3) },           /* track: dev < 0 */
-        { GR_MEMBER(0) + 288, 8, bits(NAN) },
-        { GR_MEMBER(0) + 296, 4, SC_TRACK_MAX + 1 },      /* points */
-        { GR_MEMBER(tracked) + 300 + 32, 8, bits(-1e-3) },/* its second point's t < 0 */
-        { GR_MEMBER(tracked) + 300 + 32, 8, bits(1.0) },  /* ... past the frame */
-        { GR_MEMBER(tracked) + 300, 8, bits(0.5) },       /* ... before its first */
+        { 8, 4, (uint64_t)ua->count + 1 },                /* members */
+        { GR_RC, 4, (uint32_t)SC_ENUMERIC },              /* not its groups' rc */
+        { c.rc, 4, (uint32_t)SC_ENUMERIC },               /* failed, with contacts */
+        { c.rc, 4, 1 },                                   /* rc > 0 */
+        { c.stats, 8, mask | (uint64_t)1 << 63 },         /* a field that is not */
+        { c.first_int, 4, (uint32_t)-1 },                 /* a count < 0 */
+        { c.members, 1, 3 << 2 },                         /* collided 3 */
+        { c.members, 1, 1 << 4 },                         /* unknown flags */
+        { c.contacts, 4, (uint64_t)nc + 1 },              /* contacts */
+        { c.contacts, 4, (uint64_t)nc - 1 },
+        { c.contacts + 4, 4, (uint32_t)-1 },              /* contact 0's body_a */
+        { c.contacts + 8, 4, (uint64_t)m },               /* ... its body_b */
+        { t.members + 113, 8, bits(-1e-3) },              /* track: dev < 0 */
+        { t.members + 113, 8, bits(NAN) },
+        { t.members + 121, 1, SC_TRACK_MAX + 1 },         /* points */
+        { tm + 122 + 32, 8, bits(-1e-3) },                /* its second point's t < 0 */
+        { tm + 122 + 32, 8, bits(1.0) },                  /* ... past the frame */
+        { tm + 122, 8, bits(0.5) },                       /* ... before its first */
     };
-    assert_true(nc >= 1);
-    for (size_t k = 0; k < sizeof wrong / sizeof wrong[0]; k++) {
+    for (size_t w = 0; w < sizeof wrong / sizeof wrong[0]; w++) {
         unsigned char keep[8];
-        memcpy(keep, res + wrong[k].at, (size_t)wrong[k].n);
-        for (int i = 0; i < wrong[k].n; i++)
-            res[wrong[k].at + (size_t)i] = (unsigned char)(wrong[k].v >> (8 * i));
+        memcpy(keep, res + wrong[w].at, (size_t)wrong[w].n);
+        for (int i = 0; i < wrong[w].n; i++)
+            res[wrong[w].at + (size_t)i] = (unsigned char)(wrong[w].v >> (8 * i));
         assert_int_equal(sc_wire_result_apply(job, ua, res, rlen), SC_EFORMAT);
-        memcpy(res + wrong[k].at, keep, (size_t)wrong[k].n);
+        memcpy(res + wrong[w].at, keep, (size_t)wrong[w].n);
     }
     /* nothing was written */
     assert_memory_equal(before, gj->st->bodies, nb * sizeof *before);
-    assert_memory_equal(&gj->out[ka], &out0[0], sizeof out0[0]);
-    if (o >= 0)
-        assert_memory_equal(&gj->out[job->units[o].first], &out0[1], sizeof out0[1]);
+    assert_memory_equal(gj->out, out0, (size_t)g->ngroups * sizeof *out0);
     /* the doubles are carried as they come (the master's frame checks
      * them, as after a local run): a NaN position is merged */
+    size_t x0 = c.members + 1;
     unsigned char keep[8];
-    memcpy(keep, res + GR_MEMBER(0), 8);
-    put_u64(res + GR_MEMBER(0), bits(NAN));
+    memcpy(keep, res + x0, 8);
+    put_u64(res + x0, bits(NAN));
     unsigned char *odd = malloc(rlen);
     assert_non_null(odd);
     memcpy(odd, res, rlen);
-    memcpy(res + GR_MEMBER(0), keep, 8);
+    memcpy(res + x0, keep, 8);
     sc_unit copy = *ua;
-    sc_body b0 = gj->st->bodies[g->members[g->start[ka]]];
+    int mem0 = g->members[g->start[k]];
+    sc_body b0 = gj->st->bodies[mem0];
     assert_int_equal(sc_wire_result_apply(job, &copy, odd, rlen), SC_OK);
-    assert_true(isnan(gj->st->bodies[g->members[g->start[ka]]].x[0]));
-    free(gj->out[ka].contacts);
-    gj->st->bodies[g->members[g->start[ka]]] = b0;
+    assert_true(isnan(gj->st->bodies[mem0].x[0]));
+    for (int j = ua->first; j < ua->first + ua->islands; j++)
+        free(gj->out[gj->list[j]].contacts);
+    gj->st->bodies[mem0] = b0;
     free(odd);
     /* the right one */
     assert_int_equal(sc_wire_result_apply(job, ua, res, rlen), SC_OK);
-    assert_int_equal(gj->out[ka].ncontacts, (int)nc);
+    assert_int_equal(gj->out[k].ncontacts, (int)nc);
     gx->units++;
     gx->found += o >= 0;
     for (int i = 0; i < job->nunits; i++)
         if (i != a)
             sc_unit_run(gx->local, job, &job->units[i]);
     free(before);
+    free(out0);
     free(buf);
     free(res);
 }

@@ -94,7 +94,7 @@ double sc_pair_cost(const sc_shape *a, const sc_shape *b);
 typedef struct sc_exec sc_exec;
 struct sc_exec {
     int (*run)(sc_exec *ex, sc_job *job, int stage, sc_stats *st);
-    int (*width)(const sc_exec *ex);   /* nodes it can run units on */
+    int (*width)(const sc_exec *ex);   /* nodes it can run units on now */
     /* A job in two halves (NULL: only run()): start() assigns the units
      * and sends the remote nodes theirs at once, the local nodes' waiting
      * for finish(), which runs them, collects the rest and returns as
@@ -248,20 +248,24 @@ typedef struct sc_group_out {
     sc_stats stats;                 /* of the group's frame, from zero */
 } sc_group_out;
 
-/* What a GROUP job's units read and write. On the master (g set), unit
- * u->first = k is group k of st: run on a copy, its members written back
- * to st, its outputs to out[k]. A unit received over the wire (g NULL,
- * unit_wire.c): st is that one group's copy (its members and the static
- * bodies in world order, contacts by their index there), stepped in
- * place; out[0] gets rc and stats, the new contacts stay in st. */
+/* What a GROUP job's units read and write. Unit u holds the u->islands
+ * groups list[u->first ...] (list NULL: groups u->first ... themselves),
+ * u->count members in all. Each group k runs on a copy of its members and
+ * the static bodies, its members written back to st (and their tracks to
+ * track), its outputs to out[k]. On the master g is the frame's groups; a
+ * unit received over the wire (unit_wire.c) makes a g of its own over its
+ * bodies (the static ones and the members of its groups, in world order)
+ * and its groups' contacts, so that both run the same code. */
 typedef struct sc_group_job {
     const sc_frame_config *cfg;
     sc_frame_state *st;
     const sc_groups *g;
+    const int *list;
+    int nlist;
     double dt;
     sc_group_out *out;
-    sc_track *track;                /* the master's: by world body, each
-                                       member's from its group's frame */
+    sc_track *track;                /* by body of st, each member's from its
+                                       group's frame */
 } sc_group_job;
 
 /* Group k's bodies in the order its copy has them: its members and the

@@ -43,12 +43,17 @@
 #define REACH_MARGIN 2e-3     /* m added to every body's reach */
 #define BIG_GROUP 0.35        /* share of the awake bodies, or of the groups'
                                  work, that makes a pile */
-#define WIRE_GROUP_HEADER 400 /* bytes: unit and result headers, settings, figures */
-#define WIRE_GROUP_BODY 496   /* per body out */
-#define WIRE_GROUP_MEMBER 300 /* per member's state back, with its track's
-                                 distance and count (its points: 32 bytes
-                                 each, only a body that was turned) */
+#define WIRE_GROUP_HEADER 300 /* bytes: unit and result headers, settings */
+#define WIRE_GROUP_BODY 496   /* per static body, or body constants, out */
+#define WIRE_GROUP_PROFILES 4 /* body constants a unit is taken to carry */
+#define WIRE_GROUP_EACH 100   /* per group: its counts, its figures back */
+#define WIRE_GROUP_MEMBER 250 /* per member: its state out and back, with
+                                 its track's distance and count (its points:
+                                 32 bytes each, only a body that was turned) */
 #define WIRE_GROUP_CONTACT 88 /* per contact, with its impulse */
+#define BUNDLES_PER_NODE 8    /* group units a node, about */
+#define BUNDLE_MAX_GROUPS 1024
+#define BUNDLE_MAX_BODIES 4096
 #define JOIN_MARGIN 1e-3      /* m: bodies whose gap can close within the
                                  frame, as they move at its start, to
                                  under this are joined (more than the
@@ -381,15 +386,14 @@ int sc_group_unit_run(sc_np_ctx *np, const sc_job *job, const sc_unit *u)
     sc_exec_serial ex;
     sc_exec_serial_init(&ex, np);
     const sc_group_job *gj = job->group;
-    if (!gj->g) {
-        /* received: the copy is the unit's own (the same step as below) */
-        sc_group_out *out = &gj->out[0];
-        memset(out, 0, sizeof *out);
-        out->rc = group_copy_step(gj->cfg, gj->st, gj->dt, &gs->scr, &ex.base, &out->stats);
-        return out->rc;
+    int rc = SC_OK;
+    for (int j = u->first; j < u->first + u->islands; j++) {
+        int k = gj->list ? gj->list[j] : j;
+        group_frame(gj, gs, k, &ex.base);
+        if (rc == SC_OK)
+            rc = gj->out[k].rc;
     }
-    group_frame(gj, gs, u->first, &ex.base);
-    return gj->out[u->first].rc;
+    return rc;
 }
 
 typedef struct pair_run {
@@ -484,26 +488,54 @@ static int step_groups(const sc_frame_config *cfg, sc_frame_state *st, double dt
             (big < 0 || group_cost(g, k) > group_cost(g, big)))
             big = k;
     int rc = SC_OK;
-    /* the others: one unit each */
+    /* the others: in units of several groups each (a bundle), about
+     * BUNDLES_PER_NODE a node by their cost, so that a daemon gets a few
+     * units of many groups rather than hundreds of one falling part (the
+     * statics, the body constants and the headers travel once a unit:
+     * docs/DESIGN.md 7.4) */
+    int *list = sc_arena_calloc(a, (size_t)ng + 1, sizeof *list);
+    if (!list) {
+        sc_arena_free(a, units);
+        return SC_ENOMEM;
+    }
+    int nl = 0;
+    double small = 0;
+    for (int k = 0; k < ng; k++)
+        if (k != big && todo[k]) {
+            list[nl++] = k;
+            small += group_cost(g, k);
+        }
+    gj.list = list;
+    gj.nlist = nl;
+    int width = ex->width(ex);
+    double target = small / (BUNDLES_PER_NODE * (width > 1 ? width : 1));
     int nu = 0;
-    for (int k = 0; k < ng; k++) {
-        if (k == big || !todo[k])
-            continue;
-        int nm = g->start[k + 1] - g->start[k];
-        int nc = g->cstart[k + 1] - g->cstart[k];
+    for (int j = 0; j < nl;) {
         sc_unit *u = &units[nu++];
         u->kind = SC_UNIT_GROUP;
-        u->first = k;
-        u->count = nm;
-        u->islands = 1;
-        u->cost = group_cost(g, k);
+        u->first = j;
         u->feat[0] = 1;
+        int nm = 0, nc = 0;
+        double cost = 0;
+        do {
+            int k = list[j++];
+            nm += g->start[k + 1] - g->start[k];
+            nc += g->cstart[k + 1] - g->cstart[k];
+            cost += group_cost(g, k);
+            u->islands++;
+        } while (j < nl && cost < target && u->islands < BUNDLE_MAX_GROUPS &&
+                 nm + g->start[list[j] + 1] - g->start[list[j]] <= BUNDLE_MAX_BODIES);
+        int profiles = nm < WIRE_GROUP_PROFILES ? nm : WIRE_GROUP_PROFILES;
+        u->count = nm;
+        u->cost = cost;
         u->feat[1] = nm;
         u->feat[2] = nc;
-        /* its wire size (the transfer estimate; unit_wire.c): every body
-         * out, the members' states back, contacts both ways */
-        u->bytes = WIRE_GROUP_HEADER + WIRE_GROUP_BODY * (size_t)(nm + g->nstatics) +
-                   WIRE_GROUP_MEMBER * (size_t)nm + 2 * WIRE_GROUP_CONTACT * (size_t)nc;
+        /* its wire size (the transfer estimate; unit_wire.c): the statics
+         * and a few body constants out, each group's counts and figures,
+         * the members' states both ways, contacts both ways */
+        u->bytes = WIRE_GROUP_HEADER + WIRE_GROUP_BODY * (size_t)(g->nstatics + profiles) +
+                   WIRE_GROUP_EACH * (size_t)u->islands + WIRE_GROUP_MEMBER * (size_t)nm +
+                   2 * WIRE_GROUP_CONTACT * (size_t)nc;
     }
     sc_job job = {
         .kind = SC_UNIT_GROUP,
@@ -546,6 +578,7 @@ static int step_groups(const sc_frame_config *cfg, sc_frame_state *st, double dt
     for (int k = 0; k < ng; k++)
         if (todo[k] && out[k].rc != SC_OK && rc == SC_OK)
             rc = out[k].rc;
+    sc_arena_free(a, list);
     sc_arena_free(a, units);
     return rc;
 }

@@ -107,9 +107,12 @@ static int island_units(sc_exec_nodes *w, sc_job *job)
     return SC_OK;
 }
 
+/* The nodes that can take units now: the local ones and the daemons
+ * heard (not the free slots). */
 static int nodes_width(const sc_exec *ex)
 {
-    return ((const sc_exec_nodes *)ex)->nnodes;
+    const sc_exec_nodes *x = (const sc_exec_nodes *)ex;
+    return x->nlocal + (x->prov.ctx ? x->prov.available(x->prov.ctx) : 0);
 }
 
 /* Cut a job into units (GROUP jobs come cut). */
@@ -118,7 +121,7 @@ static int cut(sc_exec_nodes *x, sc_job *job)
     if (job->kind == SC_UNIT_ISLAND)
         return island_units(x, job);
     if (job->kind != SC_UNIT_GROUP)
-        return pair_units(x, job, x->nlocal + (x->prov.ctx ? x->prov.available(x->prov.ctx) : 0));
+        return pair_units(x, job, nodes_width(&x->base));
     return SC_OK;
 }
 

@@ -23,15 +23,23 @@
  *             u32; per body: see
  *             put_body(), per contact: a contact (local body indices) and its
  *             impulse f64[3] (the warm start)
- *   GROUP unit (a motion group's whole frame, group.c): bodies u32,
- *             members u32, contacts u32, contacts_valid i32, dt, gravity
- *             f64[3], contact_tol_m f64, broadphase, island_split, toi_mode
- *             i32; per body (the group's members and the static bodies in
- *             world order, re-indexed 0..m-1; members are those with
- *             inv_mass > 0): shape hash u64, every double of sc_body (see
- *             gbody_fields()), state i32, collided i32; per contact of the
- *             last frame (local indices, the master's order): a contact and
- *             its impulse f64[3]
+ *   GROUP unit (motion groups' whole frames, group.c): groups, statics,
+ *             profiles, members, contacts u32, contacts_valid i32, dt,
+ *             gravity f64[3], contact_tol_m f64, broadphase, island_split,
+ *             toi_mode i32; per static body (world ids ascending): world id
+ *             u32, shape hash u64, every double of sc_body (see
+ *             gbody_fields()), state i32, collided i32; per profile (a
+ *             member's constants, once a unit): shape hash u64 and the
+ *             first GBODY_KEEP fields; per group: members u32, contacts
+ *             u32; per member (group by group, each group's world ids
+ *             ascending): world id u32, profile u32, flags u8 (state,
+ *             collided << 2, force and torque follow << 4), x f64[3], q
+ *             f64[4], v, w f64[3], rest_s f64, (then) force, torque f64[3];
+ *             per contact of the last frame, group by group (ids of the
+ *             group's copy: its members and the static bodies in world
+ *             order, the master's order): a contact and its impulse f64[3].
+ *             v0, w0 and iw are a substep's (set before they are read,
+ *             integrate.c) and stay home both ways
  *   result:   count u32 (pairs, island members or group members), rc i32,
  *             messages i64, pivots i64, failures, regularised, lemke,
  *             collisions, split, split_fallbacks, blocks, block_fallbacks,
@@ -42,23 +50,26 @@
  *             (ISLAND) contacts u32, per member: x f64[3], q f64[4], v, w,
  *             v0, w0 f64[3], collided i32, per contact in the unit's contact order:
  *             impulse f64[3] (this solve's);
- *             (GROUP) the frame's figures that sc_stats_add_frame() merges
- *             (stat_fields(): f64s, i64s, u64s, i32s), per member in the
- *             unit's order: the doubles a frame writes (gbody_fields() from
- *             x on), state i32, collided i32, its track (group.c's check:
- *             sc_track): dev f64 (>= 0), points u32 (at most SC_TRACK_MAX)
+ *             (GROUP) per group in the unit's order: rc i32, the figures
+ *             of its frame that sc_stats_add_frame() merges (a mask u64 of
+ *             the fields of stat_fields() that are not 0, then those: f64s,
+ *             i64s, u64s, i32s), per member: flags u8 (state, collided <<
+ *             2), x, q, v, w, rest_s f64, its track (group.c's check:
+ *             sc_track): dev f64 (>= 0), points u8 (at most SC_TRACK_MAX)
  *             and per point t (within the frame, in order), x, y, z f64;
- *             contacts u32 (0 unless rc is
- *             0) and the frame's new contacts with their impulses (local
- *             indices, canonical order)
- * A unit's counts are bounded and its length checked exactly before
- * anything is allocated; its doubles must be finite and its solver settings
- * in range (params_ok()); sc_contact_params.inject (tests only) never
- * travels. A unit with settings out of range or inject set is not packed
- * (0: the master computes it), and a decoded one has inject 0. A group
- * unit's frame settings must be the world's (world.c's ranges), its bodies
- * consistent (static exactly when inv_mass is 0, members counted), its
- * contacts between a member and a body of the unit, body_a < body_b, sorted
+ *             contacts u32 (0 unless its rc is 0) and the frame's new
+ *             contacts with their impulses (ids of the group's copy,
+ *             canonical order)
+ * A unit's counts are bounded and its length checked (a group unit's
+ * within what its optional forces allow) before anything is allocated;
+ * its doubles must be finite and its solver settings in range
+ * (params_ok()); sc_contact_params.inject (tests only) never travels. A
+ * unit with settings out of range or inject set is not packed (0: the
+ * master computes it), and a decoded one has inject 0. A group unit's
+ * frame settings must be the world's (world.c's ranges), its static bodies
+ * static, its profiles a mass and inertia with their inverses, every group
+ * a member, every world id once (a group's ascending), its contacts
+ * between a member and a body of the group's copy, body_a < body_b, sorted
  * by pair as a frame leaves them. A result's doubles are carried verbatim (a solve
  * that blew up reaches the master as NaN, as it would locally, for
  * frame.c's check); its kind, counts (pairs, or members and contacts, which
@@ -78,12 +89,14 @@
 #include "unit_wire.h"
 #include "vecmath.h"
 
-#define WIRE_VERSION 12      /* 6: island units carry impact_first, results inelastic, v0, w0;
+#define WIRE_VERSION 13      /* 6: island units carry impact_first, results inelastic, v0, w0;
                                 7: results carry energy_refused, restitution_scaled;
                                 8: and np_pairs, np_reused; 9: and lcp_kept;
                                 10: island units carry gravity (the push-out's lift);
                                 11: results carry guessed, stats lcp_guessed;
-                                12: group results carry the members' tracks */
+                                12: group results carry the members' tracks;
+                                13: group units of several groups, members
+                                by state and profile (docs/DESIGN.md 7.4) */
 #define MAGIC_UNIT 0x55574353u        /* "SCWU" */
 #define MAGIC_RESULT 0x52574353u      /* "SCWR" */
 #define MAX_PAIRS (1 << 16)
@@ -98,6 +111,11 @@
 #define IMPULSE_BYTES (3 * 8)
 #define GBODY_BYTES (8 + 60 * 8 + 2 * 4)
 #define GMEMBER_BYTES (35 * 8 + 2 * 4)
+#define STATIC_BYTES (4 + GBODY_BYTES)
+#define PROFILE_BYTES (8 + 25 * 8)
+#define MEMBER_BYTES (4 + 4 + 1 + 14 * 8)
+#define MEMBER_FT_BYTES (6 * 8)
+#define MAX_GROUPS MAX_BODIES
 
 /* ---- little-endian writer and reader ---- */
 
@@ -106,11 +124,23 @@ typedef struct wbuf {
     size_t n;
 } wbuf;
 
+/* The wire is little-endian: on such a host a value's bytes are its
+ * bytes (a memcpy the compiler turns into a store); elsewhere, shifts. */
+#if defined(__BYTE_ORDER__) && __BYTE_ORDER__ == __ORDER_LITTLE_ENDIAN__
+#define WIRE_HOST_LE 1
+#else
+#define WIRE_HOST_LE 0
+#endif
+
 static void put(wbuf *w, uint64_t v, int bytes)
 {
-    if (w->p)
-        for (int i = 0; i < bytes; i++)
-            w->p[w->n + (size_t)i] = (unsigned char)(v >> (8 * i));
+    if (w->p) {
+        if (WIRE_HOST_LE)
+            memcpy(w->p + w->n, &v, (size_t)bytes);
+        else
+            for (int i = 0; i < bytes; i++)
+                w->p[w->n + (size_t)i] = (unsigned char)(v >> (8 * i));
+    }
     w->n += (size_t)bytes;
 }
 
@@ -121,6 +151,12 @@ static void put_i32(wbuf *w, int v)
 
 static void put_f64s(wbuf *w, const double *d, int n)
 {
+    if (WIRE_HOST_LE) {
+        if (w->p && n > 0)
+            memcpy(w->p + w->n, d, (size_t)n * sizeof *d);
+        w->n += (size_t)n * sizeof *d;
+        return;
+    }
     for (int i = 0; i < n; i++) {
         uint64_t u;
         memcpy(&u, &d[i], sizeof u);
@@ -173,8 +209,11 @@ static uint64_t get(rbuf *r, int bytes)
         return 0;
     }
     uint64_t v = 0;
-    for (int i = 0; i < bytes; i++)
-        v |= (uint64_t)r->p[r->n + (size_t)i] << (8 * i);
+    if (WIRE_HOST_LE)
+        memcpy(&v, r->p + r->n, (size_t)bytes);
+    else
+        for (int i = 0; i < bytes; i++)
+            v |= (uint64_t)r->p[r->n + (size_t)i] << (8 * i);
     r->n += (size_t)bytes;
     return v;
 }
@@ -441,6 +480,7 @@ static void write_island(wbuf *w, const void *job_, const void *im_)
  * remote run). */
 #define GBODY_F64 17
 #define GBODY_KEEP 7
+enum { GF_X = 7, GF_FORCE = 11 };  /* x, q, v, w; force, torque */
 static const int gbody_n[GBODY_F64] = { 1, 1, 9, 9, 3, 1, 1, 3, 4, 3, 3, 3, 3, 3, 3, 9, 1 };
 
 static void gbody_fields(sc_body *b, double *f[GBODY_F64])
@@ -485,6 +525,19 @@ static int inverses_ok(const sc_body *b)
     return 1;
 }
 
+/* b's shape: the one the receiver holds under hash (unless r is bad
+ * already). A frame only reads shapes; sc_body holds them unqualified for
+ * the world's references. */
+static void set_shape(rbuf *r, sc_body *b, uint64_t hash, sc_shape_lookup_fn lookup, void *ctx)
+{
+    if (r->bad)
+        return;
+    const sc_shape *s = lookup(ctx, hash);
+    if (!s || s->hash != hash)
+        r->bad = 1;
+    b->shape = (sc_shape *)s;
+}
+
 /* A unit's body: static exactly when its inverse mass is 0 (world.c), a
  * member's inverses its mass's and inertia's, its shape one the receiver
  * holds under that hash. */
@@ -498,14 +551,7 @@ static void get_gbody(rbuf *r, sc_body *b, sc_shape_lookup_fn lookup, void *ctx)
         b->state > SC_STATIC || (b->inv_mass > 0) != (b->state != SC_STATIC) ||
         b->collided < 0 || b->collided > 2 || (b->inv_mass > 0 && !inverses_ok(b)))
         r->bad = 1;
-    if (r->bad)
-        return;
-    /* a frame only reads shapes; sc_body holds them unqualified for the
-     * world's references */
-    const sc_shape *s = lookup(ctx, hash);
-    if (!s || s->hash != hash)
-        r->bad = 1;
-    b->shape = (sc_shape *)s;
+    set_shape(r, b, hash, lookup, ctx);
 }
 
 /* The frame settings a receiver accepts: those sc_world_create() does. */
@@ -518,40 +564,127 @@ static int frame_cfg_ok(const sc_frame_config *c, double dt)
            dt > 0;
 }
 
-/* Group k of a master's GROUP job: its bodies' world ids in the copy's
- * order (sc_group_ids) and its counts. */
-typedef struct group_map {
-    int k, nm, m, nc;
-    int *ids;
-} group_map;
+/* Which profile (a member's constants: GBODY_KEEP fields and its shape)
+ * p of a unit's holders body b has: one of the last PROFILE_SCAN made, or
+ * a new one (the same bits: memcmp). */
+#define PROFILE_SCAN 16
 
-static int map_group(const sc_job *job, int k, group_map *gm)
+static int same_profile(const sc_body *a, const sc_body *b)
 {
-    const sc_groups *g = job->group->g;
-    gm->k = k;
-    gm->nm = g->start[k + 1] - g->start[k];
-    gm->nc = g->cstart[k + 1] - g->cstart[k];
-    if (gm->nm < 1 || gm->nm > MAX_BODIES - g->nstatics || gm->nc > MAX_CONTACTS)
+    if (a->shape->hash != b->shape->hash)
+        return 0;
+    double *fa[GBODY_F64], *fb[GBODY_F64];
+    gbody_fields((sc_body *)a, fa);
+    gbody_fields((sc_body *)b, fb);
+    for (int k = 0; k < GBODY_KEEP; k++)
+        if (memcmp(fa[k], fb[k], (size_t)gbody_n[k] * sizeof(double)) != 0)
+            return 0;
+    return 1;
+}
+
+/* The groups of a master's GROUP unit: list[first .. first + ng) of its
+ * job, nm members and nc contacts in all; per member (in the unit's
+ * order) its profile, each profile by a body holding it; ids: room for
+ * the largest group's copy. */
+typedef struct bundle_map {
+    int first, ng, nm, nc, np, ids_cap;
+    int *prof, *holder, *ids;
+} bundle_map;
+
+static void bundle_free(bundle_map *bm)
+{
+    free(bm->prof);
+    free(bm->holder);
+    free(bm->ids);
+}
+
+static int map_bundle(const sc_job *job, const sc_unit *u, bundle_map *bm)
+{
+    const sc_group_job *gj = job->group;
+    const sc_groups *g = gj->g;
+    const sc_body *bodies = gj->st->bodies;
+    bm->first = u->first;
+    bm->ng = u->islands;
+    int big = 0;
+    for (int j = 0; j < bm->ng; j++) {
+        int k = gj->list[bm->first + j];
+        int nm = g->start[k + 1] - g->start[k];
+        if (nm < 1 || nm > MAX_BODIES)
+            return SC_ETOOBIG;
+        bm->nm += nm;
+        bm->nc += g->cstart[k + 1] - g->cstart[k];
+        big = nm > big ? nm : big;
+        if (bm->nm > MAX_BODIES - g->nstatics || bm->nc > MAX_CONTACTS)
+            return SC_ETOOBIG;
+    }
+    if (bm->ng > MAX_GROUPS)
         return SC_ETOOBIG;
-    gm->ids = sc_alloc_array((size_t)gm->nm + (size_t)g->nstatics, sizeof *gm->ids);
-    if (!gm->ids)
+    bm->ids_cap = big + g->nstatics;
+    bm->prof = sc_alloc_array((size_t)bm->nm, sizeof *bm->prof);
+    bm->holder = sc_alloc_array((size_t)bm->nm, sizeof *bm->holder);
+    bm->ids = sc_alloc_array((size_t)bm->ids_cap, sizeof *bm->ids);
+    if (!bm->prof || !bm->holder || !bm->ids)
         return SC_ENOMEM;
-    gm->m = sc_group_ids(g, k, gm->ids);
+    int q = 0;
+    for (int j = 0; j < bm->ng; j++) {
+        int k = gj->list[bm->first + j];
+        for (int i = g->start[k]; i < g->start[k + 1]; i++, q++) {
+            const sc_body *b = &bodies[g->members[i]];
+            int p = bm->np - 1;
+            while (p >= 0 && p >= bm->np - PROFILE_SCAN && !same_profile(&bodies[bm->holder[p]], b))
+                p--;
+            if (p < 0 || p < bm->np - PROFILE_SCAN) {
+                p = bm->np++;
+                bm->holder[p] = g->members[i];
+            }
+            bm->prof[q] = p;
+        }
+    }
     return SC_OK;
 }
 
-static void write_group(wbuf *w, const void *job_, const void *gm_)
+/* A static body: world id, then as a group body always was. */
+static void put_static(wbuf *w, const sc_body *b, int id)
+{
+    put(w, (uint64_t)id, 4);
+    put(w, b->shape->hash, 8);
+    put_gbody_f64(w, *b, 0, GBODY_F64);
+    put_i32(w, b->state);
+    put_i32(w, b->collided);
+}
+
+/* Whether any bit of b's force or torque is set. */
+static int has_ft(const sc_body *b)
+{
+    static const double zero[3];
+    return memcmp(b->force, zero, sizeof zero) != 0 || memcmp(b->torque, zero, sizeof zero) != 0;
+}
+
+/* A member's state: flags u8 (state, collided << 2, force and torque
+ * sent << 4), x, q, v, w, rest_s, (then) force, torque. */
+static void put_member_state(wbuf *w, const sc_body *b, int ft)
+{
+    put(w, (uint64_t)(b->state | b->collided << 2 | ft << 4), 1);
+    put_gbody_f64(w, *b, GF_X, GF_X + 4);
+    put_f64s(w, &b->rest_s, 1);
+    if (ft)
+        put_gbody_f64(w, *b, GF_FORCE, GF_FORCE + 2);
+}
+
+static void write_group(wbuf *w, const void *job_, const void *bm_)
 {
     const sc_job *job = job_;
-    const group_map *gm = gm_;
+    const bundle_map *bm = bm_;
     const sc_group_job *gj = job->group;
     const sc_groups *g = gj->g;
     const sc_frame_state *st = gj->st;
     const sc_frame_config *cfg = gj->cfg;
     put_header(w, MAGIC_UNIT, SC_UNIT_GROUP);
-    put(w, (uint64_t)gm->m, 4);
-    put(w, (uint64_t)gm->nm, 4);
-    put(w, (uint64_t)gm->nc, 4);
+    put(w, (uint64_t)bm->ng, 4);
+    put(w, (uint64_t)g->nstatics, 4);
+    put(w, (uint64_t)bm->np, 4);
+    put(w, (uint64_t)bm->nm, 4);
+    put(w, (uint64_t)bm->nc, 4);
     put_i32(w, st->contacts_valid != 0);
     double head[5] = { gj->dt, cfg->gravity[0], cfg->gravity[1], cfg->gravity[2],
                        cfg->contact_tol_m };
@@ -559,31 +692,50 @@ static void write_group(wbuf *w, const void *job_, const void *gm_)
     put_i32(w, cfg->broadphase);
     put_i32(w, cfg->island_split);
     put_i32(w, cfg->toi_mode);
-    for (int q = 0; q < gm->m; q++) {
-        const sc_body *b = &st->bodies[gm->ids[q]];
+    for (int j = 0; j < g->nstatics; j++)
+        put_static(w, &st->bodies[g->statics[j]], g->statics[j]);
+    for (int p = 0; p < bm->np; p++) {
+        const sc_body *b = &st->bodies[bm->holder[p]];
         put(w, b->shape->hash, 8);
-        put_gbody_f64(w, *b, 0, GBODY_F64);
-        put_i32(w, b->state);
-        put_i32(w, b->collided);
+        put_gbody_f64(w, *b, 0, GBODY_KEEP);
     }
-    for (int q = 0; q < gm->nc; q++) {
-        const sc_contact *c = &st->contacts[g->contacts[g->cstart[gm->k] + q]];
-        put_contact(w, c, sc_group_local_id(gm->ids, gm->m, c->body_a),
-                    sc_group_local_id(gm->ids, gm->m, c->body_b), 1);
+    for (int j = 0; j < bm->ng; j++) {
+        int k = gj->list[bm->first + j];
+        put(w, (uint64_t)(g->start[k + 1] - g->start[k]), 4);
+        put(w, (uint64_t)(g->cstart[k + 1] - g->cstart[k]), 4);
+    }
+    int q = 0;
+    for (int j = 0; j < bm->ng; j++) {
+        int k = gj->list[bm->first + j];
+        for (int i = g->start[k]; i < g->start[k + 1]; i++, q++) {
+            const sc_body *b = &st->bodies[g->members[i]];
+            put(w, (uint64_t)g->members[i], 4);
+            put(w, (uint64_t)bm->prof[q], 4);
+            put_member_state(w, b, has_ft(b));
+        }
+    }
+    for (int j = 0; j < bm->ng; j++) {
+        int k = gj->list[bm->first + j];
+        int m = sc_group_ids(g, k, bm->ids);
+        for (int i = g->cstart[k]; i < g->cstart[k + 1]; i++) {
+            const sc_contact *c = &st->contacts[g->contacts[i]];
+            put_contact(w, c, sc_group_local_id(bm->ids, m, c->body_a),
+                        sc_group_local_id(bm->ids, m, c->body_b), 1);
+        }
     }
 }
 
 static size_t pack_group(const sc_job *job, const sc_unit *u, unsigned char *buf, size_t cap)
 {
     const sc_group_job *gj = job->group;
-    /* only a master's group (a received one is not sent on) with settings
-     * a receiver takes */
-    if (!gj || !gj->g || u->first < 0 || u->first >= gj->g->ngroups ||
-        !frame_cfg_ok(gj->cfg, gj->dt))
+    /* only a master's groups (a received unit is not sent on) with
+     * settings a receiver takes */
+    if (!gj || !gj->g || !gj->list || u->islands < 1 || u->first < 0 ||
+        u->first > gj->nlist - u->islands || !frame_cfg_ok(gj->cfg, gj->dt))
         return 0;
-    group_map gm = { 0 };
-    size_t n = map_group(job, u->first, &gm) == SC_OK ? emit(write_group, job, &gm, buf, cap) : 0;
-    free(gm.ids);
+    bundle_map bm = { 0 };
+    size_t n = map_bundle(job, u, &bm) == SC_OK ? emit(write_group, job, &bm, buf, cap) : 0;
+    bundle_free(&bm);
     return n;
 }
 
@@ -756,9 +908,82 @@ static int group_contact_ok(const sc_contact *c, int m, const unsigned char *sta
     return 1;
 }
 
+/* A member's world id and decode index, to order a unit's bodies. */
+typedef struct id_at {
+    uint32_t id;
+    int at;
+} id_at;
+
+static int cmp_id_at(const void *x, const void *y)
+{
+    const id_at *a = x, *b = y;
+    return (a->id > b->id) - (a->id < b->id);
+}
+
+/* The received unit's own groups (sc_group_job: g over its bodies, in
+ * world order) and their arrays (one allocation). */
+static int group_arrays(sc_wire_unit *wu, int ng, int ns, int nm, int nc)
+{
+    int m = ns + nm;
+    size_t n = 2 * ((size_t)ng + 1) + (size_t)nm + (size_t)m + (size_t)ns + (size_t)nc;
+    int *p = sc_alloc_array(n, sizeof *p);
+    if (!p)
+        return SC_ENOMEM;
+    wu->gints = p;
+    sc_groups *g = &wu->g;
+    g->n = m;
+    g->ngroups = ng;
+    g->nstatics = ns;
+    g->start = p;
+    p += ng + 1;
+    g->cstart = p;
+    p += ng + 1;
+    g->members = p;
+    p += nm;
+    g->gid = p;
+    p += m;
+    g->statics = p;
+    p += ns;
+    g->contacts = p;
+    return SC_OK;
+}
+
+/* A member's profile: shape hash and the constants, checked as a member's
+ * (a mass, its inverses, a shape the receiver holds). */
+static void get_profile(rbuf *r, sc_body *b, sc_shape_lookup_fn lookup, void *ctx)
+{
+    uint64_t hash = get(r, 8);
+    get_gbody_f64(r, b, 0, GBODY_KEEP, 1);
+    if (!(b->mass > 0) || !(b->inv_mass > 0) || !inverses_ok(b))
+        r->bad = 1;
+    set_shape(r, b, hash, lookup, ctx);
+}
+
+/* A member: world id, profile, state (put_member_state()); v0, w0 and iw
+ * are a substep's (set before they are read: integrate.c) and left 0. */
+static uint32_t get_member(rbuf *r, sc_body *b, const sc_body *prof, uint32_t np)
+{
+    uint32_t id = (uint32_t)get(r, 4), p = (uint32_t)get(r, 4);
+    unsigned flags = (unsigned)get(r, 1);
+    int state = (int)(flags & 3), collided = (int)(flags >> 2 & 3), ft = (int)(flags >> 4 & 1);
+    if (r->bad || id > INT_MAX || p >= np || flags >> 5 || collided > 2) {
+        r->bad = 1;
+        return 0;
+    }
+    *b = prof[p];
+    b->state = state;
+    b->collided = collided;
+    get_gbody_f64(r, b, GF_X, GF_X + 4, 1);
+    get_f64s(r, &b->rest_s, 1, 1);
+    if (ft)
+        get_gbody_f64(r, b, GF_FORCE, GF_FORCE + 2, 1);
+    return id;
+}
+
 static int decode_group(rbuf *r, sc_shape_lookup_fn lookup, void *ctx, sc_wire_unit *wu)
 {
-    uint32_t m = (uint32_t)get(r, 4), nm = (uint32_t)get(r, 4), nc = (uint32_t)get(r, 4);
+    uint32_t ng = (uint32_t)get(r, 4), ns = (uint32_t)get(r, 4), np = (uint32_t)get(r, 4);
+    uint32_t nm = (uint32_t)get(r, 4), nc = (uint32_t)get(r, 4);
     int valid = get_i32(r);
     double head[5];
     get_f64s(r, head, 5, 1);
@@ -766,41 +991,125 @@ static int decode_group(rbuf *r, sc_shape_lookup_fn lookup, void *ctx, sc_wire_u
     cfg.broadphase = get_i32(r);
     cfg.island_split = get_i32(r);
     cfg.toi_mode = get_i32(r);
-    /* the last frame's contacts only when they are valid (group.c) */
-    if (r->bad || nm < 1 || nm > m || m > MAX_BODIES || nc > MAX_CONTACTS || valid < 0 ||
-        valid > 1 || (!valid && nc > 0) || !frame_cfg_ok(&cfg, head[0]) ||
-        r->len - r->n != (size_t)m * GBODY_BYTES + (size_t)nc * (CONTACT_BYTES + IMPULSE_BYTES))
+    /* every group has a member, every profile a holder; the last frame's
+     * contacts only when they are valid (group.c); the length within what
+     * the counts allow (forces and torques are optional) */
+    if (r->bad || ng < 1 || ng > nm || nm > MAX_BODIES || ns > MAX_BODIES - nm || np < 1 ||
+        np > nm || nc > MAX_CONTACTS || valid < 0 || valid > 1 || (!valid && nc > 0) ||
+        !frame_cfg_ok(&cfg, head[0]))
+        return SC_EFORMAT;
+    size_t least = (size_t)ns * STATIC_BYTES + (size_t)np * PROFILE_BYTES +
+                   (size_t)ng * 8 + (size_t)nm * MEMBER_BYTES +
+                   (size_t)nc * (CONTACT_BYTES + IMPULSE_BYTES);
+    size_t left = r->len - r->n;
+    if (left < least || left - least > (size_t)nm * MEMBER_FT_BYTES)
         return SC_EFORMAT;
     if (!lookup)
         return SC_EINVAL;
+    uint32_t m = ns + nm;
     sc_frame_state *st = &wu->gst;
     wu->bodies = sc_calloc_array(m, sizeof *wu->bodies);
     st->contacts = sc_calloc_array(nc > 0 ? nc : 1, sizeof *st->contacts);
-    int track_cap = 0;
+    wu->gouts = sc_calloc_array(ng, sizeof *wu->gouts);
+    sc_body *dec = sc_calloc_array(m, sizeof *dec);
+    sc_body *prof = sc_calloc_array(np, sizeof *prof);
+    id_at *order = sc_alloc_array(m, sizeof *order);
+    int *rank = sc_alloc_array(m, sizeof *rank);
+    int *ids = sc_alloc_array(m, sizeof *ids);
     unsigned char *stat = sc_alloc_array(m, 1);
-    int rc = wu->bodies && st->contacts && stat &&
-                     sc_track_reserve(&wu->track, &track_cap, (int)m) == SC_OK
+    int track_cap = 0;
+    int rc = wu->bodies && st->contacts && wu->gouts && dec && prof && order && rank && ids &&
+                     stat && sc_track_reserve(&wu->track, &track_cap, (int)m) == SC_OK &&
+                     group_arrays(wu, (int)ng, (int)ns, (int)nm, (int)nc) == SC_OK
                  ? SC_OK
                  : SC_ENOMEM;
-    uint32_t members = 0;
-    for (uint32_t k = 0; k < m && rc == SC_OK; k++) {
-        get_gbody(r, &wu->bodies[k], lookup, ctx);
-        stat[k] = wu->bodies[k].inv_mass == 0;
-        members += !stat[k];
+    sc_groups *g = &wu->g;
+    /* the static bodies (world ids ascending), the profiles, the groups'
+     * counts, the members (each group's ids ascending) */
+    for (uint32_t j = 0; j < ns && rc == SC_OK; j++) {
+        order[j].id = (uint32_t)get(r, 4);
+        order[j].at = (int)j;
+        get_gbody(r, &dec[j], lookup, ctx);
+        if (r->bad || order[j].id > INT_MAX || dec[j].inv_mass > 0 ||
+            (j > 0 && order[j].id <= order[j - 1].id))
+            rc = SC_EFORMAT;
+    }
+    for (uint32_t p = 0; p < np && rc == SC_OK; p++) {
+        get_profile(r, &prof[p], lookup, ctx);
         if (r->bad)
             rc = SC_EFORMAT;
     }
-    if (rc == SC_OK && members != nm)
-        rc = SC_EFORMAT;
-    int pa = -1, pb = -1;
-    for (uint32_t k = 0; k < nc && rc == SC_OK; k++) {
-        get_contact(r, &st->contacts[k], 1, 1);
-        if (r->bad || !group_contact_ok(&st->contacts[k], (int)m, stat, &pa, &pb))
+    uint32_t sum_m = 0, sum_c = 0;
+    for (uint32_t k = 0; k < ng && rc == SC_OK; k++) {
+        uint32_t a = (uint32_t)get(r, 4), c = (uint32_t)get(r, 4);
+        if (r->bad || a < 1 || a > nm - sum_m || c > nc - sum_c)
             rc = SC_EFORMAT;
+        g->start[k] = (int)sum_m;
+        g->cstart[k] = (int)sum_c;
+        sum_m += a;
+        sum_c += c;
     }
+    if (rc == SC_OK && (sum_m != nm || sum_c != nc))
+        rc = SC_EFORMAT;
+    if (rc == SC_OK) {
+        g->start[ng] = (int)nm;
+        g->cstart[ng] = (int)nc;
+    }
+    for (uint32_t k = 0; k < ng && rc == SC_OK; k++)
+        for (int i = g->start[k]; i < g->start[k + 1] && rc == SC_OK; i++) {
+            uint32_t q = ns + (uint32_t)i;
+            order[q].id = get_member(r, &dec[q], prof, np);
+            order[q].at = (int)q;
+            if (r->bad || (i > g->start[k] && order[q].id <= order[q - 1].id))
+                rc = SC_EFORMAT;
+        }
+    /* world order: every id once */
+    if (rc == SC_OK) {
+        qsort(order, m, sizeof *order, cmp_id_at);
+        for (uint32_t q = 0; q < m && rc == SC_OK; q++) {
+            if (q > 0 && order[q].id == order[q - 1].id)
+                rc = SC_EFORMAT;
+            rank[order[q].at] = (int)q;
+            wu->bodies[q] = dec[order[q].at];
+        }
+    }
+    for (uint32_t q = 0; q < m && rc == SC_OK; q++)
+        g->gid[q] = -1;
+    for (uint32_t j = 0; j < ns && rc == SC_OK; j++)
+        g->statics[j] = rank[j];
+    for (uint32_t k = 0; k < ng && rc == SC_OK; k++)
+        for (int i = g->start[k]; i < g->start[k + 1]; i++) {
+            g->members[i] = rank[ns + (uint32_t)i];
+            g->gid[g->members[i]] = (int)k;
+        }
+    /* each group's contacts, by its copy's ids (as a frame keeps them),
+     * into the unit's */
+    for (uint32_t k = 0; k < ng && rc == SC_OK; k++) {
+        int mk = sc_group_ids(g, (int)k, ids), pa = -1, pb = -1;
+        for (int q = 0; q < mk; q++)
+            stat[q] = g->gid[ids[q]] != (int)k;
+        for (int i = g->cstart[k]; i < g->cstart[k + 1] && rc == SC_OK; i++) {
+            sc_contact *c = &st->contacts[i];
+            get_contact(r, c, 1, 1);
+            if (r->bad || !group_contact_ok(c, mk, stat, &pa, &pb)) {
+                rc = SC_EFORMAT;
+                break;
+            }
+            c->body_a = ids[c->body_a];
+            c->body_b = ids[c->body_b];
+            g->contacts[i] = i;
+        }
+    }
+    free(dec);
+    free(prof);
+    free(order);
+    free(rank);
+    free(ids);
     free(stat);
     if (rc != SC_OK)
         return rc;
+    memset(wu->track.dev, 0, m * sizeof *wu->track.dev);
+    memset(wu->track.count, 0, m * sizeof *wu->track.count);
     wu->nbodies = (int)m;
     wu->cfg = cfg;
     st->bodies = wu->bodies;
@@ -808,16 +1117,16 @@ static int decode_group(rbuf *r, sc_shape_lookup_fn lookup, void *ctx, sc_wire_u
     st->ncontacts = (int)nc;
     st->contact_cap = nc > 0 ? (int)nc : 1;
     st->contacts_valid = valid;
-    st->track = &wu->track;
-    /* the unit's own group, stepped in place (group.c) */
-    wu->group = (sc_group_job){ .cfg = &wu->cfg, .st = st, .g = NULL, .dt = head[0],
-                                .out = &wu->gout };
+    /* its groups, run as the master's are (group.c) */
+    wu->group = (sc_group_job){ .cfg = &wu->cfg, .st = st, .g = g, .list = NULL,
+                                .nlist = (int)ng, .dt = head[0], .out = wu->gouts,
+                                .track = &wu->track };
     sc_job *job = &wu->job;
     job->group = &wu->group;
     job->run_group = sc_group_unit_run;
     wu->unit.first = 0;
     wu->unit.count = (int)nm;
-    wu->unit.islands = 1;
+    wu->unit.islands = (int)ng;
     return SC_OK;
 }
 
@@ -860,6 +1169,10 @@ void sc_wire_unit_free(sc_wire_unit *wu)
     free(wu->bodies);
     free(wu->c);
     free(wu->gst.contacts);
+    for (int k = 0; wu->gouts && k < wu->g.ngroups; k++)
+        free(wu->gouts[k].contacts);
+    free(wu->gouts);
+    free(wu->gints);
     sc_track_free(&wu->track);
     sc_islands_free(&wu->islands);
     memset(wu, 0, sizeof *wu);
@@ -953,75 +1266,139 @@ static void stat_fields(sc_stats *s, stat_ptrs *p)
     memcpy(p->i, i, sizeof i);
 }
 
-#define STAT_BYTES (8 * (STAT_F64 + STAT_LONGS + STAT_SIZES) + 4 * STAT_INTS)
+/* The figures of a group's frame, compactly: a mask u64 of the fields of
+ * stat_fields() whose bits are not all 0, then those (f64s, i64s, u64s,
+ * i32s in that order); a group of a falling part or two sets a handful. */
+#define STAT_FIELDS (STAT_F64 + STAT_LONGS + STAT_SIZES + STAT_INTS)
+_Static_assert(STAT_FIELDS <= 64, "one mask bit a field");
 
-static void put_stats(wbuf *w, sc_stats s)
+static uint64_t stats_mask(sc_stats s)
 {
     stat_ptrs p;
     stat_fields(&s, &p);
-    for (int k = 0; k < STAT_F64; k++)
-        put_f64s(w, p.d[k], 1);
-    for (int k = 0; k < STAT_LONGS; k++)
-        put(w, (uint64_t)*p.l[k], 8);
-    for (int k = 0; k < STAT_SIZES; k++)
-        put(w, (uint64_t)*p.z[k], 8);
-    for (int k = 0; k < STAT_INTS; k++)
-        put_i32(w, *p.i[k]);
+    uint64_t mask = 0;
+    int f = 0;
+    static const double zd = 0;
+    for (int k = 0; k < STAT_F64; k++, f++)
+        mask |= (uint64_t)(memcmp(p.d[k], &zd, sizeof zd) != 0) << f;
+    for (int k = 0; k < STAT_LONGS; k++, f++)
+        mask |= (uint64_t)(*p.l[k] != 0) << f;
+    for (int k = 0; k < STAT_SIZES; k++, f++)
+        mask |= (uint64_t)(*p.z[k] != 0) << f;
+    for (int k = 0; k < STAT_INTS; k++, f++)
+        mask |= (uint64_t)(*p.i[k] != 0) << f;
+    return mask;
 }
 
-/* Doubles verbatim (timings, residuals, depths), counts not negative;
- * everything else of s is 0. */
-static void get_stats(rbuf *r, sc_stats *s)
+static void put_stats_compact(wbuf *w, sc_stats s)
+{
+    stat_ptrs p;
+    stat_fields(&s, &p);
+    uint64_t mask = stats_mask(s);
+    put(w, mask, 8);
+    int f = 0;
+    for (int k = 0; k < STAT_F64; k++, f++)
+        if (mask >> f & 1)
+            put_f64s(w, p.d[k], 1);
+    for (int k = 0; k < STAT_LONGS; k++, f++)
+        if (mask >> f & 1)
+            put(w, (uint64_t)*p.l[k], 8);
+    for (int k = 0; k < STAT_SIZES; k++, f++)
+        if (mask >> f & 1)
+            put(w, (uint64_t)*p.z[k], 8);
+    for (int k = 0; k < STAT_INTS; k++, f++)
+        if (mask >> f & 1)
+            put_i32(w, *p.i[k]);
+}
+
+/* As get_stats(): doubles verbatim, counts not negative, the rest 0. */
+static void get_stats_compact(rbuf *r, sc_stats *s)
 {
     stat_ptrs p;
     memset(s, 0, sizeof *s);
     stat_fields(s, &p);
-    for (int k = 0; k < STAT_F64; k++)
-        get_f64s(r, p.d[k], 1, 0);
-    for (int k = 0; k < STAT_LONGS; k++) {
+    uint64_t mask = get(r, 8);
+    if (STAT_FIELDS < 64 && mask >> STAT_FIELDS)
+        r->bad = 1;
+    int f = 0;
+    for (int k = 0; k < STAT_F64; k++, f++)
+        if (mask >> f & 1)
+            get_f64s(r, p.d[k], 1, 0);
+    for (int k = 0; k < STAT_LONGS; k++, f++) {
+        if (!(mask >> f & 1))
+            continue;
         int64_t v = get_signed(r, 8);
         if (v < 0 || v > LONG_MAX)
             r->bad = 1;
         *p.l[k] = (long)v;
     }
-    for (int k = 0; k < STAT_SIZES; k++) {
+    for (int k = 0; k < STAT_SIZES; k++, f++) {
+        if (!(mask >> f & 1))
+            continue;
         uint64_t v = get(r, 8);
         if (v > SIZE_MAX)
             r->bad = 1;
         *p.z[k] = (size_t)v;
     }
-    for (int k = 0; k < STAT_INTS; k++)
-        if ((*p.i[k] = get_i32(r)) < 0)
+    for (int k = 0; k < STAT_INTS; k++, f++)
+        if ((mask >> f & 1) && (*p.i[k] = get_i32(r)) < 0)
             r->bad = 1;
 }
 
-/* A received group's outputs: its figures, its members' new states in
- * their order, and its new contacts (none when it failed: a failed frame
- * makes none here either, group.c). */
+/* How many of the ascending a[0 .. n) are below r. */
+static int count_below(const int *a, int n, int r)
+{
+    int lo = 0, hi = n;
+    while (lo < hi) {
+        int mid = lo + (hi - lo) / 2;
+        if (a[mid] < r)
+            lo = mid + 1;
+        else
+            hi = mid;
+    }
+    return lo;
+}
+
+/* Index of unit body r (a received unit's, world order) in group k's
+ * copy: the members and static bodies before it (each ascending). */
+static int copy_index(const sc_groups *g, int k, int r)
+{
+    return count_below(&g->members[g->start[k]], g->start[k + 1] - g->start[k], r) +
+           count_below(g->statics, g->nstatics, r);
+}
+
+/* A received unit's outputs, group by group: rc i32, its figures, per
+ * member (the unit's order) flags u8 (state, collided << 2), x, q, v, w,
+ * rest_s, its track (dev f64, points u8, the points), then its new
+ * contacts (none when it failed: a failed frame makes none here either,
+ * group.c) by its copy's ids. */
 static void write_group_result(wbuf *w, const sc_wire_unit *wu)
 {
-    const sc_frame_state *st = &wu->gst;
-    put_stats(w, wu->gout.stats);
-    for (int q = 0; q < st->nbodies; q++) {
-        const sc_body *b = &st->bodies[q];
-        if (!(b->inv_mass > 0))
-            continue;
-        put_gbody_f64(w, *b, GBODY_KEEP, GBODY_F64);
-        put_i32(w, b->state);
-        put_i32(w, b->collided);
-        /* its track (group.c's check) */
-        int n = st->track ? st->track->count[q] : 0;
-        double dev = st->track ? st->track->dev[q] : 0;
-        put_f64s(w, &dev, 1);
-        put(w, (uint64_t)n, 4);
-        if (n > 0)
-            put_f64s(w, &st->track->pt[(size_t)q * SC_TRACK_MAX * 4], 4 * n);
-    }
-    int nc = wu->unit.rc == SC_OK ? st->ncontacts : 0;
-    put(w, (uint64_t)nc, 4);
-    for (int k = 0; k < nc; k++) {
-        const sc_contact *c = &st->contacts[k];
-        put_contact(w, c, c->body_a, c->body_b, 1);
+    const sc_group_job *gj = &wu->group;
+    const sc_groups *g = gj->g;
+    const sc_frame_state *st = gj->st;
+    for (int k = 0; k < g->ngroups; k++) {
+        const sc_group_out *out = &gj->out[k];
+        put_i32(w, out->rc);
+        put_stats_compact(w, out->stats);
+        for (int i = g->start[k]; i < g->start[k + 1]; i++) {
+            int q = g->members[i];
+            const sc_body *b = &st->bodies[q];
+            put(w, (uint64_t)(b->state | b->collided << 2), 1);
+            put_gbody_f64(w, *b, GF_X, GF_X + 4);
+            put_f64s(w, &b->rest_s, 1);
+            int n = gj->track->count[q];
+            put_f64s(w, &gj->track->dev[q], 1);
+            put(w, (uint64_t)n, 1);
+            if (n > 0)
+                put_f64s(w, &gj->track->pt[(size_t)q * SC_TRACK_MAX * 4], 4 * n);
+        }
+        int nc = out->rc == SC_OK ? out->ncontacts : 0;
+        put(w, (uint64_t)nc, 4);
+        for (int j = 0; j < nc; j++) {
+            const sc_contact *c = &out->contacts[j];
+            put_contact(w, c, copy_index(g, k, c->body_a), copy_index(g, k, c->body_b), 1);
+        }
     }
 }
 
@@ -1077,86 +1454,100 @@ size_t sc_wire_result_pack(const sc_wire_unit *wu, unsigned char *buf, size_t ca
     return emit(write_result, wu, NULL, buf, cap);
 }
 
-/* A group result's side of the master: group k's bodies' world ids (the
- * copy's order), then the result's contact count (the check) and where its
- * contacts go (the write). */
+/* A group result's side of the master: room for the largest group's
+ * copy (ids, static flags), each group's contact count (the check) and
+ * where its contacts go (the write). */
 typedef struct group_res {
     int *ids;
-    int m;
     unsigned char *stat;        /* per body of the copy: static */
-    int nc;
-    sc_contact *c;
+    int *nc;                    /* per group of the unit */
+    sc_contact **c;
 } group_res;
 
 /* The group part of a result for u (after the common part); rc is the
- * result's. Written to the master's bodies and out[k] only when write. */
+ * result's, the first of its groups'. Written to the master's bodies,
+ * tracks and out[] only when write. */
 static int read_group_result(rbuf *r, const sc_job *job, const sc_unit *u, int write, int rc,
                              group_res *gr)
 {
     const sc_group_job *gj = job->group;
     const sc_groups *g = gj->g;
-    int k = u->first;
-    const int *mem = &g->members[g->start[k]];
-    int nm = g->start[k + 1] - g->start[k];
-    sc_stats stats;
-    get_stats(r, &stats);
-    sc_body scratch = { 0 };
-    for (int i = 0; i < nm && !r->bad; i++) {
-        sc_body *b = write ? &gj->st->bodies[mem[i]] : &scratch;
-        get_gbody_f64(r, b, GBODY_KEEP, GBODY_F64, 0);
-        int state = get_i32(r), collided = get_i32(r);
-        /* a member stays dynamic */
-        if (state < SC_FREE || state > SC_ASLEEP || collided < 0 || collided > 2)
+    int first_rc = SC_OK;
+    for (int j = 0; j < u->islands; j++) {
+        int k = gj->list[u->first + j];
+        const int *mem = &g->members[g->start[k]];
+        int nm = g->start[k + 1] - g->start[k];
+        int grc = get_i32(r);
+        sc_stats stats;
+        get_stats_compact(r, &stats);
+        if (r->bad || grc > 0)
             return SC_EFORMAT;
-        b->state = state;
-        b->collided = collided;
-        /* its track: how far it went from its drift, and its points (times
-         * within the frame, in order) */
-        double dev;
-        get_f64s(r, &dev, 1, 1);
-        uint32_t n = (uint32_t)get(r, 4);
-        if (r->bad || !(dev >= 0) || n > SC_TRACK_MAX)
-            return SC_EFORMAT;
-        double pt[SC_TRACK_MAX * 4];
-        get_f64s(r, pt, 4 * (int)n, 1);
-        for (uint32_t k = 0; k < n && !r->bad; k++)
-            if (pt[4 * k] < 0 || pt[4 * k] > gj->dt || (k > 0 && pt[4 * k] < pt[4 * (k - 1)]))
+        if (first_rc == SC_OK)
+            first_rc = grc;
+        sc_body scratch = { 0 };
+        for (int i = 0; i < nm; i++) {
+            sc_body *b = write ? &gj->st->bodies[mem[i]] : &scratch;
+            unsigned flags = (unsigned)get(r, 1);
+            /* a member stays dynamic */
+            if (r->bad || flags >> 4 || (flags >> 2 & 3) > 2)
                 return SC_EFORMAT;
-        if (r->bad)
-            return SC_EFORMAT;
-        if (write && gj->track) {
-            gj->track->dev[mem[i]] = dev;
-            gj->track->count[mem[i]] = (int)n;
-            memcpy(&gj->track->pt[(size_t)mem[i] * SC_TRACK_MAX * 4], pt,
-                   (size_t)n * 4 * sizeof *pt);
+            get_gbody_f64(r, b, GF_X, GF_X + 4, 0);
+            get_f64s(r, &b->rest_s, 1, 0);
+            b->state = (int)(flags & 3);
+            b->collided = (int)(flags >> 2 & 3);
+            /* its track: how far it went from its drift, and its points
+             * (times within the frame, in order) */
+            double dev;
+            get_f64s(r, &dev, 1, 1);
+            unsigned n = (unsigned)get(r, 1);
+            if (r->bad || !(dev >= 0) || n > SC_TRACK_MAX)
+                return SC_EFORMAT;
+            double pt[SC_TRACK_MAX * 4];
+            get_f64s(r, pt, 4 * (int)n, 1);
+            for (unsigned p = 0; p < n && !r->bad; p++)
+                if (pt[4 * p] < 0 || pt[4 * p] > gj->dt || (p > 0 && pt[4 * p] < pt[4 * (p - 1)]))
+                    return SC_EFORMAT;
+            if (r->bad)
+                return SC_EFORMAT;
+            if (write && gj->track) {
+                gj->track->dev[mem[i]] = dev;
+                gj->track->count[mem[i]] = (int)n;
+                memcpy(&gj->track->pt[(size_t)mem[i] * SC_TRACK_MAX * 4], pt,
+                       (size_t)n * 4 * sizeof *pt);
+            }
         }
-    }
-    uint32_t nc = (uint32_t)get(r, 4);
-    if (r->bad || nc > MAX_CONTACTS || (rc != SC_OK && nc > 0) ||
-        r->len - r->n != (size_t)nc * (CONTACT_BYTES + IMPULSE_BYTES))
-        return SC_EFORMAT;
-    int pa = -1, pb = -1;
-    for (uint32_t q = 0; q < nc; q++) {
-        sc_contact c;
-        get_contact(r, &c, 0, 1);
-        if (r->bad || !group_contact_ok(&c, gr->m, gr->stat, &pa, &pb))
+        uint32_t nc = (uint32_t)get(r, 4);
+        if (r->bad || nc > MAX_CONTACTS || (grc != SC_OK && nc > 0) ||
+            r->len - r->n < (size_t)nc * (CONTACT_BYTES + IMPULSE_BYTES) ||
+            (write && (int)nc != gr->nc[j]))
             return SC_EFORMAT;
+        int m = sc_group_ids(g, k, gr->ids);
+        for (int q = 0; q < m; q++)
+            gr->stat[q] = g->gid[gr->ids[q]] != k;
+        int pa = -1, pb = -1;
+        for (uint32_t q = 0; q < nc; q++) {
+            sc_contact c;
+            get_contact(r, &c, 0, 1);
+            if (r->bad || !group_contact_ok(&c, m, gr->stat, &pa, &pb))
+                return SC_EFORMAT;
+            if (write) {
+                c.body_a = gr->ids[c.body_a];
+                c.body_b = gr->ids[c.body_b];
+                gr->c[j][q] = c;
+            }
+        }
+        gr->nc[j] = (int)nc;
         if (write) {
-            c.body_a = gr->ids[c.body_a];
-            c.body_b = gr->ids[c.body_b];
-            gr->c[q] = c;
+            sc_group_out *out = &gj->out[k];
+            memset(out, 0, sizeof *out);
+            out->rc = grc;
+            out->stats = stats;
+            out->contacts = nc > 0 ? gr->c[j] : NULL;
+            out->ncontacts = (int)nc;
+            gr->c[j] = NULL;
         }
     }
-    gr->nc = (int)nc;
-    if (write) {
-        sc_group_out *out = &gj->out[k];
-        memset(out, 0, sizeof *out);
-        out->rc = rc;
-        out->stats = stats;
-        out->contacts = nc > 0 ? gr->c : NULL;
-        out->ncontacts = (int)nc;
-    }
-    return SC_OK;
+    return first_rc == rc ? SC_OK : SC_EFORMAT;
 }
 
 /* Read a result for u; write it to the job and u only when write is set
@@ -1166,10 +1557,8 @@ static int read_result(rbuf *r, const sc_job *job, sc_unit *u, int write, group_
     int island = job->kind == SC_UNIT_ISLAND, group = job->kind == SC_UNIT_GROUP;
     int pairs = !island && !group;
     const sc_islands *is = job->islands;
-    const sc_groups *g = group ? job->group->g : NULL;
     int i0 = island ? is->body_start[u->first] : u->first;
     int count = island ? is->body_start[u->first + u->islands] - i0
-              : group  ? g->start[u->first + 1] - g->start[u->first]
                        : u->count;
     if (get_header(r, MAGIC_RESULT) != job->kind || get(r, 4) != (uint64_t)count)
         return SC_EFORMAT;
@@ -1238,19 +1627,34 @@ static int read_result(rbuf *r, const sc_job *job, sc_unit *u, int write, group_
     return SC_OK;
 }
 
-/* Group u->first's ids and static flags, for read_result(). */
+/* Room for the largest of u's groups' copies, for read_result(). */
 static int group_res_init(const sc_job *job, const sc_unit *u, group_res *gr)
 {
-    const sc_groups *g = job->group->g;
-    size_t m = (size_t)(g->start[u->first + 1] - g->start[u->first]) + (size_t)g->nstatics;
+    const sc_group_job *gj = job->group;
+    const sc_groups *g = gj->g;
+    int big = 0;
+    for (int j = 0; j < u->islands; j++) {
+        int k = gj->list[u->first + j];
+        big = g->start[k + 1] - g->start[k] > big ? g->start[k + 1] - g->start[k] : big;
+    }
+    size_t m = (size_t)big + (size_t)g->nstatics;
     gr->ids = sc_alloc_array(m > 0 ? m : 1, sizeof *gr->ids);
     gr->stat = sc_alloc_array(m > 0 ? m : 1, 1);
-    if (!gr->ids || !gr->stat)
+    gr->nc = sc_calloc_array((size_t)u->islands, sizeof *gr->nc);
+    gr->c = sc_calloc_array((size_t)u->islands, sizeof *gr->c);
+    if (!gr->ids || !gr->stat || !gr->nc || !gr->c)
         return SC_ENOMEM;
-    gr->m = sc_group_ids(g, u->first, gr->ids);
-    for (int q = 0; q < gr->m; q++)
-        gr->stat[q] = g->gid[gr->ids[q]] != u->first;
     return SC_OK;
+}
+
+static void group_res_free(group_res *gr, int n)
+{
+    for (int j = 0; gr->c && j < n; j++)
+        free(gr->c[j]);
+    free(gr->c);
+    free(gr->nc);
+    free(gr->ids);
+    free(gr->stat);
 }
 
 int sc_wire_result_apply(const sc_job *job, sc_unit *u, const unsigned char *buf, size_t len)
@@ -1268,7 +1672,8 @@ int sc_wire_result_apply(const sc_job *job, sc_unit *u, const unsigned char *buf
         break;
     case SC_UNIT_GROUP:
         /* a master's group job (a received one is not answered to) */
-        bad = !job->group || !job->group->g || u->first >= job->group->g->ngroups;
+        bad = !job->group || !job->group->g || !job->group->list || u->islands < 1 ||
+              u->first > job->group->nlist - u->islands;
         break;
     default:
         bad = 1;
@@ -1281,16 +1686,15 @@ int sc_wire_result_apply(const sc_job *job, sc_unit *u, const unsigned char *buf
     if (rc == SC_OK)
         rc = read_result(&r, job, u, 0, &gr);
     /* the contacts' room before anything is written: the write cannot fail */
-    if (rc == SC_OK && gr.nc > 0 && !(gr.c = sc_alloc_array((size_t)gr.nc, sizeof *gr.c)))
-        rc = SC_ENOMEM;
+    for (int j = 0; rc == SC_OK && job->kind == SC_UNIT_GROUP && j < u->islands; j++)
+        if (gr.nc[j] > 0 && !(gr.c[j] = sc_alloc_array((size_t)gr.nc[j], sizeof *gr.c[j])))
+            rc = SC_ENOMEM;
     if (rc == SC_OK) {
         r = (rbuf){ buf, 0, len, 0 };
         rc = read_result(&r, job, u, 1, &gr);
         SC_ASSERT(rc == SC_OK);
-    } else {
-        free(gr.c);
     }
-    free(gr.ids);
-    free(gr.stat);
+    if (job->kind == SC_UNIT_GROUP)
+        group_res_free(&gr, u->islands);
     return rc;
 }

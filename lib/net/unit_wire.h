@@ -26,12 +26,14 @@ typedef struct sc_wire_unit {
     sc_contact *c;
     sc_islands islands;
     sc_contact_params params;
-    /* GROUP: the group's frame, run in place (bodies above; its contacts
-     * grow as the frame needs) */
+    /* GROUP: its groups' frames over its bodies (above: the static ones
+     * and the members in world order), as the master runs them (group.c) */
     sc_frame_config cfg;
     sc_frame_state gst;
+    sc_groups g;
+    int *gints;               /* g's arrays */
     sc_group_job group;
-    sc_group_out gout;
+    sc_group_out *gouts;      /* per group */
     sc_track track;           /* where its bodies went (owned arrays) */
 } sc_wire_unit;
 /* Decode; SC_EFORMAT for anything malformed (truncated, bad version/kind,
