@@ -31,17 +31,21 @@ SC_API int sc_key_generate(const char *path);
 SC_API int sc_key_load(const char *path, uint8_t key[SC_KEY_BYTES]);
 
 /* ---- sealed messages --------------------------------------------------------
- * Every message between masters and daemons is an envelope: HMAC-SHA-512/256
- * under the shared key over all its bytes, the sender's id and epoch (one
+ * Every message between masters and daemons is an envelope: a Poly1305 tag
+ * (XChaCha20-Poly1305, nothing encrypted, nonce: the sender's id, epoch
+ * and sequence number) under the shared key over all its bytes, the
+ * sender's id and epoch (one
  * per process start), a sequence number per sender and epoch checked
  * against replay, and the epoch of the receiver it is addressed to.
  * Channels: SC_ANNOUNCE (heartbeats), SC_UNIT_<node> (units, challenges),
  * SC_RESULT_<node> (results, answers), SC_SHAPEREQ_<node>, SC_SHAPE_<node>,
  * <node> the receiver's id in 16 lower-case hex digits. */
-#define SC_MSG_VERSION 4        /* 2: HMAC-SHA-512/256, batches; 3: announce units;
-                                   4: epochs, addressed messages, challenges */
+#define SC_MSG_VERSION 5        /* 2: HMAC-SHA-512/256, batches; 3: announce units;
+                                   4: epochs, addressed messages, challenges;
+                                   5: XChaCha20-Poly1305's tag, nonce (node,
+                                   epoch, seq) */
 #define SC_MSG_MAX_BYTES (8u << 20)        /* a whole envelope, at most */
-#define SC_MSG_OVERHEAD 80u                 /* envelope bytes besides the payload */
+#define SC_MSG_OVERHEAD 64u                 /* envelope bytes besides the payload */
 #define SC_MSG_MAX_PAYLOAD (SC_MSG_MAX_BYTES - SC_MSG_OVERHEAD)
 #define SC_MSG_MAX_WIRE (SC_MSG_MAX_PAYLOAD - 28u)  /* unit_t / result_t bytes */
 #define SC_MSG_HOST_MAX 256                 /* host name bytes, with the NUL */
@@ -98,7 +102,8 @@ typedef struct sc_msg_guard {
 /* A new epoch for this process start (> 0; see SC_MSG_EPOCH_RANDOM_BITS). */
 SC_API int64_t sc_msg_epoch_new(void);
 /* Seal payload (len bytes, kind SC_MSG_*) from node in its epoch as its
- * message seq, addressed to the receiver's epoch to_epoch (0: to anyone):
+ * message seq (node, epoch, seq are the tag's nonce: never repeat a seq
+ * within an epoch), addressed to the receiver's epoch to_epoch (0: to anyone):
  * *out (malloc'd, *outlen bytes) is the envelope. SC_OK, SC_EINVAL (bad
  * kind, epoch <= 0, seq or to_epoch < 0, len too big) or SC_ENOMEM. */
 SC_API int sc_msg_seal(const uint8_t key[SC_KEY_BYTES], int64_t node, int64_t epoch,
@@ -106,7 +111,7 @@ SC_API int sc_msg_seal(const uint8_t key[SC_KEY_BYTES], int64_t node, int64_t ep
                        size_t len, uint8_t **out, size_t *outlen);
 /* Check and open a received envelope: SC_OK with *out filled, SC_EFORMAT
  * (malformed, truncated, oversized, unknown version or kind) or SC_EAUTH
- * (bad MAC, misaddressed, from an older epoch, replayed or older than the
+ * (bad tag, misaddressed, from an older epoch, replayed or older than the
  * window), counted in g; SC_ENOMEM. */
 SC_API int sc_msg_open(const uint8_t key[SC_KEY_BYTES], sc_msg_guard *g, const void *buf,
                        size_t len, sc_msg *out);
