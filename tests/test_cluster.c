@@ -7,6 +7,7 @@
  * are refused after it. The
  * multi-host version with real simclusterd processes in network
  * namespaces is tests/cluster.sh. (Internal API: lib/net/unit_wire.h, lib/api/world.h.) */
+#include <math.h>
 #include <pthread.h>
 #include <setjmp.h>
 #include <stdarg.h>
@@ -703,6 +704,46 @@ static void test_units_captured_before_a_restart_are_refused_after_it(void **sta
     sc_bus_close(l);
 }
 
+/* Jobs of a link of latency a and b s a byte, sizes spread over 2-200 kB,
+ * with +-20 us of noise, into l. */
+static void link_jobs(sc_link *l, double a, double b, int n)
+{
+    uint64_t r = 1;
+    for (int j = 0; j < n; j++) {
+        double x = 2000 + 198000.0 * (j * 37 % 40) / 40;
+        r = r * 6364136223846793005ull + 1442695040888963407ull;
+        double noise = 40e-6 * ((double)(r >> 11) / 9007199254740992.0 - 0.5);
+        sc_link_fit(l, x, a + b * x + noise);
+    }
+}
+
+/* The scheduler's view of a daemon's link (cluster.c): recovered from its
+ * jobs' round trips at loopback's, 100 and 10 Mbit/s's rates; the prior
+ * kept while the jobs are all of one size; in range when round trips
+ * fall with size (noise). */
+static void test_link_fit(void **state)
+{
+    (void)state;
+    const double a[3] = { 50e-6, 300e-6, 1.2e-3 }, b[3] = { 2e-9, 80e-9, 800e-9 };
+    for (int k = 0; k < 3; k++) {
+        sc_link l = { 0 };
+        link_jobs(&l, a[k], b[k], 40);
+        print_message("link %d: latency %.1f us (%.1f), %.3g s a byte (%.3g)\n", k,
+                      1e6 * l.latency, 1e6 * a[k], l.byte_s, b[k]);
+        assert_true(fabs(l.byte_s - b[k]) < 0.05 * b[k] + 2e-10);
+        assert_true(fabs(l.latency - a[k]) < 30e-6);
+    }
+    sc_link l = { 0 };
+    for (int j = 0; j < 20; j++)
+        sc_link_fit(&l, 50e3, 1e-3);
+    assert_true(l.byte_s == SC_LINK_BYTE_S);
+    assert_true(fabs(l.latency - (1e-3 - 50e3 * SC_LINK_BYTE_S)) < 1e-9);
+    sc_link f = { 0 };
+    for (int j = 0; j < 20; j++)
+        sc_link_fit(&f, 1000.0 * (j % 5 + 1), 1e-3 / (j % 5 + 1));
+    assert_true(f.byte_s >= 1e-11 && f.byte_s <= 1e-5 && f.latency >= 0);
+}
+
 int main(void)
 {
     srand((unsigned)time(NULL) ^ (unsigned)getpid());
@@ -715,6 +756,7 @@ int main(void)
         return 1;
     }
     const struct CMUnitTest tests[] = {
+        cmocka_unit_test(test_link_fit),
         cmocka_unit_test(test_daemons_give_the_same_bits),
         cmocka_unit_test(test_daemons_with_motion_groups),
         cmocka_unit_test(test_daemons_in_local_toi_mode),

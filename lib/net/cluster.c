@@ -47,7 +47,11 @@
 #define DEFAULT_DEADLINE_S 0.02
 #define MIN_CAPACITY 0.05       /* a daemon that is not owner-busy gets some */
 #define BATCH_BYTES (256u << 10) /* units sent together, at most */
-#define BYTE_S 1e-8             /* transfer estimate per byte (100 MB/s) */
+#define BYTE_S_MIN 1e-11        /* the measured one's range */
+#define BYTE_S_MAX 1e-5
+#define LINK_KEEP 0.9           /* weight of the past jobs in the link fit */
+#define LINK_JOBS 4             /* jobs (weighted) before the fit is used */
+#define LINK_SPREAD 0.2         /* ... and their bytes' spread, of the mean */
 #define HOME_BYTE_S 2e-9        /* the calling thread's shipping time per byte
                                    before any is measured: 1.8-2.0 ns measured
                                    on the 1000-part drop (2-core build machine,
@@ -73,6 +77,7 @@ typedef struct daemon_slot {
     sc_msg_announce a;
     double heard, missed_at;
     double overhead;            /* s per job beyond its threads' compute time */
+    sc_link link;               /* its link, measured (sc_link_fit()) */
 } daemon_slot;
 
 /* A daemon's share of one job. */
@@ -82,6 +87,7 @@ typedef struct slot_job {
     int64_t arrive_us;           /* the last result's arrival in the kernel */
     double t_submit;
     double compute_s;
+    double bytes;                /* its units' and results' wire bytes */
 } slot_job;
 
 /* A job whose units are out: the current one (begun, not yet ended), and
@@ -286,6 +292,7 @@ static void take_result(sc_cluster *c, sc_msg_work *r)
     }
     slot_job *dj = &cj->d[k];
     cj->out[r->unit] = OUT_DONE;
+    dj->bytes += (double)r->len;
     double sec = r->compute_us * 1e-6;
     int threads = d->a.cores < dj->sent ? d->a.cores : dj->sent;
     u->time_s = sec / (threads > 0 ? threads : 1);
@@ -455,6 +462,7 @@ static int add_unit(sc_cluster *c, daemon_slot *d, const sc_job *job, int idx)
         return rc;
     sc_wire_unit_pack(job, u, c->buf, n);
     c->home_bytes += (double)n;
+    c->cur->d[d - c->d].bytes += (double)n;
     sc_msg_work w = { c->cur->serial, idx, c->buf, n, 0 };
     uint8_t *p;
     size_t len;
@@ -542,6 +550,27 @@ static int outstanding(const sc_cluster *c, int k)
     return n;
 }
 
+void sc_link_fit(sc_link *l, double x, double y)
+{
+    double *s = l->s;
+    for (int i = 0; i < 5; i++)
+        s[i] *= LINK_KEEP;
+    s[0] += 1;
+    s[1] += x;
+    s[2] += x * x;
+    s[3] += y;
+    s[4] += x * y;
+    double mx = s[1] / s[0], my = s[3] / s[0], var = s[2] / s[0] - mx * mx;
+    double b = l->byte_s > 0 ? l->byte_s : SC_LINK_BYTE_S;
+    if (s[0] >= LINK_JOBS && var > LINK_SPREAD * LINK_SPREAD * mx * mx && var > 0) {
+        b = (s[4] / s[0] - mx * my) / var;
+        b = b < BYTE_S_MIN ? BYTE_S_MIN : b > BYTE_S_MAX ? BYTE_S_MAX : b;
+    }
+    double a = my - b * mx;
+    l->byte_s = b;
+    l->latency = a > 0 ? a : 0;
+}
+
 static int remote_wait(sc_node *n, double *cpu_s)
 {
     remote_node *r = (remote_node *)n;
@@ -585,6 +614,7 @@ static int remote_wait(sc_node *n, double *cpu_s)
          * model): to the kernel's arrival, not to when this thread read it */
         double wire = 1e-6 * (double)(dj->arrive_us - dj->submit_us) - dj->compute_s;
         c->stats->remote_overhead_s += wire > 0 ? wire : 0;
+        sc_link_fit(&d->link, dj->bytes, wire > 0 ? wire : 0);
         c->stats->remote_jobs++;
     }
     c->stats->remote_wait_s += sc_wall_now() - t_wait;
@@ -592,10 +622,13 @@ static int remote_wait(sc_node *n, double *cpu_s)
     return SC_OK;
 }
 
+/* The link's time for bytes (out and back) and its latency, as measured
+ * (sc_link_fit()); before that, the prior and the mean round trip. */
 static double remote_transfer(const sc_node *n, size_t bytes)
 {
-    (void)n;
-    return BYTE_S * (double)bytes;
+    const remote_node *r = (const remote_node *)n;
+    double b = r->c->d[r->slot].link.byte_s;
+    return (b > 0 ? b : SC_LINK_BYTE_S) * (double)bytes;
 }
 
 /* The calling thread's shipping time for a unit of bytes (out and back):
@@ -610,7 +643,8 @@ static double remote_home(const sc_node *n, size_t bytes)
 static double remote_latency(const sc_node *n)
 {
     const remote_node *r = (const remote_node *)n;
-    return r->c->d[r->slot].overhead;
+    const daemon_slot *d = &r->c->d[r->slot];
+    return d->link.byte_s > 0 ? d->link.latency : d->overhead;
 }
 
 static void remote_destroy(sc_node *n)
@@ -759,8 +793,11 @@ static int prov_begin(void *ctx, const sc_job *job)
         /* a daemon judged slow to answer gets no work and so no chance to
          * show otherwise (its first job waited for shapes, say): while it
          * idles its latency decays and it is tried again */
-        if (cj->d[k].sent == 0)
+        if (cj->d[k].sent == 0) {
             c->d[k].overhead *= OVERHEAD_IDLE_DECAY;
+            c->d[k].link.latency *= OVERHEAD_IDLE_DECAY;
+            c->d[k].link.byte_s *= OVERHEAD_IDLE_DECAY;
+        }
     }
     memset(cj->d, 0, sizeof cj->d);
     cj->job = job;

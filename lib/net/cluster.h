@@ -7,6 +7,24 @@
 
 typedef struct sc_cluster sc_cluster;
 
+/* A daemon's link as the scheduler sees it: a job's round trip less its
+ * work (to the kernel's arrival stamp of its last result) taken as
+ * latency + byte_s * the job's wire bytes both ways, fitted by
+ * sc_link_fit() through the recent jobs. Zero-initialise; byte_s 0: not
+ * measured yet (the scheduler then takes SC_LINK_BYTE_S). */
+#define SC_LINK_BYTE_S 1e-8     /* s a byte before a link is measured (100 MB/s) */
+typedef struct sc_link {
+    double s[5];                /* decaying sums of 1, x, x^2, y, x y */
+    double latency, byte_s;
+} sc_link;
+/* One more job: x wire bytes, y seconds. Least squares over the recent
+ * jobs (weights decaying by 0.9 a job) once four (weighted) are in and
+ * their sizes spread by a fifth of their mean; until then byte_s stays
+ * what it was (the prior) and latency is what is left of the mean. byte_s
+ * is kept within 1e-11 .. 1e-5 s a byte, latency >= 0. A constant 10 ns a
+ * byte was 20-40 times loopback's and an eighth of a 100 Mbit/s hop's. */
+void sc_link_fit(sc_link *l, double x, double y);
+
 /* Join url (a udpm:// URL, bus.c) with the key in key_file (NULL: the all-zero insecure
  * key) as a provider of SC_MAX_DAEMONS remote nodes, added to the
  * executor x (which has room for them). stats gets the cluster's figures;
