@@ -202,9 +202,10 @@ static void set_idle_priority(sc_serve *s)
         logf_(s, LOG_WARNING, "SCHED_IDLE: %s", strerror(errno));
 }
 
-/* Results waiting to go to one master as one message (per thread). */
+/* Results of one job of one master waiting to go as one message (per
+ * thread). */
 typedef struct outbox {
-    int64_t master, master_epoch;
+    int64_t master, master_epoch, frame;
     uint8_t *buf;
     size_t len, cap;
     int count;
@@ -263,10 +264,11 @@ static void run_task(sc_serve *s, sc_compute *cc, task *t, outbox *o)
         rc = sc_msg_work_encode(SC_MSG_RESULT, &w, &payload, &plen);
     }
     if (rc == SC_OK && (o->master != t->master || o->master_epoch != t->master_epoch ||
-                        o->len + plen > BATCH_BYTES))
+                        o->frame != t->frame || o->len + plen > BATCH_BYTES))
         flush(s, o);
     o->master = t->master;
     o->master_epoch = t->master_epoch;
+    o->frame = t->frame;
     if (rc == SC_OK)
         rc = outbox_add(o, payload, plen);
     free(payload);
@@ -281,13 +283,38 @@ static void run_task(sc_serve *s, sc_compute *cc, task *t, outbox *o)
         logf_(s, LOG_WARNING, "result of unit %d: %s", t->unit, sc_strerror(rc));
 }
 
+/* The next task (under the lock): the first unit of the newest job of
+ * the head's master. A master with a started job (its motion groups) and
+ * then a current one (a pile's substep) waits on the current one first,
+ * and needs the started one only at the end of its frame; in arrival
+ * order the current job's results came after every unit of the started
+ * one (docs/DESIGN.md 7.4). */
+static task *take_task(sc_serve *s)
+{
+    int best = 0;
+    task *h = s->queue[s->qhead];
+    for (int i = 1; i < s->qlen; i++) {
+        const task *t = s->queue[(s->qhead + i) % QUEUE_MAX];
+        const task *b = s->queue[(s->qhead + best) % QUEUE_MAX];
+        if (t->master == h->master && t->master_epoch == h->master_epoch && t->frame > b->frame)
+            best = i;
+    }
+    task *t = s->queue[(s->qhead + best) % QUEUE_MAX];
+    /* close the gap: the ones before it move up one */
+    for (int i = best; i > 0; i--)
+        s->queue[(s->qhead + i) % QUEUE_MAX] = s->queue[(s->qhead + i - 1) % QUEUE_MAX];
+    s->qhead = (s->qhead + 1) % QUEUE_MAX;
+    s->qlen--;
+    return t;
+}
+
 static void *compute(void *arg)
 {
     sc_serve *s = arg;
     if (s->cfg.idle_priority)
         set_idle_priority(s);
     sc_compute *cc = sc_compute_create();     /* a private ODE copy if one can be had */
-    outbox o = { 0, 0, NULL, 0, 0, 0 };
+    outbox o = { 0, 0, 0, NULL, 0, 0, 0 };
     for (;;) {
         pthread_mutex_lock(&s->lock);
         if (!s->qlen && o.count) {
@@ -302,10 +329,12 @@ static void *compute(void *arg)
             pthread_mutex_unlock(&s->lock);
             break;
         }
-        task *t = s->queue[s->qhead];
-        s->qhead = (s->qhead + 1) % QUEUE_MAX;
-        s->qlen--;
+        task *t = take_task(s);
         pthread_mutex_unlock(&s->lock);
+        /* a job's results do not wait for another job's units: the
+         * master is waiting for this one */
+        if (o.count && (o.frame != t->frame || o.master != t->master))
+            flush(s, &o);
         if (cc)
             run_task(s, cc, t, &o);
         sc_remote_unit_free(t->ru);
