@@ -4,7 +4,8 @@
 #   (a) Table 1: CPU share per stage of the 27-sphere scene next to the paper's
 #   (b) peers: bench_drop, ODE QuickStep / dWorldStep against simcluster on
 #       1 thread and on every CPU, N = 10 50 200 1000
-#   (c) scaling: bench_cluster -p scaling, 1000 bodies, daemons up to the CPUs;
+#   (c) scaling: bench_cluster -p scaling, the 1000-body drop and the bin of
+#       200 (local time of impact), daemons up to the CPUs;
 #       bench_cluster -p model, a prediction for 15 daemons
 #   (d) cycle stealing: bench_cluster -p fg,busy
 #   (e) Figs 3-4: bench/figs34.sh, when it exists
@@ -132,7 +133,8 @@ quote_readme() {
 if [ $quick -eq 1 ]; then
     frames=500
     drop_args="-r 1 -T 0.5 -b 2 10 200"
-    scale_args="-p scaling -n 200 -s 0.2 -r 1 -d 0,1"
+    scale_args="-p scaling -n 200 -s 0.2 -r 1 -d 0,1 -t local"
+    bin_scale_args="-p scaling -S bin -n 50 -s 0.2 -r 1 -d 0,1 -t local"
     model_modes="local"
     model_n=200
     model_args="-p model -n $model_n -s 0.2 -r 1"
@@ -155,7 +157,8 @@ else
         k=$((k * 2))
     done
     [ "$ncpu" -lt 2 ] || dl="$dl,$((ncpu - 1))"
-    scale_args="-p scaling -n 1000 -d $dl"
+    scale_args="-p scaling -n 1000 -d $dl -t local"
+    bin_scale_args="-p scaling -S bin -n 200 -s 3 -d $dl -t local"
     model_modes="local world"
     model_n=1000
     model_args="-p model -n $model_n"
@@ -288,11 +291,26 @@ w ""
 w "## (c) Scaling: speedup against daemons"
 w ""
 w "One local worker (the master, on CPU 0) plus k one-thread simclusterd daemons on"
-w "this host (LCM over loopback, ttl=0), the bolts/nuts drop, first simulated second;"
+w "this host (LCM over loopback, ttl=0), the default local time of impact: the"
+w "bolts/nuts drop's first simulated second, then the dense bin of 200 over 3 s;"
 w "\"speedup\" is over 0 daemons; \"bits\" compares the final state with the local run's."
 # shellcheck disable=SC2086 # the arguments are words
 run c_scaling "$B/bench/bench_cluster" $scale_args
 w ""
+# shellcheck disable=SC2086 # the arguments are words
+run c_bin "$B/bench/bench_cluster" $bin_scale_args
+w ""
+# issue 17's two-CPU target: one worker + one daemon >= 1.7x one worker
+v=$(for f in c_scaling c_bin; do
+        awk -v f="$f" '$1 == 1 && NF == 14 { printf "%s %.2fx, ", f == "c_scaling" ? "drop" : "bin", $4 }' "$tmp/$f"
+    done | sed 's/, $//')
+if [ -z "$v" ]; then
+    v="not measured (no rows with one daemon)"
+else
+    v=$(echo "$v" | awk '{ ok = 1; for (i = 2; i <= NF; i += 2) { x = $i; sub(/x,?$/, "", x); if (x + 0 < 1.7) ok = 0 }
+                          printf "%s: %s", ok ? "met" : "missed", $0 }')
+fi
+target "(c) one local worker + one daemon >= 1.7x one worker (drop, bin)" "$v"
 # rows: daemons wall RT speedup remote% recomp late jobs wait comm out in piped bits
 # the best row with daemons (the 0-daemon row is the 1.00 they are measured against)
 best=$(awk '$1 ~ /^[0-9]+$/ && $1 > 0 && NF == 14 && $4 != "-" && (k == "" || $4 + 0 > b + 0) { b = $4; k = $1 }
@@ -306,12 +324,12 @@ else
         else printf "missed by %.2fx: best %.2fx with %d daemon%s (%.0f %% of the target)", 5 - $1, $1, $2, $2 == 1 ? "" : "s", 20 * $1 }')
 fi
 target "(c) cluster at 1000 bodies >= 5x one local worker on a 16-core machine" "$v"
-v=$(awk '$1 ~ /^[0-9]+$/ && $1 > 0 && NF == 14 { if (n++ == 0 || $10 > m) { m = $10; k = $1 } }
+v=$(cat "$tmp/c_scaling" "$tmp/c_bin" | awk '$1 ~ /^[0-9]+$/ && $1 > 0 && NF == 14 { if (n++ == 0 || $10 > m) { m = $10; k = $1 } }
         END { if (!n) print "not measured (no rows with daemons)";
               else if (m <= 1) printf "met: at most %.2f ms a frame", m;
-              else printf "missed by %.1f ms: up to %.1f ms a frame (%d daemon%s)", m - 1, m, k, k == 1 ? "" : "s" }' "$tmp/c_scaling")
+              else printf "missed by %.1f ms: up to %.1f ms a frame (%d daemon%s)", m - 1, m, k, k == 1 ? "" : "s" }')
 target "(c) communication overhead <= 1 ms a frame" "$v"
-same=$(awk '$1 ~ /^[0-9]+$/ && NF == 14 && $14 == "DIFF"' "$tmp/c_scaling")
+same=$(cat "$tmp/c_scaling" "$tmp/c_bin" | awk '$1 ~ /^[0-9]+$/ && NF == 14 && $14 == "DIFF"')
 [ -z "$same" ] || target "(c) same bits with daemons as without" "missed: a run ended in a different state"
 w ""
 w "### A model of more daemons than this machine has CPUs"
