@@ -42,7 +42,7 @@
 #define RIVALS_MAX 8              /* other daemons' epochs with our id, logged once */
 
 typedef struct task {
-    int64_t master, master_epoch, frame;
+    sc_serve_job job;
     int unit;
     sc_remote_unit *ru;
 } task;
@@ -90,6 +90,7 @@ struct sc_serve {
     pthread_cond_t cond;
     task **queue;
     int qhead, qlen;
+    sc_serve_job *pick;         /* take_task()'s scratch, QUEUE_MAX */
     int quit;
     pthread_t *threads;
     int nthreads;
@@ -259,16 +260,16 @@ static void run_task(sc_serve *s, sc_compute *cc, task *t, outbox *o)
     uint8_t *payload = NULL;
     size_t plen = 0;
     if (rc == SC_OK) {
-        sc_msg_work w = { t->frame, t->unit, buf, n,
+        sc_msg_work w = { t->job.frame, t->unit, buf, n,
                           sec > 2000 ? INT32_MAX : (int)(sec * 1e6) };
         rc = sc_msg_work_encode(SC_MSG_RESULT, &w, &payload, &plen);
     }
-    if (rc == SC_OK && (o->master != t->master || o->master_epoch != t->master_epoch ||
-                        o->frame != t->frame || o->len + plen > BATCH_BYTES))
+    if (rc == SC_OK && (o->master != t->job.master || o->master_epoch != t->job.master_epoch ||
+                        o->frame != t->job.frame || o->len + plen > BATCH_BYTES))
         flush(s, o);
-    o->master = t->master;
-    o->master_epoch = t->master_epoch;
-    o->frame = t->frame;
+    o->master = t->job.master;
+    o->master_epoch = t->job.master_epoch;
+    o->frame = t->job.frame;
     if (rc == SC_OK)
         rc = outbox_add(o, payload, plen);
     free(payload);
@@ -283,24 +284,25 @@ static void run_task(sc_serve *s, sc_compute *cc, task *t, outbox *o)
         logf_(s, LOG_WARNING, "result of unit %d: %s", t->unit, sc_strerror(rc));
 }
 
-/* The next task (under the lock): the first unit of the newest job of
- * the head's master. A master with a started job (its motion groups) and
- * then a current one (a pile's substep) waits on the current one first,
- * and needs the started one only at the end of its frame; in arrival
- * order the current job's results came after every unit of the started
- * one (docs/DESIGN.md 7.4). */
-static task *take_task(sc_serve *s)
+int sc_serve_pick(const sc_serve_job *q, int n)
 {
     int best = 0;
-    task *h = s->queue[s->qhead];
-    for (int i = 1; i < s->qlen; i++) {
-        const task *t = s->queue[(s->qhead + i) % QUEUE_MAX];
-        const task *b = s->queue[(s->qhead + best) % QUEUE_MAX];
-        if (t->master == h->master && t->master_epoch == h->master_epoch && t->frame > b->frame)
+    for (int i = 1; i < n; i++)
+        if (q[i].master == q[0].master && q[i].master_epoch == q[0].master_epoch &&
+            q[i].frame > q[best].frame)
             best = i;
-    }
+    return best;
+}
+
+/* The next task (under the lock), as sc_serve_pick() chooses; the ones
+ * queued before it move up one. */
+static task *take_task(sc_serve *s)
+{
+    sc_serve_job *q = s->pick;
+    for (int i = 0; i < s->qlen; i++)
+        q[i] = s->queue[(s->qhead + i) % QUEUE_MAX]->job;
+    int best = sc_serve_pick(q, s->qlen);
     task *t = s->queue[(s->qhead + best) % QUEUE_MAX];
-    /* close the gap: the ones before it move up one */
     for (int i = best; i > 0; i--)
         s->queue[(s->qhead + i) % QUEUE_MAX] = s->queue[(s->qhead + i - 1) % QUEUE_MAX];
     s->qhead = (s->qhead + 1) % QUEUE_MAX;
@@ -333,7 +335,7 @@ static void *compute(void *arg)
         pthread_mutex_unlock(&s->lock);
         /* a job's results do not wait for another job's units: the
          * master is waiting for this one */
-        if (o.count && (o.frame != t->frame || o.master != t->master))
+        if (o.count && (o.frame != t->job.frame || o.master != t->job.master))
             flush(s, &o);
         if (cc)
             run_task(s, cc, t, &o);
@@ -418,9 +420,9 @@ static void take_unit(sc_serve *s, int64_t master, int64_t master_epoch, int64_t
     }
     int rc = l ? SC_OK : SC_ENOMEM;
     if (l) {
-        tp->master = master;
-        tp->master_epoch = master_epoch;
-        tp->frame = frame;
+        tp->job.master = master;
+        tp->job.master_epoch = master_epoch;
+        tp->job.frame = frame;
         tp->unit = unit;
         l->s = s;
         rc = sc_remote_unit_decode(wire, len, lookup, l, &tp->ru);
@@ -759,9 +761,10 @@ int sc_serve_create(const sc_serve_config *c, sc_serve **out)
             CPU_SET(i, &s->cpus);
     }
     s->queue = calloc(QUEUE_MAX, sizeof *s->queue);
+    s->pick = calloc(QUEUE_MAX, sizeof *s->pick);
     s->parked = calloc(PARKED_MAX, sizeof *s->parked);
     s->threads = calloc((size_t)c->threads, sizeof *s->threads);
-    if (!s->queue || !s->parked || !s->threads || pipe(s->stop_pipe) != 0) {
+    if (!s->queue || !s->pick || !s->parked || !s->threads || pipe(s->stop_pipe) != 0) {
         sc_serve_destroy(s);
         return SC_ENOMEM;
     }
@@ -897,6 +900,7 @@ void sc_serve_destroy(sc_serve *s)
     free(s->asked);
     free(s->parked);
     free(s->queue);
+    free(s->pick);
     free(s->threads);
     if (s->stop_pipe[0] >= 0) {
         close(s->stop_pipe[0]);

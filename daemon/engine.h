@@ -88,4 +88,15 @@ void sc_serve_stop(sc_serve *s);
 void sc_serve_counters_get(sc_serve *s, sc_serve_counters *out);
 void sc_serve_destroy(sc_serve *s);
 
+/* A queued unit's job: its master (id, epoch) and the job's serial. */
+typedef struct sc_serve_job {
+    int64_t master, master_epoch, frame;
+} sc_serve_job;
+/* Which of the n >= 1 queued units (in arrival order) a compute thread
+ * runs next: the first of the newest job of the first unit's master. A
+ * master waits on its current job (a pile's substep) at once and on a
+ * started one (the frame's motion groups, sent before it) only at the end
+ * of its frame (docs/DESIGN.md 7.4). */
+int sc_serve_pick(const sc_serve_job *q, int n);
+
 #endif

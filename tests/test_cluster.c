@@ -744,6 +744,25 @@ static void test_link_fit(void **state)
     assert_true(f.byte_s >= 1e-11 && f.byte_s <= 1e-5 && f.latency >= 0);
 }
 
+/* A daemon's compute threads take the first unit of the newest job of
+ * the first unit's master: a pile's substep (sent after the frame's
+ * groups) before the groups, a job's units in their order, another
+ * master's (or another start's) units in arrival order. */
+static void test_daemon_runs_the_newest_job_first(void **state)
+{
+    (void)state;
+    const sc_serve_job q[] = {
+        { 7, 1, 10 }, { 7, 1, 10 }, { 9, 1, 30 }, { 7, 1, 11 }, { 7, 1, 11 }, { 7, 2, 12 },
+    };
+    assert_int_equal(sc_serve_pick(q, 1), 0);
+    assert_int_equal(sc_serve_pick(q, 2), 0);   /* one job: in order */
+    assert_int_equal(sc_serve_pick(q, 3), 0);   /* another master's newer job: not this one's */
+    assert_int_equal(sc_serve_pick(q, 5), 3);   /* the newer job, its first unit */
+    assert_int_equal(sc_serve_pick(q, 6), 3);   /* another start of the master: not its */
+    assert_int_equal(sc_serve_pick(&q[2], 4), 0);
+    assert_int_equal(sc_serve_pick(&q[3], 3), 0);
+}
+
 int main(void)
 {
     srand((unsigned)time(NULL) ^ (unsigned)getpid());
@@ -757,6 +776,7 @@ int main(void)
     }
     const struct CMUnitTest tests[] = {
         cmocka_unit_test(test_link_fit),
+        cmocka_unit_test(test_daemon_runs_the_newest_job_first),
         cmocka_unit_test(test_daemons_give_the_same_bits),
         cmocka_unit_test(test_daemons_with_motion_groups),
         cmocka_unit_test(test_daemons_in_local_toi_mode),
