@@ -110,7 +110,6 @@
 #define CONTACT_BYTES (2 * 4 + 7 * 8)
 #define IMPULSE_BYTES (3 * 8)
 #define GBODY_BYTES (8 + 60 * 8 + 2 * 4)
-#define GMEMBER_BYTES (35 * 8 + 2 * 4)
 #define STATIC_BYTES (4 + GBODY_BYTES)
 #define PROFILE_BYTES (8 + 25 * 8)
 #define MEMBER_BYTES (4 + 4 + 1 + 14 * 8)
