@@ -7,8 +7,12 @@
  *             receiving and merging on the master), the time jobs took
  *             from dispatch to their last result and, of it, the time spent
  *             waiting for daemons after the local work was done; the final
- *             state's hash is compared with the local run's ("-" without a
- *             0-daemon run in the same invocation).
+ *             state's hash is compared with the local run's ("-" unless
+ *             the first daemon count is 0). The rows take turns, one run
+ *             each per round, and the speedup is the median of each round's
+ *             ratio to that round's 0-daemon run: on a shared machine a
+ *             slow minute falls on every row alike (until 2026-12-05 each
+ *             row ran its runs in a block).
  *   model     a prediction of k one-thread daemons (up to 15) from
  *             measured costs: the frame's work outside units, its jobs'
  *             least makespan on n nodes (sc_stats.ideal_makespan_s), the
@@ -237,10 +241,22 @@ static int run(int n, int k, double seconds, result *r)
     return 0;
 }
 
+/* One row's runs (scaling()). */
+typedef struct scale_row {
+    double wall[MAX_RUNS], rem[MAX_RUNS], rc[MAX_RUNS], comm[MAX_RUNS], late[MAX_RUNS],
+        wait[MAX_RUNS], jobs[MAX_RUNS], mout[MAX_RUNS], min[MAX_RUNS], piped[MAX_RUNS],
+        ratio[MAX_RUNS];
+    int done, same;
+} scale_row;
+
+/* The rows take turns, one run each per round (daemons started and
+ * stopped around each run), so that a shared machine's slow minutes fall
+ * on every row alike; the speedup is the median of each round's ratio to
+ * the 0-daemon run of the same round (the first row must be 0). */
 static void scaling(int n, const int *ks, int nk, int runs, double seconds)
 {
     printf("\nscaling: %d bolts/nuts %s, %.2f s simulated, 1 local worker + k one-thread "
-           "daemons, medians of %d runs%s%s\n",
+           "daemons, medians of %d runs, the rows in turn%s%s\n",
            n, bin_scene ? "in the bin" : "dropped", seconds, runs,
            toi_mode == SC_TOI_LOCAL ? ", local time of impact (motion groups)"
            : groups                 ? ", motion groups"
@@ -250,58 +266,73 @@ static void scaling(int n, const int *ks, int nk, int runs, double seconds)
            "wall s", "RT factor", "speedup", "remote %", "recomp/frame", "late/frame",
            "jobs ms/fr", "wait ms/fr", "comm ms/fr", "out/fr/dmn", "in/fr/dmn", "piped/fr",
            "bits");
-    double base = 0;
+    scale_row *row = calloc((size_t)nk, sizeof *row);
+    if (!row)
+        return;
     uint64_t h0 = 0;
-    for (int i = 0; i < nk; i++) {
-        int k = ks[i];
-        pid_t pid[MAX_D] = { 0 };
-        /* the master on CPU 0, daemon j on CPU j + 1 (wrapping) */
-        pin(0, 0);
-        for (int j = 0; j < k; j++)
-            pid[j] = start_daemon(100 + j, ncpu > 1 ? 1 + j % (ncpu - 1) : 0, 1.0, 1);
-        double wall[MAX_RUNS], rem[MAX_RUNS], rc[MAX_RUNS], comm[MAX_RUNS], late[MAX_RUNS],
-            wait[MAX_RUNS], jobs[MAX_RUNS], mout[MAX_RUNS], min[MAX_RUNS], piped[MAX_RUNS];
-        int same = 1, ok = 1;
-        for (int r = 0; r < runs && ok; r++) {
+    int have0 = 0;
+    for (int i = 0; i < nk; i++)
+        row[i].same = 1;
+    for (int r = 0; r < runs; r++)
+        for (int i = 0; i < nk; i++) {
+            int k = ks[i];
+            pid_t pid[MAX_D] = { 0 };
+            /* the master on CPU 0, daemon j on CPU j + 1 (wrapping) */
+            pin(0, 0);
+            for (int j = 0; j < k; j++)
+                pid[j] = start_daemon(100 + j, ncpu > 1 ? 1 + j % (ncpu - 1) : 0, 1.0, 1);
             result res;
-            if (run(n, k, seconds, &res) != 0) {
-                ok = 0;
-                break;
-            }
-            wall[r] = res.wall;
-            rem[r] = 100 * res.remote;
-            rc[r] = res.recomputed;
-            comm[r] = res.comm_ms;
-            late[r] = res.late;
-            wait[r] = res.wait_ms;
-            jobs[r] = res.local_ms;
-            mout[r] = res.msgs_out;
-            min[r] = res.msgs_in;
-            piped[r] = res.piped;
-            if (k == 0 && r == 0)
+            int ok = run(n, k, seconds, &res) == 0;
+            for (int j = 0; j < k; j++)
+                stop_daemon(pid[j]);
+            unpin();
+            if (!ok || row[i].done != r)
+                continue;       /* a row that failed once stays short */
+            scale_row *w = &row[i];
+            w->wall[r] = res.wall;
+            w->rem[r] = 100 * res.remote;
+            w->rc[r] = res.recomputed;
+            w->comm[r] = res.comm_ms;
+            w->late[r] = res.late;
+            w->wait[r] = res.wait_ms;
+            w->jobs[r] = res.local_ms;
+            w->mout[r] = res.msgs_out;
+            w->min[r] = res.msgs_in;
+            w->piped[r] = res.piped;
+            /* this round's 0-daemon run (row 0 runs first in a round) */
+            w->ratio[r] = i == 0 ? 1 : row[0].done > r && ks[0] == 0 ? row[0].wall[r] / res.wall : 0;
+            if (k == 0 && !have0) {
                 h0 = res.hash;
-            same = same && res.hash == h0;
+                have0 = 1;
+            }
+            w->same = w->same && have0 && res.hash == h0;
+            w->done++;
         }
-        for (int j = 0; j < k; j++)
-            stop_daemon(pid[j]);
-        unpin();
-        if (!ok)
+    for (int i = 0; i < nk; i++) {
+        scale_row *w = &row[i];
+        int m = w->done;
+        if (m == 0)
             continue;
-        double m = median(wall, runs);
-        if (k == 0)
-            base = m;
         char sp[16] = "-", bits[8] = "-";
-        if (base > 0) {
-            snprintf(sp, sizeof sp, "%.2f", base / m);
-            snprintf(bits, sizeof bits, "%s", same ? "same" : "DIFF");
+        if (ks[0] == 0 && row[0].done > 0) {
+            double rat[MAX_RUNS];
+            int nr = 0;
+            for (int r = 0; r < m; r++)
+                if (w->ratio[r] > 0)
+                    rat[nr++] = w->ratio[r];
+            if (nr > 0)
+                snprintf(sp, sizeof sp, "%.2f", median(rat, nr));
+            snprintf(bits, sizeof bits, "%s", w->same ? "same" : "DIFF");
         }
+        double wall = median(w->wall, m);
         printf("%8d %9.3f %9.3f %8s %9.1f %12.2f %10.2f %10.1f %10.1f %10.1f %10.1f %9.1f %9.1f "
                "%6s\n",
-               k, m, seconds / m, sp, median(rem, runs), median(rc, runs), median(late, runs),
-               median(jobs, runs), median(wait, runs), median(comm, runs), median(mout, runs),
-               median(min, runs), median(piped, runs), bits);
-        fflush(stdout);
+               ks[i], wall, seconds / wall, sp, median(w->rem, m), median(w->rc, m),
+               median(w->late, m), median(w->jobs, m), median(w->wait, m), median(w->comm, m),
+               median(w->mout, m), median(w->min, m), median(w->piped, m), bits);
     }
+    fflush(stdout);
+    free(row);
 }
 
 /* ---- model: a prediction of k daemons from measured costs ----
