@@ -206,7 +206,7 @@ static void set_idle_priority(sc_serve *s)
 /* Results of one job of one master waiting to go as one message (per
  * thread). */
 typedef struct outbox {
-    int64_t master, master_epoch, frame;
+    sc_serve_job job;
     uint8_t *buf;
     size_t len, cap;
     int count;
@@ -217,8 +217,8 @@ static void flush(sc_serve *s, outbox *o)
     if (!o->count)
         return;
     char ch[CHANNEL_MAX];
-    snprintf(ch, sizeof ch, "SC_RESULT_%016" PRIx64, (uint64_t)o->master);
-    int rc = send_msg(s, ch, o->master_epoch, SC_MSG_RESULT, o->buf, o->len);
+    snprintf(ch, sizeof ch, "SC_RESULT_%016" PRIx64, (uint64_t)o->job.master);
+    int rc = send_msg(s, ch, o->job.master_epoch, SC_MSG_RESULT, o->buf, o->len);
     pthread_mutex_lock(&s->lock);
     if (rc == SC_OK)
         s->n.results += o->count;
@@ -264,12 +264,10 @@ static void run_task(sc_serve *s, sc_compute *cc, task *t, outbox *o)
                           sec > 2000 ? INT32_MAX : (int)(sec * 1e6) };
         rc = sc_msg_work_encode(SC_MSG_RESULT, &w, &payload, &plen);
     }
-    if (rc == SC_OK && (o->master != t->job.master || o->master_epoch != t->job.master_epoch ||
-                        o->frame != t->job.frame || o->len + plen > BATCH_BYTES))
+    /* compute() sent the results of any other job before this unit ran */
+    if (rc == SC_OK && o->len + plen > BATCH_BYTES)
         flush(s, o);
-    o->master = t->job.master;
-    o->master_epoch = t->job.master_epoch;
-    o->frame = t->job.frame;
+    o->job = t->job;
     if (rc == SC_OK)
         rc = outbox_add(o, payload, plen);
     free(payload);
@@ -316,7 +314,7 @@ static void *compute(void *arg)
     if (s->cfg.idle_priority)
         set_idle_priority(s);
     sc_compute *cc = sc_compute_create();     /* a private ODE copy if one can be had */
-    outbox o = { 0, 0, 0, NULL, 0, 0, 0 };
+    outbox o = { { 0, 0, 0 }, NULL, 0, 0, 0 };
     for (;;) {
         pthread_mutex_lock(&s->lock);
         if (!s->qlen && o.count) {
@@ -335,7 +333,8 @@ static void *compute(void *arg)
         pthread_mutex_unlock(&s->lock);
         /* a job's results do not wait for another job's units: the
          * master is waiting for this one */
-        if (o.count && (o.frame != t->job.frame || o.master != t->job.master))
+        if (o.count && (o.job.master != t->job.master ||
+                        o.job.master_epoch != t->job.master_epoch || o.job.frame != t->job.frame))
             flush(s, &o);
         if (cc)
             run_task(s, cc, t, &o);

@@ -1355,6 +1355,15 @@ typedef struct glayout {
     size_t profiles, counts, members, contacts;
 } glayout;
 
+/* Member q's offset (q = the member count: where the contacts begin). */
+static size_t g_member(const unsigned char *b, const glayout *l, uint32_t q)
+{
+    size_t at = l->members;
+    for (uint32_t i = 0; i < q; i++)
+        at += 121 + 48 * (size_t)(b[at + GM_FLAGS] >> 4 & 1);
+    return at;
+}
+
 static glayout group_layout(const unsigned char *b)
 {
     glayout l = { u32_at(b + G_NG), u32_at(b + G_NS), u32_at(b + G_NP), u32_at(b + G_NM),
@@ -1362,20 +1371,8 @@ static glayout group_layout(const unsigned char *b)
     l.profiles = G_STATIC(l.ns);
     l.counts = l.profiles + 208 * (size_t)l.np;
     l.members = l.counts + 8 * (size_t)l.ng;
-    size_t at = l.members;
-    for (uint32_t q = 0; q < l.nm; q++)
-        at += 121 + 48 * (size_t)(b[at + GM_FLAGS] >> 4 & 1);
-    l.contacts = at;
+    l.contacts = g_member(b, &l, l.nm);
     return l;
-}
-
-/* Member q's offset. */
-static size_t g_member(const unsigned char *b, const glayout *l, uint32_t q)
-{
-    size_t at = l->members;
-    for (uint32_t i = 0; i < q; i++)
-        at += 121 + 48 * (size_t)(b[at + GM_FLAGS] >> 4 & 1);
-    return at;
 }
 
 /* n little-endian bytes of v at at, with the world's shapes to look up:

@@ -563,6 +563,29 @@ static int frame_cfg_ok(const sc_frame_config *c, double dt)
            dt > 0;
 }
 
+/* How many of the ascending a[0 .. n) are below r. */
+static int count_below(const int *a, int n, int r)
+{
+    int lo = 0, hi = n;
+    while (lo < hi) {
+        int mid = lo + (hi - lo) / 2;
+        if (a[mid] < r)
+            lo = mid + 1;
+        else
+            hi = mid;
+    }
+    return lo;
+}
+
+/* Index of body r (a world id on the master, a received unit's index on
+ * a daemon: world order either way) in group k's copy: the members and
+ * static bodies before it (each ascending). */
+static int copy_index(const sc_groups *g, int k, int r)
+{
+    return count_below(&g->members[g->start[k]], g->start[k + 1] - g->start[k], r) +
+           count_below(g->statics, g->nstatics, r);
+}
+
 /* Which profile (a member's constants: GBODY_KEEP fields and its shape)
  * p of a unit's holders body b has: one of the last PROFILE_SCAN made, or
  * a new one (the same bits: memcmp). */
@@ -583,18 +606,16 @@ static int same_profile(const sc_body *a, const sc_body *b)
 
 /* The groups of a master's GROUP unit: list[first .. first + ng) of its
  * job, nm members and nc contacts in all; per member (in the unit's
- * order) its profile, each profile by a body holding it; ids: room for
- * the largest group's copy. */
+ * order) its profile, each profile by a body holding it. */
 typedef struct bundle_map {
-    int first, ng, nm, nc, np, ids_cap;
-    int *prof, *holder, *ids;
+    int first, ng, nm, nc, np;
+    int *prof, *holder;
 } bundle_map;
 
 static void bundle_free(bundle_map *bm)
 {
     free(bm->prof);
     free(bm->holder);
-    free(bm->ids);
 }
 
 static int map_bundle(const sc_job *job, const sc_unit *u, bundle_map *bm)
@@ -604,7 +625,6 @@ static int map_bundle(const sc_job *job, const sc_unit *u, bundle_map *bm)
     const sc_body *bodies = gj->st->bodies;
     bm->first = u->first;
     bm->ng = u->islands;
-    int big = 0;
     for (int j = 0; j < bm->ng; j++) {
         int k = gj->list[bm->first + j];
         int nm = g->start[k + 1] - g->start[k];
@@ -612,17 +632,14 @@ static int map_bundle(const sc_job *job, const sc_unit *u, bundle_map *bm)
             return SC_ETOOBIG;
         bm->nm += nm;
         bm->nc += g->cstart[k + 1] - g->cstart[k];
-        big = nm > big ? nm : big;
         if (bm->nm > MAX_BODIES - g->nstatics || bm->nc > MAX_CONTACTS)
             return SC_ETOOBIG;
     }
     if (bm->ng > MAX_GROUPS)
         return SC_ETOOBIG;
-    bm->ids_cap = big + g->nstatics;
     bm->prof = sc_alloc_array((size_t)bm->nm, sizeof *bm->prof);
     bm->holder = sc_alloc_array((size_t)bm->nm, sizeof *bm->holder);
-    bm->ids = sc_alloc_array((size_t)bm->ids_cap, sizeof *bm->ids);
-    if (!bm->prof || !bm->holder || !bm->ids)
+    if (!bm->prof || !bm->holder)
         return SC_ENOMEM;
     int q = 0;
     for (int j = 0; j < bm->ng; j++) {
@@ -659,8 +676,9 @@ static int has_ft(const sc_body *b)
     return memcmp(b->force, zero, sizeof zero) != 0 || memcmp(b->torque, zero, sizeof zero) != 0;
 }
 
-/* A member's state: flags u8 (state, collided << 2, force and torque
- * sent << 4), x, q, v, w, rest_s, (then) force, torque. */
+/* A member's state (in a unit, and in a result with ft 0): flags u8
+ * (state, collided << 2, force and torque sent << 4), x, q, v, w, rest_s,
+ * (then) force, torque. */
 static void put_member_state(wbuf *w, const sc_body *b, int ft)
 {
     put(w, (uint64_t)(b->state | b->collided << 2 | ft << 4), 1);
@@ -668,6 +686,25 @@ static void put_member_state(wbuf *w, const sc_body *b, int ft)
     put_f64s(w, &b->rest_s, 1);
     if (ft)
         put_gbody_f64(w, *b, GF_FORCE, GF_FORCE + 2);
+}
+
+/* put_member_state()'s record into b: a dynamic state (SC_FREE ..
+ * SC_ASLEEP), collided 0..2, force and torque only where ft_ok (a unit;
+ * not a result); doubles finite or verbatim. */
+static void get_member_state(rbuf *r, sc_body *b, int ft_ok, int finite)
+{
+    unsigned flags = (unsigned)get(r, 1);
+    int ft = (int)(flags >> 4 & 1);
+    if (r->bad || flags >> 5 || (ft && !ft_ok) || (flags >> 2 & 3) > 2) {
+        r->bad = 1;
+        return;
+    }
+    b->state = (int)(flags & 3);
+    b->collided = (int)(flags >> 2 & 3);
+    get_gbody_f64(r, b, GF_X, GF_X + 4, finite);
+    get_f64s(r, &b->rest_s, 1, finite);
+    if (ft)
+        get_gbody_f64(r, b, GF_FORCE, GF_FORCE + 2, finite);
 }
 
 static void write_group(wbuf *w, const void *job_, const void *bm_)
@@ -715,11 +752,9 @@ static void write_group(wbuf *w, const void *job_, const void *bm_)
     }
     for (int j = 0; j < bm->ng; j++) {
         int k = gj->list[bm->first + j];
-        int m = sc_group_ids(g, k, bm->ids);
         for (int i = g->cstart[k]; i < g->cstart[k + 1]; i++) {
             const sc_contact *c = &st->contacts[g->contacts[i]];
-            put_contact(w, c, sc_group_local_id(bm->ids, m, c->body_a),
-                        sc_group_local_id(bm->ids, m, c->body_b), 1);
+            put_contact(w, c, copy_index(g, k, c->body_a), copy_index(g, k, c->body_b), 1);
         }
     }
 }
@@ -963,19 +998,12 @@ static void get_profile(rbuf *r, sc_body *b, sc_shape_lookup_fn lookup, void *ct
 static uint32_t get_member(rbuf *r, sc_body *b, const sc_body *prof, uint32_t np)
 {
     uint32_t id = (uint32_t)get(r, 4), p = (uint32_t)get(r, 4);
-    unsigned flags = (unsigned)get(r, 1);
-    int state = (int)(flags & 3), collided = (int)(flags >> 2 & 3), ft = (int)(flags >> 4 & 1);
-    if (r->bad || id > INT_MAX || p >= np || flags >> 5 || collided > 2) {
+    if (r->bad || id > INT_MAX || p >= np) {
         r->bad = 1;
         return 0;
     }
     *b = prof[p];
-    b->state = state;
-    b->collided = collided;
-    get_gbody_f64(r, b, GF_X, GF_X + 4, 1);
-    get_f64s(r, &b->rest_s, 1, 1);
-    if (ft)
-        get_gbody_f64(r, b, GF_FORCE, GF_FORCE + 2, 1);
+    get_member_state(r, b, 1, 1);
     return id;
 }
 
@@ -1107,8 +1135,6 @@ static int decode_group(rbuf *r, sc_shape_lookup_fn lookup, void *ctx, sc_wire_u
     free(stat);
     if (rc != SC_OK)
         return rc;
-    memset(wu->track.dev, 0, m * sizeof *wu->track.dev);
-    memset(wu->track.count, 0, m * sizeof *wu->track.count);
     wu->nbodies = (int)m;
     wu->cfg = cfg;
     st->bodies = wu->bodies;
@@ -1344,28 +1370,6 @@ static void get_stats_compact(rbuf *r, sc_stats *s)
             r->bad = 1;
 }
 
-/* How many of the ascending a[0 .. n) are below r. */
-static int count_below(const int *a, int n, int r)
-{
-    int lo = 0, hi = n;
-    while (lo < hi) {
-        int mid = lo + (hi - lo) / 2;
-        if (a[mid] < r)
-            lo = mid + 1;
-        else
-            hi = mid;
-    }
-    return lo;
-}
-
-/* Index of unit body r (a received unit's, world order) in group k's
- * copy: the members and static bodies before it (each ascending). */
-static int copy_index(const sc_groups *g, int k, int r)
-{
-    return count_below(&g->members[g->start[k]], g->start[k + 1] - g->start[k], r) +
-           count_below(g->statics, g->nstatics, r);
-}
-
 /* A received unit's outputs, group by group: rc i32, its figures, per
  * member (the unit's order) flags u8 (state, collided << 2), x, q, v, w,
  * rest_s, its track (dev f64, points u8, the points), then its new
@@ -1382,10 +1386,7 @@ static void write_group_result(wbuf *w, const sc_wire_unit *wu)
         put_stats_compact(w, out->stats);
         for (int i = g->start[k]; i < g->start[k + 1]; i++) {
             int q = g->members[i];
-            const sc_body *b = &st->bodies[q];
-            put(w, (uint64_t)(b->state | b->collided << 2), 1);
-            put_gbody_f64(w, *b, GF_X, GF_X + 4);
-            put_f64s(w, &b->rest_s, 1);
+            put_member_state(w, &st->bodies[q], 0);
             int n = gj->track->count[q];
             put_f64s(w, &gj->track->dev[q], 1);
             put(w, (uint64_t)n, 1);
@@ -1486,14 +1487,8 @@ static int read_group_result(rbuf *r, const sc_job *job, const sc_unit *u, int w
         sc_body scratch = { 0 };
         for (int i = 0; i < nm; i++) {
             sc_body *b = write ? &gj->st->bodies[mem[i]] : &scratch;
-            unsigned flags = (unsigned)get(r, 1);
             /* a member stays dynamic */
-            if (r->bad || flags >> 4 || (flags >> 2 & 3) > 2)
-                return SC_EFORMAT;
-            get_gbody_f64(r, b, GF_X, GF_X + 4, 0);
-            get_f64s(r, &b->rest_s, 1, 0);
-            b->state = (int)(flags & 3);
-            b->collided = (int)(flags >> 2 & 3);
+            get_member_state(r, b, 0, 0);
             /* its track: how far it went from its drift, and its points
              * (times within the frame, in order) */
             double dev;
