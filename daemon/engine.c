@@ -88,6 +88,8 @@ struct sc_serve {
     /* the compute queue */
     pthread_mutex_t lock;
     pthread_cond_t cond;
+    pthread_mutex_t bus_lock;     /* receiving: the main thread, or a spinning compute thread */
+    int spinning;                 /* (lock) a compute thread spins for the next unit */
     task **queue;
     int qhead, qlen;
     sc_serve_job *pick;         /* take_task()'s scratch, QUEUE_MAX */
@@ -164,6 +166,7 @@ sc_serve_config sc_serve_config_default(void)
     c.heartbeat_s = 0.2;
     c.idle_priority = 1;
     c.cache_bytes = (size_t)256 << 20;
+    c.spin_s = SC_SERVE_SPIN_S;
     return c;
 }
 
@@ -171,7 +174,8 @@ static int config_ok(const sc_serve_config *c)
 {
     return c->url && c->threads >= 1 && c->threads <= SC_SERVE_MAX_THREADS &&
            c->busy_threshold > 0 && c->busy_threshold <= 1 && c->heartbeat_s >= 0.01 &&
-           c->heartbeat_s <= 10 && c->node_id >= 0 && c->cache_bytes > 0;
+           c->heartbeat_s <= 10 && c->node_id >= 0 && c->cache_bytes > 0 && c->spin_s >= 0 &&
+           c->spin_s <= SC_SERVE_SPIN_MAX;
 }
 
 /* Seal and publish, addressed to the receiver's epoch to_epoch (0: to
@@ -308,6 +312,32 @@ static task *take_task(sc_serve *s)
     return t;
 }
 
+/* Poll up to spin_s for a unit, receiving on the bus whenever the main
+ * thread is not: a unit that comes meanwhile costs no wake-up of either
+ * thread (tens of microseconds each, more in a virtual machine). The
+ * thread is at the compute threads' priority (SCHED_IDLE by default): an
+ * owner's program takes the CPU from it at once, and the idle fraction
+ * the heartbeat reports leaves this process's own use out. */
+static void spin_for_units(sc_serve *s, double spin_s)
+{
+    double end = wall_now() + spin_s;
+    while (wall_now() < end) {
+        if (pthread_mutex_trylock(&s->bus_lock) == 0) {
+            sc_bus_handle(s->bus, 0);
+            pthread_mutex_unlock(&s->bus_lock);
+        }
+        pthread_mutex_lock(&s->lock);
+        int more = s->qlen > 0 || s->quit;
+        s->n.spin_hits += s->qlen > 0;
+        pthread_mutex_unlock(&s->lock);
+        if (more)
+            return;
+#if defined(__x86_64__) || defined(__i386__)
+        __builtin_ia32_pause();
+#endif
+    }
+}
+
 static void *compute(void *arg)
 {
     sc_serve *s = arg;
@@ -323,8 +353,19 @@ static void *compute(void *arg)
             flush(s, &o);
             continue;
         }
-        while (!s->qlen && !s->quit)
+        while (!s->qlen && !s->quit) {
+            /* one idle thread at a time polls for the next unit a while
+             * before it sleeps (docs/DESIGN.md 7.9) */
+            if (!s->spinning && s->cfg.spin_s > 0) {
+                s->spinning = 1;
+                pthread_mutex_unlock(&s->lock);
+                spin_for_units(s, s->cfg.spin_s);
+                pthread_mutex_lock(&s->lock);
+                s->spinning = 0;
+                continue;
+            }
             pthread_cond_wait(&s->cond, &s->lock);
+        }
         if (s->quit) {
             pthread_mutex_unlock(&s->lock);
             break;
@@ -739,6 +780,7 @@ int sc_serve_create(const sc_serve_config *c, sc_serve **out)
     s->cfg = *c;
     s->stop_pipe[0] = s->stop_pipe[1] = -1;
     pthread_mutex_init(&s->lock, NULL);
+    pthread_mutex_init(&s->bus_lock, NULL);
     pthread_mutex_init(&s->cfg_lock, NULL);
     pthread_cond_init(&s->cond, NULL);
     s->id = c->node_id;
@@ -818,6 +860,7 @@ int sc_serve_run(sc_serve *s)
     int fd = sc_bus_fd(s->bus);
     for (;;) {
         double now = wall_now();
+        pthread_mutex_lock(&s->bus_lock);
         if (now >= next) {
             heartbeat(s);
             pthread_mutex_lock(&s->cfg_lock);
@@ -826,20 +869,27 @@ int sc_serve_run(sc_serve *s)
             if (s->nparked)
                 retry_parked(s);    /* re-asks for shapes lost on the way */
         }
+        pthread_mutex_unlock(&s->bus_lock);
         struct pollfd pf[2] = { { fd, POLLIN, 0 }, { s->stop_pipe[0], POLLIN, 0 } };
         int ms = (int)((next - now) * 1000) + 1;
         int n = poll(pf, 2, ms);
+        pthread_mutex_lock(&s->bus_lock);
         if (n < 0 && errno != EINTR) {
+            pthread_mutex_unlock(&s->bus_lock);
             rc = SC_EIO;
             break;
         }
-        if (n > 0 && pf[1].revents)
+        if (n > 0 && pf[1].revents) {
+            pthread_mutex_unlock(&s->bus_lock);
             break;
+        }
         if (n > 0 && (pf[0].revents & POLLIN) && sc_bus_handle(s->bus, 0) < 0) {
+            pthread_mutex_unlock(&s->bus_lock);
             rc = SC_EIO;
             break;
         }
         note_bus(s);
+        pthread_mutex_unlock(&s->bus_lock);
     }
     pthread_mutex_lock(&s->lock);
     s->quit = 1;
@@ -906,6 +956,7 @@ void sc_serve_destroy(sc_serve *s)
         close(s->stop_pipe[1]);
     }
     pthread_mutex_destroy(&s->lock);
+    pthread_mutex_destroy(&s->bus_lock);
     pthread_mutex_destroy(&s->cfg_lock);
     pthread_cond_destroy(&s->cond);
     free(s);

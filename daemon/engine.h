@@ -27,6 +27,8 @@
 #include "simcluster_net.h"
 
 #define SC_SERVE_MAX_THREADS 256
+#define SC_SERVE_SPIN_S 2e-3     /* sc_serve_config.spin_s's default */
+#define SC_SERVE_SPIN_MAX 0.1
 
 typedef struct sc_serve_config {
     const char *url;            /* udpm:// URL (SC_CLUSTER_URL; sc_bus_open) */
@@ -42,6 +44,10 @@ typedef struct sc_serve_config {
                                    fraction is reported as 1 and the node is
                                    never owner-busy, whatever else runs */
     size_t cache_bytes;         /* shape cache bound (default 256 MiB) */
+    double spin_s;              /* an idle compute thread polls this long for
+                                   the next unit before it sleeps, 0 ..
+                                   SC_SERVE_SPIN_MAX (default SC_SERVE_SPIN_S;
+                                   0: sleep at once) */
     /* messages (syslog priorities: LOG_ERR, LOG_WARNING, LOG_INFO, LOG_DEBUG);
      * called from any thread, one line each, no newline; NULL = none */
     void (*log)(void *ctx, int prio, const char *msg);
@@ -66,6 +72,9 @@ typedef struct sc_serve_counters {
     long challenges;            /* masters' challenges answered */
     long duplicates;            /* other daemons heard with this id (each epoch once) */
     long heartbeats;            /* announces sent */
+    long spin_hits;             /* times an idle compute thread found units
+                                   queued while it polled (spin_s): wake-ups
+                                   saved */
     double idle_fraction;       /* last measured */
     int owner_busy;
 } sc_serve_counters;

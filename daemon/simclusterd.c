@@ -40,13 +40,13 @@ typedef struct settings {
     char url[LINE_BYTES + 1], key_file[LINE_BYTES + 1], user[LINE_BYTES + 1];
     int insecure, threads, idle_priority, syslog, verbose;  /* threads 0: the CPUs we may use */
     int dedicated;                 /* no owner: always idle, never busy */
-    double busy_threshold, heartbeat;
+    double busy_threshold, heartbeat, spin;
     long long node_id;             /* 0: random */
 } settings;
 
 enum kind { STR, BOOL, INT, I64, DBL };
 enum { ROW_URL, ROW_KEY, ROW_INSECURE, ROW_THREADS, ROW_BUSY, ROW_HEARTBEAT, ROW_NODE, ROW_USER,
-       ROW_IDLE, ROW_SYSLOG, ROW_VERBOSE, ROW_DEDICATED, NROWS };
+       ROW_IDLE, ROW_SYSLOG, ROW_VERBOSE, ROW_DEDICATED, ROW_SPIN, NROWS };
 
 /* The options, one row each: config key, long option, type, field, bounds
  * (lo excluded when lo_open), the value a BOOL flag sets, and whether SIGHUP
@@ -77,6 +77,7 @@ static const struct row {
     [ROW_SYSLOG] = { ROW("syslog", "syslog", BOOL, syslog), .flag_value = "yes" },
     [ROW_VERBOSE] = { ROW("verbose", "verbose", BOOL, verbose), .flag_value = "yes", .live = 1 },
     [ROW_DEDICATED] = { ROW("dedicated", "dedicated", BOOL, dedicated), .flag_value = "yes" },
+    [ROW_SPIN] = { ROW("spin", "spin", DBL, spin), .lo = 0, .hi = SC_SERVE_SPIN_MAX },
 #undef ROW
 };
 
@@ -87,6 +88,7 @@ static void settings_default(settings *s)
     snprintf(s->user, sizeof s->user, "nobody");
     s->busy_threshold = 0.5;
     s->heartbeat = 0.2;
+    s->spin = SC_SERVE_SPIN_S;
     s->idle_priority = 1;
 }
 
@@ -321,13 +323,13 @@ static void log_counters(sc_serve *s)
           "counters: node=%016llx epoch=%016llx units=%ld results=%ld unit_errors=%ld "
           "shapes=%ld shape_requests=%ld dropped_format=%ld dropped_auth=%ld "
           "dropped_replay=%ld dropped_stale=%ld dropped_misaddressed=%ld dropped_net=%ld "
-          "dropped_kernel=%ld challenges=%ld duplicates=%ld heartbeats=%ld idle=%.3f "
-          "owner_busy=%d",
+          "dropped_kernel=%ld challenges=%ld duplicates=%ld heartbeats=%ld spin_hits=%ld "
+          "idle=%.3f owner_busy=%d",
           (unsigned long long)c.node, (unsigned long long)c.epoch, c.units, c.results,
           c.unit_errors, c.shapes, c.shape_requests, c.dropped_format, c.dropped_auth,
           c.dropped_replay, c.dropped_stale, c.dropped_misaddressed, c.dropped_net,
-          c.dropped_kernel, c.challenges, c.duplicates, c.heartbeats, c.idle_fraction,
-          c.owner_busy);
+          c.dropped_kernel, c.challenges, c.duplicates, c.heartbeats, c.spin_hits,
+          c.idle_fraction, c.owner_busy);
 }
 
 /* ---- the signal thread ------------------------------------------------- */
@@ -444,6 +446,8 @@ static int usage(FILE *f, int status)
             "      --user NAME        account to switch to when started as root (nobody)\n"
             "      --no-idle-priority compute threads at normal priority (not nice 19, idle)\n"
             "      --dedicated        a compute node with no owner: report all CPUs idle, never busy\n"
+            "      --spin S           an idle compute thread polls S seconds for the next unit\n"
+            "                         before it sleeps, 0..0.1 (0.002; 0: sleep at once)\n"
             "      --syslog           log to syslog (daemon facility), not standard error\n"
             "  -v, --verbose          log debug messages too\n"
             "  -h, --help             this text\n"
@@ -557,6 +561,7 @@ int main(int argc, char **argv)
     d.cfg.node_id = s->node_id;
     d.cfg.idle_priority = s->idle_priority;
     d.cfg.dedicated = s->dedicated;
+    d.cfg.spin_s = s->spin;
     d.cfg.log = log_line;
     if (s->insecure) {
         memset(d.cfg.key, 0, sizeof d.cfg.key);

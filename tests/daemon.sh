@@ -34,6 +34,9 @@ one_line "unknown option" "try --help"
 check "--threads 0" 2 "$bin" -c "$dir/empty.conf" --insecure --threads 0
 one_line "--threads 0" "threads"
 check "--heartbeat out of range" 2 "$bin" -c "$dir/empty.conf" --insecure --heartbeat 11
+check "--spin out of range" 2 "$bin" -c "$dir/empty.conf" --insecure --spin 0.2
+one_line "--spin out of range" "spin"
+check "--spin not a number" 2 "$bin" -c "$dir/empty.conf" --insecure --spin nan
 check "no key, no --insecure" 1 "$bin" -c "$dir/empty.conf"
 one_line "no key" "simcluster keygen"
 check "keygen" 0 "$tool" keygen "$dir/k"
@@ -65,7 +68,7 @@ chmod 755 "$dir"
 # dedicated: these checks are about keys, counters and reloads, and other
 # jobs loading the host must not make its owner look busy (a busy daemon is
 # not counted by --wait-daemons; the owner-busy checks are cluster.sh's)
-printf '# test daemon\nbusy_threshold = 0.5\nheartbeat = 0.05\nnode_id = 4660\ndedicated = yes\n' >"$dir/d.conf"
+printf '# test daemon\nbusy_threshold = 0.5\nheartbeat = 0.05\nnode_id = 4660\ndedicated = yes\nspin = 0.001\n' >"$dir/d.conf"
 chmod 644 "$dir/d.conf"
 : >"$dir/log"
 "$bin" -c "$dir/d.conf" --key "$dir/k" --url "$url" --threads 1 2>"$dir/log" &
@@ -83,7 +86,7 @@ if wait_log "serving"; then
     if wait_log "counters:"; then
         for n in node epoch units results unit_errors shapes shape_requests dropped_format \
                  dropped_auth dropped_replay dropped_stale dropped_misaddressed dropped_net \
-                 dropped_kernel challenges duplicates heartbeats idle owner_busy; do
+                 dropped_kernel challenges duplicates heartbeats spin_hits idle owner_busy; do
             grep "counters:" "$dir/log" | grep -q " $n=" || { echo "FAIL: counters lack $n"; fail=1; }
         done
     fi
@@ -101,13 +104,14 @@ if wait_log "serving"; then
     check "run --wait-daemons, this key" 0 "$tool" run bolts --bodies 5 --frames 5 \
         --cluster "$url" --key "$dir/k" --wait-daemons 1
     sed -e 's/^busy_threshold = 0.5/busy_threshold = 0.75/' -e 's/^node_id = 4660/node_id = 4661/' \
-        "$dir/d.conf" >"$dir/d2.conf" && cat "$dir/d2.conf" >"$dir/d.conf"
+        -e 's/^spin = 0.001/spin = 0.003/' "$dir/d.conf" >"$dir/d2.conf" && cat "$dir/d2.conf" >"$dir/d.conf"
     kill -HUP "$pid"
     wait_log "busy_threshold 0.5 -> 0.75"
     wait_log "node_id 4660 -> 4661 needs a restart"
+    wait_log "spin 0.001 -> 0.003 needs a restart"
     printf 'busy_threshold = 2\n' >>"$dir/d.conf"
     kill -HUP "$pid"
-    wait_log "d.conf:6: .*keeping the old configuration"
+    wait_log "d.conf:7: .*keeping the old configuration"
     kill -TERM "$pid"
     wait_exit
     [ "$rc" -eq 0 ] || { echo "FAIL: SIGTERM: exit $rc, expected 0 within 5 s"; cat "$dir/log"; fail=1; }

@@ -56,9 +56,13 @@ static void log_to_stderr(void *ctx, int prio, const char *msg)
         fprintf(stderr, "  daemon [%d]: %s\n", prio, msg);
 }
 
+static double spin_s = -1;    /* the next daemon's spin_s; < 0: the default */
+
 static void start_daemon(daemon_thread *d, int64_t id, int threads)
 {
     sc_serve_config c = sc_serve_config_default();
+    if (spin_s >= 0)
+        c.spin_s = spin_s;
     c.url = url;
     memcpy(c.key, key, sizeof key);
     c.threads = threads;
@@ -211,8 +215,13 @@ static void test_daemons_give_the_same_bits(void **state)
     (void)state;
     uint64_t h0 = local_hash();
     daemon_thread d[2];
+    /* one daemon polls for units long enough to catch every next one of
+     * a run, the other sleeps at once: the same bits either way */
+    spin_s = SC_SERVE_SPIN_MAX;
     start_daemon(&d[0], 0x1001, 1);
+    spin_s = 0;
     start_daemon(&d[1], 0x1002, 2);
+    spin_s = -1;
     sc_world *w = make_world(1, key_path);
     wait_daemons(w, 2);
     sc_stats sum;
@@ -237,6 +246,14 @@ static void test_daemons_give_the_same_bits(void **state)
     assert_true(sum.result_messages > 0 && sum.result_messages <= n0.results + n1.results);
     assert_true(sum.unit_messages > 0);
     assert_true(n0.results > 0 && n1.results > 0);
+    printf("  units found while polling: %ld of %ld (spin 0.1 s), %ld of %ld (spin 0)\n",
+           n0.spin_hits, n0.units, n1.spin_hits, n1.units);
+    assert_true(n0.spin_hits <= n0.units);
+    assert_int_equal(n1.spin_hits, 0);
+    /* the paper's frame sends a daemon units many times a frame: some
+     * come while it polls (motion groups' runs send far fewer) */
+    if (!groups && toi_mode != SC_TOI_LOCAL)
+        assert_true(n0.spin_hits > 0);
     assert_true(n0.shapes + n1.shapes >= 2);    /* bolt, nut, floor: on request */
     /* by motion groups, whole frames of groups travel */
     if (groups || toi_mode == SC_TOI_LOCAL)

@@ -62,6 +62,8 @@
 #define HOME_WINDOW 16777216    /* bytes: past this the sums are halved */
 #define OVERHEAD_KEEP 0.8
 #define OVERHEAD_IDLE_DECAY 0.95 /* per job without work */
+#define WAIT_SPIN_S 3e-3        /* a wait for results polls this long before it
+                                 * sleeps (docs/DESIGN.md 7.9) */
 #define MAX_WAIT_DEADLINES 10   /* a long prediction stretches the deadline
                                    up to this many deadlines */       /* EWMA of a job's communication overhead */
 
@@ -392,15 +394,24 @@ static void comm_since(sc_cluster *c, double t0)
     c->home_s += t;
 }
 
-/* Handle what has come, waiting up to timeout_s for the first datagram;
- * one pass over what is pending (the callers loop), so that a flood of
- * datagrams cannot hold a frame past its deadline. */
-static void pump(sc_cluster *c, double timeout_s)
+/* Handle what has come, waiting up to timeout_s for the first datagram:
+ * polling without sleep until spin_until (wall clock; a wake-up from a
+ * sleep costs tens of microseconds, more in a virtual machine), then
+ * asleep in poll(). One pass over what is pending (the callers loop), so
+ * that a flood of datagrams cannot hold a frame past its deadline. */
+static void pump(sc_cluster *c, double timeout_s, double spin_until)
 {
-    int ms = timeout_s > 0 ? (int)(timeout_s * 1000) + 1 : 0;
     struct pollfd pf = { sc_bus_fd(c->bus), POLLIN, 0 };
-    if (poll(&pf, 1, ms) <= 0 || !(pf.revents & POLLIN))
-        return;
+    double end = sc_wall_now() + (timeout_s > 0 ? timeout_s : 0), now;
+    int ready = 0;
+    while (!ready && (now = sc_wall_now()) < spin_until && now < end)
+        ready = poll(&pf, 1, 0) > 0 && (pf.revents & POLLIN);
+    if (!ready) {
+        double left = end - sc_wall_now();
+        int ms = left > 0 ? (int)(left * 1000) + 1 : 0;
+        if (poll(&pf, 1, ms) <= 0 || !(pf.revents & POLLIN))
+            return;
+    }
     double t0 = sc_wall_now();
     sc_bus_handle(c->bus, 0);
     comm_since(c, t0);
@@ -600,7 +611,7 @@ static int remote_wait(sc_node *n, double *cpu_s)
      * restart of the daemon heard meanwhile resets its slot (a new epoch),
      * and units it was sent must still come back or be recomputed here */
     while (outstanding(c, r->slot) > 0 && (now = sc_wall_now()) < deadline)
-        pump(c, deadline - now);
+        pump(c, deadline - now, t_wait + WAIT_SPIN_S);
     if (outstanding(c, r->slot) > 0)
         recompute(c, d, r->slot);
     else if (dj->sent > 0) {
@@ -734,7 +745,7 @@ void sc_cluster_destroy(sc_cluster *c)
 
 void sc_cluster_frame(sc_cluster *c)
 {
-    pump(c, 0);
+    pump(c, 0, 0);
     double now = sc_wall_now();
     c->stats->daemons = c->stats->daemons_busy = c->stats->daemons_unverified = 0;
     for (int k = 0; k < SC_MAX_DAEMONS; k++) {
@@ -824,7 +835,7 @@ static void prov_resume(void *ctx, const sc_job *job)
     c->cur = c->parked;
     c->parked = NULL;
     /* what came back while other jobs ran (nobody may have read the bus) */
-    pump(c, 0);
+    pump(c, 0, 0);
     for (int i = 0; i < job->nunits; i++)
         c->stats->pipelined_units += c->cur->out[i] == OUT_DONE;
 }
