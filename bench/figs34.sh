@@ -18,6 +18,10 @@
 #     delay under it (LINK_DELAY_US each way per veth end, ~ switch and NIC
 #     latency of switched Ethernet around 2000). Nothing leaves those
 #     namespaces: the bridge has no uplink and the URL has ttl=1.
+#     Programs enter a namespace with nsenter --net (not ip netns exec,
+#     which mounts a sysfs of its own over /sys and so hides the cgroup
+#     files): each sees its quota (sc_cpu_budget()) and its idle threads
+#     sleep rather than poll away a quota smaller than its threads.
 # For each condition and N it runs
 #   simcluster run bolts --bodies N --seed S --until-rest --json
 #     [--cluster URL --key KEY --wait-daemons K]
@@ -76,7 +80,7 @@ command -v ip >/dev/null 2>&1 || skip "no ip (iproute2)"
 command -v tc >/dev/null 2>&1 || skip "no tc (iproute2)"
 tag=$$
 ip netns add "scfprobe$tag" 2>/dev/null || skip "no network namespaces"
-ip netns exec "scfprobe$tag" true 2>/dev/null
+ip netns exec "scfprobe$tag" true 2>/dev/null && command -v nsenter >/dev/null
 ok=$?
 ip netns del "scfprobe$tag"
 [ "$ok" -eq 0 ] || skip "no network namespaces"
@@ -254,7 +258,7 @@ start_daemon() { # $1 = 1..3; waits for its "serving" line
     eval "ns=\$ns$1"
     log=$dir/d$1.log
     : >"$log"
-    sh -c "$JOIN" "$CG/d$1/$PROCS" ip netns exec "$ns" "$DAEMON" --url "$URL" --key "$KEY" \
+    sh -c "$JOIN" "$CG/d$1/$PROCS" nsenter --net="/run/netns/$ns" "$DAEMON" --url "$URL" --key "$KEY" \
         --threads 2 --dedicated --heartbeat 0.1 --node-id $((3400 + $1)) >>"$log" 2>&1 &
     eval "dpid$1=$!"
     pids="$pids $!"
@@ -298,7 +302,7 @@ run_one() { # $1 = condition, $2 = nodes, $3 = link label, $4 = N, $5 = daemons 
     r=1
     hashes=""
     while [ $r -le "$RUNS" ]; do
-        if ! in_cg m timeout --foreground -k 2 $RUN_LIMIT ip netns exec "$nsm" "$@" >"$j.r$r" \
+        if ! in_cg m timeout --foreground -k 2 $RUN_LIMIT nsenter --net="/run/netns/$nsm" "$@" >"$j.r$r" \
             2>"$j.err" || [ -z "$(jnum "$j.r$r" wall_s)" ]; then
             echo "figs34: condition $c, N=$n failed:" >&2
             cat "$j.err" "$j.r$r" >&2

@@ -90,6 +90,7 @@ struct sc_serve {
     pthread_cond_t cond;
     pthread_mutex_t bus_lock;     /* receiving: the main thread, or a spinning compute thread */
     int spinning;                 /* (lock) a compute thread spins for the next unit */
+    double budget;                /* sc_cpu_budget() at the start */
     task **queue;
     int qhead, qlen;
     sc_serve_job *pick;         /* take_task()'s scratch, QUEUE_MAX */
@@ -778,6 +779,11 @@ int sc_serve_create(const sc_serve_config *c, sc_serve **out)
     if (!s)
         return SC_ENOMEM;
     s->cfg = *c;
+    /* idle threads poll only where each has a CPU: under a smaller quota
+     * polling would take the working threads' share */
+    s->budget = sc_cpu_budget();
+    if (s->cfg.spin_s > 0 && s->budget < s->cfg.threads)
+        s->cfg.spin_s = 0;
     s->stop_pipe[0] = s->stop_pipe[1] = -1;
     pthread_mutex_init(&s->lock, NULL);
     pthread_mutex_init(&s->bus_lock, NULL);
@@ -850,6 +856,9 @@ int sc_serve_run(sc_serve *s)
     logf_(s, LOG_INFO, "serving on %s as node %016" PRIx64 " (epoch %016" PRIx64
           ") with %d threads%s", s->cfg.url, (uint64_t)s->id, (uint64_t)s->epoch, s->nthreads,
           s->cfg.idle_priority ? " (nice 19, SCHED_IDLE)" : "");
+    if (s->cfg.spin_s == 0 && s->budget < s->cfg.threads)
+        logf_(s, LOG_INFO, "%.2f CPUs for %d threads (affinity or cgroup quota): idle threads "
+              "sleep at once (no --spin)", s->budget, s->cfg.threads);
     note_bus(s);
     if (s->n.rcvbuf_bytes < SC_BUS_RCVBUF_MIN)
         logf_(s, LOG_WARNING, "receive buffer only %d KiB: a burst of datagrams may be lost "

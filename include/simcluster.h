@@ -221,7 +221,9 @@ enum {
 typedef struct sc_world_config {
     double gravity[3];        /* default {0, 0, -9.81} */
     int workers;              /* local threads (the caller's included), at most
-                                 SC_MAX_WORKERS; 0 = number of online CPUs */
+                                 SC_MAX_WORKERS; 0 = the CPUs this process may
+                                 use (its affinity mask, or a cgroup CPU
+                                 quota rounded up, at least 1) */
     const char *cluster;      /* LCM URL of the daemons (simclusterd(8)), e.g.
                                  SC_CLUSTER_URL; NULL = local threads only */
     const char *key_file;     /* shared cluster key (simcluster keygen); NULL
@@ -264,6 +266,12 @@ typedef struct sc_world_config {
 } sc_world_config;
 /* The default configuration. */
 SC_API sc_world_config sc_world_config_default(void);
+/* The CPUs this process may use: the count of its affinity mask, or less
+ * where a cgroup CPU quota (v2 cpu.max, v1 cpu.cfs_quota_us over
+ * cpu.cfs_period_us, of its cgroup or an ancestor) allows less; may be
+ * fractional. Idle threads poll for work only when it is at least the
+ * number of threads (sc_stats.spin). */
+SC_API double sc_cpu_budget(void);
 
 /* Pass as sc_body_desc.mass to take the mass from density * volume. */
 #define SC_MASS_FROM_DENSITY (-1.0)
@@ -391,6 +399,12 @@ typedef struct sc_stats {
     int nodes;                /* nodes the scheduler used (local threads) */
     int private_ode;          /* of them, with their own copy of ODE (trimesh
                                  pairs run concurrently only on those) */
+    double cpu_budget;        /* the CPUs this process may use: its affinity
+                                 mask, or a smaller cgroup CPU quota */
+    int spin;                 /* 1: idle local threads poll for work a few ms
+                                 before they sleep; 0: they sleep at once
+                                 (fewer CPUs than nodes: polling would take
+                                 the working threads' share) */
     long units;               /* work units run */
     long units_background;    /* of them, motion groups stepped by idle local
                                  threads beside a pile (docs/DESIGN.md 5) */

@@ -112,6 +112,16 @@ typedef struct run_sum {
  * seed, in the default world on workers threads (redo_all: every
  * speculative round solves every island again), frames frames, its
  * figures summed into *s; returns the state hash. */
+static int force_spin = -1;    /* run_scene(): idle threads poll (1), sleep at
+                                 once (0), or as the CPU budget says (-1) */
+
+/* Force w's local threads to poll while idle or to sleep at once. */
+static void set_spin(sc_world *w, int spin)
+{
+    w->ex.spin = spin;
+    sc_local_pool_set_spin(w->ex.pool, spin);
+}
+
 static uint64_t run_scene(int workers, int bin, int n, uint64_t seed, int frames, int redo_all,
                           run_sum *s)
 {
@@ -119,6 +129,8 @@ static uint64_t run_scene(int workers, int bin, int n, uint64_t seed, int frames
     c.workers = workers;
     sc_world *w = sc_world_create(&c);
     assert_non_null(w);
+    if (force_spin >= 0)
+        set_spin(w, force_spin);
     w->fcfg.redo_all = redo_all;
     assert_int_equal(bin ? sc_scene_bin(w, n, seed) : sc_scene_bolts_nuts(w, n, seed), SC_OK);
     if (bin == 2) {
@@ -484,7 +496,11 @@ static void test_groups_beside_a_pile_same_bits_for_1_2_4_workers(void **state)
 {
     (void)state;
     run_sum r[SAME_WORKERS];
+    /* idle threads poll even where the CPUs are fewer than the threads
+     * (4 workers on a 2-CPU machine) */
+    force_spin = 1;
     run_1_2_4(2, 100, 5, 60, r);
+    force_spin = -1;
     long beside = 0;
     for (int k = 0; k < SAME_WORKERS; k++) {
         printf("  %d workers: %ld units, %ld group units beside the pile\n", same_workers[k],
@@ -498,6 +514,97 @@ static void test_groups_beside_a_pile_same_bits_for_1_2_4_workers(void **state)
      * timing: under the sanitizers on a loaded 2-CPU machine the 4 workers
      * once took none (2026-12-03); some run with several must */
     assert_true(beside > 0);
+}
+
+/* Idle threads that sleep at once (fewer CPUs than threads: sc_stats.spin
+ * 0, docs/DESIGN.md 5.3): the same bits, no group units stepped beside the
+ * pile (those are for polling threads) and no blocks shared (helpers are
+ * threads that poll). */
+static void test_threads_that_sleep_at_once_same_bits_for_1_2_4_workers(void **state)
+{
+    (void)state;
+    run_sum r[SAME_WORKERS];
+    force_spin = 0;
+    run_1_2_4(2, 100, 5, 60, r);
+    force_spin = -1;
+    for (int k = 0; k < SAME_WORKERS; k++) {
+        printf("  %d workers: %ld units, %ld beside the pile, %ld blocks shared\n",
+               same_workers[k], r[k].units, r[k].background, r[k].shared);
+        assert_int_equal(r[k].background, 0);
+        assert_int_equal(r[k].shared, 0);
+    }
+    /* a world says what it decided, from the CPUs it may use */
+    sc_world_config c = sc_world_config_default();
+    c.workers = 2;
+    sc_world *w = sc_world_create(&c);
+    assert_non_null(w);
+    sc_stats st;
+    sc_world_stats(w, &st);
+    assert_true(st.cpu_budget > 0);
+    assert_true(fabs(st.cpu_budget - sc_cpu_budget()) < 1e-12);
+    assert_int_equal(st.spin, st.cpu_budget >= 2);
+    sc_world_destroy(w);
+}
+
+/* Writes text into file dir/name, making dir first. */
+static void put_file(const char *dir, const char *name, const char *text)
+{
+    char cmd[1100], path[1100];
+    snprintf(cmd, sizeof cmd, "mkdir -p '%s'", dir);
+    assert_int_equal(system(cmd), 0);
+    snprintf(path, sizeof path, "%s/%s", dir, name);
+    FILE *f = fopen(path, "w");
+    assert_non_null(f);
+    fputs(text, f);
+    fclose(f);
+}
+
+/* The quota from /proc/self/cgroup's text and a cgroup tree: v2's
+ * cpu.max and v1's cfs files, the smallest of the cgroup and its
+ * ancestors, "max" and -1 as none, malformed files ignored. */
+static void test_cpu_quota_from_cgroup_files(void **state)
+{
+    (void)state;
+    char root[] = "/tmp/sc_cgroupXXXXXX", dir[512];
+    assert_non_null(mkdtemp(root));
+    /* v2: /a/b under a quota of 1.5, /a of 0.5 */
+    snprintf(dir, sizeof dir, "%s/a", root);
+    put_file(dir, "cpu.max", "50000 100000\n");
+    snprintf(dir, sizeof dir, "%s/a/b", root);
+    put_file(dir, "cpu.max", "150000 100000\n");
+    assert_true(fabs(sc_cpu_quota_at(root, "0::/a/b\n") - 0.5) < 1e-12);
+    /* no limit on /a/b/c itself ("max"), its ancestors' still holds */
+    snprintf(dir, sizeof dir, "%s/a/b/c", root);
+    put_file(dir, "cpu.max", "max 100000\n");
+    assert_true(fabs(sc_cpu_quota_at(root, "0::/a/b/c\n") - 0.5) < 1e-12);
+    /* none anywhere, a malformed file, a missing cgroup */
+    snprintf(dir, sizeof dir, "%s/x/y", root);
+    put_file(dir, "cpu.max", "max 100000\n");
+    assert_true(sc_cpu_quota_at(root, "0::/x/y\n") == 0);
+    snprintf(dir, sizeof dir, "%s/m", root);
+    put_file(dir, "cpu.max", "lots\n");
+    assert_true(sc_cpu_quota_at(root, "0::/m\n") == 0);
+    assert_true(sc_cpu_quota_at(root, "0::/nowhere\n") == 0);
+    assert_true(sc_cpu_quota_at(root, "") == 0);
+    assert_true(sc_cpu_quota_at(root, "garbage without colons") == 0);
+    /* v1: the cpu controller's line, mounted as cpu,cpuacct; -1 is none */
+    snprintf(dir, sizeof dir, "%s/cpu,cpuacct/job", root);
+    put_file(dir, "cpu.cfs_quota_us", "60450\n");
+    put_file(dir, "cpu.cfs_period_us", "100000\n");
+    assert_true(fabs(sc_cpu_quota_at(root, "5:memory:/other\n4:cpu,cpuacct:/job\n") - 0.6045) <
+                1e-12);
+    snprintf(dir, sizeof dir, "%s/cpu,cpuacct/free", root);
+    put_file(dir, "cpu.cfs_quota_us", "-1\n");
+    put_file(dir, "cpu.cfs_period_us", "100000\n");
+    assert_true(sc_cpu_quota_at(root, "4:cpu,cpuacct:/free\n") == 0);
+    /* a controller line without cpu is not looked at */
+    assert_true(sc_cpu_quota_at(root, "4:cpuacct:/job\n") == 0);
+    char cmd[600];
+    snprintf(cmd, sizeof cmd, "rm -rf '%s'", root);
+    assert_int_equal(system(cmd), 0);
+    /* this process: at least a share of a CPU, at most its affinity */
+    double b = sc_cpu_budget();
+    assert_true(b > 0 && b <= SC_MAX_WORKERS * 64.0);
 }
 
 /* A world-wide frame of 300 parts (no motion groups: the frame runs on
@@ -793,6 +900,8 @@ int main(void)
         cmocka_unit_test(test_pile_blocks_shared_same_bits_for_1_2_4_workers),
         cmocka_unit_test(test_groups_beside_a_pile_same_bits_for_1_2_4_workers),
         cmocka_unit_test(test_shared_tasks_same_bits_for_1_2_4_workers),
+        cmocka_unit_test(test_threads_that_sleep_at_once_same_bits_for_1_2_4_workers),
+        cmocka_unit_test(test_cpu_quota_from_cgroup_files),
         cmocka_unit_test(test_narrow_phase_memo_answers_as_a_fresh_one),
         cmocka_unit_test(test_speculative_rounds_keep_islands_same_bits),
         cmocka_unit_test(test_longest_first_onto_earliest_finish),

@@ -823,8 +823,8 @@ static int run_cmd(int argc, char **argv)
     if (o.json) {
         printf("{\"scene\": ");
         json_string(o.scene);
-        printf(", \"bodies\": %d, \"seed\": %s, \"workers\": %d, "
-               "\"frames\": %ld, \"simulated_s\": %.2f, \"wall_s\": %.4f, "
+        printf(", \"bodies\": %d, \"seed\": %s, \"workers\": %d, \"cpu_budget\": %.2f, "
+               "\"spin\": %s, \"frames\": %ld, \"simulated_s\": %.2f, \"wall_s\": %.4f, "
                "\"realtime_factor\": %.4f, \"at_rest\": %s, \"rest_s\": %.2f, "
                "\"peak_energy_ratio\": %.6f, \"max_penetration_m\": %.6g, \"units\": %ld, "
                "\"daemons\": %d, \"remote_units\": %ld, \"recomputed_units\": %ld, "
@@ -846,7 +846,8 @@ static int run_cmd(int argc, char **argv)
                "\"toi\": {\"mode\": \"%s\", \"backups\": %ld, \"max_frame_backups\": %d, "
                "\"speculative_contacts\": %ld, \"groups\": %ld, \"groups_retried\": %ld}, "
                "\"hash\": \"%016llx\", \"interrupted\": %s%s%s, \"error\": %s%s%s}\n",
-               sc_world_body_count(w), seed, (int)(st.nodes - st.daemons), t.frames,
+               sc_world_body_count(w), seed, (int)(st.nodes - st.daemons), st.cpu_budget,
+               st.spin ? "true" : "false", t.frames,
                sim, t.wall, t.wall > 0 ? sim / t.wall : 0, t.at_rest ? "true" : "false",
                t.rest_s, t.peak_energy, t.max_pen, t.units, st.daemons, t.remote, t.recomputed,
                t.late, st.dropped_messages, st.dropped_auth, st.dropped_stale,

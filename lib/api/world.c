@@ -43,8 +43,8 @@ SC_API sc_world *sc_world_create(const sc_world_config *cfg)
     /* nodes: this thread (node 0) and workers - 1 worker threads */
     int nodes = c.workers;
     if (nodes == 0) {
-        long cpus = sysconf(_SC_NPROCESSORS_ONLN);
-        nodes = cpus < 1 ? 1 : cpus > SC_MAX_WORKERS ? SC_MAX_WORKERS : (int)cpus;
+        double cpus = ceil(sc_cpu_budget());
+        nodes = !(cpus >= 1) ? 1 : cpus > SC_MAX_WORKERS ? SC_MAX_WORKERS : (int)cpus;
     }
     w->cfg.workers = nodes;
     int rc = sc_frame_scratch_init(&w->scr);
@@ -53,6 +53,8 @@ SC_API sc_world *sc_world_create(const sc_world_config *cfg)
     w->ex.sched.ship_share = c.cluster_ship_share == 0 ? SC_SHIP_SHARE_DEFAULT
                                                         : c.cluster_ship_share;
     w->stats.private_ode = w->ex.private_ode;
+    w->stats.cpu_budget = w->ex.cpu_budget;
+    w->stats.spin = w->ex.spin;
     if (rc == SC_OK && c.cluster)
         rc = sc_cluster_create(&w->ex, &w->stats, &w->st, c.cluster, c.key_file,
                                c.cluster_deadline_s, &w->cluster);

@@ -315,7 +315,8 @@ static int nodes_finish(sc_exec *ex, sc_job *job, int stage, sc_stats *st)
 static int nodes_background(sc_exec *ex, sc_job *job)
 {
     sc_exec_nodes *x = (sc_exec_nodes *)ex;
-    if (x->prov.ctx || x->nlocal < 2 || x->pend.job || job->nunits == 0 ||
+    /* background units are for idle threads that poll (5.3) */
+    if (x->prov.ctx || x->nlocal < 2 || !x->spin || x->pend.job || job->nunits == 0 ||
         cut(x, job) != SC_OK)
         return 0;
     sc_local_pool_background(x->pool, job);
@@ -349,6 +350,12 @@ int sc_exec_nodes_init(sc_exec_nodes *x, int nlocal, int extra)
     if (!x->pend.start || !x->pend.cap)
         return SC_ENOMEM;
     x->pool = sc_local_pool_create();
+    /* idle threads poll for work only where each of them has a CPU: under
+     * a smaller quota (or affinity mask) polling takes the working ones'
+     * share (docs/DESIGN.md 5.3) */
+    x->cpu_budget = sc_cpu_budget();
+    x->spin = x->cpu_budget >= nlocal;
+    sc_local_pool_set_spin(x->pool, x->spin);
     int rc = x->nodes && x->pool ? sc_sched_init(&x->sched, x->cap) : SC_ENOMEM;
     for (int k = 0; k < nlocal && rc == SC_OK; k++) {
         /* node 0 is the calling thread, the others worker threads */

@@ -40,6 +40,11 @@ struct sc_node {
     const sc_node_ops *ops;
     int id;
 };
+/* sc_cpu_budget() (simcluster.h) is in cpu_budget.c. The smallest quota in CPUs that proc_cgroup (the text of
+ * /proc/self/cgroup) puts on the process under the cgroup mount root; 0
+ * for none (or nothing readable). */
+double sc_cpu_quota_at(const char *root, const char *proc_cgroup);
+
 /* A local node. inline_node = 1: the calling thread itself (runs its
  * units inside wait(), on the shared ODE); 0: a worker thread of its own
  * (with a private ODE copy when one can be had). Nodes of one pool take
@@ -47,6 +52,9 @@ struct sc_node {
  * may be NULL. NULL on error. */
 typedef struct sc_local_pool sc_local_pool;
 sc_local_pool *sc_local_pool_create(void);
+/* Whether the pool's idle threads poll for work a few milliseconds before
+ * they sleep (the default), or sleep at once (docs/DESIGN.md 5.3). */
+void sc_local_pool_set_spin(sc_local_pool *p, int spin);
 /* Stop every worker thread of the pool (before destroying its nodes). */
 void sc_local_pool_stop(sc_local_pool *p);
 void sc_local_pool_destroy(sc_local_pool *p);   /* after its nodes */
@@ -153,6 +161,9 @@ typedef struct sc_exec_nodes {
     sc_unit *units;                 /* jobs' units, grown and kept */
     int unit_cap;
     int private_ode;                /* local nodes on a private ODE copy */
+    double cpu_budget;              /* sc_cpu_budget() at init */
+    int spin;                       /* idle threads poll before they sleep:
+                                       only with a CPU each (5.3) */
     struct {                        /* a job between start() and finish() */
         sc_job *job;
         int whole;                  /* nothing sent: run() it at finish() */

@@ -51,6 +51,7 @@ struct sc_local_pool {
     bg_batch bg_store;
     _Atomic(bg_batch *) bg;   /* published background units, or NULL */
     atomic_int bg_helpers;    /* workers looking at bg */
+    atomic_int nospin;        /* 1: idle threads sleep at once */
 };
 
 /* A batch of tasks, published by the node that runs it. */
@@ -96,6 +97,18 @@ struct local_node {
 sc_local_pool *sc_local_pool_create(void)
 {
     return calloc(1, sizeof(sc_local_pool));
+}
+
+void sc_local_pool_set_spin(sc_local_pool *p, int spin)
+{
+    if (p)
+        atomic_store(&p->nospin, !spin);
+}
+
+/* How long an idle thread of n's pool polls before it sleeps. */
+static double spin_for(const local_node *n, double spin_s)
+{
+    return n->pool && atomic_load_explicit(&n->pool->nospin, memory_order_relaxed) ? 0 : spin_s;
 }
 
 static void stop_thread(local_node *n)
@@ -313,7 +326,7 @@ static void *worker(void *arg)
     pthread_mutex_unlock(&n->lock);
     unsigned seen = 0;
     while (n->np) {
-        if (!spin_until_changed(n, &n->gen, seen, WORKER_SPIN_S)) {
+        if (!spin_until_changed(n, &n->gen, seen, spin_for(n, WORKER_SPIN_S))) {
             pthread_mutex_lock(&n->lock);
             while (atomic_load(&n->gen) == seen && !atomic_load(&n->quit))
                 pthread_cond_wait(&n->go, &n->lock);
@@ -376,10 +389,12 @@ static int local_wait(sc_node *base, double *cpu_s)
     if (!finished(n, gen)) {
         /* the caller, waiting, helps with blocks */
         local_node *home = n->pool ? n->pool->home : NULL;
-        double end = sc_wall_now() + WAITER_SPIN_S;
-        for (int i = 1; !finished(n, gen) && ((i & 63) || sc_wall_now() < end); i++) {
+        double spin_s = spin_for(n, WAITER_SPIN_S);
+        double end = sc_wall_now() + spin_s;
+        for (int i = 1; spin_s > 0 && !finished(n, gen) && ((i & 63) || sc_wall_now() < end);
+             i++) {
             if (home && help_others(home))
-                end = sc_wall_now() + WAITER_SPIN_S;
+                end = sc_wall_now() + spin_s;
             cpu_relax();
         }
         if (!finished(n, gen)) {

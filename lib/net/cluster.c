@@ -126,6 +126,7 @@ struct sc_cluster {
     daemon_slot d[SC_MAX_DAEMONS];
     remote_node node[SC_MAX_DAEMONS];
     double deadline_s;
+    double wait_spin_s;         /* WAIT_SPIN_S, or 0 without a CPU each (sc_exec_nodes.spin) */
     cluster_job jobs[2];
     cluster_job *cur, *parked;  /* the current job, a started one parked */
     int64_t serial;             /* of the last job begun */
@@ -611,7 +612,7 @@ static int remote_wait(sc_node *n, double *cpu_s)
      * restart of the daemon heard meanwhile resets its slot (a new epoch),
      * and units it was sent must still come back or be recomputed here */
     while (outstanding(c, r->slot) > 0 && (now = sc_wall_now()) < deadline)
-        pump(c, deadline - now, t_wait + WAIT_SPIN_S);
+        pump(c, deadline - now, t_wait + c->wait_spin_s);
     if (outstanding(c, r->slot) > 0)
         recompute(c, d, r->slot);
     else if (dj->sent > 0) {
@@ -700,6 +701,7 @@ int sc_cluster_create(sc_exec_nodes *x, sc_stats *stats, const sc_frame_state *s
     int first_node = x->nnodes;
     c->first_node = first_node;
     c->deadline_s = deadline_s > 0 ? deadline_s : DEFAULT_DEADLINE_S;
+    c->wait_spin_s = x->spin ? WAIT_SPIN_S : 0;
     uint64_t id = 0;
     if (getrandom(&id, sizeof id, 0) != sizeof id)
         id = (uint64_t)getpid() * 0x9e3779b97f4a7c15ULL ^ (uint64_t)time(NULL);
