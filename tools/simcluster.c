@@ -871,6 +871,9 @@ static int run_cmd(int argc, char **argv)
                DT);
         printf("  simulated %8.2f s in %.3f s wall (real-time factor %.2f)\n", sim, t.wall,
                t.wall > 0 ? sim / t.wall : 0);
+        printf("  %d local threads on %.2f CPUs (affinity mask, cgroup quota): idle threads %s\n",
+               (int)(st.nodes - st.daemons), st.cpu_budget,
+               st.spin ? "poll a few ms before they sleep" : "sleep at once (fewer CPUs than threads)");
         if (o.until_rest)
             printf("  %s\n", t.at_rest ? "all at rest" : "not at rest at the frame limit");
         printf("  frames over their %.0f ms: %ld, longest %.1f ms\n", 1e3 * DT, t.over_budget,
