@@ -40,6 +40,8 @@
 #define BATCH_BYTES (256u << 10)  /* results sent together, at most */
 #define SHAPE_FIXED_BYTES 256     /* a cached shape's size besides its mesh */
 #define RIVALS_MAX 8              /* other daemons' epochs with our id, logged once */
+#define BUS_BUSY_MS 1             /* the main thread looks again this soon when a
+                                     compute thread is reading the bus */
 
 typedef struct task {
     sc_serve_job job;
@@ -90,7 +92,17 @@ struct sc_serve {
     pthread_cond_t cond;
     pthread_mutex_t bus_lock;     /* receiving: the main thread, or a spinning compute thread */
     int spinning;                 /* (lock) a compute thread spins for the next unit */
+    atomic_int pending;           /* qlen + quit, written under lock: what the
+                                     spinning thread watches without taking it
+                                     (an owner's program may hold a SCHED_IDLE
+                                     thread off the CPU inside the lock, and
+                                     the heartbeat needs the lock) */
     double budget;                /* sc_cpu_budget() at the start */
+    struct {                      /* the main thread's: the last beat's figures */
+        double idle, speed;
+        long results;
+    } hb;
+    atomic_long heartbeats;       /* announcements sent (sc_serve_counters) */
     task **queue;
     int qhead, qlen;
     sc_serve_job *pick;         /* take_task()'s scratch, QUEUE_MAX */
@@ -310,6 +322,7 @@ static task *take_task(sc_serve *s)
         s->queue[(s->qhead + i) % QUEUE_MAX] = s->queue[(s->qhead + i - 1) % QUEUE_MAX];
     s->qhead = (s->qhead + 1) % QUEUE_MAX;
     s->qlen--;
+    atomic_fetch_sub_explicit(&s->pending, 1, memory_order_release);
     return t;
 }
 
@@ -327,11 +340,7 @@ static void spin_for_units(sc_serve *s, double spin_s)
             sc_bus_handle(s->bus, 0);
             pthread_mutex_unlock(&s->bus_lock);
         }
-        pthread_mutex_lock(&s->lock);
-        int more = s->qlen > 0 || s->quit;
-        s->n.spin_hits += s->qlen > 0;
-        pthread_mutex_unlock(&s->lock);
-        if (more)
+        if (atomic_load_explicit(&s->pending, memory_order_acquire) > 0)
             return;
 #if defined(__x86_64__) || defined(__i386__)
         __builtin_ia32_pause();
@@ -346,6 +355,7 @@ static void *compute(void *arg)
         set_idle_priority(s);
     sc_compute *cc = sc_compute_create();     /* a private ODE copy if one can be had */
     outbox o = { { 0, 0, 0 }, NULL, 0, 0, 0 };
+    int may_spin = 0;           /* a unit ran since this thread last polled */
     for (;;) {
         pthread_mutex_lock(&s->lock);
         if (!s->qlen && o.count) {
@@ -355,14 +365,17 @@ static void *compute(void *arg)
             continue;
         }
         while (!s->qlen && !s->quit) {
-            /* one idle thread at a time polls for the next unit a while
-             * before it sleeps (docs/DESIGN.md 7.9) */
-            if (!s->spinning && s->cfg.spin_s > 0) {
+            /* after a unit, one idle thread at a time polls for the next
+             * a while before it sleeps (docs/DESIGN.md 7.9); once, then
+             * it sleeps until a unit comes */
+            if (may_spin && !s->spinning && s->cfg.spin_s > 0) {
+                may_spin = 0;
                 s->spinning = 1;
                 pthread_mutex_unlock(&s->lock);
                 spin_for_units(s, s->cfg.spin_s);
                 pthread_mutex_lock(&s->lock);
                 s->spinning = 0;
+                s->n.spin_hits += s->qlen > 0;
                 continue;
             }
             pthread_cond_wait(&s->cond, &s->lock);
@@ -373,6 +386,7 @@ static void *compute(void *arg)
         }
         task *t = take_task(s);
         pthread_mutex_unlock(&s->lock);
+        may_spin = 1;
         /* a job's results do not wait for another job's units: the
          * master is waiting for this one */
         if (o.count && (o.job.master != t->job.master ||
@@ -490,6 +504,7 @@ static void take_unit(sc_serve *s, int64_t master, int64_t master_epoch, int64_t
     if (rc == SC_OK) {
         s->queue[(s->qhead + s->qlen) % QUEUE_MAX] = tp;
         s->qlen++;
+        atomic_fetch_add_explicit(&s->pending, 1, memory_order_release);
         pthread_cond_signal(&s->cond);
     } else {
         s->n.unit_errors++;
@@ -734,38 +749,43 @@ static void heartbeat(sc_serve *s)
     if (busy != was)
         logf_(s, LOG_INFO, busy ? "owner busy (idle %.2f): no more work" : "owner idle again (idle %.2f)",
               idle);
-    pthread_mutex_lock(&s->lock);
-    if (s->units_since > 0 && s->unit_s > 0) {
-        double v = (double)s->units_since / s->unit_s;
-        s->speed = s->speed > 0 ? 0.7 * s->speed + 0.3 * v : v;
-    }
-    s->units_since = 0;
-    s->unit_s = 0;
-    if (idle >= 0)
-        s->n.idle_fraction = idle;
-    s->n.owner_busy = busy;
+    /* The announcement never waits for the compute threads' lock: one
+     * that an owner's program keeps off the CPU (SCHED_IDLE) may hold it
+     * for long, and the owner-busy flag must go out now. Without the lock
+     * it carries the figures of the last beat that had it. */
     sc_msg_announce a;
     memset(&a, 0, sizeof a);
+    if (idle >= 0)
+        s->hb.idle = idle;
+    if (pthread_mutex_trylock(&s->lock) == 0) {
+        if (s->units_since > 0 && s->unit_s > 0) {
+            double v = (double)s->units_since / s->unit_s;
+            s->speed = s->speed > 0 ? 0.7 * s->speed + 0.3 * v : v;
+        }
+        s->units_since = 0;
+        s->unit_s = 0;
+        s->n.idle_fraction = s->hb.idle;
+        s->n.owner_busy = busy;
+        s->hb.speed = s->speed;
+        s->hb.results = s->n.results;
+        pthread_mutex_unlock(&s->lock);
+    }
     a.node = s->id;
     gethostname(a.host, sizeof a.host - 1);
     a.cores = s->nthreads;
-    a.speed = s->speed > 0 ? s->speed : 1;
-    a.idle_fraction = s->n.idle_fraction;
+    a.speed = s->hb.speed > 0 ? s->hb.speed : 1;
+    a.idle_fraction = s->hb.idle;
     a.owner_busy = busy;
     a.version = SC_MSG_VERSION;
     struct timespec ts;
     clock_gettime(CLOCK_REALTIME, &ts);
     a.time_us = (int64_t)ts.tv_sec * 1000000 + ts.tv_nsec / 1000;
-    a.units = s->n.results;
-    pthread_mutex_unlock(&s->lock);
+    a.units = s->hb.results;
     uint8_t *p;
     size_t len;
     if (sc_msg_announce_encode(&a, &p, &len) == SC_OK) {
-        if (send_msg(s, "SC_ANNOUNCE", 0, SC_MSG_ANNOUNCE, p, len) == SC_OK) {
-            pthread_mutex_lock(&s->lock);
-            s->n.heartbeats++;
-            pthread_mutex_unlock(&s->lock);
-        }
+        if (send_msg(s, "SC_ANNOUNCE", 0, SC_MSG_ANNOUNCE, p, len) == SC_OK)
+            atomic_fetch_add(&s->heartbeats, 1);
         free(p);
     }
 }
@@ -869,39 +889,49 @@ int sc_serve_run(sc_serve *s)
     int fd = sc_bus_fd(s->bus);
     for (;;) {
         double now = wall_now();
-        pthread_mutex_lock(&s->bus_lock);
         if (now >= next) {
+            /* never behind bus_lock: a compute thread polling for units
+             * holds it for a moment, but one that an owner's program keeps
+             * off the CPU (SCHED_IDLE) may hold it for long, and the
+             * heartbeat is what says the owner is busy */
             heartbeat(s);
             pthread_mutex_lock(&s->cfg_lock);
             next = now + s->cfg.heartbeat_s;
             pthread_mutex_unlock(&s->cfg_lock);
-            if (s->nparked)
-                retry_parked(s);    /* re-asks for shapes lost on the way */
+            if (pthread_mutex_trylock(&s->bus_lock) == 0) {
+                if (s->nparked)
+                    retry_parked(s);    /* re-asks for shapes lost on the way */
+                pthread_mutex_unlock(&s->bus_lock);
+            }
         }
-        pthread_mutex_unlock(&s->bus_lock);
         struct pollfd pf[2] = { { fd, POLLIN, 0 }, { s->stop_pipe[0], POLLIN, 0 } };
         int ms = (int)((next - now) * 1000) + 1;
         int n = poll(pf, 2, ms);
-        pthread_mutex_lock(&s->bus_lock);
         if (n < 0 && errno != EINTR) {
-            pthread_mutex_unlock(&s->bus_lock);
             rc = SC_EIO;
             break;
         }
-        if (n > 0 && pf[1].revents) {
-            pthread_mutex_unlock(&s->bus_lock);
+        if (n > 0 && pf[1].revents)
             break;
-        }
-        if (n > 0 && (pf[0].revents & POLLIN) && sc_bus_handle(s->bus, 0) < 0) {
+        if (n > 0 && (pf[0].revents & POLLIN)) {
+            if (pthread_mutex_trylock(&s->bus_lock) != 0) {
+                /* a compute thread is reading the bus: what came is its;
+                 * look again in a moment rather than wait for the lock */
+                poll(&pf[1], 1, BUS_BUSY_MS);
+                continue;
+            }
+            int hr = sc_bus_handle(s->bus, 0);
+            note_bus(s);
             pthread_mutex_unlock(&s->bus_lock);
-            rc = SC_EIO;
-            break;
+            if (hr < 0) {
+                rc = SC_EIO;
+                break;
+            }
         }
-        note_bus(s);
-        pthread_mutex_unlock(&s->bus_lock);
     }
     pthread_mutex_lock(&s->lock);
     s->quit = 1;
+    atomic_fetch_add_explicit(&s->pending, 1, memory_order_release);
     pthread_cond_broadcast(&s->cond);
     pthread_mutex_unlock(&s->lock);
     for (int i = 0; i < s->nthreads; i++)
@@ -938,6 +968,7 @@ void sc_serve_counters_get(sc_serve *s, sc_serve_counters *out)
     pthread_mutex_lock(&s->lock);
     *out = s->n;
     pthread_mutex_unlock(&s->lock);
+    out->heartbeats = atomic_load(&s->heartbeats);
 }
 
 void sc_serve_destroy(sc_serve *s)

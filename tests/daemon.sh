@@ -103,6 +103,13 @@ if wait_log "serving"; then
         { echo "FAIL: run, another key: no dropped_auth in the JSON"; cat "$dir/out"; fail=1; }
     check "run --wait-daemons, this key" 0 "$tool" run bolts --bodies 5 --frames 5 \
         --cluster "$url" --key "$dir/k" --wait-daemons 1
+    # idle again, it sleeps: at most 10 % of a CPU over a second (its
+    # compute thread polls for units only for --spin after one ran)
+    cpu_ticks() { awk '{ print $14 + $15 }' "/proc/$pid/stat"; }
+    t0=$(cpu_ticks); sleep 1; t1=$(cpu_ticks)
+    hz=$(getconf CLK_TCK)
+    [ $((t1 - t0)) -le $((hz / 10)) ] ||
+        { echo "FAIL: an idle daemon used $((t1 - t0)) of $hz ticks in a second"; fail=1; }
     sed -e 's/^busy_threshold = 0.5/busy_threshold = 0.75/' -e 's/^node_id = 4660/node_id = 4661/' \
         -e 's/^spin = 0.001/spin = 0.003/' "$dir/d.conf" >"$dir/d2.conf" && cat "$dir/d2.conf" >"$dir/d.conf"
     kill -HUP "$pid"
