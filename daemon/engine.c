@@ -804,6 +804,10 @@ int sc_serve_create(const sc_serve_config *c, sc_serve **out)
     s->budget = sc_cpu_budget();
     if (s->cfg.spin_s > 0 && s->budget < s->cfg.threads)
         s->cfg.spin_s = 0;
+    /* polling costs nobody only at idle priority or on a node with no
+     * owner: at normal priority it would take an owner's CPU time */
+    if (!s->cfg.idle_priority && !s->cfg.dedicated)
+        s->cfg.spin_s = 0;
     s->stop_pipe[0] = s->stop_pipe[1] = -1;
     pthread_mutex_init(&s->lock, NULL);
     pthread_mutex_init(&s->bus_lock, NULL);
@@ -879,6 +883,8 @@ int sc_serve_run(sc_serve *s)
     if (s->cfg.spin_s == 0 && s->budget < s->cfg.threads)
         logf_(s, LOG_INFO, "%.2f CPUs for %d threads (affinity or cgroup quota): idle threads "
               "sleep at once (no --spin)", s->budget, s->cfg.threads);
+    else if (s->cfg.spin_s == 0 && !s->cfg.idle_priority && !s->cfg.dedicated)
+        logf_(s, LOG_INFO, "normal priority: idle threads sleep at once (no --spin)");
     note_bus(s);
     if (s->n.rcvbuf_bytes < SC_BUS_RCVBUF_MIN)
         logf_(s, LOG_WARNING, "receive buffer only %d KiB: a burst of datagrams may be lost "
