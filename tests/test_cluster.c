@@ -63,6 +63,8 @@ static void start_daemon(daemon_thread *d, int64_t id, int threads)
     sc_serve_config c = sc_serve_config_default();
     if (spin_s >= 0)
         c.spin_s = spin_s;
+    /* a daemon at normal priority polls only on a node with no owner */
+    c.dedicated = spin_s > 0;
     c.url = url;
     memcpy(c.key, key, sizeof key);
     c.threads = threads;
