@@ -907,6 +907,7 @@ int sc_serve_run(sc_serve *s)
             if (pthread_mutex_trylock(&s->bus_lock) == 0) {
                 if (s->nparked)
                     retry_parked(s);    /* re-asks for shapes lost on the way */
+                note_bus(s);            /* what a polling thread read counts too */
                 pthread_mutex_unlock(&s->bus_lock);
             }
         }
