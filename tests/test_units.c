@@ -61,8 +61,11 @@ static uint64_t run_bolts(int workers, uint64_t shuffle, int frames, sc_stats *s
         assert_int_equal(sc_world_step(w, 0.01), SC_OK);
         sc_world_stats(w, st);
         units += st->units;
-        if (st->makespan_bound_s > 0) {
-            /* the bound is below the makespan (clock granularity aside) */
+        if (st->makespan_bound_s > 0 && st->spin) {
+            /* the bound is below the makespan (clock granularity aside),
+             * where each thread has a CPU: with more threads than CPUs
+             * a unit's time holds others' turns too (8 workers on the
+             * 2-CPU machine it failed once in about 20 runs) */
             assert_true(st->makespan_ratio >= 0.99);
         }
         check_model_figures(st);

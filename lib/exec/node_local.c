@@ -250,6 +250,8 @@ void sc_local_pool_drain(sc_local_pool *p)
  * with); 1 if it changed. */
 static int spin_until_changed(local_node *n, const atomic_uint *v, unsigned old, double spin_s)
 {
+    if (!(spin_s > 0))          /* sleeping at once: no helping either */
+        return atomic_load_explicit(v, memory_order_acquire) != old;
     double end = sc_wall_now() + spin_s;
     for (int i = 1;; i++) {
         if (atomic_load_explicit(v, memory_order_acquire) != old)
