@@ -121,7 +121,6 @@ static int force_spin = -1;    /* run_scene(): idle threads poll (1), sleep at
 /* Force w's local threads to poll while idle or to sleep at once. */
 static void set_spin(sc_world *w, int spin)
 {
-    w->ex.spin = spin;
     sc_local_pool_set_spin(w->ex.pool, spin);
 }
 

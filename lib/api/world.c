@@ -42,19 +42,20 @@ SC_API sc_world *sc_world_create(const sc_world_config *cfg)
     w->fcfg.toi_mode = c.toi_mode;
     /* nodes: this thread (node 0) and workers - 1 worker threads */
     int nodes = c.workers;
+    double budget = sc_cpu_budget();
     if (nodes == 0) {
-        double cpus = ceil(sc_cpu_budget());
+        double cpus = ceil(budget);
         nodes = !(cpus >= 1) ? 1 : cpus > SC_MAX_WORKERS ? SC_MAX_WORKERS : (int)cpus;
     }
     w->cfg.workers = nodes;
     int rc = sc_frame_scratch_init(&w->scr);
     if (rc == SC_OK)
-        rc = sc_exec_nodes_init(&w->ex, nodes, c.cluster ? SC_MAX_DAEMONS : 0);
+        rc = sc_exec_nodes_init(&w->ex, nodes, c.cluster ? SC_MAX_DAEMONS : 0, budget);
     w->ex.sched.ship_share = c.cluster_ship_share == 0 ? SC_SHIP_SHARE_DEFAULT
                                                         : c.cluster_ship_share;
     w->stats.private_ode = w->ex.private_ode;
     w->stats.cpu_budget = w->ex.cpu_budget;
-    w->stats.spin = w->ex.spin;
+    w->stats.spin = sc_local_pool_spins(w->ex.pool);
     if (rc == SC_OK && c.cluster)
         rc = sc_cluster_create(&w->ex, &w->stats, &w->st, c.cluster, c.key_file,
                                c.cluster_deadline_s, &w->cluster);

@@ -316,8 +316,8 @@ static int nodes_background(sc_exec *ex, sc_job *job)
 {
     sc_exec_nodes *x = (sc_exec_nodes *)ex;
     /* background units are for idle threads that poll (5.3) */
-    if (x->prov.ctx || x->nlocal < 2 || !x->spin || x->pend.job || job->nunits == 0 ||
-        cut(x, job) != SC_OK)
+    if (x->prov.ctx || x->nlocal < 2 || !sc_local_pool_spins(x->pool) || x->pend.job ||
+        job->nunits == 0 || cut(x, job) != SC_OK)
         return 0;
     sc_local_pool_background(x->pool, job);
     return 1;
@@ -334,7 +334,7 @@ static int nodes_drain(sc_exec *ex, sc_job *job, sc_stats *st)
     return account(x, job, -1, st, 0, 0, 0, 0);
 }
 
-int sc_exec_nodes_init(sc_exec_nodes *x, int nlocal, int extra)
+int sc_exec_nodes_init(sc_exec_nodes *x, int nlocal, int extra, double budget)
 {
     memset(x, 0, sizeof *x);
     x->base.run = nodes_run;
@@ -353,9 +353,8 @@ int sc_exec_nodes_init(sc_exec_nodes *x, int nlocal, int extra)
     /* idle threads poll for work only where each of them has a CPU: under
      * a smaller quota (or affinity mask) polling takes the working ones'
      * share (docs/DESIGN.md 5.3) */
-    x->cpu_budget = sc_cpu_budget();
-    x->spin = x->cpu_budget >= nlocal;
-    sc_local_pool_set_spin(x->pool, x->spin);
+    x->cpu_budget = budget;
+    sc_local_pool_set_spin(x->pool, budget >= nlocal);
     int rc = x->nodes && x->pool ? sc_sched_init(&x->sched, x->cap) : SC_ENOMEM;
     for (int k = 0; k < nlocal && rc == SC_OK; k++) {
         /* node 0 is the calling thread, the others worker threads */

@@ -40,9 +40,9 @@ struct sc_node {
     const sc_node_ops *ops;
     int id;
 };
-/* sc_cpu_budget() (simcluster.h) is in cpu_budget.c. The smallest quota in CPUs that proc_cgroup (the text of
- * /proc/self/cgroup) puts on the process under the cgroup mount root; 0
- * for none (or nothing readable). */
+/* sc_cpu_budget() (simcluster.h) is in cpu_budget.c. The smallest quota
+ * in CPUs that proc_cgroup (the text of /proc/self/cgroup) puts on the
+ * process under the cgroup mount root; 0 for none (or nothing readable). */
 double sc_cpu_quota_at(const char *root, const char *proc_cgroup);
 
 /* A local node. inline_node = 1: the calling thread itself (runs its
@@ -55,6 +55,7 @@ sc_local_pool *sc_local_pool_create(void);
 /* Whether the pool's idle threads poll for work a few milliseconds before
  * they sleep (the default), or sleep at once (docs/DESIGN.md 5.3). */
 void sc_local_pool_set_spin(sc_local_pool *p, int spin);
+int sc_local_pool_spins(const sc_local_pool *p);   /* 0 for NULL */
 /* Stop every worker thread of the pool (before destroying its nodes). */
 void sc_local_pool_stop(sc_local_pool *p);
 void sc_local_pool_destroy(sc_local_pool *p);   /* after its nodes */
@@ -161,9 +162,7 @@ typedef struct sc_exec_nodes {
     sc_unit *units;                 /* jobs' units, grown and kept */
     int unit_cap;
     int private_ode;                /* local nodes on a private ODE copy */
-    double cpu_budget;              /* sc_cpu_budget() at init */
-    int spin;                       /* idle threads poll before they sleep:
-                                       only with a CPU each (5.3) */
+    double cpu_budget;              /* the CPUs it may use (init's budget) */
     struct {                        /* a job between start() and finish() */
         sc_job *job;
         int whole;                  /* nothing sent: run() it at finish() */
@@ -172,9 +171,11 @@ typedef struct sc_exec_nodes {
         double submit_s, sched_s;
     } pend;
 } sc_exec_nodes;
-/* nlocal local nodes and room for extra more (a provider's): SC_OK or
- * SC_ENOMEM (then sc_exec_nodes_free() still applies). */
-int sc_exec_nodes_init(sc_exec_nodes *x, int nlocal, int extra);
+/* nlocal local nodes and room for extra more (a provider's), on a
+ * process that may use budget CPUs (sc_cpu_budget(): its idle threads
+ * poll only with a CPU each, 5.3): SC_OK or SC_ENOMEM (then
+ * sc_exec_nodes_free() still applies). */
+int sc_exec_nodes_init(sc_exec_nodes *x, int nlocal, int extra, double budget);
 /* Add a provider's node (after init, at most extra of them). */
 void sc_exec_nodes_add(sc_exec_nodes *x, sc_node *n);
 void sc_exec_nodes_free(sc_exec_nodes *x);

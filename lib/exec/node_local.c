@@ -105,6 +105,11 @@ void sc_local_pool_set_spin(sc_local_pool *p, int spin)
         atomic_store(&p->nospin, !spin);
 }
 
+int sc_local_pool_spins(const sc_local_pool *p)
+{
+    return p && !atomic_load_explicit(&p->nospin, memory_order_relaxed);
+}
+
 /* How long an idle thread of n's pool polls before it sleeps. */
 static double spin_for(const local_node *n, double spin_s)
 {

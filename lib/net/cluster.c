@@ -126,7 +126,8 @@ struct sc_cluster {
     daemon_slot d[SC_MAX_DAEMONS];
     remote_node node[SC_MAX_DAEMONS];
     double deadline_s;
-    double wait_spin_s;         /* WAIT_SPIN_S, or 0 without a CPU each (sc_exec_nodes.spin) */
+    double wait_spin_s;         /* WAIT_SPIN_S, or 0 where the local threads
+                                   do not poll (sc_local_pool_spins()) */
     cluster_job jobs[2];
     cluster_job *cur, *parked;  /* the current job, a started one parked */
     int64_t serial;             /* of the last job begun */
@@ -701,7 +702,7 @@ int sc_cluster_create(sc_exec_nodes *x, sc_stats *stats, const sc_frame_state *s
     int first_node = x->nnodes;
     c->first_node = first_node;
     c->deadline_s = deadline_s > 0 ? deadline_s : DEFAULT_DEADLINE_S;
-    c->wait_spin_s = x->spin ? WAIT_SPIN_S : 0;
+    c->wait_spin_s = sc_local_pool_spins(x->pool) ? WAIT_SPIN_S : 0;
     uint64_t id = 0;
     if (getrandom(&id, sizeof id, 0) != sizeof id)
         id = (uint64_t)getpid() * 0x9e3779b97f4a7c15ULL ^ (uint64_t)time(NULL);
