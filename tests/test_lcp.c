@@ -1506,18 +1506,37 @@ static void test_pile_friction_that_cycles_is_solved_exactly(void **state)
     }
 }
 
-/* Pile LCPs on which the fixed point cycles and Lemke's method fails too
- * (a secondary ray, or an answer that fails verification): solved exactly by the fixed point started
- * from projected Gauss-Seidel's iterate. */
-static void test_pile_friction_that_lemke_misses_is_solved_from_a_guess(void **state)
+/* Pile LCPs on which the fixed point cycles and Lemke's path from the
+ * covering vector e fails (a secondary ray, or an answer that fails
+ * verification): solved exactly on the path of another covering vector,
+ * before any guess. */
+static void test_pile_friction_that_lemke_misses_is_solved_on_another_cover(void **state)
 {
     (void)state;
-    const char *files[] = { "tests/data/friction/pile_4contacts_guess.txt",
-                            "tests/data/friction/pile_8contacts_guess.txt" };
+    const char *files[] = { "tests/data/friction/pile_4contacts_cover.txt",
+                            "tests/data/friction/pile_8contacts_cover.txt" };
     for (size_t f = 0; f < sizeof files / sizeof *files; f++) {
         sc_lcp_info li;
         solve_pile_file(files[f], &li);
         assert_int_equal(li.lemke, 1);
+        assert_true(li.covers >= 1);
+        assert_int_equal(li.guessed, 0);
+    }
+}
+
+/* Pile LCPs on which the fixed point fails and so do Lemke's paths from
+ * every covering vector tried (six): solved exactly by the fixed point
+ * started from projected Gauss-Seidel's iterate. */
+static void test_pile_friction_that_lemke_misses_is_solved_from_a_guess(void **state)
+{
+    (void)state;
+    const char *files[] = { "tests/data/friction/pile_5contacts_guess.txt",
+                            "tests/data/friction/pile_7contacts_guess.txt" };
+    for (size_t f = 0; f < sizeof files / sizeof *files; f++) {
+        sc_lcp_info li;
+        solve_pile_file(files[f], &li);
+        assert_int_equal(li.lemke, 1);
+        assert_int_equal(li.covers, 5);
         assert_int_equal(li.guessed, 1);
     }
 }
@@ -1555,7 +1574,7 @@ static void test_pile_friction_that_fails_is_solved_with_a_raised_diagonal(void 
             /* the diagonal raised by that share, nothing else changed */
             for (int j = 0; j < n; j++)
                 assert_true(i == j ? fabs(A[i * n + i] - p.M[i * n + i] - share * dmax) <=
-                                         1e-9 * share * dmax
+                                         1e-9 * share * dmax + 4 * DBL_EPSILON * A[i * n + i]
                                    : A[i * n + j] == p.M[i * n + j]);
         }
         check_coulomb(&p, A, z, 0);
@@ -1615,6 +1634,7 @@ int main(void)
         cmocka_unit_test(test_friction_sticks_below_and_slides_above_the_coulomb_limit),
         cmocka_unit_test(test_friction_of_a_separating_contact_is_zero),
         cmocka_unit_test(test_pile_friction_that_cycles_is_solved_exactly),
+        cmocka_unit_test(test_pile_friction_that_lemke_misses_is_solved_on_another_cover),
         cmocka_unit_test(test_pile_friction_that_lemke_misses_is_solved_from_a_guess),
         cmocka_unit_test(test_pile_friction_that_fails_is_solved_with_a_raised_diagonal),
         cmocka_unit_test(test_warm_start_reuses_the_answer),

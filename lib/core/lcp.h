@@ -14,6 +14,8 @@ typedef struct sc_lcp_info {
     int lemke;                /* 1: principal pivoting stalled on a singular
                                  block and Lemke's method (also exact, also
                                  verified) gave the answer */
+    int covers;               /* friction: Lemke paths tried after the
+                                 one of covering vector e (lcp.c, cover()) */
     int guessed;              /* 1: neither the friction fixed point nor
                                  Lemke's method settled, and a fixed point
                                  started from projected Gauss-Seidel's
@@ -98,8 +100,9 @@ int sc_lu_solve(int m, double *a, double *b);
 /* Lemke's method (lcp_lemke.c), the fallback of sc_lcp_dantzig when a
  * principal block is singular: z of the final basis (not yet verified),
  * SC_OK, SC_ENOSOLUTION (secondary ray), SC_EMAXITER (*pivots reached
- * max_pivots) or SC_ENOMEM; *pivots is increased by the pivots made. */
-int sc_lcp_lemke(int n, const double *M, const double *q, double *z, long max_pivots,
-                 long *pivots);
+ * max_pivots) or SC_ENOMEM; *pivots is increased by the pivots made.
+ * d: the covering vector, n entries > 0 (NULL: all 1). */
+int sc_lcp_lemke(int n, const double *M, const double *q, const double *d, double *z,
+                 long max_pivots, long *pivots);
 
 #endif /* SC_LCP_H */

@@ -14,6 +14,12 @@
  * (rows of the basis inverse), which keeps degenerate problems from
  * cycling as long as rounding does not blur the keys.
  *
+ * The covering vector d (z0's column is -d; NULL: every entry 1) sets
+ * the path. Any d > 0 gives a path that ends in an answer or a secondary
+ * ray; for a matrix that is not copositive-plus (the friction LCP of
+ * lcp.c, with its lambda rows) a ray does not prove that there is none,
+ * and another d may find one.
+ *
  * Each pivot is a Gauss-Jordan step on the dense n x (2n+1) tableau,
  * O(n^2); the memory (one allocation) is taken only when the fallback runs.
  */
@@ -146,15 +152,15 @@ static int leaving_row(const lemke *lk, int c)
     return best;
 }
 
-static int run(lemke *lk, const double *q, long max_pivots, long *pivots)
+static int run(lemke *lk, const double *q, const double *d, long max_pivots, long *pivots)
 {
     const int n = lk->n, z0 = 2 * n;
-    /* z0 enters: the most negative q leaves, on a tie the last such row -
-     * the lexicographic choice, which keeps every row of [rhs | B^-1]
-     * lexicographically positive from here on */
+    /* z0 enters: the most negative q_i / d_i leaves, on a tie the last
+     * such row - the lexicographic choice, which keeps every row of
+     * [rhs | B^-1] lexicographically positive from here on */
     int r = 0;
     for (int i = 1; i < n; i++)
-        if (q[i] <= q[r])
+        if ((d ? q[i] / d[i] : q[i]) <= (d ? q[r] / d[r] : q[r]))
             r = i;
     if (q[r] >= 0)
         return SC_OK;   /* z = 0 */
@@ -197,8 +203,8 @@ static void polish(int n, const double *M, const double *q, double *z, lemke *lk
         z[idx[r]] = b[r];
 }
 
-int sc_lcp_lemke(int n, const double *M, const double *q, double *z, long max_pivots,
-                 long *pivots)
+int sc_lcp_lemke(int n, const double *M, const double *q, const double *d, double *z,
+                 long max_pivots, long *pivots)
 {
     size_t nd = (size_t)n, cols = 2 * nd + 1;
     lemke lk = { n, (int)cols, NULL, NULL, NULL, NULL };
@@ -216,11 +222,11 @@ int sc_lcp_lemke(int n, const double *M, const double *q, double *z, long max_pi
         ti[i] = 1;
         for (int j = 0; j < n; j++)
             ti[n + j] = -M[(size_t)i * n + j];
-        ti[2 * n] = -1;
+        ti[2 * n] = d ? -d[i] : -1;
         lk.rhs[i] = q[i];
         lk.basis[i] = i;
     }
-    int rc = run(&lk, q, max_pivots, pivots);
+    int rc = run(&lk, q, d, max_pivots, pivots);
     for (int i = 0; i < n; i++)
         z[i] = 0;
     for (int i = 0; i < n; i++)
