@@ -345,7 +345,8 @@ for mode in $model_modes; do
     w ""
     # rows: daemons ceiling shipped% T(k) today-x waits one-exchange-ms one-exchange-x
     v=$(awk '$1 == 15 && NF == 8 { printf "predicted %.2fx with 15 daemons (one exchange a frame: %.2fx; free messages: %.2fx)", $5, $8, $2; f = 1 }
-            END { if (!f) print "not predicted (no row for 15 daemons)" }' "$tmp/c_model_$mode")
+            /^no prediction: / { sub(/^no prediction: /, ""); why = $0 }
+            END { if (!f) print "not predicted: " (why != "" ? why : "no row for 15 daemons") }' "$tmp/c_model_$mode")
     target "(c) cluster at $model_n bodies on 16 cores, the model ($mode time of impact; no 16-core machine here)" "$v"
 done
 w ""

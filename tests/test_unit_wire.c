@@ -528,6 +528,79 @@ static void test_island_units_through_wire_are_bit_identical(void **state)
     sc_world_destroy(w);
 }
 
+/* A box pinched between two opposed contacts 0.78 mm deep whose lines
+ * pass 1 mm from its centre (test_contact's case): the push-out's turn is
+ * limited (contact.c, limit_moves()), and the limit reads only what an
+ * island unit carries, so the remote answer is the local one bit for bit
+ * (it once read the shape's bounding radius, which a unit does not carry:
+ * the world-wide drop with a daemon ended in other bits). */
+static void test_a_pinched_island_through_wire_is_bit_identical(void **state)
+{
+    (void)state;
+    sc_world_config cfg = sc_world_config_default();
+    cfg.workers = 1;
+    sc_world *w = sc_world_create(&cfg);
+    assert_non_null(w);
+    sc_shape *floor = sc_shape_plane(0, 0, 1, 0), *box = sc_shape_box(0.1, 0.1, 0.1);
+    sc_body_desc d = sc_body_desc_default();
+    d.shape = floor;
+    d.mass = 0;
+    assert_int_equal(sc_body_add(w, &d), 0);
+    d = sc_body_desc_default();
+    d.shape = box;
+    d.mass = 1;
+    d.pos[2] = 0.1 - 1e-4;
+    assert_int_equal(sc_body_add(w, &d), 1);
+    sc_shape_release(floor);
+    sc_shape_release(box);
+    assert_int_equal(sc_world_step(w, DT), SC_OK);
+    assert_true(w->st.ncontacts >= 2);
+    sc_body *b = &w->st.bodies[1];
+    memset(b->v, 0, sizeof b->v);
+    memset(b->w, 0, sizeof b->w);
+    memset(b->v0, 0, sizeof b->v0);
+    memset(b->w0, 0, sizeof b->w0);
+    const double deep = 0.78e-3;
+    for (int k = 0; k < 2; k++) {
+        sc_contact *c = &w->st.contacts[k];
+        memset(c, 0, sizeof *c);
+        c->body_a = 0;
+        c->body_b = 1;
+        c->pos[0] = b->x[0] - 0.1;
+        c->pos[1] = b->x[1] + (k ? -0.001 : 0.001);
+        c->pos[2] = b->x[2];
+        c->normal[0] = k ? -1 : 1;
+        c->depth = deep;
+    }
+    w->st.ncontacts = 2;
+    sc_np_ctx *local = sc_np_create(), *remote = sc_np_create();
+    assert_true(local && remote);
+    cache cc = { w, 0 };
+    islands_job ij;
+    islands_job_init_p(&ij, w, &params);
+    assert_int_equal(ij.is.count, 1);
+    sc_unit u = island_unit(&ij.is, 0, 1);
+    run_both(local, remote, &cc, &ij.jl, &ij.jr, &u);
+    assert_memory_equal(ij.br, ij.bl, (size_t)w->st.nbodies * sizeof *ij.bl);
+    assert_memory_equal(ij.cr, ij.cl, (size_t)ij.nc * sizeof *ij.cl);
+    /* the limit took effect: turned, but by at most 2 x 0.78 mm at the
+     * box's radius of gyration */
+    const sc_body *b0 = &ij.b0[1], *bl = &ij.bl[1];
+    double reach = sqrt((b0->inertia[0] + b0->inertia[4] + b0->inertia[8]) / b0->mass);
+    double dx = sqrt((bl->x[0] - b0->x[0]) * (bl->x[0] - b0->x[0]) +
+                     (bl->x[1] - b0->x[1]) * (bl->x[1] - b0->x[1]) +
+                     (bl->x[2] - b0->x[2]) * (bl->x[2] - b0->x[2]));
+    double cq = fabs(b0->q[0] * bl->q[0] + b0->q[1] * bl->q[1] + b0->q[2] * bl->q[2] +
+                     b0->q[3] * bl->q[3]);
+    double turn = 2 * acos(cq > 1 ? 1 : cq);
+    assert_true(turn > 1e-3);
+    assert_true(dx + turn * reach <= 2 * deep * (1 + 1e-9));
+    islands_job_free(&ij);
+    sc_np_destroy(local);
+    sc_np_destroy(remote);
+    sc_world_destroy(w);
+}
+
 /* ---- group units (a motion group's whole frame) ---- */
 
 /* An executor that hands GROUP jobs to a test's hook (which must leave
@@ -1754,6 +1827,7 @@ int main(void)
         cmocka_unit_test(test_collide_unit_through_wire_is_bit_identical),
         cmocka_unit_test(test_toi_unit_through_wire_is_bit_identical),
         cmocka_unit_test(test_island_units_through_wire_are_bit_identical),
+        cmocka_unit_test(test_a_pinched_island_through_wire_is_bit_identical),
         cmocka_unit_test(test_every_truncation_is_a_format_error),
         cmocka_unit_test(test_corrupted_units_are_refused_or_run_safely),
         cmocka_unit_test(test_bad_fields_are_format_errors),

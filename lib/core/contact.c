@@ -1160,15 +1160,31 @@ static void scale_moves(sc_body *bodies, const int *ids, int nb, const double *x
     }
 }
 
-/* A push-out moves no point of a body by more than PUSH_MAX_MOVE times
- * the island's deepest contact (or the slop, if more): it removes a share
- * of a depth, and a move far past that comes from near-opposed normals,
- * whose pseudo impulses grow without bound while their forces cancel and
- * their torques do not. In a bin of 200 (seed 6, frame 112) a bolt
- * squeezed between two such contacts 0.78 mm deep was turned by 0.39-0.73
- * rad in each substep's push-out, and went 4.8 mm into a nut. Where a
- * body's move (|dx| plus its turn times its reach from the centre of mass)
- * is larger, every body of the island moves by the same smaller share. */
+/* Body b's size for limit_moves(): sqrt(trace(I) / m), from its world
+ * inverse inertia and inverse mass (what an island unit carries to a
+ * daemon: no shape), 0.7-1.1 times the bounding radius about the centre
+ * of mass of a cube, a sphere or a rod. 0 if iw is not invertible. */
+static double gyration_reach(const sc_body *b)
+{
+    const double *m = b->iw;
+    double c0 = m[4] * m[8] - m[5] * m[7], c1 = m[0] * m[8] - m[2] * m[6],
+           c2 = m[0] * m[4] - m[1] * m[3];
+    double det = m[0] * c0 - m[1] * (m[3] * m[8] - m[5] * m[6]) +
+                 m[2] * (m[3] * m[7] - m[4] * m[6]);
+    double tr = (c0 + c1 + c2) / det;   /* trace of the inertia, iw's inverse */
+    return det > 0 && tr > 0 && isfinite(tr) ? sqrt(tr * b->inv_mass) : 0;
+}
+
+/* A push-out moves no body by more than PUSH_MAX_MOVE times the island's
+ * deepest contact (or the slop, if more), a body's move being |dx| plus
+ * its turn times gyration_reach(): it removes a share of a depth, and a
+ * move far past that comes from near-opposed normals, whose pseudo
+ * impulses grow without bound while their forces cancel and their
+ * torques do not. In a bin of 200 (seed 6, frame 112) a bolt squeezed
+ * between two such contacts 0.78 mm deep was turned by 0.39-0.73 rad in
+ * each substep's push-out, and went 4.8 mm into a nut. Where a body's
+ * move is larger, every body of the island moves by the same smaller
+ * share. */
 #define PUSH_MAX_MOVE 2.0
 static void limit_moves(sc_body *bodies, const int *ids, int nb, const double *x0, double deep,
                         double slop)
@@ -1178,8 +1194,8 @@ static void limit_moves(sc_body *bodies, const int *ids, int nb, const double *x
         const sc_body *b = &bodies[ids[i]];
         double d[3];
         v3_sub(d, b->x, &x0[7 * i]);
-        double reach = sc_shape_bounding_radius(b->shape) + sqrt(v3_dot(b->com, b->com));
-        worst = max_d(worst, sqrt(v3_dot(d, d)) + q_angle_between(&x0[7 * i + 3], b->q) * reach);
+        worst = max_d(worst, sqrt(v3_dot(d, d)) +
+                                 q_angle_between(&x0[7 * i + 3], b->q) * gyration_reach(b));
     }
     if (worst > cap)
         scale_moves(bodies, ids, nb, x0, cap / worst);
