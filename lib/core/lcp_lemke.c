@@ -20,6 +20,10 @@
  * lcp.c, with its lambda rows) a ray does not prove that there is none,
  * and another d may find one.
  *
+ * The ratio test's lexicographic keys zero entries below the noise of
+ * their row's largest; an upper bound of it per row, kept up in O(1) a
+ * row a pivot, settles most keys without the O(n) scan (cand_key()).
+ *
  * Each pivot is a Gauss-Jordan step on the dense n x (2n+1) tableau,
  * O(n^2); the memory (one allocation) is taken only when the fallback runs.
  */
@@ -41,6 +45,7 @@ typedef struct lemke {
     double *rhs;      /* values of the basic variables */
     int *basis;       /* column of the basic variable of each row */
     int *nz;          /* scratch: the pivot row's nonzero columns */
+    double *ub;       /* per row: an upper bound of row_max() (leaving_row()) */
 } lemke;
 
 static double *row(const lemke *lk, int i)
@@ -61,6 +66,11 @@ static void pivot(lemke *lk, int r, int c)
             nz[m++] = j;
     }
     lk->rhs[r] /= p;
+    /* each row's bound follows its update: |a - g b| <= |a| + |g| |b| */
+    lk->ub[r] /= fabs(p);
+    for (int i = 0; i < lk->n; i++)
+        if (i != r && row(lk, i)[c] != 0.0)
+            lk->ub[i] += fabs(row(lk, i)[c]) * lk->ub[r];
     int sparse = 2 * m < lk->cols;    /* else the plain loop (vectorised) */
     for (int i = 0; i < lk->n; i++) {
         double *ti = row(lk, i), g = ti[c];
@@ -86,61 +96,78 @@ static void pivot(lemke *lk, int r, int c)
             lk->rhs[i] = 0;
 }
 
-/* Entry j of row i's lexicographic key, (rhs, basis inverse row) / entry:
- * entries below LEMKE_NOISE of the row's largest are rounding of an exact
- * 0 and count as 0 (else noise decides degenerate ties). */
-static double key(const lemke *lk, int i, int j, int c, double big)
-{
-    const double *ti = row(lk, i);
-    double v = (j < 0 ? lk->rhs[i] : ti[j]) / ti[c];
-    return fabs(v) <= LEMKE_NOISE * big ? 0.0 : v;
-}
-
-static double key_scale(const lemke *lk, int i, int c)
+/* The largest magnitude of row i's rhs and basis inverse entries. */
+static double row_max(const lemke *lk, int i)
 {
     const double *ti = row(lk, i);
     double big = fabs(lk->rhs[i]);
     for (int j = 0; j < lk->n; j++) {
-        /* max_d() of finite magnitudes, without libm's call in this
-         * O(n^2)-a-pivot loop (3.5 % of a bin's instructions) */
+        /* max_d() of finite magnitudes, without libm's call */
         double v = fabs(ti[j]);
         big = v > big ? v : big;
     }
-    return big / fabs(ti[c]);
+    return big;
 }
 
-/* Is row a's key lexicographically below row b's for entering column c?
- * The classic anti-cycling rule (ratios tie, then basis inverse rows).
- * sa, sb: key_scale() of a and b. */
-static int lex_less(const lemke *lk, int a, double sa, int b, double sb, int c)
+/* A candidate row of the ratio test and its key scale, row_max() over
+ * the entering column's entry (s < 0: not computed yet). */
+typedef struct cand {
+    int i;
+    double s;
+} cand;
+
+/* Entry j of candidate k's lexicographic key, (rhs, basis inverse row) /
+ * entry: entries below LEMKE_NOISE of the row's largest are rounding of
+ * an exact 0 and count as 0 (else noise decides degenerate ties). The
+ * row's largest is an O(n) scan, once per candidate of every ratio test
+ * (as much time as the pivots themselves); most keys are far above the
+ * noise of the row's bound ub (lemke.ub, O(1) a row a pivot), which
+ * settles them without it, to the same answer. ub is tightened to the
+ * scan where one is made. */
+static double cand_key(lemke *lk, cand *k, int j, int c)
+{
+    const double *ti = row(lk, k->i);
+    double v = (j < 0 ? lk->rhs[k->i] : ti[j]) / ti[c];
+    if (k->s < 0) {
+        /* the margin covers the bound's own rounding */
+        if (fabs(v) > LEMKE_NOISE * (lk->ub[k->i] / fabs(ti[c])) * (1 + 1e-9))
+            return v;
+        double big = row_max(lk, k->i);
+        lk->ub[k->i] = big;
+        k->s = big / fabs(ti[c]);
+    }
+    return fabs(v) <= LEMKE_NOISE * k->s ? 0.0 : v;
+}
+
+/* Is candidate a's key lexicographically below b's for entering column
+ * c? The classic anti-cycling rule (ratios tie, then basis inverse rows). */
+static int lex_less(lemke *lk, cand *a, cand *b, int c)
 {
     for (int j = -1; j < lk->n; j++) {
-        double x = key(lk, a, j, c, sa), y = key(lk, b, j, c, sb);
+        double x = cand_key(lk, a, j, c), y = cand_key(lk, b, j, c);
         if (fabs(x - y) > LEMKE_NOISE * max_d(fabs(x), fabs(y)))
             return x < y;
     }
-    return a < b;
+    return a->i < b->i;
 }
 
 /* Ratio test on entering column c: -1 if nothing blocks (a ray). */
-static int leaving_row(const lemke *lk, int c)
+static int leaving_row(lemke *lk, int c)
 {
     const int n = lk->n, z0 = 2 * n;
     double cmax = 0;
     for (int i = 0; i < n; i++)
         cmax = max_d(cmax, fabs(row(lk, i)[c]));
     double ptol = 64.0 * (n + 1.0) * DBL_EPSILON * cmax;
-    int best = -1;
-    double sbest = 0;   /* key_scale() of best, kept over the search */
+    cand kb = { -1, -1 };   /* the best so far, its scale kept over the search */
     for (int i = 0; i < n; i++) {
         if (row(lk, i)[c] <= ptol)
             continue;
-        double si = key_scale(lk, i, c);
-        if (best < 0 || lex_less(lk, i, si, best, sbest, c)) {
-            best = i;
-            sbest = si;
-        }
+        cand k = { i, -1 };
+        if (kb.i < 0 || lex_less(lk, &k, &kb, c))
+            kb = k;
     }
+    int best = kb.i;
     /* z0 leaves on a tie: the path ends there */
     for (int i = 0; best >= 0 && i < n; i++) {
         if (lk->basis[i] != z0 || row(lk, i)[c] <= ptol)
@@ -207,14 +234,15 @@ int sc_lcp_lemke(int n, const double *M, const double *q, const double *d, doubl
                  long max_pivots, long *pivots)
 {
     size_t nd = (size_t)n, cols = 2 * nd + 1;
-    lemke lk = { n, (int)cols, NULL, NULL, NULL, NULL };
-    if (nd > SIZE_MAX / sizeof(double) / (cols + 2) / 2)
+    lemke lk = { n, (int)cols, NULL, NULL, NULL, NULL, NULL };
+    if (nd > SIZE_MAX / sizeof(double) / (cols + 3) / 2)
         return SC_ENOMEM;
-    lk.t = malloc((nd * cols + nd) * sizeof(double) + (nd + cols) * sizeof(int));
+    lk.t = malloc((nd * cols + 2 * nd) * sizeof(double) + (nd + cols) * sizeof(int));
     if (!lk.t)
         return SC_ENOMEM;
     lk.rhs = lk.t + nd * cols;
-    lk.basis = (int *)(void *)(lk.rhs + nd);
+    lk.ub = lk.rhs + nd;
+    lk.basis = (int *)(void *)(lk.ub + nd);
     lk.nz = lk.basis + nd;
     memset(lk.t, 0, nd * cols * sizeof(double));
     for (int i = 0; i < n; i++) {
@@ -224,6 +252,7 @@ int sc_lcp_lemke(int n, const double *M, const double *q, const double *d, doubl
             ti[n + j] = -M[(size_t)i * n + j];
         ti[2 * n] = d ? -d[i] : -1;
         lk.rhs[i] = q[i];
+        lk.ub[i] = max_d(fabs(q[i]), 1.0);   /* exact: the basis inverse is I */
         lk.basis[i] = i;
     }
     int rc = run(&lk, q, d, max_pivots, pivots);
