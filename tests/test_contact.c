@@ -373,6 +373,22 @@ static double box_energy(const sc_body *b)
     return ke;
 }
 
+/* Two opposed contacts of the floor (body 0) on box b's -x face, on
+ * either side of its centre line by off, normals +x and -x, depth deep. */
+static void pinch(sc_contact c[2], const sc_body *b, double off, double deep)
+{
+    memset(c, 0, 2 * sizeof *c);
+    for (int k = 0; k < 2; k++) {
+        c[k].body_a = 0;
+        c[k].body_b = 1;
+        c[k].pos[0] = b->x[0] - HALF;
+        c[k].pos[1] = b->x[1] + (k ? -off : off);
+        c[k].pos[2] = b->x[2];
+        c[k].normal[0] = k ? -1 : 1;
+        c[k].depth = deep;
+    }
+}
+
 /* A box pinched between two opposed contacts 2 cm apart (as a part caught
  * in another's hole), e = 1, moving into one of them at 1 m/s and away from
  * the other: Newton's restitution at both at once asks for a spin of about
@@ -396,15 +412,7 @@ static void test_a_pinched_elastic_body_is_not_thrown(void **state)
     memcpy(b->w, zero, sizeof zero);
     memcpy(b->w0, zero, sizeof zero);
     sc_contact c[2];
-    memset(c, 0, sizeof c);
-    for (int k = 0; k < 2; k++) {
-        c[k].body_a = 0;
-        c[k].body_b = 1;
-        c[k].pos[0] = b->x[0] - HALF;
-        c[k].pos[1] = b->x[1] + (k ? -0.01 : 0.01);
-        c[k].pos[2] = b->x[2];
-        c[k].normal[0] = k ? -1 : 1;
-    }
+    pinch(c, b, 0.01, 0);
     int ci[2] = { 0, 1 };
     sc_contact_params p = sc_frame_contact_params(&s.w->fcfg);
     sc_solve_info info;
@@ -461,16 +469,7 @@ static void test_a_pinched_body_is_not_turned_by_the_push_out(void **state)
     memcpy(b->w0, zero, sizeof zero);
     const double deep = 0.78e-3;
     sc_contact c[2];
-    memset(c, 0, sizeof c);
-    for (int k = 0; k < 2; k++) {
-        c[k].body_a = 0;
-        c[k].body_b = 1;
-        c[k].pos[0] = b->x[0] - HALF;
-        c[k].pos[1] = b->x[1] + (k ? -0.001 : 0.001);
-        c[k].pos[2] = b->x[2];
-        c[k].normal[0] = k ? -1 : 1;
-        c[k].depth = deep;
-    }
+    pinch(c, b, 0.001, deep);
     int ci[2] = { 0, 1 };
     sc_contact_params p = sc_frame_contact_params(&s.w->fcfg);
     sc_solve_info info;
