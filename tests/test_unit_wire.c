@@ -528,6 +528,41 @@ static void test_island_units_through_wire_are_bit_identical(void **state)
     sc_world_destroy(w);
 }
 
+/* Islands of a dense pile (a bin of 100 parts, frames 40-100: resting
+ * contacts, split islands, friction fixed points that fail): through the
+ * wire each gives the local bits, under frame.c's settings and the local
+ * mode's impacts first. A field a solve reads but a unit does not carry
+ * shows here where the path that reads it runs (the push-out's limit does
+ * not fire in these frames: test_a_pinched_island_... covers it). */
+static void test_pile_island_units_through_wire_are_bit_identical(void **state)
+{
+    (void)state;
+    sc_world_config cfg = sc_world_config_default();
+    cfg.workers = 1;
+    sc_world *w = sc_world_create(&cfg);
+    assert_non_null(w);
+    assert_int_equal(sc_scene_bin(w, 100, 3), SC_OK);
+    sc_np_ctx *local = sc_np_create(), *remote = sc_np_create();
+    assert_true(local && remote);
+    cache cc = { w, 0 };
+    island_counts n[2] = { { 0 } };
+    for (int f = 1; f <= 100; f++) {
+        assert_int_equal(sc_world_step(w, 0.01), SC_OK);
+        if (f < 40 || f % 10)
+            continue;
+        for (int k = 0; k < 2; k++) {
+            sc_contact_params p = setting(k ? 4 : 0);
+            check_islands(w, local, remote, &cc, &p, &n[k]);
+        }
+    }
+    print_message("pile: %d islands, %d deep contacts, %d split\n", n[0].islands, n[0].deep,
+                  n[0].split);
+    assert_true(n[0].islands > 0 && n[0].deep > 0);
+    sc_np_destroy(local);
+    sc_np_destroy(remote);
+    sc_world_destroy(w);
+}
+
 /* A box pinched between two opposed contacts 0.78 mm deep whose lines
  * pass 1 mm from its centre (test_contact's case): the push-out's turn is
  * limited (contact.c, limit_moves()), and the limit reads only what an
@@ -1828,6 +1863,7 @@ int main(void)
         cmocka_unit_test(test_toi_unit_through_wire_is_bit_identical),
         cmocka_unit_test(test_island_units_through_wire_are_bit_identical),
         cmocka_unit_test(test_a_pinched_island_through_wire_is_bit_identical),
+        cmocka_unit_test(test_pile_island_units_through_wire_are_bit_identical),
         cmocka_unit_test(test_every_truncation_is_a_format_error),
         cmocka_unit_test(test_corrupted_units_are_refused_or_run_safely),
         cmocka_unit_test(test_bad_fields_are_format_errors),
