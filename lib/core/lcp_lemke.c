@@ -66,16 +66,14 @@ static void pivot(lemke *lk, int r, int c)
             nz[m++] = j;
     }
     lk->rhs[r] /= p;
-    /* each row's bound follows its update: |a - g b| <= |a| + |g| |b| */
     lk->ub[r] /= fabs(p);
-    for (int i = 0; i < lk->n; i++)
-        if (i != r && row(lk, i)[c] != 0.0)
-            lk->ub[i] += fabs(row(lk, i)[c]) * lk->ub[r];
     int sparse = 2 * m < lk->cols;    /* else the plain loop (vectorised) */
     for (int i = 0; i < lk->n; i++) {
         double *ti = row(lk, i), g = ti[c];
         if (i == r || g == 0.0)
             continue;
+        /* the row's bound follows its update: |a - g b| <= |a| + |g| |b| */
+        lk->ub[i] += fabs(g) * lk->ub[r];
         if (sparse) {
             for (int k = 0; k < m; k++)
                 ti[nz[k]] -= g * tr[nz[k]];

@@ -113,7 +113,7 @@ int sc_local_pool_spins(const sc_local_pool *p)
 /* How long an idle thread of n's pool polls before it sleeps. */
 static double spin_for(const local_node *n, double spin_s)
 {
-    return n->pool && atomic_load_explicit(&n->pool->nospin, memory_order_relaxed) ? 0 : spin_s;
+    return !n->pool || sc_local_pool_spins(n->pool) ? spin_s : 0;
 }
 
 static void stop_thread(local_node *n)
