@@ -39,12 +39,19 @@ static uint64_t next_rand(void)
     return rng;
 }
 
-static sc_world *make_world(void)
+/* An empty world of the default settings on one worker. */
+static sc_world *empty_world(void)
 {
     sc_world_config cfg = sc_world_config_default();
     cfg.workers = 1;
     sc_world *w = sc_world_create(&cfg);
     assert_non_null(w);
+    return w;
+}
+
+static sc_world *make_world(void)
+{
+    sc_world *w = empty_world();
     assert_int_equal(sc_scene_bolts_nuts(w, NBODIES, 7), SC_OK);
     return w;
 }
@@ -537,10 +544,7 @@ static void test_island_units_through_wire_are_bit_identical(void **state)
 static void test_pile_island_units_through_wire_are_bit_identical(void **state)
 {
     (void)state;
-    sc_world_config cfg = sc_world_config_default();
-    cfg.workers = 1;
-    sc_world *w = sc_world_create(&cfg);
-    assert_non_null(w);
+    sc_world *w = empty_world();
     assert_int_equal(sc_scene_bin(w, 100, 3), SC_OK);
     sc_np_ctx *local = sc_np_create(), *remote = sc_np_create();
     assert_true(local && remote);
@@ -572,10 +576,7 @@ static void test_pile_island_units_through_wire_are_bit_identical(void **state)
 static void test_a_pinched_island_through_wire_is_bit_identical(void **state)
 {
     (void)state;
-    sc_world_config cfg = sc_world_config_default();
-    cfg.workers = 1;
-    sc_world *w = sc_world_create(&cfg);
-    assert_non_null(w);
+    sc_world *w = empty_world();
     sc_shape *floor = sc_shape_plane(0, 0, 1, 0), *box = sc_shape_box(0.1, 0.1, 0.1);
     sc_body_desc d = sc_body_desc_default();
     d.shape = floor;
