@@ -36,9 +36,13 @@
  *   -D        scaling's daemons run --dedicated --no-idle-priority (a CPU
  *             set aside for the cluster: on a shared machine the others'
  *             load would otherwise make them offer little and run last).
+ *   -G LIST   scaling: each row's sc_world_config.cluster_min_gain, in the
+ *             order of -d (0: the default; negative: no job-level
+ *             worth-it rule), e.g. -d 0,1,1 -G 0,0,-1 for one daemon with
+ *             and without it, side by side.
  * usage: bench_cluster [-r RUNS] [-s SECONDS] [-n BODIES] [-d 0,1,2,...]
  *                      [-x DAEMON] [-u LCM-URL] [-p scaling,model,fg,busy]
- *                      [-t world|local] [-g] [-S drop|bin] [-D]
+ *                      [-t world|local] [-g] [-S drop|bin] [-D] [-G LIST]
  * The daemon binary defaults to daemon/simclusterd next to this bench's
  * build directory (build/bench/../daemon/simclusterd). */
 #include <errno.h>
@@ -68,6 +72,7 @@ static char url[160], key_path[64], daemon_bin[512];
 static int ncpu;
 static int toi_mode = SC_TOI_WORLD, groups;     /* the worlds' (-t, -g) */
 static int bin_scene;                           /* -S bin: sc_scene_bin */
+static double min_gain;                         /* the worlds' cluster_min_gain */
 static int dedicated;                           /* -D: scaling's daemons --dedicated */
 
 static double median(double *x, int n)
@@ -141,6 +146,7 @@ static sc_world *make_world_on(int n, int cluster, int workers)
     c.workers = workers;
     c.toi_mode = toi_mode;
     c.motion_groups = groups;
+    c.cluster_min_gain = min_gain;
     if (cluster) {
         c.cluster = url;
         c.key_file = key_path;
@@ -253,7 +259,8 @@ typedef struct scale_row {
  * stopped around each run), so that a shared machine's slow minutes fall
  * on every row alike; the speedup is the median of each round's ratio to
  * the 0-daemon run of the same round (the first row must be 0). */
-static void scaling(int n, const int *ks, int nk, int runs, double seconds)
+static void scaling(int n, const int *ks, int nk, const double *gains, int ng, int runs,
+                    double seconds)
 {
     printf("\nscaling: %d bolts/nuts %s, %.2f s simulated, 1 local worker + k one-thread "
            "daemons, medians of %d runs, the rows in turn%s%s\n",
@@ -277,6 +284,7 @@ static void scaling(int n, const int *ks, int nk, int runs, double seconds)
         for (int i = 0; i < nk; i++) {
             int k = ks[i];
             pid_t pid[MAX_D] = { 0 };
+            min_gain = i < ng ? gains[i] : 0;
             /* the master on CPU 0, daemon j on CPU j + 1 (wrapping) */
             pin(0, 0);
             for (int j = 0; j < k; j++)
@@ -331,6 +339,10 @@ static void scaling(int n, const int *ks, int nk, int runs, double seconds)
                median(w->late, m), median(w->jobs, m), median(w->wait, m), median(w->comm, m),
                median(w->mout, m), median(w->min, m), median(w->piped, m), bits);
     }
+    min_gain = 0;
+    for (int i = 0; i < ng && i < nk; i++)
+        printf("row %d (%d daemon%s): cluster_min_gain %g%s\n", i + 1, ks[i], ks[i] == 1 ? "" : "s",
+               gains[i], gains[i] == 0 ? " (the default)" : gains[i] < 0 ? " (no job-level rule)" : "");
     fflush(stdout);
     free(row);
 }
@@ -586,6 +598,7 @@ static pid_t busy_master(int n, int cpu, int k, int force)
         if (force) {
             sc_cluster_force(w->cluster);
             w->ex.sched.home_capacity = 0;
+            w->ex.sched.min_gain = -1;
         }
         for (int f = 1;; f++) {
             if (sc_world_step(w, DT) != SC_OK)
@@ -597,6 +610,7 @@ static pid_t busy_master(int n, int cpu, int k, int force)
                 if (force) {
                     sc_cluster_force(w->cluster);
                     w->ex.sched.home_capacity = 0;
+                    w->ex.sched.min_gain = -1;
                 }
             }
         }
@@ -697,7 +711,8 @@ static void busy(int n, int runs)
 
 int main(int argc, char **argv)
 {
-    int runs = 3, n = 1000, ks[MAX_D] = { 0, 1 }, nk = 2;
+    int runs = 3, n = 1000, ks[MAX_D] = { 0, 1 }, nk = 2, ngain = 0;
+    double gains[MAX_D] = { 0 };
     double seconds = 1.0;
     const char *parts = "scaling,fg,busy";
     snprintf(daemon_bin, sizeof daemon_bin, "%s", argv[0]);
@@ -728,6 +743,10 @@ int main(int argc, char **argv)
             dedicated = 1;
         } else if (!strcmp(argv[i], "-g")) {
             groups = 1;
+        } else if (!strcmp(argv[i], "-G") && i + 1 < argc) {
+            ngain = 0;
+            for (char *t = strtok(argv[++i], ","); t && ngain < MAX_D; t = strtok(NULL, ","))
+                gains[ngain++] = atof(t);
         } else if (!strcmp(argv[i], "-d") && i + 1 < argc) {
             nk = 0;
             for (char *t = strtok(argv[++i], ","); t && nk < MAX_D; t = strtok(NULL, ","))
@@ -735,7 +754,7 @@ int main(int argc, char **argv)
         } else {
             fprintf(stderr, "usage: bench_cluster [-r RUNS] [-s SECONDS] [-n BODIES] "
                             "[-d 0,1,2,...] [-x DAEMON] [-u LCM-URL] [-p scaling,model,fg,busy] "
-                            "[-t world|local] [-g] [-S drop|bin] [-D]\n");
+                            "[-t world|local] [-g] [-S drop|bin] [-D] [-G LIST]\n");
             return 2;
         }
     }
@@ -764,7 +783,7 @@ int main(int argc, char **argv)
     }
     printf("bench_cluster: %d CPUs, LCM %s\n", ncpu, url);
     if (strstr(parts, "scaling"))
-        scaling(n, ks, nk, runs, seconds);
+        scaling(n, ks, nk, gains, ngain, runs, seconds);
     if (strstr(parts, "model"))
         model(n, runs, seconds);
     if (strstr(parts, "fg"))

@@ -236,6 +236,11 @@ typedef struct sc_world_config {
                                  merging: this thread's time, measured) costs
                                  at most this share of computing it here;
                                  0 = default 0.5; negative: whatever it costs */
+    double cluster_min_gain;  /* a daemon gets a job's units only when their
+                                 predicted work is at least this many times
+                                 its measured round trip (the median of its
+                                 recent jobs', less their work); 0 = default
+                                 2; negative: no such rule */
     int broadphase;           /* SC_BROADPHASE_*; AUTO = spheres below 256 bodies */
     double contact_tol_m;     /* allowed penetration, default 1e-3 */
     int motion_groups;        /* 1: bodies that cannot meet within a frame step
@@ -477,6 +482,10 @@ typedef struct sc_stats {
                                  frame */
     long remote_jobs;         /* jobs a daemon answered in full (one per daemon
                                  and job), last frame */
+    long remote_refused;      /* daemons kept out of a job by the worth-it
+                                 rule (sc_world_config.cluster_min_gain: their
+                                 share was worth too few round trips), one
+                                 per daemon and job, last frame */
     double remote_bytes;      /* unit_bytes of the units whose result came from
                                  a daemon, last frame */
     double remote_work_s;     /* the daemons' compute seconds of those units

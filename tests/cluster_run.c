@@ -146,9 +146,10 @@ int main(int argc, char **argv)
     cfg.key_file = key;
     cfg.cluster_deadline_s = deadline;
     /* what is tested is what happens to units out on daemons: they go out
-     * whatever shipping them costs (the worth-it rule would keep most of
+     * whatever shipping them costs (the worth-it rules would keep most of
      * these small scenes' units here) */
     cfg.cluster_ship_share = -1;
+    cfg.cluster_min_gain = -1;
     cfg.toi_mode = toi;
     sc_world *w = sc_world_create(&cfg);
     if (!w) {

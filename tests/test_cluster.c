@@ -103,6 +103,7 @@ static sc_world *make_world(int cluster, const char *keyfile)
          * they go out whatever shipping them costs (a lone sphere's frame
          * costs less than that, and the worth-it rule would keep it here) */
         c.cluster_ship_share = -1;
+        c.cluster_min_gain = -1;
     }
     sc_world *w = sc_world_create(&c);
     assert_non_null(w);

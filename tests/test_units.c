@@ -467,6 +467,61 @@ static void test_units_go_out_only_where_shipping_them_is_worth_it(void **state)
     fake_home = 0;
 }
 
+/* The job-level rule (sc_sched.min_gain): a node whose share of a job is
+ * predicted to take less than min_gain of its round trips gets none, and
+ * the job is assigned again without it. Six units of 1 s on three equal
+ * nodes (an even split, 2 s each) with min_gain 2: node 2 with a round
+ * trip of 1.5 s is kept out and nodes 0 and 1 take 3 each; at 1 s (2 s is
+ * two round trips) it keeps its 2; a round trip not known yet (0), or the
+ * rule off (min_gain negative), and it gets its share whatever. */
+static double fake_rt[3];
+static double fake_round_trip(const sc_node *n)
+{
+    return fake_rt[n->id];
+}
+static const sc_node_ops fake_rt_ops = { .submit = fake_submit, .wait = fake_wait,
+                                         .transfer_s = fake_transfer, .latency_s = fake_lat,
+                                         .destroy = fake_destroy,
+                                         .round_trip_s = fake_round_trip };
+
+static void test_a_node_gets_a_job_only_for_several_round_trips_of_work(void **state)
+{
+    (void)state;
+    sc_node n0 = { &fake_ops, 0 }, n1 = { &fake_rt_ops, 1 }, n2 = { &fake_rt_ops, 2 };
+    sc_node *nodes[3] = { &n0, &n1, &n2 };
+    sc_sched s;
+    assert_int_equal(sc_sched_init(&s, 3), SC_OK);
+    s.use_models = 0;
+    fake_latency = 0;
+    double cost[6] = { 1, 1, 1, 1, 1, 1 };
+    sc_unit u[6];
+    const double rt2[4] = { 1.5, 1.0, 0, 1.5 }, gain[4] = { 2, 2, 2, -1 };
+    const int got1[4] = { 3, 2, 2, 2 }, got2[4] = { 0, 2, 2, 2 }, refused[4] = { 1, 0, 0, 0 };
+    fake_rt[1] = 0.5;
+    for (int c = 0; c < 4; c++) {
+        make_units(u, cost, 6);
+        fake_rt[2] = rt2[c];
+        s.min_gain = gain[c];
+        assert_int_equal(sc_sched_assign(&s, nodes, u, 6), SC_OK);
+        printf("  round trip %.1f s, min_gain %g: node 1 %d, node 2 %d of 6, %d kept out\n",
+               rt2[c], gain[c], s.start[2] - s.start[1], s.start[3] - s.start[2], s.refused);
+        assert_int_equal(s.start[2] - s.start[1], got1[c]);
+        assert_int_equal(s.start[3] - s.start[2], got2[c]);
+        assert_int_equal(s.refused, refused[c]);
+        assert_int_equal(s.start[3], 6);
+        for (int i = 0; i < 6; i++)
+            assert_true(u[i].node != 2 || got2[c] > 0);
+    }
+    /* kept out of everything: every node's share too small, all home */
+    fake_rt[1] = fake_rt[2] = 10;
+    make_units(u, cost, 6);
+    s.min_gain = 2;
+    assert_int_equal(sc_sched_assign(&s, nodes, u, 6), SC_OK);
+    assert_int_equal(s.start[1] - s.start[0], 6);
+    assert_int_equal(s.refused, 2);
+    sc_sched_free(&s);
+}
+
 static void test_bad_worker_counts(void **state)
 {
     (void)state;
@@ -912,6 +967,7 @@ int main(void)
         cmocka_unit_test(test_latency_keeps_small_jobs_home),
         cmocka_unit_test(test_busy_nodes_get_work_only_where_it_still_pays),
         cmocka_unit_test(test_units_go_out_only_where_shipping_them_is_worth_it),
+        cmocka_unit_test(test_a_node_gets_a_job_only_for_several_round_trips_of_work),
         cmocka_unit_test(test_bad_worker_counts),
         cmocka_unit_test(test_worlds_come_and_go),
         cmocka_unit_test(test_frame_is_a_value),

@@ -124,6 +124,9 @@ check "run --toi sideways" 2 "$tool" run bolts --toi sideways
 one_line "run --toi sideways" "--toi takes world or local"
 check "run --island-split -1" 2 "$tool" run bolts --island-split -1
 one_line "run --island-split -1" "--island-split takes 0..1000000"
+check "run --min-gain 0" 2 "$tool" run bolts --min-gain 0
+one_line "run --min-gain 0" "--min-gain takes round trips in (0, 1000]"
+check "run --min-gain -1" 0 "$tool" run bolts --bodies 5 --frames 5 --min-gain -1
 check "run, bodies not inside each other" 0 "$tool" run bolts --bodies 12 --frames 20
 [ -s "$dir/err" ] && { echo "FAIL: run bolts: stderr not empty"; cat "$dir/err"; fail=1; }
 grep -q "overlapping" "$dir/out" && { echo "FAIL: run bolts: overlaps reported"; fail=1; }

@@ -31,6 +31,8 @@
 static const char run_help[] =
     "run and profile options: --bodies N --seed S --frames F --until-rest\n"
     "  --workers W --groups --cluster URL --key FILE --deadline S --json\n"
+    "  --min-gain G (a daemon gets a job's units only for G of its round\n"
+    "    trips of work, default 2; negative: always)\n"
     "  --wait-daemons K (before the first frame, at most 10 s)\n"
     "  --island-split N (islands of more contacts solved as blocks; 0: exact)\n"
     "  --toi local|world (time of impact: motion groups with speculative\n"
@@ -129,6 +131,7 @@ typedef struct options {
     int until_rest, groups, json, realtime, bodies_set, seed_set, toi_mode;
     const char *cluster, *key, *record, *render, *publish, *chart;
     double deadline;
+    double min_gain;        /* 0: the library's default */
 } options;
 
 static int parse_long(const char *s, long lo, long hi, long *out)
@@ -158,6 +161,7 @@ static int parse_options(const char *cmd, int argc, char **argv, options *o)
         { "chart", required_argument, 0, 'C' },
         { "island-split", required_argument, 0, 'I' },
         { "toi", required_argument, 0, 'T' },
+        { "min-gain", required_argument, 0, 'G' },
         { "help", no_argument, 0, 'h' },           { "version", no_argument, 0, 'V' },
         { 0, 0, 0, 0 }
     };
@@ -246,6 +250,14 @@ static int parse_options(const char *cmd, int argc, char **argv, options *o)
             break;
         case 'R':
             o->realtime = 1;
+            break;
+        case 'G':
+            errno = 0;
+            o->min_gain = strtod(optarg, &end);
+            if (errno || end == optarg || *end || !isfinite(o->min_gain) || o->min_gain == 0 ||
+                o->min_gain > 1000)
+                return bad(cmd, "--min-gain takes round trips in (0, 1000], or a negative number "
+                                "(no such rule)");
             break;
         case 'I':
             if (!parse_long(optarg, 0, 1000000, &o->island_split))
@@ -378,6 +390,7 @@ static sc_world *make_world(const options *o, const char *cmd)
     c.cluster = o->cluster;
     c.key_file = o->key;
     c.cluster_deadline_s = o->deadline;
+    c.cluster_min_gain = o->min_gain;
     if (o->file)
         sc_scene_config(o->file, &c);
     if (o->island_split >= 0)
@@ -559,6 +572,7 @@ typedef struct totals {
     long frames, units, remote, recomputed, late;
     long msgs_out, msgs_in;     /* sealed messages of units sent, results received */
     long piped;                 /* group units back while the pile ran */
+    long kept_out;              /* daemons kept out of jobs (worth-it rule) */
     long beside;                /* group units idle threads ran beside the pile */
     long np_pairs, np_reused;   /* narrow-phase pair tests, of them from the memo */
     long overlaps;              /* body pairs overlapping where they were placed */
@@ -643,6 +657,7 @@ static int simulate(const options *o, sc_world *w, totals *t, int progress, reco
         t->msgs_out += st.unit_messages;
         t->msgs_in += st.result_messages;
         t->piped += st.pipelined_units;
+        t->kept_out += st.remote_refused;
         t->beside += st.units_background;
         t->np_pairs += st.np_pairs;
         t->np_reused += st.np_reused;
@@ -832,6 +847,7 @@ static int run_cmd(int argc, char **argv)
                "\"dropped_stale\": %ld, "
                "\"dropped_misaddressed\": %ld, \"duplicate_nodes\": %ld, \"comm_s\": %.4f, "
                "\"unit_messages\": %ld, \"result_messages\": %ld, \"pipelined_units\": %ld, "
+               "\"kept_out\": %ld, "
                "\"background_units\": %ld, \"narrow_phase_pairs\": %ld, "
                "\"narrow_phase_reused\": %ld, "
                "\"frames_over_budget\": %ld, \"max_frame_s\": %.4f, \"initial_overlaps\": %ld, "
@@ -852,7 +868,8 @@ static int run_cmd(int argc, char **argv)
                t.rest_s, t.peak_energy, t.max_pen, t.units, st.daemons, t.remote, t.recomputed,
                t.late, st.dropped_messages, st.dropped_auth, st.dropped_stale,
                st.dropped_misaddressed,
-               st.duplicate_nodes, t.comm, t.msgs_out, t.msgs_in, t.piped, t.beside, t.np_pairs,
+               st.duplicate_nodes, t.comm, t.msgs_out, t.msgs_in, t.piped, t.kept_out, t.beside,
+               t.np_pairs,
                t.np_reused, t.over_budget, t.max_frame,
                t.overlaps,
                island_split, t.solves, t.kept, t.split, t.blocks, t.shared, t.pivots, t.max_pivots, t.staggered,
@@ -929,9 +946,11 @@ static int run_cmd(int argc, char **argv)
             double nd = st.daemons > 1 ? st.daemons : 1, fr = (double)t.frames;
             printf("\n  cluster messages a frame: %.2f of units out, %.2f of results in "
                    "(a daemon: %.2f, %.2f); communication %.2f ms a frame; group units "
-                   "back while the pile ran %.2f a frame",
+                   "back while the pile ran %.2f a frame; a daemon kept out of %.2f jobs a "
+                   "frame (its share worth too few round trips)",
                    (double)t.msgs_out / fr, (double)t.msgs_in / fr, (double)t.msgs_out / fr / nd,
-                   (double)t.msgs_in / fr / nd, 1e3 * t.comm / fr, (double)t.piped / fr);
+                   (double)t.msgs_in / fr / nd, 1e3 * t.comm / fr, (double)t.piped / fr,
+                   (double)t.kept_out / fr / nd);
         }
         printf("\n  state hash %016llx\n", hash);
         if (t.interrupted)

@@ -20,7 +20,7 @@ SC_API sc_world *sc_world_create(const sc_world_config *cfg)
     }
     if (!sc_finite3(c.gravity) || c.workers < 0 || c.workers > SC_MAX_WORKERS || !(c.contact_tol_m > 0) ||
         !isfinite(c.contact_tol_m) || !(c.cluster_deadline_s >= 0) ||
-        !isfinite(c.cluster_ship_share) ||
+        !isfinite(c.cluster_ship_share) || !isfinite(c.cluster_min_gain) ||
         !isfinite(c.cluster_deadline_s) || (c.key_file && !c.cluster) || c.broadphase < SC_BROADPHASE_AUTO ||
         c.broadphase > SC_BROADPHASE_SAP || (c.motion_groups != 0 && c.motion_groups != 1) ||
         c.island_split < 0 || (c.toi_mode != SC_TOI_LOCAL && c.toi_mode != SC_TOI_WORLD)) {
@@ -53,6 +53,7 @@ SC_API sc_world *sc_world_create(const sc_world_config *cfg)
         rc = sc_exec_nodes_init(&w->ex, nodes, c.cluster ? SC_MAX_DAEMONS : 0, budget);
     w->ex.sched.ship_share = c.cluster_ship_share == 0 ? SC_SHIP_SHARE_DEFAULT
                                                         : c.cluster_ship_share;
+    w->ex.sched.min_gain = c.cluster_min_gain == 0 ? SC_MIN_GAIN_DEFAULT : c.cluster_min_gain;
     w->stats.private_ode = w->ex.private_ode;
     w->stats.cpu_budget = w->ex.cpu_budget;
     w->stats.spin = sc_local_pool_spins(w->ex.pool);
@@ -343,6 +344,7 @@ SC_API int sc_world_step(sc_world *w, double dt)
     st->pipelined_units = 0;
     st->remote_overhead_s = 0;
     st->remote_jobs = 0;
+    st->remote_refused = 0;
     st->remote_bytes = 0;
     st->remote_work_s = 0;
     if (w->cluster)

@@ -226,6 +226,7 @@ static int nodes_run(sc_exec *ex, sc_job *job, int stage, sc_stats *st)
     rc = sc_sched_assign(s, x->nodes, job->units, job->nunits);
     if (rc != SC_OK)
         return rc;
+    st->remote_refused += s->refused;
     if (x->prov.ctx && (rc = x->prov.job_begin(x->prov.ctx, job)) != SC_OK)
         return rc;
     double t1 = sc_wall_now();
@@ -260,6 +261,7 @@ static int nodes_start(sc_exec *ex, sc_job *job, double home_busy_s)
     rc = sc_sched_assign(s, x->nodes, job->units, job->nunits);
     for (int k = 0; k < x->nlocal; k++)
         s->nodes[k].busy_until = 0;
+    x->pend.refused = s->refused;
     int n = x->nnodes;
     if (rc == SC_OK && s->start[n] == s->start[x->nlocal])
         return SC_OK;           /* nothing goes out: all at finish() */
@@ -298,6 +300,7 @@ static int nodes_finish(sc_exec *ex, sc_job *job, int stage, sc_stats *st)
     sc_sched *s = &x->sched;
     int n = x->nnodes;
     x->prov.job_resume(x->prov.ctx, job);
+    st->remote_refused += x->pend.refused;
     double t1 = sc_wall_now();
     submit_nodes(x, job, x->pend.assigned, x->pend.start, 0, x->nlocal);
     double cpu_others = wait_nodes(x, x->pend.start);

@@ -35,6 +35,10 @@ typedef struct sc_node_ops {
      * receiving, merging): time it does not compute (the worth-it rule,
      * docs/DESIGN.md 6.2). */
     double (*home_s)(const sc_node *n, size_t bytes);
+    /* NULL = 0. The node's round trip per job less its work, as measured
+     * over its recent jobs (a daemon: the median of the last 16); 0 = not
+     * known yet. Asked once per job (the job-level worth-it rule). */
+    double (*round_trip_s)(const sc_node *n);
 } sc_node_ops;
 struct sc_node {
     const sc_node_ops *ops;
@@ -80,6 +84,7 @@ int sc_node_local_private_ode(const sc_node *n);
  * (time = c . feat, fitted with GSL over the last measurements). */
 #define SC_MODEL_WINDOW 128
 #define SC_SHIP_SHARE_DEFAULT 0.5       /* sc_world_config.cluster_ship_share */
+#define SC_MIN_GAIN_DEFAULT 2.0         /* sc_world_config.cluster_min_gain */
 typedef struct sc_cost_model {
     double x[SC_MODEL_WINDOW][3], y[SC_MODEL_WINDOW];
     int n, pos, fresh;              /* samples held, next slot, since last fit */
@@ -100,6 +105,8 @@ typedef struct sc_sched_node {
     double job_home0, job_home1;    /* the calling thread's shipping time
                                        (home_s): fixed, per byte */
     double job_cap;                 /* capacity offered in the current job */
+    double job_rt;                  /* round trip less work (round_trip_s), for
+                                       the current job; 0 = not known */
     double busy_until;              /* wall clock (sc_wall_now) until which it is
                                        predicted busy with a started job's units
                                        (0: free); its ready time in a job begins
@@ -116,6 +123,14 @@ typedef struct sc_sched {
                                        with a shipping cost (home_s) only when
                                        that is at most this share of computing
                                        it at home; negative: no rule */
+    double min_gain;                /* the job-level worth-it rule: a node with a
+                                       round trip gets a job's units only when
+                                       their predicted work there is at least
+                                       this many round trips; <= 0: no rule */
+    int refused;                    /* nodes the last assignment kept its units
+                                       from by that rule */
+    unsigned char *refuse;          /* scratch: per node, refused in this job */
+    int refuse_cap;
     uint64_t shuffle;               /* tests: != 0 seeds a random assignment */
     int learn_alone;                /* tests: learn with a single node too */
     double home_capacity;           /* node 0's capacity (1; benchmarks: 0 sends
@@ -126,7 +141,9 @@ void sc_sched_free(sc_sched *s);
 /* Predicted time of u on node k (cost model, or cost / speed). */
 double sc_sched_predict(const sc_sched *s, int k, const sc_unit *u);
 /* Greedy longest-first: units sorted by cost, each to the node with the
- * earliest predicted finish (ready + transfer + predicted time). Sets
+ * earliest predicted finish (ready + transfer + predicted time). A node
+ * whose share of the job is predicted to take less than min_gain of its
+ * round trips gets none, and the job is assigned again without it. Sets
  * u->node and the per-node lists s->assigned[s->start[k] .. start[k+1]). */
 int sc_sched_assign(sc_sched *s, sc_node *const *nodes, sc_unit *units, int n);
 /* After a job: learn from the measured times; *bound_s the lower bound on
@@ -169,6 +186,7 @@ typedef struct sc_exec_nodes {
         int *assigned, assigned_cap, *start;   /* its per-node lists */
         double *cap;                /* per node: the capacity it offered */
         double submit_s, sched_s;
+        int refused;                /* sc_sched.refused of its assignment */
     } pend;
 } sc_exec_nodes;
 /* nlocal local nodes and room for extra more (a provider's), on a

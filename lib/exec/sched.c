@@ -50,6 +50,7 @@ int sc_sched_init(sc_sched *s, int nnodes)
     s->nnodes = nnodes;
     s->use_models = 1;
     s->ship_share = SC_SHIP_SHARE_DEFAULT;
+    s->min_gain = SC_MIN_GAIN_DEFAULT;
     s->home_capacity = 1;
     return SC_OK;
 }
@@ -61,6 +62,7 @@ void sc_sched_free(sc_sched *s)
     free(s->keys);
     free(s->assigned);
     free(s->cursor);
+    free(s->refuse);
     memset(s, 0, sizeof *s);
 }
 
@@ -112,7 +114,9 @@ static double ship_s(const sc_sched_node *nd, const sc_unit *u)
     return nd->job_home0 + nd->job_home1 * (double)u->bytes;
 }
 
-int sc_sched_assign(sc_sched *s, sc_node *const *nodes, sc_unit *units, int n)
+/* One greedy assignment; nodes flagged in refuse get nothing. */
+static int assign(sc_sched *s, sc_node *const *nodes, sc_unit *units, int n,
+                  const unsigned char *refuse)
 {
     if (n > s->order_cap) {
         int cap = n > 2 * s->order_cap ? n : 2 * s->order_cap;
@@ -143,6 +147,7 @@ int sc_sched_assign(sc_sched *s, sc_node *const *nodes, sc_unit *units, int n)
         /* a node still busy with a started job's units is ready later */
         nd->ready = nd->busy_until > now ? nd->busy_until - now : 0;
         nd->job_cap = k == 0                     ? s->home_capacity
+                      : refuse[k]                ? 0
                       : !nodes[k]->ops->capacity ? 1.0
                                                  : nodes[k]->ops->capacity(nodes[k], kind);
         nd->job_speed = (nd->measured[kind] ? nd->speed[kind] : fallback) *
@@ -235,6 +240,52 @@ int sc_sched_assign(sc_sched *s, sc_node *const *nodes, sc_unit *units, int n)
         s->assigned[s->cursor[units[idx].node]++] = idx;
     }
     return SC_OK;
+}
+
+/* The job-level worth-it rule (docs/DESIGN.md 6.2): a node whose share of
+ * the job is predicted to take less than min_gain of its measured round
+ * trips would save less than its messages cost (packing, sealing, the
+ * barrier's wait, the prediction's error over a share that small), so it
+ * gets none and the job is assigned again without it; a node whose round
+ * trip is not known yet is exempt (how else would it be measured). */
+int sc_sched_assign(sc_sched *s, sc_node *const *nodes, sc_unit *units, int n)
+{
+    if (s->nnodes > s->refuse_cap) {
+        unsigned char *r = realloc(s->refuse, (size_t)s->nnodes);
+        if (!r)
+            return SC_ENOMEM;
+        s->refuse = r;
+        s->refuse_cap = s->nnodes;
+    }
+    memset(s->refuse, 0, (size_t)s->nnodes);
+    s->refused = 0;
+    int rule = 0;
+    for (int k = 1; k < s->nnodes; k++) {
+        s->nodes[k].job_rt = nodes[k]->ops->round_trip_s ? nodes[k]->ops->round_trip_s(nodes[k])
+                                                         : 0;
+        rule |= s->min_gain > 0 && s->nodes[k].job_rt > 0;
+    }
+    for (;;) {
+        int rc = assign(s, nodes, units, n, s->refuse);
+        if (rc != SC_OK || !rule || s->shuffle)
+            return rc;
+        int more = 0;
+        for (int k = 1; k < s->nnodes; k++) {
+            double rt = s->nodes[k].job_rt;
+            if (s->refuse[k] || !(rt > 0) || s->start[k + 1] == s->start[k])
+                continue;
+            double work = 0;
+            for (int j = s->start[k]; j < s->start[k + 1]; j++)
+                work += units[s->assigned[j]].predict_s;
+            if (work < s->min_gain * rt) {
+                s->refuse[k] = 1;
+                s->refused++;
+                more = 1;
+            }
+        }
+        if (!more)
+            return SC_OK;
+    }
 }
 
 /* Least squares time = c . (1, count, cost) over the window (GSL, SVD:

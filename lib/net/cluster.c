@@ -60,12 +60,16 @@
                                    units home, so none was ever measured */
 #define HOME_MEASURED 65536     /* bytes measured before the rate is used */
 #define HOME_WINDOW 16777216    /* bytes: past this the sums are halved */
-#define OVERHEAD_KEEP 0.8
+#define OVERHEAD_KEEP 0.8       /* EWMA of a job's communication overhead */
 #define OVERHEAD_IDLE_DECAY 0.95 /* per job without work */
+#define RT_WINDOW 16            /* round trips kept for the worth-it rule */
+#define RT_KNOWN 4              /* ... before it applies */
+#define RT_IDLE_DECAY 0.99      /* per job without work: a daemon kept out of
+                                   every job is tried again in time */
 #define WAIT_SPIN_S 3e-3        /* a wait for results polls this long before it
                                  * sleeps (docs/DESIGN.md 7.9) */
 #define MAX_WAIT_DEADLINES 10   /* a long prediction stretches the deadline
-                                   up to this many deadlines */       /* EWMA of a job's communication overhead */
+                                   up to this many deadlines */
 
 enum { OUT_NONE, OUT_SENT, OUT_DONE, OUT_LOCAL };
 
@@ -80,6 +84,9 @@ typedef struct daemon_slot {
     double heard, missed_at;
     double overhead;            /* s per job beyond its threads' compute time */
     sc_link link;               /* its link, measured (sc_link_fit()) */
+    double rt[RT_WINDOW];       /* its last jobs' round trips less their work,
+                                   to the results' arrival in the kernel */
+    int nrt, rt_next;
 } daemon_slot;
 
 /* A daemon's share of one job. */
@@ -628,6 +635,9 @@ static int remote_wait(sc_node *n, double *cpu_s)
         double wire = 1e-6 * (double)(dj->arrive_us - dj->submit_us) - dj->compute_s;
         c->stats->remote_overhead_s += wire > 0 ? wire : 0;
         sc_link_fit(&d->link, dj->bytes, wire > 0 ? wire : 0);
+        d->rt[d->rt_next] = wire > 0 ? wire : 0;
+        d->rt_next = (d->rt_next + 1) % RT_WINDOW;
+        d->nrt += d->nrt < RT_WINDOW;
         c->stats->remote_jobs++;
     }
     c->stats->remote_wait_s += sc_wall_now() - t_wait;
@@ -660,6 +670,27 @@ static double remote_latency(const sc_node *n)
     return d->link.byte_s > 0 ? d->link.latency : d->overhead;
 }
 
+static int cmp_double(const void *x, const void *y)
+{
+    double a = *(const double *)x, b = *(const double *)y;
+    return (a > b) - (a < b);
+}
+
+/* The worth-it rule's round trip (sc_sched.min_gain): the median of the
+ * last RT_WINDOW jobs' (one outlier, a page fault or a preempted daemon,
+ * moves it little), 0 before RT_KNOWN. */
+static double remote_round_trip(const sc_node *n)
+{
+    const remote_node *r = (const remote_node *)n;
+    const daemon_slot *d = &r->c->d[r->slot];
+    if (d->nrt < RT_KNOWN)
+        return 0;
+    double v[RT_WINDOW];
+    memcpy(v, d->rt, (size_t)d->nrt * sizeof *v);
+    qsort(v, (size_t)d->nrt, sizeof *v, cmp_double);
+    return d->nrt % 2 ? v[d->nrt / 2] : 0.5 * (v[d->nrt / 2 - 1] + v[d->nrt / 2]);
+}
+
 static void remote_destroy(sc_node *n)
 {
     (void)n;                    /* the cluster owns its nodes */
@@ -673,6 +704,7 @@ static const sc_node_ops remote_ops = {
     .capacity = capacity,
     .destroy = remote_destroy,
     .home_s = remote_home,
+    .round_trip_s = remote_round_trip,
 };
 
 /* ---- the cluster ---- */
@@ -811,6 +843,8 @@ static int prov_begin(void *ctx, const sc_job *job)
             c->d[k].overhead *= OVERHEAD_IDLE_DECAY;
             c->d[k].link.latency *= OVERHEAD_IDLE_DECAY;
             c->d[k].link.byte_s *= OVERHEAD_IDLE_DECAY;
+            for (int i = 0; i < c->d[k].nrt; i++)
+                c->d[k].rt[i] *= RT_IDLE_DECAY;
         }
     }
     memset(cj->d, 0, sizeof cj->d);
