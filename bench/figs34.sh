@@ -28,7 +28,8 @@
 # and writes OUTDIR/figs34.csv, OUTDIR/fig3.png, OUTDIR/fig4.png (gnuplot)
 # and OUTDIR/figs34.md (a README section: setup, table, derived figures
 # next to the paper's). Each point is the median of RUNS runs (default 3);
-# -q: N = 1 5 20, one run each, for a smoke test.
+# -q: N = 1 5 20, one run each, for a smoke test. FIGS34_ARGS (environment):
+# more options for every run, e.g. FIGS34_ARGS="--min-gain -1".
 # Not root, or no netns, tc or cgroup cpu controller: prints SKIPPED and
 # exits 0. Everything it makes (namespaces, veths, bridge, cgroups,
 # daemons, the key) is removed on exit, error or Ctrl-C.
@@ -297,6 +298,8 @@ run_one() { # $1 = condition, $2 = nodes, $3 = link label, $4 = N, $5 = daemons 
     j=$OUT/raw/c${c}_n$n.json
     set -- "$SIM" run bolts --bodies "$n" --seed "$SEED" --until-rest --workers 2 --json
     [ "$wait" -gt 0 ] && set -- "$@" --cluster "$URL" --key "$KEY" --wait-daemons "$wait"
+    # shellcheck disable=SC2086 # FIGS34_ARGS: words
+    [ -n "${FIGS34_ARGS:-}" ] && set -- "$@" $FIGS34_ARGS
     # RUNS runs; the one with the median wall time stands for them (its
     # JSON is $j, the others $j.rR); every run's hash must be the same
     r=1
