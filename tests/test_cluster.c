@@ -33,6 +33,7 @@ static int groups;              /* motion groups for the worlds made */
 static int toi_mode = SC_TOI_WORLD;                  /* their time of impact */
 static int island_split = SC_ISLAND_SPLIT_DEFAULT;   /* theirs */
 static int pile_scene;          /* a pile in a bin, lone spheres above it */
+static double min_gain = -1;    /* their cluster_min_gain (-1: no job-level rule) */
 static uint8_t key[SC_KEY_BYTES];
 static char key_path[64];
 
@@ -103,7 +104,7 @@ static sc_world *make_world(int cluster, const char *keyfile)
          * they go out whatever shipping them costs (a lone sphere's frame
          * costs less than that, and the worth-it rule would keep it here) */
         c.cluster_ship_share = -1;
-        c.cluster_min_gain = -1;
+        c.cluster_min_gain = min_gain;
     }
     sc_world *w = sc_world_create(&c);
     assert_non_null(w);
@@ -265,6 +266,45 @@ static void test_daemons_give_the_same_bits(void **state)
         assert_int_equal(gu, 0);
     assert_int_equal(sum.dropped_messages, 0);
     sc_world_destroy(w);
+}
+
+/* The job-level worth-it rule (cluster_min_gain) decides who computes,
+ * never what: a daemon asked for 1000 round trips of work a job is kept
+ * out of the jobs it would have had once 4 of its round trips are
+ * measured (counted in remote_refused; it is tried again as they decay),
+ * and both runs end in the local bits. */
+static void test_the_job_level_rule_keeps_daemons_out_not_the_bits(void **state)
+{
+    (void)state;
+    uint64_t h0 = local_hash();
+    long remote[2], refused[2];
+    const double gain[2] = { -1, 1000 };
+    for (int c = 0; c < 2; c++) {
+        daemon_thread d;
+        start_daemon(&d, 0x1201 + c, 1);
+        min_gain = gain[c];
+        sc_world *w = make_world(1, key_path);
+        wait_daemons(w, 1);
+        remote[c] = refused[c] = 0;
+        uint64_t h = 0;
+        for (int f = 0; f < FRAMES; f++) {
+            assert_int_equal(sc_world_step(w, 0.01), SC_OK);
+            sc_stats st;
+            sc_world_stats(w, &st);
+            remote[c] += st.remote_units;
+            refused[c] += st.remote_refused;
+        }
+        h = sc_world_hash(w);
+        printf("  min_gain %g: %ld units from the daemon, kept out of %ld jobs\n", gain[c],
+               remote[c], refused[c]);
+        sc_world_destroy(w);
+        stop_daemon(&d, NULL);
+        min_gain = -1;
+        assert_true(h == h0);
+    }
+    assert_int_equal(refused[0], 0);
+    assert_true(remote[0] > 0 && remote[1] > 0);    /* used, so measured */
+    assert_true(refused[1] > 0);
 }
 
 /* Motion groups: each group's frame is a unit, sent to daemons like any
@@ -800,6 +840,7 @@ int main(void)
         cmocka_unit_test(test_daemons_give_the_same_bits),
         cmocka_unit_test(test_daemons_with_motion_groups),
         cmocka_unit_test(test_daemons_in_local_toi_mode),
+        cmocka_unit_test(test_the_job_level_rule_keeps_daemons_out_not_the_bits),
         cmocka_unit_test(test_split_islands_on_daemons_give_the_same_bits),
         cmocka_unit_test(test_a_daemon_that_stops_changes_nothing),
         cmocka_unit_test(test_a_daemon_that_stops_in_local_toi_mode_changes_nothing),

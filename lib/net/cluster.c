@@ -635,9 +635,13 @@ static int remote_wait(sc_node *n, double *cpu_s)
         double wire = 1e-6 * (double)(dj->arrive_us - dj->submit_us) - dj->compute_s;
         c->stats->remote_overhead_s += wire > 0 ? wire : 0;
         sc_link_fit(&d->link, dj->bytes, wire > 0 ? wire : 0);
-        d->rt[d->rt_next] = wire > 0 ? wire : 0;
-        d->rt_next = (d->rt_next + 1) % RT_WINDOW;
-        d->nrt += d->nrt < RT_WINDOW;
+        if (wire > 0) {
+            /* (not at or below 0: the clocks' noise on a reply faster than
+             * it can measure) */
+            d->rt[d->rt_next] = wire;
+            d->rt_next = (d->rt_next + 1) % RT_WINDOW;
+            d->nrt += d->nrt < RT_WINDOW;
+        }
         c->stats->remote_jobs++;
     }
     c->stats->remote_wait_s += sc_wall_now() - t_wait;
