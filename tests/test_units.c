@@ -439,17 +439,26 @@ static const sc_node_ops fake_remote_ops = { .submit = fake_submit, .wait = fake
                                              .latency_s = fake_lat, .destroy = fake_destroy,
                                              .home_s = fake_home_s };
 
+/* A scheduler of n nodes on the paper's cost / speed, no latency, and
+ * six units of 1 s each (speed 1). */
+static void six_seconds(sc_sched *s, int n, sc_unit u[6])
+{
+    assert_int_equal(sc_sched_init(s, n), SC_OK);
+    s->use_models = 0;
+    fake_latency = 0;
+    const double cost[6] = { 1, 1, 1, 1, 1, 1 };
+    make_units(u, cost, 6);
+}
+
 static void test_units_go_out_only_where_shipping_them_is_worth_it(void **state)
 {
     (void)state;
     sc_node n0 = { &fake_ops, 0 }, n1 = { &fake_remote_ops, 1 };
     sc_node *nodes[2] = { &n0, &n1 };
     sc_sched s;
-    assert_int_equal(sc_sched_init(&s, 2), SC_OK);
-    s.use_models = 0;
-    fake_latency = 0;
-    double cost[6] = { 1, 1, 1, 1, 1, 1 };
     sc_unit u[6];
+    six_seconds(&s, 2, u);
+    double cost[6] = { 1, 1, 1, 1, 1, 1 };
     const double home[4] = { 0.6, 0.4, 0, 0.6 }, share[4] = { 0.5, 0.5, 0.5, -1 };
     const int out[4] = { 0, 4, 3, 4 };
     for (int c = 0; c < 4; c++) {
@@ -490,11 +499,9 @@ static void test_a_node_gets_a_job_only_for_several_round_trips_of_work(void **s
     sc_node n0 = { &fake_ops, 0 }, n1 = { &fake_rt_ops, 1 }, n2 = { &fake_rt_ops, 2 };
     sc_node *nodes[3] = { &n0, &n1, &n2 };
     sc_sched s;
-    assert_int_equal(sc_sched_init(&s, 3), SC_OK);
-    s.use_models = 0;
-    fake_latency = 0;
-    double cost[6] = { 1, 1, 1, 1, 1, 1 };
     sc_unit u[6];
+    six_seconds(&s, 3, u);
+    double cost[6] = { 1, 1, 1, 1, 1, 1 };
     const double rt2[4] = { 1.5, 1.0, 0, 1.5 }, gain[4] = { 2, 2, 2, -1 };
     const int got1[4] = { 3, 2, 2, 2 }, got2[4] = { 0, 2, 2, 2 }, refused[4] = { 1, 0, 0, 0 };
     fake_rt[1] = 0.5;
