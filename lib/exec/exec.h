@@ -106,7 +106,9 @@ typedef struct sc_sched_node {
                                        (home_s): fixed, per byte */
     double job_cap;                 /* capacity offered in the current job */
     double job_rt;                  /* round trip less work (round_trip_s), for
-                                       the current job; 0 = not known */
+                                       the current job; 0 = not known, or no
+                                       job-level rule */
+    int job_refused;                /* kept out of the current job by it */
     double busy_until;              /* wall clock (sc_wall_now) until which it is
                                        predicted busy with a started job's units
                                        (0: free); its ready time in a job begins
@@ -129,8 +131,6 @@ typedef struct sc_sched {
                                        this many round trips; <= 0: no rule */
     int refused;                    /* nodes the last assignment kept its units
                                        from by that rule */
-    unsigned char *refuse;          /* scratch: per node, refused in this job */
-    int refuse_cap;
     uint64_t shuffle;               /* tests: != 0 seeds a random assignment */
     int learn_alone;                /* tests: learn with a single node too */
     double home_capacity;           /* node 0's capacity (1; benchmarks: 0 sends

@@ -62,7 +62,6 @@ void sc_sched_free(sc_sched *s)
     free(s->keys);
     free(s->assigned);
     free(s->cursor);
-    free(s->refuse);
     memset(s, 0, sizeof *s);
 }
 
@@ -114,9 +113,9 @@ static double ship_s(const sc_sched_node *nd, const sc_unit *u)
     return nd->job_home0 + nd->job_home1 * (double)u->bytes;
 }
 
-/* One greedy assignment; nodes flagged in refuse get nothing. */
-static int assign(sc_sched *s, sc_node *const *nodes, sc_unit *units, int n,
-                  const unsigned char *refuse)
+/* One greedy assignment; nodes refused by the job-level rule
+ * (sc_sched_node.job_refused) get nothing. */
+static int assign(sc_sched *s, sc_node *const *nodes, sc_unit *units, int n)
 {
     if (n > s->order_cap) {
         int cap = n > 2 * s->order_cap ? n : 2 * s->order_cap;
@@ -147,7 +146,7 @@ static int assign(sc_sched *s, sc_node *const *nodes, sc_unit *units, int n,
         /* a node still busy with a started job's units is ready later */
         nd->ready = nd->busy_until > now ? nd->busy_until - now : 0;
         nd->job_cap = k == 0                     ? s->home_capacity
-                      : refuse[k]                ? 0
+                      : nd->job_refused          ? 0
                       : !nodes[k]->ops->capacity ? 1.0
                                                  : nodes[k]->ops->capacity(nodes[k], kind);
         nd->job_speed = (nd->measured[kind] ? nd->speed[kind] : fallback) *
@@ -250,35 +249,31 @@ static int assign(sc_sched *s, sc_node *const *nodes, sc_unit *units, int n,
  * trip is not known yet is exempt (how else would it be measured). */
 int sc_sched_assign(sc_sched *s, sc_node *const *nodes, sc_unit *units, int n)
 {
-    if (s->nnodes > s->refuse_cap) {
-        unsigned char *r = realloc(s->refuse, (size_t)s->nnodes);
-        if (!r)
-            return SC_ENOMEM;
-        s->refuse = r;
-        s->refuse_cap = s->nnodes;
-    }
-    memset(s->refuse, 0, (size_t)s->nnodes);
     s->refused = 0;
     int rule = 0;
-    for (int k = 1; k < s->nnodes; k++) {
-        s->nodes[k].job_rt = nodes[k]->ops->round_trip_s ? nodes[k]->ops->round_trip_s(nodes[k])
-                                                         : 0;
-        rule |= s->min_gain > 0 && s->nodes[k].job_rt > 0;
+    for (int k = 0; k < s->nnodes; k++) {
+        sc_sched_node *nd = &s->nodes[k];
+        nd->job_refused = 0;
+        /* asked only where the rule applies: a daemon's is a median */
+        nd->job_rt = k > 0 && s->min_gain > 0 && !s->shuffle && nodes[k]->ops->round_trip_s
+                         ? nodes[k]->ops->round_trip_s(nodes[k])
+                         : 0;
+        rule |= nd->job_rt > 0;
     }
     for (;;) {
-        int rc = assign(s, nodes, units, n, s->refuse);
-        if (rc != SC_OK || !rule || s->shuffle)
+        int rc = assign(s, nodes, units, n);
+        if (rc != SC_OK || !rule)
             return rc;
         int more = 0;
         for (int k = 1; k < s->nnodes; k++) {
-            double rt = s->nodes[k].job_rt;
-            if (s->refuse[k] || !(rt > 0) || s->start[k + 1] == s->start[k])
+            sc_sched_node *nd = &s->nodes[k];
+            if (nd->job_refused || !(nd->job_rt > 0) || s->start[k + 1] == s->start[k])
                 continue;
             double work = 0;
             for (int j = s->start[k]; j < s->start[k + 1]; j++)
                 work += units[s->assigned[j]].predict_s;
-            if (work < s->min_gain * rt) {
-                s->refuse[k] = 1;
+            if (work < s->min_gain * nd->job_rt) {
+                nd->job_refused = 1;
                 s->refused++;
                 more = 1;
             }
