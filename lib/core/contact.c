@@ -1166,13 +1166,11 @@ static void scale_moves(sc_body *bodies, const int *ids, int nb, const double *x
  * of mass of a cube, a sphere or a rod. 0 if iw is not invertible. */
 static double gyration_reach(const sc_body *b)
 {
-    const double *m = b->iw;
-    double c0 = m[4] * m[8] - m[5] * m[7], c1 = m[0] * m[8] - m[2] * m[6],
-           c2 = m[0] * m[4] - m[1] * m[3];
-    double det = m[0] * c0 - m[1] * (m[3] * m[8] - m[5] * m[6]) +
-                 m[2] * (m[3] * m[7] - m[4] * m[6]);
-    double tr = (c0 + c1 + c2) / det;   /* trace of the inertia, iw's inverse */
-    return det > 0 && tr > 0 && isfinite(tr) ? sqrt(tr * b->inv_mass) : 0;
+    double I[9];
+    if (!m3_inverse(I, b->iw))
+        return 0;
+    double tr = I[0] + I[4] + I[8];     /* trace of the world inertia */
+    return tr > 0 && isfinite(tr) ? sqrt(tr * b->inv_mass) : 0;
 }
 
 /* A push-out moves no body by more than PUSH_MAX_MOVE times the island's
