@@ -1483,43 +1483,65 @@ static double row_lin_accel(const row *rw, const sc_body *bodies, double h)
 
 /* Held collisions that were solved (z > 0) brought back from where the
  * bounce at the substep's start puts them to where bouncing at the touch
- * does (touch()): along the pair's earliest such row, by positions alone
- * (as the push-out moves them), one row a pair. (A boxed LCP that also
- * kept the island's touching contacts from going deeper, tried for a bolt
- * that landed on one end while the other rested and was turned 1.0075 mm
- * into the floor, did no better on the 50-part drop: 3 of 6 seeds past
- * 1 mm instead of 1, and it unsettled the Table 1 box.) */
+ * does (touch()), by positions alone (as the push-out moves them). A
+ * pair's held rows act as one: the row of their resultant (the rows'
+ * Jacobians weighted by their impulses, so that it moves the bodies the
+ * way the collision's impulse does), its separation taken back by the
+ * rows' pull weighted the same way, the least move in the mass metric
+ * that does it. A face or an edge that touches on several points so moves
+ * as one (pulling along one of its rows turned a box dropped flat onto
+ * its corner); a single point is pulled along its own row. No further
+ * than takes another contact of the island (of this pair or of its
+ * bodies' others) deeper than it is or than the slop, to first order:
+ * the pull knows nothing else of them. */
 static void pull_in(const row *rows, const int *cstart, const sc_contact *c, const int *ci,
                     int nc, const int *coll, const double *z, const double *pull, double slop,
                     sc_body *bodies)
 {
     for (int k0 = 0, k1; k0 < nc; k0 = k1) {
-        int best = -1;
+        row rw = rows[cstart[k0]];
+        double zsum = 0, want = 0;
+        memset(rw.ja, 0, sizeof rw.ja);
+        memset(rw.jb, 0, sizeof rw.jb);
+        memset(rw.wa, 0, sizeof rw.wa);
+        memset(rw.wb, 0, sizeof rw.wb);
         for (k1 = k0; k1 < nc && c[ci[k1]].body_a == c[ci[k0]].body_a &&
-                      c[ci[k1]].body_b == c[ci[k0]].body_b; k1++)
-            if (coll[k1] && c[ci[k1]].depth < 0 && z[cstart[k1]] > 0 && pull[k1] > 0 &&
-                (best < 0 || pull[nc + k1] < pull[nc + best]))
-                best = k1;
-        if (best < 0)
+                      c[ci[k1]].body_b == c[ci[k0]].body_b; k1++) {
+            double zk = z[cstart[k1]];
+            if (!(coll[k1] && c[ci[k1]].depth < 0 && zk > 0 && pull[k1] > 0))
+                continue;
+            const row *rk = &rows[cstart[k1]];
+            for (int j = 0; j < 6; j++) {
+                rw.ja[j] += zk * rk->ja[j];
+                rw.jb[j] += zk * rk->jb[j];
+                rw.wa[j] += zk * rk->wa[j];
+                rw.wb[j] += zk * rk->wb[j];
+            }
+            zsum += zk;
+            want += zk * pull[k1];
+        }
+        if (!(zsum > 0))
             continue;
-        const row *rw = &rows[cstart[best]];
-        double arr = a_entry(rw, rw);
+        for (int j = 0; j < 6; j++) {
+            rw.ja[j] /= zsum;
+            rw.jb[j] /= zsum;
+            rw.wa[j] /= zsum;
+            rw.wb[j] /= zsum;
+        }
+        double arr = a_entry(&rw, &rw);
         if (!(arr > 0))
             continue;
-        /* no further than takes another contact of the island (of this
-         * pair or of its bodies' others) deeper than it is or than the
-         * slop, to first order: the pull moves the bodies along one row
-         * and knows nothing of the others */
-        double lam = -pull[best] / arr, s = 1;
+        double lam = -(want / zsum) / arr, s = 1;
         for (int k = 0; k < nc; k++) {
-            if (k == best)
+            if (k >= k0 && k < k1 && coll[k] && c[ci[k]].depth < 0 && z[cstart[k]] > 0 &&
+                pull[k] > 0)
                 continue;
-            double close = -a_entry(&rows[cstart[k]], rw) * lam;    /* depth it adds */
+            double close = -a_entry(&rows[cstart[k]], &rw) * lam;    /* depth it adds */
             double room = max_d(c[ci[k]].depth, slop) - c[ci[k]].depth;
             if (close > 0 && close * s > room)
                 s = max_d(0.0, room / close);
         }
-        apply(rw, s * lam, bodies, 1, 1.0);
+        apply(&rw, s * lam, bodies, 1, 1.0);
     }
 }
 
