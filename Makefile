@@ -191,7 +191,7 @@ $(SHARED): $(LIB_OBJ)
 
 # Tests link the static library and the daemon's engine (internal tests
 # name their layer above, LAYER_<name>; any may include daemon/*.h).
-$(BUILD)/tests/%: tests/%.c $(DAEMON_LIB) $(STATIC) $(WDEP)
+$(BUILD)/tests/%: tests/%.c $(wildcard tests/*.h) $(DAEMON_LIB) $(STATIC) $(WDEP)
 	@mkdir -p $(dir $@)
 	@$(if $(Q),echo "  TEST    $@")
 	$(Q)$(WFORGET)
@@ -231,7 +231,7 @@ $(BUILD)/daemon/simclusterd: $(BUILD)/daemon/simclusterd.o $(DAEMON_LIB) $(STATI
 	@$(if $(Q),echo "  DAEMON  $@")
 	$(Q)$(CC) $(CFLAGS) $< -o $@ $(LDFLAGS) $(DAEMON_LIB) $(STATIC) $(LIBS)
 
-$(BUILD)/bench/%: bench/%.c $(wildcard bench/*.h) $(DAEMON_LIB) $(STATIC) $(WDEP)
+$(BUILD)/bench/%: bench/%.c $(wildcard bench/*.h tests/canon.h) $(DAEMON_LIB) $(STATIC) $(WDEP)
 	@mkdir -p $(dir $@)
 	@$(if $(Q),echo "  BENCH   $@")
 	$(Q)$(WFORGET)
