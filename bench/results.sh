@@ -17,6 +17,8 @@
 #       convex pieces
 #   (i) elastic boxes beyond Table 1: bench_energy (8-64 spheres, two
 #       sizes, two speeds, both time-of-impact modes)
+#   (j) canonical scenes with known answers: bench_canon (both modes and
+#       ODE's two steppers)
 # Each section has the exact command, its output and, where docs/DESIGN.md section 10 sets a
 # target, a line computed here from the figures (met, or missed by how much).
 # The prose that cannot be computed is bench/RESULTS.notes.md, included at
@@ -55,7 +57,7 @@ outdir=$(dirname "$out")
 [ -d "$outdir" ] || { echo "results.sh: no folder $outdir" >&2; exit 2; }
 B=${BUILD:-build}
 for f in tools/simcluster examples/spheres_box bench/bench_drop bench/bench_cluster \
-         bench/bench_islands daemon/simclusterd; do
+         bench/bench_islands bench/bench_canon daemon/simclusterd; do
     [ -x "$B/$f" ] || { echo "results.sh: $B/$f missing (run make first)" >&2; exit 2; }
 done
 
@@ -550,6 +552,23 @@ v=$(awk '$1 ~ /^[0-9]+$/ && NF >= 8 { n++; if ($5 > 1.001 || $6 > 0.5) { bad++; 
     END { if (!n) print "not measured"; else if (!bad) printf "met on all %d boxes", n;
           else printf "missed on %d of %d boxes (peak up to %.5f, drift up to %.3f %%)", bad, n, pk, dr }' "$tmp/i_energy")
 target "(i) elastic boxes: peak <= 1.001 and drift <= 0.5 % over 5000 frames" "$v"
+
+# ---- (j) canonical scenes ----
+w ""
+w "## (j) Canonical scenes with known answers"
+w ""
+w "tests/canon.h: single bodies and small structures whose motion has an answer on"
+w "paper, each figure against its analytic value and a tolerance from the physics"
+w "(\"*\": outside it), in both time-of-impact modes on one worker and in ODE's"
+w "dWorldStep and dWorldQuickStep on the same scenes. test_canon (make check) asserts"
+w "the same figures in both modes on 1 and 2 workers."
+run j_canon "$B/bench/bench_canon"
+# shellcheck disable=SC2016 # an awk program
+v=$(awk '/figures; missed:/ { gsub(",", ""); n = $1; l = $5; wd = $7 }
+    END { if (n == "") print "not measured";
+          else if (l == 0 && wd == 0) printf "met: all %d figures in both modes", n;
+          else printf "missed: local %d, world %d of %d figures", l, wd, n }' "$tmp/j_canon")
+target "(j) canonical scenes: every figure within its tolerance in both time-of-impact modes" "$v"
 
 # ---- the file ----
 t_end=$(date +%s)

@@ -1492,11 +1492,12 @@ static double row_lin_accel(const row *rw, const sc_body *bodies, double h)
  * as one (pulling along one of its rows turned a box dropped flat onto
  * its corner); a single point is pulled along its own row. No further
  * than takes another contact of the island (of this pair or of its
- * bodies' others) deeper than it is or than the slop, to first order:
- * the pull knows nothing else of them. */
+ * bodies' others) deeper than it is, than the velocities solved take it
+ * over h, or than the slop, to first order: the pull knows nothing else of
+ * them. */
 static void pull_in(const row *rows, const int *cstart, const sc_contact *c, const int *ci,
                     int nc, const int *coll, const double *z, const double *pull, double slop,
-                    sc_body *bodies)
+                    double h, sc_body *bodies)
 {
     for (int k0 = 0, k1; k0 < nc; k0 = k1) {
         row rw = rows[cstart[k0]];
@@ -1536,8 +1537,13 @@ static void pull_in(const row *rows, const int *cstart, const sc_contact *c, con
             if (k >= k0 && k < k1 && coll[k] && c[ci[k]].depth < 0 && z[cstart[k]] > 0 &&
                 pull[k] > 0)
                 continue;
-            double close = -a_entry(&rows[cstart[k]], &rw) * lam;    /* depth it adds */
-            double room = max_d(c[ci[k]].depth, slop) - c[ci[k]].depth;
+            /* depth it adds, against the depth the contact has or, if
+             * deeper, the velocities just solved take it to over h (a
+             * speculative row may close its gap with them: the pull may
+             * not close it again) */
+            double close = -a_entry(&rows[cstart[k]], &rw) * lam;
+            double d0 = c[ci[k]].depth, d1 = d0 - h * row_speed(&rows[cstart[k]], bodies, 0);
+            double room = max_d(d0, slop) - max_d(d0, d1);
             if (close > 0 && close * s > room)
                 s = max_d(0.0, room / close);
         }
@@ -1881,7 +1887,7 @@ rows_again:
     if (deep > p->slop)
         rc = neutral_push_out(arena, rows, nsel, nn, c, ci, nc, deep, bodies, h, p, split, info);
     if (nspecc > 0)
-        pull_in(rows, cstart, c, ci, nc, coll, z, pull, p->slop, bodies);
+        pull_in(rows, cstart, c, ci, nc, coll, z, pull, p->slop, h, bodies);
     if (rc == SC_OK && p->impact_first && !inelastic && keep) {
         double cap = 0;
         for (int i = 0; i < nb; i++)
