@@ -10,6 +10,10 @@
 #                   a plain make does not, so a newer compiler's new warning
 #                   does not stop a packager's build)
 
+# plain `make` builds everything a user runs (the first rule below would
+# otherwise be the warnings stamp)
+.DEFAULT_GOAL := all
+
 PREFIX  ?= /usr/local
 DESTDIR ?=
 LIBDIR  ?= $(PREFIX)/lib

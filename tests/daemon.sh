@@ -103,6 +103,10 @@ if wait_log "serving"; then
         { echo "FAIL: run, another key: no dropped_auth in the JSON"; cat "$dir/out"; fail=1; }
     check "run --wait-daemons, this key" 0 "$tool" run bolts --bodies 5 --frames 5 \
         --cluster "$url" --key "$dir/k" --wait-daemons 1
+    # without --key the master seals with the all-zero key, and says so
+    check "run without --key" 0 "$tool" run bolts --bodies 5 --frames 5 --cluster "$url"
+    grep -q "^simcluster: run: no --key: .*all-zero key" "$dir/err" ||
+        { echo "FAIL: run without --key: the all-zero key is not named"; cat "$dir/err"; fail=1; }
     # idle again, it sleeps: at most 10 % of a CPU over a second (its
     # compute thread polls for units only for --spin after one ran)
     cpu_ticks() { awk '{ print $14 + $15 }' "/proc/$pid/stat"; }

@@ -20,6 +20,14 @@ check "two keys differ" 0 "$tool" keygen "$dir/k2"
 cmp -s "$dir/k" "$dir/k2" && { echo "FAIL: two keys are equal"; fail=1; }
 check "keygen into a missing directory" 1 "$tool" keygen "$dir/no/such/k"
 check "keygen without a file" 2 "$tool" keygen
+check "a mistyped scene" 2 "$tool" run bolt
+one_line "a mistyped scene" "built-in scenes are bolts, bin and spheres"
+check "--bodies for spheres" 2 "$tool" run spheres --bodies 5 --frames 1
+one_line "--bodies for spheres" "for the bolts and bin scenes"
+check "--bodies for bin" 0 "$tool" run bin --bodies 8 --frames 1
+# plain make builds the library, tools, daemon and examples
+goal=$(make -C "$(dirname "$0")/.." -pn 2>/dev/null | sed -n 's/^\.DEFAULT_GOAL := //p' | tail -n 1)
+[ "$goal" = all ] || { echo "FAIL: plain make builds '$goal', not all"; fail=1; }
 check "no command" 2 "$tool"
 check "unknown command" 2 "$tool" frobnicate
 check "--help" 0 "$tool" --help
@@ -133,8 +141,8 @@ grep -q "overlapping" "$dir/out" && { echo "FAIL: run bolts: overlaps reported";
 check "run --wait-daemons without --cluster" 2 "$tool" run bolts --wait-daemons 1
 one_line "run --wait-daemons without --cluster" "needs --cluster"
 check "run without a scene" 2 "$tool" run
-check "run, a scene file that is not there" 1 "$tool" run cubes
-one_line "run, missing scene file" "cubes: No such file or directory"
+check "run, a scene file that is not there" 1 "$tool" run cubes.scene
+one_line "run, missing scene file" "cubes.scene: No such file or directory"
 check "run, bad --bodies" 2 "$tool" run bolts --bodies 0
 check "run, unknown option" 2 "$tool" run bolts --frobnicate
 [ "$(wc -l <"$dir/err")" -eq 1 ] || { echo "FAIL: run: error is not one line"; fail=1; }

@@ -228,6 +228,16 @@ static int next_event(viewer *v, char chan[MAX_CHANNEL + 1], uint8_t **data, siz
     if (got != sizeof h)
         return fail(v, ferror(v->log) ? strerror(errno) : "truncated event header");
     uint64_t clen = be(h + 20, 4), dlen = be(h + 24, 4);
+    if (be(h, 4) != LOG_SYNC && v->event == 1) {
+        /* the first bytes say what the file is not: a recording */
+        if (!v->quiet)
+            fprintf(stderr,
+                    "%s: %s: not a recording (an LCM log as simcluster run --record writes); "
+                    "a scene file is viewed by recording it first: simcluster run FILE "
+                    "--record LOG, then %s LOG\n",
+                    prog, v->o.log, prog);
+        return -1;
+    }
     if (be(h, 4) != LOG_SYNC)
         return fail(v, "not an LCM event (bad sync word)");
     if (clen == 0 || clen > MAX_CHANNEL || dlen > SC_MSG_MAX_PAYLOAD)

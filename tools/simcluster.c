@@ -290,13 +290,26 @@ static int parse_options(const char *cmd, int argc, char **argv, options *o)
         return bad(cmd, "--key needs --cluster");
     if (o->wait_daemons && !o->cluster)
         return bad(cmd, "--wait-daemons needs --cluster");
-    int builtin = !strcmp(o->scene, "bolts") || !strcmp(o->scene, "bin") ||
-                  !strcmp(o->scene, "spheres");
-    if (!builtin && (o->bodies_set || o->seed_set))
-        return bad(cmd, "--bodies and --seed are for the built-in bolts and bin scenes; a scene file "
-                        "places its own bodies");
+
+    int seeded = !strcmp(o->scene, "bolts") || !strcmp(o->scene, "bin");
+    int builtin = seeded || !strcmp(o->scene, "spheres");
+    if (!seeded && (o->bodies_set || o->seed_set))
+        return bad(cmd, builtin ? "--bodies and --seed are for the bolts and bin scenes; spheres "
+                                  "is the paper's fixed 27"
+                                : "--bodies and --seed are for the built-in bolts and bin scenes; a "
+                                  "scene file places its own bodies");
     if (builtin)
         return -1;
+    /* a bare word (no folder, no extension) that names no file is a
+     * mistyped scene, not a missing file */
+    if (!strpbrk(o->scene, "/.") && access(o->scene, F_OK) != 0) {
+        char what[256];
+        snprintf(what, sizeof what,
+                 "no scene '%.100s': the built-in scenes are bolts, bin and spheres; else give "
+                 "a scene file's path",
+                 o->scene);
+        return bad(cmd, what);
+    }
     /* a scene file: read and checked now, so a bad one stops before any work */
     char err[512];
     o->file = sc_scene_load(o->scene, err, sizeof err);
@@ -405,6 +418,11 @@ static sc_world *make_world(const options *o, const char *cmd)
             fprintf(stderr, "simcluster: %s: %s\n", cmd, sc_strerror(err));
         return NULL;
     }
+    /* the library takes the all-zero key then: said, not silent */
+    if (o->cluster && !o->key)
+        fprintf(stderr, "simcluster: %s: no --key: the cluster's messages are sealed with the "
+                        "all-zero key, which anyone on the network can use (simcluster keygen)\n",
+                cmd);
     int rc = o->file                     ? sc_scene_build(o->file, w)
              : !strcmp(o->scene, "bolts") ? sc_scene_bolts_nuts(w, (int)o->bodies, (uint64_t)o->seed)
              : !strcmp(o->scene, "bin")   ? sc_scene_bin(w, (int)o->bodies, (uint64_t)o->seed)
