@@ -278,11 +278,18 @@ bench-raw: all
 lint-man:
 	$(Q)for m in man/*.[1-8]; do mandoc -T lint -W warning $$m || exit 1; done
 
+# written again whenever the install paths differ from the last ones (a
+# .pc left from another PREFIX pointed programs at the wrong library)
+PC_PATHS := $(PREFIX)|$(LIBDIR)|$(INCDIR)|$(VERSION)
+ifneq ($(PC_PATHS),$(shell cat $(BUILD)/simcluster.pc.paths 2>/dev/null))
+.PHONY: $(BUILD)/simcluster.pc
+endif
 $(BUILD)/simcluster.pc: simcluster.pc.in Makefile
 	@mkdir -p $(BUILD)
 	$(Q)sed -e 's|@PREFIX@|$(PREFIX)|' -e 's|@LIBDIR@|$(patsubst $(PREFIX)%,$${prefix}%,$(LIBDIR))|' \
 	    -e 's|@INCDIR@|$(patsubst $(PREFIX)%,$${prefix}%,$(INCDIR))|' \
 	    -e 's|@VERSION@|$(VERSION)|' $< > $(BUILD)/simcluster.pc
+	$(Q)printf '%s\n' '$(PC_PATHS)' > $(BUILD)/simcluster.pc.paths
 
 install: lib $(TOOL_BIN) $(DAEMON_BIN) $(BUILD)/simcluster.pc
 	install -d $(DESTDIR)$(LIBDIR) $(DESTDIR)$(INCDIR) $(DESTDIR)$(PCDIR) $(DESTDIR)$(BINDIR)

@@ -57,6 +57,27 @@ int main(void)
 EOF
 cc -std=c11 -Wall -Wextra -Werror "$d/net.c" -o "$d/net" $flags
 LD_LIBRARY_PATH="$d/usr/local/lib" "$d/net"
+# the README's first program, built and run exactly as the README shows
+# it against a library installed under $HOME/sc (HOME here a scratch
+# folder): the rpath build, the LD_LIBRARY_PATH run, the static build
+home="$d/home"
+mkdir -p "$home"
+MAKEFLAGS= make --no-print-directory install PREFIX="$home/sc" >/dev/null
+awk '/^## A first program/ { s = 1; next } s && /^## / { exit }
+     s && /^```c$/ { f = 1; next } f && /^```$/ { exit } f' README.md >"$home/first.c"
+grep -q 'int main' "$home/first.c" || { echo "README: no first program"; exit 1; }
+# its sh blocks after the first (which needs a system-wide install)
+awk '/^## A first program/ { s = 1; next } s && /^## / { exit }
+     s && /^```sh$/ { n++; f = n > 1; next } /^```$/ { f = 0 } f' README.md >"$home/build.sh"
+grep -q 'rpath' "$home/build.sh" && grep -q -- '--static' "$home/build.sh" ||
+    { echo "README: no rpath or static build of the first program"; exit 1; }
+(cd "$home" && HOME="$home" sh -e build.sh >"$home/shown.out")
+grep -q '^box at rest: z = 0\.09[0-9]* m, state 3$' "$home/shown.out" ||
+    { echo "README first program: $(cat "$home/shown.out")"; exit 1; }
+# the last build is the static one: it runs with no libsimcluster.so
+if ldd "$home/first" | grep -q simcluster; then echo "README static build links the .so"; exit 1; fi
+(cd "$home" && ./first) | grep -q '^box at rest' || { echo "README static build does not run"; exit 1; }
+MAKEFLAGS= make --no-print-directory uninstall PREFIX="$home/sc" >/dev/null
 # only sc_* symbols leave the shared library
 bad=$(nm -D --defined-only "$d/usr/local/lib/libsimcluster.so" | awk '$2 ~ /[TDBR]/ {print $3}' | grep -v '^sc_' || true)
 if [ -n "$bad" ]; then echo "exported non-sc_ symbols: $bad"; exit 1; fi
