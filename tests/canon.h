@@ -169,6 +169,15 @@ static inline canon_scene canon_drop_sphere(double h, double e)
     return sc;
 }
 
+/* Bodies 0 and 1 of sc: a floor and a 0.2 m cube (1 kg) resting on it,
+ * no restitution, friction mu on both. */
+static inline void canon_box_on_floor(canon_scene *sc, double mu)
+{
+    sc->b[0] = canon_floor(0, mu);
+    sc->b[1] = canon_box(0.1, 1.0, 0, mu);
+    sc->b[1].pos[2] = 0.1;
+}
+
 /* A cube resting on the floor, pushed along x at v0: it slides
  * v0^2 / (2 mu g) and stops, without tipping (mu h_com < half width). */
 static inline canon_scene canon_slide(double v0, double mu)
@@ -176,9 +185,7 @@ static inline canon_scene canon_slide(double v0, double mu)
     canon_scene sc = { .name = "box slides to rest", .dt = 0.01, .T = 1.5, .gravity = CANON_G,
                        .nb = 2, .family = CANON_F_SLIDE, .p = { v0, mu },
                        .what = "sliding box stops after v0^2 / (2 mu g)" };
-    sc.b[0] = canon_floor(0, mu);
-    sc.b[1] = canon_box(0.1, 1.0, 0, mu);
-    sc.b[1].pos[2] = 0.1;
+    canon_box_on_floor(&sc, mu);
     sc.b[1].vel[0] = v0;
     return sc;
 }
@@ -246,9 +253,7 @@ static inline canon_scene canon_spin(double w0, double mu)
     canon_scene sc = { .name = "box spins down", .dt = 0.01, .T = 1.0, .gravity = CANON_G,
                        .nb = 2, .family = CANON_F_SPIN, .p = { w0, mu, 0.1 * sqrt(2.0) },
                        .what = "spinning box turns w0^2 / (2 alpha) in place" };
-    sc.b[0] = canon_floor(0, mu);
-    sc.b[1] = canon_box(0.1, 1.0, 0, mu);
-    sc.b[1].pos[2] = 0.1;
+    canon_box_on_floor(&sc, mu);
     sc.b[1].omega[2] = w0;
     return sc;
 }
