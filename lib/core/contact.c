@@ -1495,6 +1495,14 @@ static double row_lin_accel(const row *rw, const sc_body *bodies, double h)
  * bodies' others) deeper than it is, than the velocities solved take it
  * over h, or than the slop, to first order: the pull knows nothing else of
  * them. */
+/* Whether contact k (of the island's ci) is a held collision that was
+ * solved: a speculative row that collides, with an impulse and a pull. */
+static int held_row(const sc_contact *c, const int *ci, const int *coll, const int *cstart,
+                    const double *z, const double *pull, int k)
+{
+    return coll[k] && c[ci[k]].depth < 0 && z[cstart[k]] > 0 && pull[k] > 0;
+}
+
 static void pull_in(const row *rows, const int *cstart, const sc_contact *c, const int *ci,
                     int nc, const int *coll, const double *z, const double *pull, double slop,
                     double h, sc_body *bodies)
@@ -1508,9 +1516,9 @@ static void pull_in(const row *rows, const int *cstart, const sc_contact *c, con
         memset(rw.wb, 0, sizeof rw.wb);
         for (k1 = k0; k1 < nc && c[ci[k1]].body_a == c[ci[k0]].body_a &&
                       c[ci[k1]].body_b == c[ci[k0]].body_b; k1++) {
-            double zk = z[cstart[k1]];
-            if (!(coll[k1] && c[ci[k1]].depth < 0 && zk > 0 && pull[k1] > 0))
+            if (!held_row(c, ci, coll, cstart, z, pull, k1))
                 continue;
+            double zk = z[cstart[k1]];
             const row *rk = &rows[cstart[k1]];
             for (int j = 0; j < 6; j++) {
                 rw.ja[j] += zk * rk->ja[j];
@@ -1534,8 +1542,7 @@ static void pull_in(const row *rows, const int *cstart, const sc_contact *c, con
             continue;
         double lam = -(want / zsum) / arr, s = 1;
         for (int k = 0; k < nc; k++) {
-            if (k >= k0 && k < k1 && coll[k] && c[ci[k]].depth < 0 && z[cstart[k]] > 0 &&
-                pull[k] > 0)
+            if (k >= k0 && k < k1 && held_row(c, ci, coll, cstart, z, pull, k))
                 continue;
             /* depth it adds, against the depth the contact has or, if
              * deeper, the velocities just solved take it to over h (a
