@@ -1,15 +1,10 @@
 /* engine.c - the daemon's engine (engine.h): the bus loop on the thread
- * that calls sc_serve_run() (envelopes opened and checked, units decoded,
- * shapes cached, heartbeats sent) and compute threads that run units and
- * send their results. A unit is a batch of pairs, islands, or a motion
- * group's whole frame (sc_frame_step() on the thread's serial executor,
- * through the function a master's own threads use, so the bits are
- * theirs); a compute thread sends what it has done as one message when
- * the queue runs dry. Received bytes are never trusted: envelopes are
- * checked before anything is decoded (sc_msg_open), units by
- * sc_remote_unit_decode (every size bounded), shapes rebuilt and checked
- * against the hash they claim (sc_msg_shape_decode). Only the library's
- * public API is used (simcluster_net.h: the compute node). */
+ * that calls sc_serve_run() and compute threads that run units (pairs,
+ * islands, or a motion group's frame, through the code a master's own
+ * threads use, so the bits are theirs) and send their results. Received
+ * bytes are never trusted: envelopes, units and shapes are checked
+ * (sc_msg_open, sc_remote_unit_decode, sc_msg_shape_decode) before use.
+ * Only the public API is used (simcluster_net.h). */
 #include <errno.h>
 #include <inttypes.h>
 #include <poll.h>

@@ -1,22 +1,10 @@
 /*
- * engine.h - the daemon's engine (docs/DESIGN.md sections 7.3, 7.5): it
- * joins the cluster's multicast group,
- * announces itself, caches shapes by content hash (asking the master for
- * missing ones), computes the work units masters send it on its compute
- * threads, and replies with their results. The process around it
- * (configuration, logging, signals, privileges) is daemon/simclusterd.c.
- *
- * Channels (every message a sealed envelope, simcluster_net.h):
- *   SC_ANNOUNCE          daemons' heartbeats (announce_t); the daemon
- *                        listens for its own id under another epoch
- *   SC_UNIT_<node>       units for daemon <node> (unit_t; frame = the
- *                        master's job serial), masters' challenges
- *   SC_RESULT_<node>     results for master <node> (result_t), answers
- *   SC_SHAPEREQ_<node>   shape requests to master <node> (shape_request_t)
- *   SC_SHAPE_<node>      shapes for daemon <node> (shape_t)
- * <node> is the id in 16 lower-case hex digits. Each start has a new
- * epoch (sc_msg_epoch_new): what a master sends names it, and what the
- * daemon sends a master names the master's.
+ * engine.h - the daemon's engine (docs/DESIGN.md 7.3-7.5): it joins the
+ * cluster's multicast group, announces itself, caches shapes by content
+ * hash, computes the work units masters send it on its compute threads and
+ * replies with their results, every message a sealed envelope on the
+ * channels of simcluster_net.h. Each start has a new epoch. The process
+ * around it (configuration, logging, signals) is daemon/simclusterd.c.
  */
 #ifndef SCD_ENGINE_H
 #define SCD_ENGINE_H

@@ -1,12 +1,10 @@
 /*
  * simcluster.h - public API of libsimcluster, a real-time rigid body engine
- * that spreads its expensive stages over idle workstation CPUs.
- *
- * Conventions: every public name starts with sc_; functions return SC_OK (0)
- * or a negative SC_E* code, constructors return NULL and leave the code in
- * sc_last_error(). Units are SI (metres, kilograms, seconds); quaternions are
- * (w, x, y, z). Definition structs are filled by their *_default() function
- * first: the create call rejects a struct that skipped it (SC_ENOINIT).
+ * that spreads its expensive stages over idle workstation CPUs. Every public
+ * name starts with sc_; functions return SC_OK (0) or a negative SC_E* code,
+ * constructors return NULL and leave the code in sc_last_error(). Units are
+ * SI; quaternions are (w, x, y, z). Definition structs are filled by their
+ * *_default() function first, else the create call fails with SC_ENOINIT.
  * man simcluster(3) documents every function below.
  */
 #ifndef SIMCLUSTER_H
@@ -58,7 +56,7 @@ enum {
     SC_ELIMIT = -16,       /* finite, but outside what the engine simulates (SC_MIN_ and
                               SC_MAX_ limits below) */
     SC_ETOOMANY = -17      /* an island has more contact rows than the exact solver takes
-                              (SC_MAX_ISLAND_ROWS): bodies overlap heavily? */
+                              (SC_MAX_ISLAND_ROWS), as when bodies overlap heavily */
 };
 
 /* What the engine simulates: sizes, places, speeds and frames outside
@@ -70,15 +68,15 @@ enum {
 #define SC_MAX_SPEED 1e5       /* m/s: a body's speed when added */
 #define SC_MAX_SPIN 1e5        /* rad/s: a body's angular speed when added */
 #define SC_MAX_DT 1.0          /* s: one sc_world_step() */
-/* Rows of one exact island LCP (a contact with friction is 3): its dense
- * matrix is rows^2 doubles (512 MB here); a larger island is split into
- * blocks (sc_world_config.island_split). */
+/* Most rows of one exact island LCP (3 a contact with friction), whose dense
+ * matrix is rows^2 doubles (512 MiB at this limit); a larger island is split
+ * into blocks whatever sc_world_config.island_split says. */
 #define SC_MAX_ISLAND_ROWS 8192
 /* The default sc_world_config.island_split. */
 #define SC_ISLAND_SPLIT_DEFAULT 16
-/* A split island's outer iteration stops when no contact row is further
- * than SC_SPLIT_TOL (m/s) from its own answer given the others, or after
- * SC_SPLIT_MAX_SWEEPS sweeps (counted in sc_stats.lcp_unconverged). */
+/* A split island's outer iteration stops when no contact row is further than
+ * SC_SPLIT_TOL (m/s) from its own answer given the others, or after
+ * SC_SPLIT_MAX_SWEEPS sweeps (then counted in sc_stats.lcp_unconverged). */
 #define SC_SPLIT_TOL 1e-3
 #define SC_SPLIT_MAX_SWEEPS 50
 
@@ -112,23 +110,19 @@ SC_API sc_shape *sc_shape_sphere(double r);
 SC_API sc_shape *sc_shape_box(double hx, double hy, double hz);
 /* The static half space n.x <= d (normal need not be unit); static bodies only. */
 SC_API sc_shape *sc_shape_plane(double nx, double ny, double nz, double d);
-/* A closed, outward-oriented triangle mesh (xyz: 3*nverts, tri: 3*ntris);
- * the data are copied, vertices no triangle uses dropped. Non-convex
- * meshes are fine. */
+/* A closed, outward-oriented triangle mesh, convex or not, copied from xyz
+ * (3*nverts) and tri (3*ntris) with the vertices no triangle uses dropped. */
 SC_API sc_shape *sc_shape_mesh(const double *xyz, int nverts, const int *tri, int ntris);
-/* A mesh as sc_shape_mesh() whose collisions with other bodies use convex
- * pieces instead of its triangles (a convex decomposition, such as V-HACD
- * makes): piece k is the convex hull of counts[k] >= 4 points, taken in
- * order from pts (3 doubles each, the mesh's frame). Their union should be
- * the mesh's solid: it is what other bodies collide with. Mass, rendering
- * and contacts with planes use the mesh. Every point must lie within the
- * mesh's bounding box and sphere and every hull be solid, else SC_EINVAL;
- * at most SC_MESH_MAX_PIECES pieces. */
+/* A mesh as sc_shape_mesh() that other bodies collide with through convex
+ * pieces (a convex decomposition such as V-HACD makes; mass, rendering and
+ * planes use the mesh): piece k is the solid hull of the next counts[k] >= 4
+ * points of pts (mesh frame, within its bounding box and sphere, else
+ * SC_EINVAL), at most SC_MESH_MAX_PIECES pieces. */
 SC_API sc_shape *sc_shape_mesh_pieces(const double *xyz, int nverts, const int *tri, int ntris,
                                       const double *pts, const int *counts, int npieces);
 /* The convex hull of npoints points (xyz: 3*npoints). */
 SC_API sc_shape *sc_shape_convex(const double *xyz, int npoints);
-/* A mesh from a Wavefront .obj or STL (binary or ASCII) file. NULL on error,
+/* A mesh from a Wavefront .obj or STL (binary or ASCII) file; NULL on error,
  * with the code (SC_EIO, SC_EFORMAT, SC_ETOOBIG, SC_ENOTCLOSED, ...) in
  * sc_last_error(). */
 SC_API sc_shape *sc_shape_load(const char *path);
@@ -136,17 +130,17 @@ SC_API sc_shape *sc_shape_load(const char *path);
  * NULL): "path:LINE: what" for a malformed OBJ or ASCII STL, "path: byte N:
  * what" for a malformed binary STL, else "path: " and the reason. */
 SC_API sc_shape *sc_shape_load_err(const char *path, char *err, size_t errlen);
-/* A UV sphere mesh: slices around, stacks pole to pole; 2*slices*(stacks-1)
- * triangles (224 for the paper's (r, 16, 8)). Convex. */
+/* A convex UV sphere mesh, slices around and stacks pole to pole, of
+ * 2*slices*(stacks-1) triangles (224 for the paper's (r, 16, 8)). */
 SC_API sc_shape *sc_shape_uv_sphere(double r, int slices, int stacks);
-/* The paper's bolt: hex head + round shaft along +z, 180 triangles; two
- * convex pieces (head, shaft). */
+/* The paper's bolt, a hex head and a round shaft along +z: 180 triangles in
+ * two convex pieces (head, shaft). */
 SC_API sc_shape *sc_shape_bolt(void);
-/* The paper's nut: hexagonal prism with a round hole along z, 396
- * triangles; 16 convex pieces (one per edge of the hole). */
+/* The paper's nut, a hexagonal prism with a round hole along z: 396
+ * triangles in 16 convex pieces (one per edge of the hole). */
 SC_API sc_shape *sc_shape_nut(void);
 
-/* SC_SHAPE_* kind of s. */
+/* The SC_SHAPE_* kind of s. */
 SC_API int sc_shape_kind(const sc_shape *s);
 /* Number of convex pieces of a mesh (sc_shape_mesh_pieces()); 0 if none. */
 SC_API int sc_shape_pieces(const sc_shape *s);
@@ -156,13 +150,13 @@ SC_API int sc_shape_triangles(const sc_shape *s);
 SC_API int sc_shape_mass_props(const sc_shape *s, sc_mass_props *out);
 /* Radius of the smallest origin-centred sphere holding s (INFINITY for planes). */
 SC_API double sc_shape_bounding_radius(const sc_shape *s);
-/* Borrow a mesh/hull's vertices and triangles (valid while s lives);
- * SC_ENOTSUP for analytic shapes. Any out pointer may be NULL. */
+/* Borrow a mesh or hull's vertices and triangles, valid while s lives (any
+ * out pointer may be NULL); SC_ENOTSUP for analytic shapes. */
 SC_API int sc_shape_mesh_data(const sc_shape *s, const double **xyz, int *nverts,
                               const int **tri, int *ntris);
 /* Take one more reference to s; returns s. */
 SC_API sc_shape *sc_shape_retain(sc_shape *s);
-/* Drop one reference; the shape is freed with the last one. NULL is a no-op. */
+/* Drop one reference to s, freeing it with the last one (NULL is a no-op). */
 SC_API void sc_shape_release(sc_shape *s);
 
 /* ---- poses and contacts ---------------------------------------------------- */
@@ -171,30 +165,30 @@ typedef struct sc_pose {
     double quat[4];        /* unit quaternion w, x, y, z */
 } sc_pose;
 
-/* One contact point between bodies (or shapes) a and b. The normal points
- * from a towards b: moving b by depth along it separates them. */
+/* One contact point between bodies (or shapes) a and b, its normal pointing
+ * from a to b so that moving b by depth along it separates them. */
 typedef struct sc_contact {
     int body_a, body_b;    /* body ids, body_a < body_b (-1 in sc_collide) */
     double pos[3];         /* world point, m */
     double normal[3];      /* unit, from a to b */
     double depth;          /* penetration, m (>= 0) */
-    double impulse[3];     /* impulse on b at this point in the last contact
-                              solve, N s, world frame (0 from sc_collide) */
+    double impulse[3];     /* impulse on b here in the last contact solve, N s,
+                              world frame (0 from sc_collide) */
 } sc_contact;
 
 /* Most contact points kept per pair after reduction. */
 #define SC_MAX_PAIR_CONTACTS 4
 
-/* Exact narrow phase between shapes a and b at the given poses: writes at most
- * max (<= SC_MAX_PAIR_CONTACTS kept) well-spread contacts to out, returns
- * their number (0 = apart) or a negative code. Thread-safe. */
+/* Exact narrow phase between shapes a and b at the given poses, thread-safe:
+ * writes at most max well-spread contacts (SC_MAX_PAIR_CONTACTS kept) to out
+ * and returns their number (0 = apart) or a negative code. */
 SC_API int sc_collide(const sc_shape *a, const sc_pose *pa, const sc_shape *b,
                       const sc_pose *pb, sc_contact *out, int max);
 
-/* Time of impact: a moves from a0 to a1 and b from b0 to b1 over t in [0, 1]
- * (linear in position, slerp in rotation). Finds the first t where they touch
- * with penetration <= tol_m. Returns 1 and sets *t (0 if already touching
- * at t = 0), 0 if they never touch in [0, 1], or a negative code. */
+/* Time of impact of a moving from a0 to a1 and b from b0 to b1 over t in
+ * [0, 1] (linear in position, slerp in rotation): 1 with *t the first t at
+ * which they touch with penetration <= tol_m (0 if touching at the start), 0
+ * if they never touch, or a negative code. */
 SC_API int sc_toi(const sc_shape *a, const sc_pose *a0, const sc_pose *a1,
                   const sc_shape *b, const sc_pose *b0, const sc_pose *b1,
                   double tol_m, double *t);
@@ -202,95 +196,82 @@ SC_API int sc_toi(const sc_shape *a, const sc_pose *a0, const sc_pose *a1,
 /* ---- world ----------------------------------------------------------------- */
 typedef struct sc_world sc_world;
 
+/* Broad-phase methods (sc_world_config.broadphase). */
 enum { SC_BROADPHASE_AUTO, SC_BROADPHASE_SPHERES, SC_BROADPHASE_SAP };
-/* Time of impact (sc_world_config.toi_mode). */
+/* Time-of-impact modes (sc_world_config.toi_mode). */
 enum {
-    SC_TOI_LOCAL,             /* motion groups back up alone; pairs within
-                                 a margin of touching are held in the
-                                 substep's LCP as speculative contacts */
+    SC_TOI_LOCAL,             /* motion groups back up alone, and pairs near
+                                 touching are held in the substep's LCP as
+                                 speculative contacts (the default) */
     SC_TOI_WORLD              /* the paper's: the earliest impact anywhere
-                                 backs the whole world up (Table 1; default) */
+                                 backs the whole world up (Table 1) */
 };
 
+/* Local threads a world uses at most (sc_world_config.workers). */
 #define SC_MAX_WORKERS 64
 /* Daemons a world uses at most, and the default cluster URL: LCM UDP
- * multicast (udpm; why not mpudpm: README, simclusterd(8)); ttl=0 keeps it
- * on this host, ttl=1 reaches the local network. */
+ * multicast (udpm; why not mpudpm: README, simclusterd(8)), ttl=0 keeping it
+ * on this host and ttl=1 reaching the local network. */
 #define SC_MAX_DAEMONS 64
 #define SC_CLUSTER_URL "udpm://239.255.76.67:7667?ttl=0&recv_buf_size=4194304"
 typedef struct sc_world_config {
-    double gravity[3];        /* default {0, 0, -9.81} */
-    int workers;              /* local threads (the caller's included), at most
-                                 SC_MAX_WORKERS; 0 = the CPUs this process may
-                                 use (its affinity mask, or a cgroup CPU
-                                 quota rounded up, at least 1) */
+    double gravity[3];        /* m/s^2; default {0, 0, -9.81} */
+    int workers;              /* local threads, the caller's included, at most
+                                 SC_MAX_WORKERS; default 0: sc_cpu_budget() rounded up, at
+                                 least 1 */
     const char *cluster;      /* LCM URL of the daemons (simclusterd(8)), e.g.
-                                 SC_CLUSTER_URL; NULL = local threads only */
-    const char *key_file;     /* shared cluster key (simcluster keygen); NULL
-                                 with a cluster = the all-zero insecure key */
-    double cluster_deadline_s; /* per job: results a daemon has not sent this
-                                 long after the local nodes finished are
-                                 recomputed locally; 0 = default 0.02 s */
-    double cluster_ship_share; /* a unit goes to a daemon only when shipping
-                                 it (packing, sealing, sending, receiving,
-                                 merging: this thread's time, measured) costs
-                                 at most this share of computing it here;
-                                 0 = default 0.5; negative: whatever it costs */
-    double cluster_min_gain;  /* a daemon gets a job's units only when their
-                                 predicted work is at least this many times
-                                 its measured round trip (the median of its
-                                 recent jobs', less their work); 0 = default
-                                 2; negative: no such rule */
-    int broadphase;           /* SC_BROADPHASE_*; AUTO = spheres below 256 bodies */
-    double contact_tol_m;     /* allowed penetration, default 1e-3 */
-    int motion_groups;        /* 1: bodies that cannot meet within a frame step
-                                 apart, each group with its own time-of-impact
-                                 back-ups, one work unit per group (faster;
-                                 see simcluster(3)); default 0: the paper's
-                                 world-wide back-up */
-    int island_split;         /* islands of more contacts than this are split
-                                 into blocks of whole pairs, each an exact
-                                 Dantzig solve, iterated by block Gauss-Seidel
-                                 from last frame's impulses (piles); 0: every
-                                 island one exact LCP (the paper's method);
-                                 default 16 */
-    int toi_mode;             /* SC_TOI_WORLD: the paper's world-wide
-                                 back-up (motion_groups decides on regions;
-                                 simcluster profile's Table 1);
-                                 SC_TOI_LOCAL (default): motion groups
-                                 (regions: bodies that can meet within the
-                                 frame); a pair that got too deep enters the
-                                 substep's LCP again as speculative contacts
-                                 found where it first touched (or where it
-                                 ended, when it moved less than half its
-                                 smaller feature), their gap limiting the
-                                 approach; only pairs whose gap passes 10
-                                 contact tolerances back their region up
-                                 (simcluster(3) says what it gains) */
+                                 SC_CLUSTER_URL; default NULL: local threads only */
+    const char *key_file;     /* shared cluster key file (simcluster keygen); default
+                                 NULL: the all-zero insecure key */
+    double cluster_deadline_s; /* per job, how long after the local nodes finish a daemon's
+                                 missing results are awaited before they are recomputed
+                                 locally, s; default 0: 0.02 s */
+    double cluster_ship_share; /* a unit goes to a daemon only when shipping it costs this
+                                 thread at most this share of computing it here; default
+                                 0: 0.5, negative: whatever it costs */
+    double cluster_min_gain;  /* a daemon gets a job's units only when their predicted
+                                 work is at least this many times its measured round trip;
+                                 default 0: 2, negative: no such rule */
+    int broadphase;           /* SC_BROADPHASE_*; default AUTO: all pairs below 256
+                                 bodies, sweep and prune from there */
+    double contact_tol_m;     /* allowed penetration, m; default 1e-3 */
+    int motion_groups;        /* 1: bodies that cannot meet within a frame are stepped
+                                 apart in motion groups also in SC_TOI_WORLD mode
+                                 (SC_TOI_LOCAL always does so); default 0 */
+    int island_split;         /* islands of more contacts than this are split into blocks
+                                 solved by block Gauss-Seidel, 0: every island is one
+                                 exact LCP (the paper's method); default
+                                 SC_ISLAND_SPLIT_DEFAULT */
+    int toi_mode;             /* SC_TOI_*, how a frame handles a pair that got too deep
+                                 (simcluster(3)); default SC_TOI_LOCAL */
     int internal_cookie;      /* set by sc_world_config_default(); do not touch */
 } sc_world_config;
-/* The default configuration. */
+/* The default world configuration. */
 SC_API sc_world_config sc_world_config_default(void);
-/* The CPUs this process may use: the count of its affinity mask, or less
- * where a cgroup CPU quota (v2 cpu.max, v1 cpu.cfs_quota_us over
- * cpu.cfs_period_us, of its cgroup or an ancestor) allows less; may be
- * fractional. Idle threads poll for work only when it is at least the
- * number of threads (sc_stats.spin). */
+/* The CPUs this process may use, possibly fractional: its affinity mask's
+ * count, or less where a cgroup CPU quota (v2 cpu.max, v1 cpu.cfs_quota_us
+ * over cpu.cfs_period_us, of its cgroup or an ancestor) allows less. */
 SC_API double sc_cpu_budget(void);
 
 /* Pass as sc_body_desc.mass to take the mass from density * volume. */
 #define SC_MASS_FROM_DENSITY (-1.0)
 
 typedef struct sc_body_desc {
-    sc_shape *shape;
-    double mass;              /* kg; 0 = static (immovable) body */
-    double pos[3], quat[4];   /* quaternion w, x, y, z */
-    double vel[3], omega[3];  /* m/s and rad/s, world frame */
+    sc_shape *shape;          /* the body's shape, of which the world keeps a reference;
+                                 default NULL, must be set */
+    double mass;              /* kg, 0 for a static (immovable) body or
+                                 SC_MASS_FROM_DENSITY; default 1 */
+    double pos[3], quat[4];   /* m, and the quaternion w, x, y, z; default the origin,
+                                 unturned */
+    double vel[3], omega[3];  /* m/s and rad/s, world frame; default 0 */
     double restitution, friction;
-    double density;           /* kg/m^3, used when mass == SC_MASS_FROM_DENSITY */
+                              /* coefficient of restitution e and Coulomb friction mu;
+                                 default 0.5 each */
+    double density;           /* kg/m^3, used when mass is SC_MASS_FROM_DENSITY; default
+                                 1000 */
     int internal_cookie;      /* set by sc_body_desc_default(); do not touch */
 } sc_body_desc;
-/* The default body: no shape, 1 kg, at the origin, at rest, e = 0.5, mu = 0.5. */
+/* The default body description: no shape, 1 kg, at rest at the origin, e = mu = 0.5. */
 SC_API sc_body_desc sc_body_desc_default(void);
 
 /* Body states (the paper's state machine). */
@@ -313,217 +294,172 @@ enum {
 #define SC_STATS_DENSITY_BINS 16
 
 typedef struct sc_stats {
-    /* seconds by stage: the thread's CPU time in world mode, its time in
-     * the stage by the monotonic clock in local mode (docs/DESIGN.md 3.1) */
-    double stage_s[SC_STAGE_COUNT];        /* last frame */
-    double stage_total_s[SC_STAGE_COUNT];  /* all frames */
-    long frames;              /* frames stepped */
-    int bodies;               /* bodies in the world */
-    int pairs;                /* broad-phase pairs, last frame */
-    long np_pairs;            /* narrow-phase pair tests of the frame's
-                                 detections (every substep, back-up and
-                                 speculative round), last frame */
-    long np_reused;           /* of them, answered from the frame's last
-                                 detection: both poses the same bits, so the
-                                 same contacts (docs/DESIGN.md 3.3) */
-    int contacts;             /* contact points, last frame */
-    int islands;              /* islands, last frame */
-    long lcp_pivots;          /* LCP pivots, last frame */
-    int lcp_fallbacks;        /* islands whose coupled friction LCP failed (pivot
-                                 limit or breakdown) and were solved staggered:
-                                 normals, then friction with fixed bounds */
-    /* the contact solver (docs/DESIGN.md section 11), last frame; every
-       fallback is counted, none is an error */
+    /* Figures of the last frame unless a field says otherwise. Seconds by
+     * stage (Table 1's rows) are the thread's CPU time in world mode and the
+     * stage's monotonic time in local mode (docs/DESIGN.md 3.1). */
+    double stage_s[SC_STAGE_COUNT]; /* seconds by stage */
+    double stage_total_s[SC_STAGE_COUNT]; /* seconds by stage, all frames */
+    long frames;              /* frames stepped, all frames */
+    int bodies;               /* bodies in the world, now */
+    int pairs;                /* broad-phase pairs */
+    long np_pairs;            /* narrow-phase pair tests over the frame's detections
+                                 (every substep, back-up and speculative round) */
+    long np_reused;           /* of them, answered from the frame's last detection because
+                                 both poses kept their bits (docs/DESIGN.md 3.3) */
+    int contacts;             /* contact points */
+    int islands;              /* islands */
+    long lcp_pivots;          /* LCP pivots */
+    int lcp_fallbacks;        /* islands whose coupled friction LCP failed and were solved
+                                 staggered: normals, then friction with fixed bounds */
+    /* the contact solver (docs/DESIGN.md 11): every fallback is counted, none
+     * is an error */
     int lcp_solves;           /* island solves (islands x substeps) */
-    int lcp_kept;             /* islands a speculative round left as they
-                                 were: their last solve's result kept, the
-                                 same bits (docs/DESIGN.md 3.4), last frame */
-    int lcp_split;            /* of them, solved as blocks (block Gauss-Seidel) */
+    int lcp_kept;             /* islands a speculative round left as they were, their last
+                                 result kept (docs/DESIGN.md 3.4) */
+    int lcp_split;            /* of the solves, those made as blocks by block Gauss-Seidel */
     long lcp_blocks;          /* block solves (blocks x sweeps) */
-    long lcp_blocks_shared;   /* of them, solved by a thread that helped the
-                                 island's own (docs/DESIGN.md 11, shared
-                                 blocks; depends on timing, the result
-                                 does not) */
+    long lcp_blocks_shared;   /* of them, those a helping thread solved (docs/DESIGN.md
+                                 11; timing decides it, not the result) */
     int lcp_sweeps_max;       /* most outer sweeps of one split solve */
     int lcp_unconverged;      /* split solves that stopped at the sweep limit */
-    int lcp_diverged;         /* split solves whose sweeps diverged: ended on
-                                 the best iterate */
-    int lcp_cold_starts;      /* split solves started from 0 because last
-                                 frame's impulses were a worse start */
-    int lcp_regularised;      /* solves that needed a raised diagonal (1e-9 to
-                                 1e-4 of its largest entry: singular or
-                                 near-redundant contacts); exact for that
-                                 compliance, no fallback */
-    int lcp_split_fallbacks;  /* exact islands whose staggered solve failed too:
-                                 solved as blocks instead */
-    long lcp_block_fallbacks; /* block solves that failed: projected
-                                 Gauss-Seidel on that block instead */
-    int lcp_nan_islands;      /* islands with non-finite data: no impulse */
-    int lcp_inelastic;        /* islands whose elastic answer added kinetic
-                                 energy (restitution at several contacts at
-                                 once): solved again with e = 0 */
-    int lcp_energy_refused;   /* of lcp_fallbacks, coupled friction answers
-                                 the solver found but refused because they
-                                 added kinetic energy of their own (the
-                                 rest: the solver failed) */
-    int lcp_restitution_scaled; /* answers whose restitution at several
-                                 contacts at once added energy: solved again
-                                 with the bounce scaled down (to none at
-                                 most; e = 1: as far as it adds none), no
-                                 fallback */
-    int lcp_guessed;          /* LCPs (islands or blocks) whose friction
-                                 neither the fixed point nor Lemke's method
-                                 settled, solved exactly from a projected
-                                 Gauss-Seidel guess: no fallback */
-    double lcp_residual;      /* largest complementarity error of an exact
-                                 solve (w_i z_i etc., m/s), last frame */
-    double lcp_outer_residual;/* largest outer residual of a split solve, m/s */
-    int substeps;             /* substeps of the frame (1 + time-of-impact
-                                 back-ups; the most of one region) */
-    int backups;              /* time-of-impact back-ups, last frame (summed
-                                 over regions) */
-    int backup_regions;       /* regions (motion groups, or the world) that
-                                 backed up at least once, last frame */
-    int backup_bodies;        /* dynamic bodies in those regions, last frame */
-    long backups_total;       /* back-ups, all frames (mean: / frames) */
-    int backups_max;          /* most back-ups of one frame so far */
-    int spec_contacts;        /* speculative contacts entered in LCPs
-                                 (approaches held without a back-up), last
-                                 frame */
-    int spec_rounds;          /* substeps solved again with them, last frame */
-    double max_penetration;   /* deepest contact, m, last frame */
-    long collider_warnings;   /* ODE collider messages (e.g. contact buffer
-                                 overflow), last frame; never printed */
-    /* work units and the scheduler (docs/DESIGN.md sections 5 and 6), last frame */
-    int groups;               /* motion groups stepped apart (bodies that cannot
-                                 meet within the frame), last frame */
-    int group_retries;        /* times the frame's groups were stepped again
-                                 because bodies of two groups came close
-                                 (docs/DESIGN.md 3.9), last frame */
+    int lcp_diverged;         /* split solves whose sweeps diverged, ended on the best
+                                 iterate */
+    int lcp_cold_starts;      /* split solves started from 0 because last frame's impulses
+                                 were a worse start */
+    int lcp_regularised;      /* solves that needed a diagonal raised by 1e-9 to 1e-4 of
+                                 its largest entry (singular or near-redundant contacts),
+                                 exact for that compliance */
+    int lcp_split_fallbacks;  /* exact islands whose staggered solve failed too, solved as
+                                 blocks instead */
+    long lcp_block_fallbacks; /* block solves that failed, given projected Gauss-Seidel
+                                 instead */
+    int lcp_nan_islands;      /* islands with non-finite data, given no impulse */
+    int lcp_inelastic;        /* islands whose elastic answer added kinetic energy, solved
+                                 again with e = 0 */
+    int lcp_energy_refused;   /* of lcp_fallbacks, coupled friction answers refused
+                                 because they added kinetic energy of their own */
+    int lcp_restitution_scaled;/* answers whose restitution at several contacts at once
+                                 added energy, solved again with the bounce scaled down */
+    int lcp_guessed;          /* LCPs whose friction neither the fixed point nor Lemke's
+                                 method settled, solved exactly from a projected
+                                 Gauss-Seidel guess */
+    double lcp_residual;      /* largest complementarity error of an exact solve, m/s */
+    double lcp_outer_residual; /* largest outer residual of a split solve, m/s */
+    int substeps;             /* substeps of the frame (1 + back-ups), the most of one
+                                 region */
+    int backups;              /* time-of-impact back-ups, summed over regions */
+    int backup_regions;       /* regions (motion groups, or the world) that backed up at
+                                 least once */
+    int backup_bodies;        /* dynamic bodies in those regions */
+    long backups_total;       /* back-ups, all frames */
+    int backups_max;          /* most back-ups of one frame, all frames */
+    int spec_contacts;        /* speculative contacts entered in LCPs (approaches held
+                                 without a back-up) */
+    int spec_rounds;          /* substeps solved again with them */
+    double max_penetration;   /* deepest contact, m */
+    long collider_warnings;   /* ODE collider messages such as a contact buffer overflow
+                                 (never printed) */
+    /* work units and the scheduler (docs/DESIGN.md 5 and 6) */
+    int groups;               /* motion groups stepped apart (bodies that cannot meet
+                                 within the frame) */
+    int group_retries;        /* times the groups were stepped again because bodies of two
+                                 groups came close (docs/DESIGN.md 3.9) */
     long group_retries_total; /* the same, all frames */
-    int nodes;                /* nodes the scheduler used (local threads) */
-    int private_ode;          /* of them, with their own copy of ODE (trimesh
-                                 pairs run concurrently only on those) */
-    double cpu_budget;        /* the CPUs this process may use: its affinity
-                                 mask, or a smaller cgroup CPU quota */
-    int spin;                 /* 1: idle local threads poll for work a few ms
-                                 before they sleep; 0: they sleep at once
-                                 (fewer CPUs than nodes: polling would take
-                                 the working threads' share) */
+    int nodes;                /* nodes the scheduler uses (local threads), now */
+    int private_ode;          /* of them, those with their own copy of ODE, the only ones
+                                 that run trimesh pairs concurrently, now */
+    double cpu_budget;        /* CPUs this process may use (sc_cpu_budget()), now */
+    int spin;                 /* 1 when idle local threads poll for work a few ms before
+                                 they sleep, 0 when fewer CPUs than nodes make them sleep
+                                 at once, now */
     long units;               /* work units run */
-    long units_background;    /* of them, motion groups stepped by idle local
-                                 threads beside a pile (docs/DESIGN.md 5) */
+    long units_background;    /* of them, motion groups stepped by idle local threads
+                                 beside a pile (docs/DESIGN.md 5) */
     double sched_s;           /* wall seconds spent scheduling: cost estimates,
                                  assignment, model fits */
-    double makespan_s;        /* wall seconds from dispatch to the last unit's
-                                 result, summed over the frame's jobs */
-    double makespan_bound_s;  /* lower bound of the same: per job, the larger of
-                                 total work / total speed and the largest unit */
-    double makespan_ratio;    /* makespan_s / makespan_bound_s (>= 1, 1 ideal);
-                                 0 when there was no work */
-    long jobs;                /* jobs handed to the nodes (each one a barrier
-                                 that every node with units waits at), last
-                                 frame */
-    double unit_work_s;       /* wall seconds of every unit where it ran,
-                                 summed over the frame's jobs, last frame */
-    double unit_bytes;        /* the units' estimated wire sizes (out and back),
-                                 summed, last frame */
+    double makespan_s;        /* wall seconds from dispatch to the last unit's result,
+                                 summed over jobs */
+    double makespan_bound_s;  /* lower bound of makespan_s: per job, the larger of total
+                                 work / total speed and the largest unit */
+    double makespan_ratio;    /* makespan_s / makespan_bound_s (>= 1, 1 ideal), 0 without
+                                 work */
+    long jobs;                /* jobs handed to the nodes, each a barrier for every node
+                                 with units */
+    double unit_work_s;       /* wall seconds of every unit where it ran, summed over jobs */
+    double unit_bytes;        /* the units' estimated wire sizes out and back, summed */
     double unit_work_by_density_s[SC_STATS_DENSITY_BINS];
-                              /* unit_work_s by the units' wire bytes per
-                                 second of their work: bin i from 2^i MB/s
-                                 (bin 0 also below, the last also above); what
-                                 shipping a unit costs the master is that
-                                 density times its time per byte, last frame */
+                              /* unit_work_s by wire bytes per second of work, bin i from
+                                 2^i MB/s (bin 0 also below, the last also above) */
     double ideal_makespan_s[SC_STATS_IDEAL_NODES];
-                              /* makespan_s as it would be on i + 1 nodes of
-                                 the measured speed with free communication:
-                                 per job the larger of its unit work / (i + 1)
-                                 and its largest unit, detection and time of
-                                 impact taken as divisible (they are cut finer
-                                 for more nodes); last frame. bench_cluster -p
-                                 model predicts daemons' speedups from it */
-    /* the cluster (sc_world_config.cluster), last frame but daemons */
+                              /* makespan_s as it would be on i + 1 nodes of the measured
+                                 speed with free communication (the cluster model's input:
+                                 bench_cluster -p model) */
+    /* the cluster (sc_world_config.cluster) */
     int daemons;              /* daemons heard from and not owner-busy, now */
-    int daemons_busy;         /* daemons that say their owner is busy, now */
+    int daemons_busy;         /* daemons whose owner is busy, now */
     long remote_units;        /* units whose result came from a daemon */
-    long recomputed_units;    /* units sent but recomputed locally (deadline) */
-    long late_results;        /* results that came after the deadline or twice
-                                 (ignored) */
-    long dropped_messages;    /* messages dropped: malformed, failed the MAC,
-                                 replayed, stale or misaddressed, and datagrams
-                                 the transport or the kernel dropped
-                                 (sc_bus_dropped; all frames) */
-    long dropped_auth;        /* of them: failed the MAC (another cluster key, or
-                                 forged; all frames) */
-    long dropped_stale;       /* of them: from an older start (epoch) of a daemon
-                                 than its newest heard (all frames) */
-    long dropped_misaddressed;/* of them: addressed to another start of this
-                                 master (all frames) */
-    int daemons_unverified;   /* daemons heard that have not answered this
-                                 master's challenge (not in daemons), now */
-    long duplicate_nodes;     /* daemon ids heard from two running daemons (two
-                                 live epochs; each pair once, all frames) */
+    long recomputed_units;    /* units sent but recomputed locally at the deadline */
+    long late_results;        /* results that came after the deadline or twice, ignored */
+    long dropped_messages;    /* messages dropped as malformed, unauthentic, replayed,
+                                 stale or misaddressed, and datagrams the transport or the
+                                 kernel dropped, all frames */
+    long dropped_auth;        /* of them, those that failed the MAC (another cluster key,
+                                 or forged), all frames */
+    long dropped_stale;       /* of them, those from an older start (epoch) of a daemon
+                                 than its newest heard, all frames */
+    long dropped_misaddressed; /* of them, those addressed to another start of this master,
+                                 all frames */
+    int daemons_unverified;   /* daemons heard that have not answered this master's
+                                 challenge (not in daemons), now */
+    long duplicate_nodes;     /* daemon ids heard from two live epochs, each pair once,
+                                 all frames */
     int64_t duplicate_node;   /* the last such id, 0 if none */
-    double comm_s;            /* wall seconds packing, sealing, sending and
-                                 receiving, last frame */
-    double remote_wait_s;     /* wall seconds waiting for daemons' results
-                                 after the local nodes were done, last frame
-                                 (recomputation included) */
-    long unit_messages;       /* sealed messages of units sent to daemons (each
-                                 daemon's units of a job go together, up to
-                                 256 KiB a message), last frame */
-    long result_messages;     /* sealed messages of results received (a daemon
-                                 thread sends what it has done together), last
-                                 frame */
-    double remote_overhead_s; /* daemons' round trips less their work: from a
-                                 job's send to its last result's arrival in
-                                 the kernel (SO_TIMESTAMP), less the daemon's
-                                 compute time, summed over remote_jobs, last
-                                 frame */
-    long remote_jobs;         /* jobs a daemon answered in full (one per daemon
-                                 and job), last frame */
-    long remote_refused;      /* daemons kept out of a job by the worth-it
-                                 rule (sc_world_config.cluster_min_gain: their
-                                 share was worth too few round trips), one
-                                 per daemon and job, last frame */
-    double remote_bytes;      /* unit_bytes of the units whose result came from
-                                 a daemon, last frame */
-    double remote_work_s;     /* the daemons' compute seconds of those units
-                                 (per thread), last frame */
-    long pipelined_units;     /* motion groups' units sent to daemons before the
-                                 pile's frame whose results were in when it
-                                 ended (computed while it ran), last frame */
+    double comm_s;            /* wall seconds packing, sealing, sending and receiving */
+    double remote_wait_s;     /* wall seconds waiting for daemons' results after the local
+                                 nodes were done, recomputation included */
+    long unit_messages;       /* sealed messages of units sent to daemons, a daemon's
+                                 units of a job together up to 256 KiB a message */
+    long result_messages;     /* sealed messages of results received */
+    double remote_overhead_s; /* daemons' round trips (send to the last result's arrival
+                                 in the kernel) less their compute time, summed over
+                                 remote_jobs */
+    long remote_jobs;         /* jobs a daemon answered in full, one per daemon and job */
+    long remote_refused;      /* daemons kept out of a job by
+                                 sc_world_config.cluster_min_gain, one per daemon and job */
+    double remote_bytes;      /* unit_bytes of the units whose result came from a daemon */
+    double remote_work_s;     /* the daemons' compute seconds (per thread) of those units */
+    long pipelined_units;     /* motion groups' units sent to daemons before the pile's
+                                 frame whose results were in when it ended */
     /* per-frame scratch (a stack arena that grows to its high-water mark) */
-    size_t arena_bytes;       /* high-water mark of the frame's arena, bytes
-                                 (since the world was created) */
-    size_t unit_arena_bytes;  /* the same of the local threads' arenas (island
-                                 solves), largest seen */
-    long initial_overlaps;    /* body pairs found overlapping deeper than twice
-                                 the contact tolerance when bodies were added
-                                 (the first frame after sc_body_add), all frames */
+    size_t arena_bytes;       /* high-water mark of the frame's arena, bytes, since the
+                                 world was created */
+    size_t unit_arena_bytes;  /* the same of the local threads' arenas, the largest seen */
+    long initial_overlaps;    /* body pairs found overlapping deeper than twice the
+                                 contact tolerance when added, all frames */
 } sc_stats;
 
-/* A new empty world; cfg NULL = defaults. NULL on error (sc_last_error()). */
+/* A new empty world (cfg NULL: the defaults); NULL on error (sc_last_error()). */
 SC_API sc_world *sc_world_create(const sc_world_config *cfg);
-/* Free w and drop its shape references. NULL is a no-op. */
+/* Free w and drop its shape references (NULL is a no-op). */
 SC_API void sc_world_destroy(sc_world *w);
 /* Add a body; returns its id (>= 0, ids count up from 0) or a negative code. */
 SC_API int sc_body_add(sc_world *w, const sc_body_desc *d);
 /* Number of bodies in w. */
 SC_API int sc_world_body_count(const sc_world *w);
 /* Advance w by one frame of dt seconds (detection, islands, contact LCP,
- * integration, time-of-impact back-up); SC_OK or a negative code. */
+ * integration, time-of-impact back-ups); SC_OK or a negative code. */
 SC_API int sc_world_step(sc_world *w, double dt);
 /* Pose of body id (origin of its shape frame); zeros for a bad id. */
 SC_API void sc_body_get_pose(const sc_world *w, int id, double pos[3], double quat[4]);
-/* Linear velocity of the shape origin and angular velocity, world frame. */
+/* Linear velocity of body id's shape origin and its angular velocity, world
+ * frame; zeros for a bad id. */
 SC_API void sc_body_get_velocity(const sc_world *w, int id, double v[3], double omega[3]);
 /* The shape of body id (borrowed: valid while w lives); NULL for a bad id. */
 SC_API const sc_shape *sc_body_shape(const sc_world *w, int id);
 /* SC_FREE, SC_COLLIDING, SC_CONTACT, SC_ASLEEP or SC_STATIC; negative for a bad id. */
 SC_API int sc_body_state(const sc_world *w, int id);
 /* Push body id with force f (N) at world point at (NULL = centre of mass)
- * during the next frame (the paper's 3D mouse). */
+ * during the next frame (the paper's 3D mouse); SC_OK or a negative code. */
 SC_API int sc_body_apply_force(sc_world *w, int id, const double f[3], const double at[3]);
 /* 1 when every dynamic body is asleep or at rest, else 0. */
 SC_API int sc_world_at_rest(const sc_world *w);
@@ -536,53 +472,52 @@ SC_API void sc_world_stats(const sc_world *w, sc_stats *s);
 /* Contacts found in the last frame, in canonical order (by body pair, then
  * point); copies at most max and returns how many there are in all. */
 SC_API int sc_world_contacts(const sc_world *w, sc_contact *out, int max);
-/* Wait, at most timeout_s seconds, until k daemons that are not owner-busy
- * answer on cfg's cluster (cfg->cluster, cfg->key_file): returns how many
- * were heard (>= k, or fewer when the time ran out) or a negative code.
- * It listens to the daemons' heartbeats itself and counts those that
- * answer its challenge, as a world does (no world is created); a world
- * created afterwards hears them within its first frames. */
+/* Wait at most timeout_s seconds until k daemons that are not owner-busy
+ * answer a challenge on cfg's cluster (cfg->cluster, cfg->key_file), as a
+ * world would, and return how many answered (fewer than k when the time ran
+ * out) or a negative code. */
 SC_API int sc_cluster_wait(const sc_world_config *cfg, int k, double timeout_s);
 
 /* ---- the paper's scenes ---- */
 /* Add Table 1's 27 steel spheres (e = 1) moving in a closed 4 m box to w; SC_OK or a code. */
 SC_API int sc_scene_spheres_box(sc_world *w);
-/* The Table 1 box's walls and n (1..SC_ELASTIC_BOX_MAX) steel UV spheres of
- * radius (0, 0.25) m, e = 1, no friction, on a grid filling the box's middle
- * 3.2 m, moving at speed m/s along spread directions: the elastic boxes of
- * bench_energy. SC_OK or a code. */
+/* Add the Table 1 box's walls and n (1..SC_ELASTIC_BOX_MAX) frictionless
+ * steel UV spheres (e = 1) of radius (0, 0.25) m on a grid filling the box's
+ * middle 3.2 m, moving at speed m/s in spread directions, to w; SC_OK or a
+ * code. */
 #define SC_ELASTIC_BOX_MAX 1000
 SC_API int sc_scene_elastic_box(sc_world *w, int n, double radius, double speed);
-/* Add a floor and n (1..100000) bolts/nuts at random free poses from seed to w; SC_OK or a code. */
+/* Add a floor and n (1..100000) bolts and nuts at random free poses from seed
+ * to w; SC_OK or a code. */
 SC_API int sc_scene_bolts_nuts(sc_world *w, int n, uint64_t seed);
-/* The parts bin: n bolts and nuts on a grid one part length apart, four
- * layers deep, random orientations (from seed), inside four walls on a
- * floor: the dense pile. */
+/* Add the parts bin, a dense pile of n bolts and nuts on a grid one part
+ * length apart, four layers deep, turned at random from seed, inside four
+ * walls on a floor, to w; SC_OK or a code. */
 SC_API int sc_scene_bin(sc_world *w, int n, uint64_t seed);
 
 /* ---- scene files (format: simcluster.conf(5), SCENE FILES) ---- */
 typedef struct sc_scene sc_scene;
-/* Read a scene file; mesh files it names are relative to its folder. NULL
- * on error, with the code in sc_last_error() and, when err is not NULL, a
- * one-line "FILE:LINE:COLUMN: what" in err (errlen bytes, truncated). */
+/* Read a scene file, whose mesh paths are relative to its folder; NULL on
+ * error, with the code in sc_last_error() and, when err is not NULL, a line
+ * "FILE:LINE:COLUMN: what" in err (errlen bytes, truncated). */
 SC_API sc_scene *sc_scene_load(const char *path, char *err, size_t errlen);
-/* The same from len bytes of text (no NUL needed); name is used in
- * messages, dir resolves relative mesh paths (NULL: the current folder). */
+/* sc_scene_load() from len bytes of text (no NUL needed), name naming it in
+ * messages and dir resolving relative mesh paths (NULL: the current folder). */
 SC_API sc_scene *sc_scene_parse(const char *text, size_t len, const char *name,
                                 const char *dir, char *err, size_t errlen);
 /* Copy the scene's world settings (gravity, tolerance) that it gives into cfg. */
 SC_API void sc_scene_config(const sc_scene *s, sc_world_config *cfg);
-/* Add the scene's bodies to w, in file order (grids x fastest, then y, z);
- * SC_OK or a code (then w holds the bodies added so far). A scene builds
- * any number of worlds. */
+/* Add the scene's bodies to w in file order (grids x fastest, then y, z),
+ * as often as wanted; SC_OK, or a code with the bodies added so far in w. */
 SC_API int sc_scene_build(const sc_scene *s, sc_world *w);
 /* Bodies the scene adds (grids expanded); 0 for NULL. */
 SC_API int sc_scene_body_count(const sc_scene *s);
+/* Free s (NULL is a no-op). */
 SC_API void sc_scene_free(sc_scene *s);
 
 /* ---- LCP ------------------------------------------------------------------ */
-/* Standard LCP: find z with w = M z + q, z >= 0, w >= 0, z.w = 0 (M row-major
- * n x n). SC_OK with z and w written, or a negative code (never a wrong answer). */
+/* Solve the standard LCP w = M z + q, z >= 0, w >= 0, z.w = 0 (M row-major
+ * n x n): SC_OK with z and w written, or a negative code, never a wrong answer. */
 SC_API int sc_lcp_solve(int n, const double *M, const double *q, double *z, double *w);
 
 #ifdef __cplusplus

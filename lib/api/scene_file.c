@@ -1,29 +1,10 @@
 /* scene_file.c - scene files (simcluster.conf(5), section SCENE FILES): a
  * plain-text world description read into an sc_scene, then built into any
- * number of worlds.
- *
- *   # a comment runs to the end of the line
- *   gravity 0 0 -9.81
- *   tolerance 0.001
- *   material steel density 7800 restitution 0.8 friction 0.5
- *   shape floor plane 0 0 1 0
- *   shape part mesh parts/bracket.stl scale 0.001
- *   body floor
- *   body part material steel pos 0 0 0.3 rot 1 0 0 30 grid 3 3 1 0.1 0.1 0
- *
- * A line is a keyword and its arguments, separated by blanks; a word with
- * blanks in it (a file name) is written in double quotes. Errors stop the
- * read at the first problem and say FILE:LINE:COLUMN: what, the column
- * being that of the offending word (1-based, in bytes).
- *
- * The text is hostile input, like a mesh file: every read is bounded by len
- * (no NUL terminator needed), every count is capped before it sizes an
- * allocation, and numbers must be finite and whole words ("1.5x" is an
- * error, not 1.5). Numbers are read in the C locale whatever the caller's.
- * Meshes are loaded while reading, so a bad mesh file is reported at the
- * line that names it. Only the public API is used to build, so a scene file
- * builds exactly what a program could build by hand.
- */
+ * number of worlds. The text is hostile input: every read is bounded,
+ * every count capped before it sizes an allocation, numbers must be finite
+ * whole words, read in the C locale. Errors stop the read and say
+ * FILE:LINE:COLUMN: what. Only the public API builds, so a scene file
+ * builds exactly what a program could build by hand. */
 #include <errno.h>
 #include <locale.h>
 #include <math.h>

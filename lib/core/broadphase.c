@@ -1,83 +1,12 @@
 /*
- * broadphase.c - step 4 (coarse): which pairs of bounding spheres overlap.
- *
- * Contract (both methods, bit-identical sets): a pair a < b is reported when
- * at least one of the two is active and, with d = c_b - c_a and s = r_a + r_b,
- *     d.x*d.x + d.y*d.y + d.z*d.z <= s*s        (evaluated left to right)
- * in IEEE double, i.e. the closed test |c_a - c_b| <= r_a + r_b. Both methods
- * call the same inline predicate on the same bits (copies of doubles are
- * exact, x - y == -(y - x) and x + y == y + x in round-to-nearest), so the
- * sets are identical; ISO C mode (-std=c11) keeps GCC from contracting it
- * into an FMA. Output sorted by (a, b).
- *
- * SC_BROADPHASE_SPHERES is the paper's all-pairs test, O(n^2). AUTO uses it
- * below SC_BP_AUTO_SAP_MIN = 256 bodies (the documented world default: no
- * state, and under 0.05 ms a frame there; on the benchmark pile SAP is
- * already faster from ~50 bodies, by microseconds).
- *
- * SC_BROADPHASE_SAP is sweep and prune made two-dimensional. A plain 1-D
- * sweep over x was measured first: 5000 bodies of radius 0.05 in 2 x 2 x 1 m
- * give 1.2 million candidate pairs and 1.7 ms per frame on this machine (the
- * x-slab of a body holds ~250 others), over the 1 ms budget. So the bodies
- * are sorted by (level, row, lo) instead of lo alone:
- *  - level: the power of two h = 2^L that is the smallest >= the body's
- *    diameter (plus slack). Mixed radii get separate levels, so a few huge
- *    bodies do not coarsen the grid for everyone else.
- *  - row: the cell (floor(u / h), floor(v / h)) in the two axes across the
- *    sweep axis. Same-level overlapping bodies are in the same or adjacent
- *    rows, so each row is swept against itself and against its 4 forward
- *    neighbours (the other 4 see it as theirs); 75 000 candidates instead
- *    of 1.2 million on that pile.
- *  - lo: the interval start along the sweep axis (the axis of largest
- *    variance: it gives the fewest, longest rows; it changes only when
- *    another axis' variance is twice as large, since a change costs a full
- *    sort).
- * A body of a finer level looks up its 3 x 3 rows in each coarser level and
- * scans them from a binary-searched start. The sorted entries persist in bp:
- * each frame the keys are recomputed in the old order and insertion sort
- * repairs it, O(n) when bodies move a little; past a budget of 2n moves
- * (large disorder, axis change, many new bodies) a merge sort takes over. A
- * changed body count keeps the order (removed ids dropped, new ids appended).
- * The pairs come out in sweep order and are put in (a, b) order by a two-pass
- * counting sort, O(n + pairs).
- *
- * Exactness of the pruning (why no pair the predicate accepts is missed):
- *  - coordinates and radii are bounded by SC_BP_LIMIT = 1e150, so no square
- *    or sum overflows;
- *  - the sweep interval is [x - r - m, x + r + m] with m = 1e-14 (|x| + r)
- *    + 1e-140: if two computed intervals are disjoint, the exact gap
- *    exceeds ~1e-14 of the operands plus 1e-140, larger than every rounding
- *    of the predicate and out of its underflow range, so it is false;
- *  - the diameter used for the level is 2r (1 + 1e-12) + 1e-140 and the
- *    cell index is floor(u * 2^-L), an exact scaling; if the predicate
- *    holds the true distance is <= (r_a + r_b)(1 + 4 ulp) + 2^-536 <= h, so
- *    the cell indices differ by at most 1 (clamping to +-2^26 keeps that);
- *  - another row is scanned from lo_k - ((1 + 1e-9) W + 1e-15 |lo_k|), W the
- *    widest interval of its level: no interval reaching lo_k starts before.
- * The test compares both methods with a brute-force reference on scenes made
- * to break these arguments (touching pairs, huge offsets, radii from 1e-9 to
- * 1e3, planes, identical centres).
- *
- * Few moved: a pile is detected again within its frame after every
- * back-up and speculative round, and a round that solved few islands
- * again moved few bodies. So SAP keeps its last call's centres, radii,
- * activity and pairs: when at most one body in BP_FEW_MOVED has other
- * bits now, the pairs of two unmoved bodies are the last ones (the same
- * predicate on the same bits), and each moved body is tested against
- * every body; both merged in order. The same set as a sweep.
- *
- * Shared sweeps: the sweeps read only the sorted slots and the row and
- * level tables, so with a task runner (sc_bp_find_pairs_on(); the frame's
- * calling thread and its idle workers, docs/DESIGN.md 5.3) they run as
- * tasks: BP_CHUNKS over the same-level rows (cut where the slots are, so
- * each gets about as many bodies), BP_CHUNKS over the finer bodies of
- * each pair of levels. Each task writes pairs of its own; the counting
- * sort reads them all, so the output is the same array, in the same
- * order, whoever ran which task and however the rows were cut. Without a
- * runner there is one task of each kind, run in order.
- *
- * Memory: per-body arrays grow with n and the pair scratch with the pair
- * count; nothing is allocated once they have reached their size.
+ * broadphase.c - step 4 (coarse): which pairs of bounding spheres overlap
+ * (docs/DESIGN.md 3.2). Two methods give the same set, sorted by (a, b),
+ * bit for bit: the paper's all-pairs test (SC_BROADPHASE_SPHERES) and a
+ * sweep and prune over rows of power-of-two levels that keeps its order
+ * between frames (SC_BROADPHASE_SAP). Both call one inline predicate,
+ * |c_a - c_b| <= r_a + r_b on the same bits, and the pruning's slack keeps
+ * every pair it accepts; with a task runner the sweeps are shared tasks
+ * whose output does not depend on who ran them.
  */
 #include <limits.h>
 #include <math.h>
@@ -98,7 +27,8 @@
 #pragma GCC optimize("fp-contract=off")
 #endif
 
-/* Largest |coordinate| or radius accepted (see the overflow argument). */
+/* Largest |coordinate| or radius accepted: no square or sum in the
+ * predicate overflows below it. */
 #define SC_BP_LIMIT 1e150
 /* AUTO: all pairs below this many bodies, sweep and prune from it on. */
 #define SC_BP_AUTO_SAP_MIN 256
@@ -108,7 +38,12 @@
 #define BP_SHARE_MIN SC_SHARE_MIN
 #define BP_CHUNKS SC_SHARE_CHUNKS
 
-/* Slack of the pruning tests (see the exactness argument above). */
+/* Slack of the pruning tests, so that they never drop a pair the predicate
+ * accepts. The sweep interval is [x - r - m, x + r + m], m = BP_MARGIN_REL
+ * (|x| + r) + BP_SLACK_ABS: two computed intervals that are disjoint are
+ * apart by more than any rounding of the predicate. The level's diameter
+ * is 2r (1 + BP_DIAM_REL) + BP_SLACK_ABS and the cell index an exact
+ * scaling, so an accepted pair's cells differ by at most 1. */
 #define BP_MARGIN_REL 1e-14
 #define BP_SLACK_ABS 1e-140
 #define BP_DIAM_REL 1e-12
@@ -142,7 +77,8 @@ typedef struct bp_out {
     int rc;                   /* SC_OK or SC_ENOMEM */
 } bp_out;
 
-/* Inlining the candidate loop into its three callers is worth ~10 %. */
+/* The candidate loop is inlined into its three callers: it is the sweeps'
+ * innermost loop. */
 #if defined(__GNUC__)
 #define BP_INLINE static inline __attribute__((always_inline))
 #else
@@ -165,7 +101,7 @@ struct sc_broadphase {
     int *count;               /* radix sort of the output, n + 1 */
     sc_pair *tmp;             /* radix sort scratch */
     int tmp_cap;
-    /* the sweep in tasks ("Shared sweeps" above): nchunk tasks over the
+    /* the sweep in tasks (sweep_task()): nchunk tasks over the
      * same-level rows, then nchunk over each pair of levels, each with
      * its own output */
     int nchunk;
@@ -175,7 +111,7 @@ struct sc_broadphase {
     sc_pair **out;
     int *out_cap, nout;
     /* the last sweep's input and output, for a call that moves few
-     * bodies ("Few moved" above) */
+     * bodies (find_moved_pairs()) */
     int last_n;                    /* 0: none (per-body arrays: cap) */
     double *last_c, *last_r;
     unsigned char *last_act, *moved;
@@ -777,8 +713,11 @@ static int find_swept_pairs(sc_broadphase *bp, const sc_task_runner *runner, con
 
 #define BP_FEW_MOVED 16        /* at most one body in this many moved */
 
-/* The pairs when few bodies moved since the last sweep; 1 if done so (into
- * the output), 0 if too many moved, or a code. */
+/* The pairs when few bodies moved since the last sweep (a pile detected
+ * again within its frame; docs/DESIGN.md 3.2): those of two unmoved bodies
+ * are the last ones, each moved body is tested against every body, both
+ * merged in order. 1 if done so (into the output), 0 if too many moved,
+ * or a code. */
 static int find_moved_pairs(sc_broadphase *bp, const double *c, const double *r,
                             const unsigned char *active, int n)
 {

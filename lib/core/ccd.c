@@ -1,38 +1,10 @@
 /* ccd.c - distances between convex shapes (docs/DESIGN.md 3.4), for the
- * time-of-impact search's conservative advancement (toi.c).
- *
- * Spheres, boxes and convex meshes (hulls) are given to libccd 2.1 by their
- * support functions at a pose, inflated by a margin: an intersection test of
- * the inflated shapes is a "closer than the margin" test, and their
- * penetration depth d gives the distance margin - d (FCL's trick). libccd
- * has no distance query, so sc_ccd_separation() runs a GJK distance of its
- * own (van den Bergen's, with Ericson's closest points on the simplex) on
- * the shapes' cores: a sphere is its centre with a radius, so sphere pairs
- * are exact, and boxes and hulls are polytopes, on which GJK ends in a few
- * steps with the distance to GJK_EPS. libccd gives the depth where the
- * cores overlap.
- *
- * libccd's known defects, and what is done about them:
- * - MPR's penetration direction is the direction to the nearest point of
- *   the final portal triangle, not its normal, and is off near the
- *   portal's edges (danfis/libccd #71); the depth is the distance to that
- *   triangle. The depth used here is the exact extent of the shapes along
- *   a direction (sc_ccd_gap()), which always separates them whatever the
- *   direction's error: the least along MPR's direction, the caller's hint
- *   and the shapes' faces nearest MPR's.
- * - EPA's stop test compares a length with a squared length (#44), so it
- *   stops at an error of epa_tolerance / depth: 1e-4 (the default) at a
- *   depth of 1 mm stops 0.1 m early. CCD_EPA_TOL is set far lower, and EPA
- *   is not what toi.c uses. Its loop has no iteration limit (#7).
- * - With a touching contact, ccdGJKPenetration() returns "intersecting"
- *   without writing the depth and direction: both start at zero here.
- * - GJK's default first direction (1, 0, 0) fails on stacked boxes (#25):
- *   the first direction here is the line between the shapes' centres,
- *   and the iterations are bounded (libccd's default is no bound).
- *
- * Everything here is a pure function of its arguments (no state), so a
- * query gives the same bits on any thread.
- */
+ * time-of-impact search's conservative advancement (toi.c). Shapes go to
+ * libccd 2.1 as support functions inflated by a margin (FCL's trick); as
+ * libccd has no distance query, a GJK distance of our own runs on the
+ * shapes' cores. libccd's known defects (danfis/libccd #7, #25, #44, #71)
+ * are worked around where its calls are set up. Every function here is
+ * pure, so a query gives the same bits on any thread. */
 #include <ccd/ccd.h>
 
 #include "core.h"
@@ -40,7 +12,8 @@
 
 #define CCD_MAX_ITER 128     /* libccd GJK and MPR iterations */
 #define CCD_MPR_TOL 1e-9     /* m: MPR's portal tolerance */
-#define CCD_EPA_TOL 1e-12    /* see #44 above: stops at about 1e-12 / depth m */
+#define CCD_EPA_TOL 1e-12    /* EPA's stop test mixes a length and its square
+                                (libccd #44): it stops at about 1e-12 / depth m */
 #define GJK_MAX_ITER 64
 #define GJK_EPS 1e-10        /* m: the distance's upper and lower bound this close */
 #define GJK_TOUCH 1e-12      /* m: cores closer than this overlap */
@@ -120,6 +93,8 @@ static void ccd_center_cb(const void *obj, ccd_vec3_t *c)
     v3_add(c->v, c->v, o->pos);
 }
 
+/* GJK's first direction: the line between the centres (libccd's default
+ * (1, 0, 0) fails on stacked boxes, #25). */
 static void ccd_first_dir_cb(const void *o1, const void *o2, ccd_vec3_t *dir)
 {
     ccd_vec3_t c1, c2;
@@ -186,6 +161,7 @@ int sc_ccd_penetration(int method, const sc_shape *a, const sc_pose *pa, const s
     sc_ccd_obj_init(&ob, b, pb, 0.5 * margin_m);
     ccd_t c;
     ccd_setup(&c);
+    /* a touching pair is "intersecting" without depth or direction */
     ccd_real_t d = 0;
     ccd_vec3_t dir = { { 0, 0, 0 } }, pos = { { 0, 0, 0 } };
     int r = method == SC_CCD_GJK ? ccdGJKPenetration(&oa, &ob, &c, &d, &dir, &pos)

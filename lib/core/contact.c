@@ -1,37 +1,12 @@
 /* contact.c - contact impulses for one island (the paper's step 7;
- * docs/DESIGN.md sections 3 and 11).
+ * docs/DESIGN.md 3.5 and 11).
  *
- * Baraff's velocity-level formulation: for contact i with pre-impact normal
- * speed v_i (negative when approaching) the impulses p solve
- *     w = A p + J u* + e_i min(v_i, 0) >= 0,  p >= 0,  p.w = 0
- * where u* is the velocity after external forces, A = J W J^T (W the
- * inverse mass matrix) and e_i the restitution for a collision (approach
- * faster than bounce_speed) or 0 for a resting contact (the paper's contact
- * state). Coulomb friction adds two tangent rows per contact bounded by
- * +-mu p_n (a boxed LCP, findex as in ODE). Both go to our Dantzig solver.
- * In the local time-of-impact mode an island whose collisions are all
- * between touching bodies solves them first and its resting contacts
- * after (impacts(), below), and a collision held by a speculative contact
- * bounces where it touches (touch(), pull_in(), first_touches(),
- * rebound()).
- *
- * Small islands (up to split_contacts contacts) are one exact LCP. Larger
- * ones, a pile, are split into blocks of whole pairs, each block an exact
- * Dantzig solve, iterated by block Gauss-Seidel from last solve's impulses
- * (warm start) until the outer residual is below tol; the blocks are
- * coloured (no two of a colour share a moving body) and each colour's may
- * go to a runner that shares them with idle threads, the same bits either
- * way. The same block iteration is the last fallback of an exact island,
- * and a block whose Dantzig solve fails takes projected Gauss-Seidel: no
- * island fails for numerical reasons, and every fallback is counted
- * (sc_solve_info). An answer whose restitution at several contacts would
- * add energy is solved again with the bounce scaled down
- * (scale_restitution()); one that adds energy of its own is refused.
- *
- * Resting contacts keep a small penetration; deeper ones are pushed out by
- * a second, normal-only LCP on pseudo velocities (split impulse): positions
- * move, velocities do not, so the correction adds no kinetic energy.
- */
+ * Baraff's velocity-level LCP with restitution and Coulomb friction (a
+ * boxed LCP), one exact Dantzig solve for a small island and block
+ * Gauss-Seidel over exact blocks for a pile; no island fails for numerical
+ * reasons, and every fallback is counted (sc_solve_info). Deeper contacts
+ * are pushed out by a normal-only LCP on pseudo velocities (split
+ * impulse), which moves positions and adds no kinetic energy. */
 #include <stdlib.h>
 #include <string.h>
 
@@ -248,7 +223,7 @@ static int adds_energy(const double *A, int n, const double *q, const double *of
  * takes the largest share that adds none, by bisection
  * (RESTITUTION_HALVINGS) between none (the velocity LCP is then a
  * projection and never adds) and all, so that it keeps its energy as
- * nearly as it can (the shares alone lost up to half of it: bench_energy,
+ * nearly as it can (the fixed shares alone lose much of it;
  * docs/DESIGN.md 3.4). q, off, z, w: the island's (z and w get the new
  * answer); ENERGY_NONE when one was found. */
 #define RESTITUTION_HALVINGS 8
@@ -983,7 +958,7 @@ static int push_out(sc_arena *a, const row *rows, const int *nsel, int nn, const
     for (int k = 0; k < nn; k++) {
         /* what the velocities just solved do not already take out: a
          * sphere leaving the floor after a bounce is not lifted as well
-         * (that lift, against gravity, gained the Table 1 box energy) */
+         * (that lift, against gravity, would add energy) */
         double target = p->baumgarte * max_d(c[ci[k]].depth - p->slop, 0.0) / h;
         q[k] = -max_d(target - max_d(row_speed(&rows[nsel[k]], bodies, 0), 0.0), 0.0);
         qmax = max_d(qmax, -q[k]);
@@ -1028,7 +1003,7 @@ static int solve_rows(sc_arena *arena, sc_body *bodies, row *rows, int nrows,
     if (!split) {
         build_a(rows, NULL, nrows, A);
         /* small islands start cold: a few pivots, and the answer does not
-         * depend on the last frame's (the same bits as before warm starts) */
+         * depend on the last frame's (the same bits whatever it held) */
         rc = solve(arena, nrows, A, q, lo, hi, friction ? findex : NULL, mu, z, w, info,
                    (warm && nc > WARM_MIN_CONTACTS && !p->cold ? SOLVE_WARM : 0) |
                        (p->inject & SC_INJECT_COUPLED ? SOLVE_FAIL : 0));
@@ -1134,14 +1109,13 @@ static double kinetic(const sc_body *b, const double v[3], const double w[3]);
  * would cost more than that, the push-out goes only as far as it pays
  * (every body's move and turn scaled by the same share) and those
  * velocities stop: a resting part is not lifted for free. A part whose
- * contacts hover just past the slop is pushed out in every substep; in a
- * bin of 200 a nut resting on two contacts was lifted 40 um at a time
- * while still, tipped, and so rocked for seconds (docs/DESIGN.md 3.5).
- * An island whose deepest contact (deep) is deeper than PUSH_PAID_DEPTH
- * times the slop (bodies placed overlapping, a pair at the time of
- * impact's tolerance) is pushed out whatever it costs: a little inside
- * the tolerance, so that a creeping pile is pushed back before it passes
- * it (at twice the slop, 11 of 32 bins of 200 reached 1.0005-1.036 mm). */
+ * contacts hover just past the slop is pushed out in every substep, and
+ * lifted so a little at a time while still it tips and rocks
+ * (docs/DESIGN.md 3.5). An island whose deepest contact (deep) is deeper
+ * than PUSH_PAID_DEPTH times the slop (bodies placed overlapping, a pair
+ * at the time of impact's tolerance) is pushed out whatever it costs: a
+ * little inside the tolerance, so that a creeping pile is pushed back
+ * before it passes it (at twice the slop, piles pass it). */
 #define PUSH_PAID_DEPTH 1.9
 
 /* Every body of ids moved from x0 (position, then orientation: 7 doubles
@@ -1178,11 +1152,10 @@ static double gyration_reach(const sc_body *b)
  * its turn times gyration_reach(): it removes a share of a depth, and a
  * move far past that comes from near-opposed normals, whose pseudo
  * impulses grow without bound while their forces cancel and their
- * torques do not. In a bin of 200 (seed 6, frame 112) a bolt squeezed
- * between two such contacts 0.78 mm deep was turned by 0.39-0.73 rad in
- * each substep's push-out, and went 4.8 mm into a nut. Where a body's
- * move is larger, every body of the island moves by the same smaller
- * share. */
+ * torques do not: a part squeezed between two such contacts is turned by
+ * a large angle in each substep's push-out and driven deep into its
+ * neighbour. Where a body's move is larger, every body of the island
+ * moves by the same smaller share (docs/DESIGN.md 3.5). */
 #define PUSH_MAX_MOVE 2.0
 static void limit_moves(sc_body *bodies, const int *ids, int nb, const double *x0, double deep,
                         double slop)
@@ -1443,16 +1416,14 @@ static void bodies_restore(sc_body *bodies, const int *ids, int nb, const double
  *
  * a_lin is the part of a that comes from the bodies' linear velocities:
  * the rest is the gyroscopic turn of w, which does no work, and counted in
- * the bounce it gained the Table 1 box (spheres spinning at up to 70
- * rad/s) z (a - a_lin) T a bounce, 0.16 % at the peak; v_end takes it out
- * for e = 1 (the energy after is then the energy before plus the linear
- * forces' work, as the flight and the pull give it), (1 + e) / 2 of that
- * for e < 1.
+ * the bounce it would gain a spinning body z (a - a_lin) T a bounce;
+ * v_end takes it out for e = 1 (the energy after is then the energy
+ * before plus the linear forces' work, as the flight and the pull give
+ * it), (1 + e) / 2 of that for e < 1.
  *
- * (Bouncing at the start from the start's speed, as before, kept the
- * energy with e = 1 but put the bounce a gap early, at the speed of the
- * gap's top: examples/hello.c's ball, e = 0.5, rose 251.1 mm instead of
- * 225.) */
+ * (Bouncing at the start from the start's speed keeps the energy with
+ * e = 1 but puts the bounce a gap early, at the speed of the gap's top, so
+ * a ball with e < 1 rebounds too high.) */
 static double touch(double vpre, double speed, double a_lin, double gap, double e, double h,
                     double *pull, double *t)
 {
@@ -1561,12 +1532,12 @@ static void pull_in(const row *rows, const int *cstart, const sc_contact *c, con
 /* A speculative row that its own approach does not close within h (no
  * collision: a resting row with its gap) is loaded only when another
  * collision of the substep drives the bodies into it (a sphere bounced off
- * one neighbour into a wall), and then it stopped them at the surface
- * without a bounce: the Table 1 box lost 0.65 % of its energy in one such
- * frame. Such a row touches at the substep's end, so it bounces there: a
- * normal-only LCP over the island gives it v_n >= e times the approach it
- * took out (its speed without its own impulse, s - A_rr z), the island's
- * other touching or loaded rows no faster approach than they have. The
+ * one neighbour into a wall), and then it would stop them at the surface
+ * without a bounce, losing their energy. Such a row touches at the
+ * substep's end, so it bounces there: a normal-only LCP over the island
+ * gives it v_n >= e times the approach it took out (its speed without its
+ * own impulse, s - A_rr z), the island's other touching or loaded rows no
+ * faster approach than they have. The
  * bounce acts after the positions moved: they are moved back by what the
  * integration will add for it (integrate.c: h du for a body that flies
  * from a collision at the start, h du / 2 by the trapezoid rule). */
@@ -1668,11 +1639,11 @@ out:
  * than the slop at their speed) are no collisions: the first's bounce may
  * take them apart, and else they hold as resting rows with their gaps
  * (the bodies flying from the start: J u' - (J u* - J u0) / 2 >= -g / h),
- * and rebound() bounces them where they touch. A faceted sphere spinning
- * at 40 rad/s met the floor on two vertices within 1.5 ms at 6.5 and 8.1
- * m/s: Newton's restitution on both at once gained it 0.1 % of the
- * Table 1 box's energy. pull: touch()'s, then per contact its approach at
- * the touch and its resting row's q. */
+ * and rebound() bounces them where they touch. A spinning faceted body
+ * can meet the floor on two vertices at different speeds within a
+ * substep, and Newton's restitution on both at once gains it energy.
+ * pull: touch()'s, then per contact its approach at the touch and its
+ * resting row's q. */
 static void first_touches(const sc_contact *c, const int *ci, int nc, const int *cstart,
                           int *coll, const double *pull, double *q, double *off, double slop)
 {
@@ -1823,9 +1794,8 @@ rows_again:
      * collision): one LCP with the resting rows, its impulse at the
      * substep's start aiming at the speed bouncing at the touch ends with
      * (touch()), the bodies then pulled back to where that bounce puts
-     * them (pull_in()) (the Table 1 box ended at peak 1.0023 of its
-     * energy with the impacts first, when held collisions still bounced
-     * a gap early) */
+     * them (pull_in()) (solved with the impacts first, a held collision
+     * bounces a gap early and gains energy) */
     /* an elastic answer is checked for energy it adds: the island's
      * bodies and their energy before the solve */
     if (elastic) {

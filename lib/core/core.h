@@ -18,7 +18,7 @@
 
 /* fmax() and fmin() with the same result for every input (NaN and signed
  * zeros included: the first operand on a tie, the other one where one is
- * NaN), inline: the libm calls were 8 % of a pile's CPU. */
+ * NaN), inline: they sit in the inner loops, where libm's calls cost. */
 static inline double max_d(double a, double b) { return a >= b || (b != b && a == a) ? a : b; }
 static inline double min_d(double a, double b) { return a <= b || (b != b && a == a) ? a : b; }
 

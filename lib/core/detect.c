@@ -375,9 +375,9 @@ int sc_detect(sc_frame *f)
     sc_stage_since(f, SC_STAGE_NARROWPHASE, t0);
     /* A sleeper woken here has pairs the broad phase left out (with the
      * floor, with other sleepers): detection runs again until nobody new
-     * wakes, so that it is solved with them. Else a box that fell on a
-     * sleeper met a sleeper without its floor and shoved it 48 mm, where
-     * an awake one does not move (test_physics). */
+     * wakes, so that it is solved with them. Else a box that falls on a
+     * sleeper meets a sleeper without its floor and shoves it through,
+     * where an awake one does not move (test_physics). */
     while (rc == SC_OK && sc_wake_touched(st->bodies, st->contacts, st->ncontacts) > 0) {
         t0 = sc_stage_now(f);
         rc = broadphase(f, &npairs);

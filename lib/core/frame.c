@@ -13,12 +13,11 @@
 #define MAX_SUBSTEPS 16       /* time-of-impact back-ups per frame */
 #define SPEC_ROUNDS 4         /* speculative re-solves of a substep at most */
 /* Local mode: back-ups of one substep at most, and of a frame (a region's:
- * a motion group steps its own frame). With 15 a frame, as the world-wide
- * mode has, the 1000-part bin's landing spent them all and let a part in
- * 4.6 mm (31: 1.07 mm), and the 200-part bin's seed 10 1.39 mm (31: 1.00
- * mm), at the same cost. 6 a substep would keep seeds 7, 9 and 15 at 1.00
- * mm too (3: 1.01-1.09 mm) but drifts the elastic boxes of bench_energy
- * more (docs/DESIGN.md 3.4). */
+ * a motion group steps its own frame). The world-wide mode's 15 a frame
+ * can all be spent by a pile's landing, which then lets parts in well past
+ * the tolerance; 31 keeps them near it at the same cost. More a substep
+ * would keep piles closer still but drift elastic bodies' energy more
+ * (docs/DESIGN.md 3.4). */
 #define SPEC_BACKUPS 3
 #define MAX_BACKUPS_LOCAL 31
 /* split islands: contacts per block (whole pairs: a pair has at most 4) */
@@ -408,10 +407,10 @@ static int substeps(sc_frame *f, double dt, sc_body *saved, unsigned char *touch
              * contacts change the motion), SPEC_BACKUPS times at most:
              * every back-up counts against the frame's MAX_SUBSTEPS, and
              * a pair pushed in by another's push-out is as deep after any
-             * substep, however short (a bin backed up 15 times to 1e-8 s
-             * and let a part in 12 mm); once backed up, pairs too far to
-             * hold at their touch are held where they ended (waiting for
-             * the last back-up instead gained the Table 1 box 0.1 %) */
+             * substep, however short, so backing up again only spends the
+             * frame's back-ups; once backed up, pairs too far to hold at
+             * their touch are held where they ended (waiting for the last
+             * back-up instead gains elastic bodies energy) */
             int nfast = 0, nslow = 0;
             f->backups = backups;
             int can_back = backups < MAX_BACKUPS_LOCAL && sub_backups < SPEC_BACKUPS;

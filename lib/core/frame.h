@@ -322,8 +322,8 @@ void sc_stage_add(sc_stats *st, int stage, double t0);
 /* The clock a frame's stages time themselves with (sc_stats.stage_s): the
  * thread's CPU time in world mode (Table 1 is CPU by stage; a few dozen
  * reads a frame), the monotonic clock in local mode, where every motion
- * group's frame times its stages: a thread CPU read is a system call
- * (0.3-0.9 us here) and the 1000-part drop made 8 900 a frame
+ * group's frame times its stages: a thread CPU read is a system call, and
+ * a large scene's many small groups would make thousands a frame
  * (docs/DESIGN.md 3.1). sc_stage_since() adds the time since t0 (of this
  * clock) to stage. */
 double sc_stage_now(const sc_frame *f);

@@ -1,7 +1,19 @@
-/* group.c - motion groups: the frame stepped apart for bodies that cannot
- * meet within it.
- *
- * The paper backs the whole world up to the earliest time of impact; with
+/* group.c - motion groups (docs/DESIGN.md 3.9): the frame stepped apart
+ * for bodies that cannot meet within it, so that an early time of impact
+ * backs up only the bodies that can reach it. Bodies whose reach spheres
+ * overlap and whose gap can close within the frame are joined; each group
+ * runs its whole frame on a copy of its bodies, a work unit of its own.
+ * Groups whose tracks came within touching distance are joined and stepped
+ * again (check_groups()), so the groups that stand are a function of the
+ * bodies alone, whoever ran what. */
+#include <limits.h>
+#include <math.h>
+#include <stdlib.h>
+
+#include "frame.h"
+#include "vecmath.h"
+
+/* The paper backs the whole world up to the earliest time of impact; with
  * hundreds of bodies some pair almost always hits early, and every body
  * pays for it (200 bolts and nuts: about 10 back-ups per frame). Here each
  * dynamic body gets a sphere that holds everything it can reach in the
@@ -31,14 +43,7 @@
  * start for the groups that changed (sc_groups_step(); the others keep
  * their results: the same inputs give the same bits). The groups that
  * stand are a function of the bodies alone, whoever ran what.
- * docs/DESIGN.md 3.9.
- */
-#include <limits.h>
-#include <math.h>
-#include <stdlib.h>
-
-#include "frame.h"
-#include "vecmath.h"
+ * docs/DESIGN.md 3.9. */
 
 #define REACH_MARGIN 2e-3     /* m added to every body's reach */
 #define BIG_GROUP 0.35        /* share of the awake bodies, or of the groups'

@@ -1,6 +1,20 @@
-/* hull.c - 3D convex hull of a point set as a closed, outward triangle mesh.
- *
- * Quickhull (C. B. Barber, D. P. Dobkin, H. Huhdanpaa, "The Quickhull
+/* hull.c - 3D convex hull of a point set as a closed, outward triangle mesh
+ * (docs/DESIGN.md 3.8): Quickhull with conflict lists (Barber, Dobkin and
+ * Huhdanpaa, ACM TOMS 22(4), 1996). Whether a point sees a face is the
+ * exact sign of an orientation determinant (Shewchuk's adaptive
+ * predicates), so the topology is exact however degenerate the points;
+ * whether it joins the hull needs it more than eps above a face, so near
+ * duplicates never become vertices. The output holds the caller's
+ * coordinates, bit for bit; ties are broken by index. */
+#include <float.h>
+#include <limits.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "core.h"
+#include "vecmath.h"
+
+/* Quickhull (C. B. Barber, D. P. Dobkin, H. Huhdanpaa, "The Quickhull
  * Algorithm for Convex Hulls", ACM TOMS 22(4), 1996) with conflict lists:
  *   1. an initial tetrahedron from extreme points (degeneracy is found here);
  *   2. the main loop: take the farthest conflict point of a face (the eye),
@@ -40,15 +54,7 @@
  * their box, so nothing overflows and distances keep their precision far
  * from the origin. The output holds the caller's coordinates, bit for bit.
  * Deterministic: no hashing, no randomness, every tie broken by index.
- * Expected O(n log n) time.
- */
-#include <float.h>
-#include <limits.h>
-#include <stdlib.h>
-#include <string.h>
-
-#include "core.h"
-#include "vecmath.h"
+ * Expected O(n log n) time. */
 
 #ifdef __FAST_MATH__
 #error "hull.c needs IEEE arithmetic for its exact predicate: build without -ffast-math"

@@ -12,9 +12,9 @@
 
 #define SAME_NORMAL 0.95      /* cos of ~18 degrees */
 /* A pair held at its touch bounces at the substep's start, early by its
- * gap: gaps beyond this many contact tolerances back up instead (a sphere
- * box with e = 1 at 7 m/s bounced 46 mm early and then met the floor in
- * the same substep, a collision the LCP cannot order) */
+ * gap: gaps beyond this many contact tolerances back up instead (a fast
+ * elastic sphere bouncing that early can meet another body in the same
+ * substep, a collision the LCP cannot order) */
 #define SPEC_MARGIN 10.0
 #define CREEP_BACKUPS 4       /* back-ups of a frame before a creeping pair
                                  is held instead (sc_spec_sort_out()) */
@@ -198,9 +198,8 @@ static void mark_held(const sc_frame_state *st, int a, int b, unsigned char *fas
 /* How deep pair (a, b) may get in this substep: the tolerance for a new
  * pair, and for one touching at the start (contacts in c0, *touching = 1)
  * within it; one already past it, its deepest start depth plus a
- * hundredth of the tolerance. (A tenth let a pair 0.95 tolerances in
- * reach 1.05: the 50-part drop's 1.0075 mm; the hundredth still let one
- * 0.9995 in reach 1.0095.) */
+ * hundredth of the tolerance. (The margin is what a pair just inside the
+ * tolerance may end past it by, so it is kept small.) */
 static double pair_limit(const sc_contact *c0, int n0, int a, int b, double tol, int *touching)
 {
     double d0 = -1;
@@ -252,9 +251,8 @@ static double normal_speed(const sc_frame *f, const sc_body *saved, const sc_con
  * close that gap within h. Such a pair meets after another collision of
  * the substep (a sphere bounced off one neighbour into the next): held
  * in the same LCP, both collisions would be simultaneous, and Newton's
- * restitution on simultaneous contacts can add energy (the Table 1 box
- * gained 0.5 % in one frame so). It is backed up to instead, which orders
- * them. */
+ * restitution on simultaneous contacts can add energy. It is backed up
+ * to instead, which orders them. */
 static int pushed_in(const sc_frame *f, const sc_body *saved, const sc_contact *c, double h)
 {
     double reach = 0;
@@ -270,12 +268,11 @@ static int pushed_in(const sc_frame *f, const sc_body *saved, const sc_contact *
  * larger of its bodies', as contact.c takes it) and c closing faster than
  * the bounce speed. Such a pair is not held: it backs up to its touch, as
  * in the world-wide mode, so that its collisions come one at a time in
- * their order. Held, several touches of one substep
- * were solved at once (a faceted sphere's vertices, or a floor touch
- * that a hit on the same sphere earlier in the substep would have
- * prevented), and restitution on simultaneous contacts lost or gained
- * energy: the elastic boxes of bench_energy drifted up to 3.3 % in the
- * local mode (docs/DESIGN.md 3.4). Inelastic pairs keep being held: they
+ * their order. Held, several touches of one substep would be solved at
+ * once (a faceted sphere's vertices, or a floor touch that a hit on the
+ * same sphere earlier in the substep would have prevented), and
+ * restitution on simultaneous contacts loses or gains energy, so elastic
+ * bodies drift (docs/DESIGN.md 3.4). Inelastic pairs are still held: they
  * lose energy anyway, and piles need it. */
 static int elastic_collision(const sc_body *saved, const sc_contact *c)
 {
@@ -359,15 +356,14 @@ int sc_spec_sort_out(sc_frame *f, const sc_body *saved, const sc_contact *c0, in
         if (added < 0)
             return added;
         /* a slow pair with nothing new to hold it got deeper on the rows
-         * it had (a stack of mesh cubes sank 3 mm so), or was pushed in:
+         * it had (a stack of mesh cubes sinks so), or was pushed in:
          * it goes as a fast one, searched for where it passed the limit,
          * else backed up; but once the frame has backed up CREEP_BACKUPS
          * times, a touching pair past its limit by a hundredth of the
          * tolerance at most is left where it ended: pressed in at its
          * limit, it passes it again early in every substep, and each
-         * back-up advanced the pile 0.6-5 % of the time left (the 200-part
-         * bin's seed 14: frames at the cap of 31, one of 422 ms;
-         * docs/DESIGN.md 3.4) */
+         * back-up advances the pile only a little of the time left, so
+         * such frames spend every back-up they may (docs/DESIGN.md 3.4) */
         if (!added && touching && f->backups >= CREEP_BACKUPS && d1 <= limit + 0.01 * tol)
             continue;
         memset(fast + k0, added ? 2 : 1, (size_t)(k1 - k0));

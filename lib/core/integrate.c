@@ -17,9 +17,9 @@
  * that rotation's inverse applied to pi, so L = R pi is kept exactly, and
  * the midpoint rule keeps the quadratic invariants |pi|^2 and
  * pi . I^-1 pi, so the energy too. (An explicit gyroscopic step in the
- * body frame, with the orientation turned by exp(h w) after it, as until
- * 2026-12-03, gained energy on slow spins and lost it on fast ones: a
- * bolt tumbling freely at 31 rad/s lost 73 % of its energy in 1 s.) */
+ * body frame, with the orientation turned by exp(h w) after it, gains
+ * energy on slow spins and loses it on fast ones: a fast tumbling part
+ * loses most of its energy within a second.) */
 #define ROT_STEP 0.5          /* rad: the implicit step converges fast below */
 #define ROT_MAX_PARTS 64
 #define ROT_MAX_ITER 100

@@ -1,11 +1,22 @@
-/* lcp.c - the contact LCP solver (the paper's step (7)): Cottle-Dantzig
- * principal pivoting as Baraff describes it (D. Baraff, "Fast contact force
- * computation for nonpenetrating rigid bodies", SIGGRAPH 1994, section 4:
- * compute-forces / drive-to-zero / fdirection / maxstep), extended to
- * bounds lo <= z <= hi (the boxed LCP of ODE's dSolveLCP) and to Coulomb
- * friction bounds +-mu z_normal.
- *
- * Problem: w = M z + q with, for every i, one of
+/* lcp.c - the contact LCP solver (the paper's step (7); docs/DESIGN.md 3.5
+ * and 11): Cottle-Dantzig principal pivoting as Baraff describes it
+ * (SIGGRAPH 1994, section 4), extended to bounds lo <= z <= hi (the boxed
+ * LCP of ODE's dSolveLCP) and to Coulomb friction bounds +-mu z_normal.
+ * A pivot costs O(n^2): the factorisation of M_CC (lcp_factor.c) is
+ * bordered and downdated, never refactorised, and nothing is allocated in
+ * the pivot loop. Failure is reported, never hidden (SC_ENOSOLUTION,
+ * SC_EMAXITER, SC_ENUMERIC); SC_OK answers are checked against the
+ * original data, and Lemke's method (lcp_lemke.c) takes what pivoting
+ * cannot. */
+#include <float.h>
+#include <math.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "core.h"
+#include "lcp.h"
+
+/* Problem: w = M z + q with, for every i, one of
  *   z_i = lo_i and w_i >= 0,   z_i = hi_i and w_i <= 0,   lo_i <= z_i <= hi_i and w_i = 0.
  * The standard LCP (z >= 0, w >= 0, z.w = 0) is lo = 0, hi = +inf; for
  * contacts (the paper's V' = A P + V) M = A = J W J^T, z = P, w = V'.
@@ -87,15 +98,7 @@
  * rounds that do not settle is SC_EMAXITER, a cancelling downdate or a
  * final check that fails is SC_ENUMERIC. Before SC_OK the answer is
  * checked against the original data. On error z and w hold the last
- * iterate, for diagnostics only.
- */
-#include <float.h>
-#include <math.h>
-#include <stdlib.h>
-#include <string.h>
-
-#include "core.h"
-#include "lcp.h"
+ * iterate, for diagnostics only. */
 
 /* A pivot is singular when |pivot| <= LCP_TAU_PIV * (the magnitude of the
  * terms it was computed from): exact redundancy leaves ~1e-16 there, a
@@ -115,12 +118,11 @@
 #define LCP_MAX_PIVOTS(n) (10L * (n) + 100L)
 /* Refresh-and-redrive rounds after the main pass (see finish()). */
 #define LCP_SWEEPS 4
-/* Friction: fixed-point rounds on the bounds +-mu z_normal. In the
- * 200-part bin (seeds 3 and 14, 300 frames) 99.97 % of the fixed points
- * that settled did so by round 9 (about 130 of 390000 later, up to round
- * 29), and most that failed ran all 30 rounds: 30 % of the time spent on
- * failed friction LCPs. Lemke's method (friction_lemke()) is the cheaper
- * way on from here (docs/DESIGN.md 11). */
+/* Friction: fixed-point rounds on the bounds +-mu z_normal. Nearly every
+ * fixed point that settles does so within these rounds, and most that fail
+ * would run any number of rounds more, so further rounds are mostly time
+ * spent on failures: Lemke's method (friction_lemke()) is the cheaper way
+ * on from here (docs/DESIGN.md 11). */
 #define LCP_FRICTION_ROUNDS 10
 
 enum { ST_UNSEEN, ST_DRIVE, ST_C, ST_LO, ST_HI, ST_FREE };
@@ -1169,11 +1171,11 @@ static int solve_friction(work *wk, const double *q, const double *lo, const dou
  * nf rows b+, nf rows b-, nf rows lambda: 0 is e; 1, 4 and 5 are e
  * perturbed by up to 50 or 90 % (fractional parts of multiples of
  * irrational numbers: deterministic, no two entries alike); 2 and 3 weigh
- * the b rows against the lambda rows (1/2 and 2, 2 and 1/2). On 3200
- * friction LCPs of the 200-part bin (seeds 1-8, 300 frames each) whose
- * fixed point failed, e found an answer for 2782 and the other five for
- * 362 more (202, 96, 35, 18, 11 in turn), which left 56 for the guess
- * instead of 365, and none instead of 53 for a raised diagonal. */
+ * the b rows against the lambda rows (1/2 and 2, 2 and 1/2). Lemke's path
+ * depends on its covering vector and from e can end on a secondary ray;
+ * the others, tried in turn, solve most of what e leaves, so that far
+ * fewer problems are left to the guess or to a raised diagonal
+ * (docs/DESIGN.md 11). */
 #define LEMKE_COVERS 6
 static double frac_part(double x)
 {
@@ -1418,12 +1420,11 @@ int sc_lcp_boxed_warm_in(sc_arena *arena, int n, const double *M, const double *
 }
 
 /* The retries of sc_lcp_raised_in(): shares of the largest diagonal
- * entry, quick ones without friction_guess() (up to 2 x 10^4 sweeps: the
- * 200-part bin's seed 30 took 9.6 s with it on every try, 8.5 s with the
- * quick ones first). Of 27 LCPs that had failed at 1e-9 in bins of 200
- * (seeds 4, 7, 19, 26 and 30; 5 to 16 contacts), each tried alone at
- * one share: the least that solved was 1e-8 for 8, 1e-7 for 1, 1e-6
- * for 14, 1e-5 for 2 and 1e-4 for 2. */
+ * entry, from the least (which changes the problem least) up, since the
+ * least share that solves differs from problem to problem. The first tries
+ * are quick, without friction_guess() (up to 2 x 10^4 sweeps), which is
+ * run only at the last share: on every try it would cost more than it
+ * saves (docs/DESIGN.md 11). */
 static const struct {
     double share;
     int quick;

@@ -1,18 +1,10 @@
-/* lcp_factor.c - the factorisation behind the Dantzig pivoting of lcp.c:
- * M_CC = L D U of the clamped block, kept up to date as single indices enter
- * (bordering, O(m^2)) and leave (row/column deletion plus a rank-one update,
- * O(m^2)), so that a pivot never refactorises (O(m^3)). Also a small dense
- * LU with partial pivoting for the one-off friction polish of lcp.c.
- *
- * L is unit lower triangular, U unit upper triangular, D diagonal. For a
- * symmetric M (the contact matrices J W J^T) U = L^T and one triangle is
- * stored: this is the LDL^T that Baraff (1994, section 4) and ODE use. The
- * general L D U form exists for the non-symmetric P-matrices that the
- * Cottle-Dantzig method also solves. No pivoting is done: for a symmetric
- * positive definite or a P-matrix block every leading principal minor is
- * positive, so every d[k] > 0; lcp.c only lets an index into C when the new
- * pivot is clearly nonzero.
- */
+/* lcp_factor.c - the factorisation behind the Dantzig pivoting of lcp.c
+ * (docs/DESIGN.md 3.5): M_CC = L D U of the clamped block, bordered as an
+ * index enters and downdated as one leaves, O(m^2) each, so that a pivot
+ * never refactorises. For symmetric M (the contact matrices) U = L^T and
+ * one triangle is stored (Baraff's and ODE's LDL^T). No pivoting: lcp.c
+ * lets an index into C only with a clearly nonzero pivot. Also a small
+ * dense LU for lcp.c's friction polish. */
 #include <math.h>
 #include <string.h>
 

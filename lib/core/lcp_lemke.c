@@ -1,32 +1,11 @@
 /* lcp_lemke.c - Lemke's complementary pivoting, the fallback of
- * sc_lcp_dantzig() when the principal pivoting of lcp.c breaks down.
- *
- * Why: lcp.c keeps only complementary bases (Baraff's C / NC sets) and so
- * needs every clamped block M_CC to be nonsingular. That holds along its
- * path for P-matrices and symmetric PSD matrices (the contact matrices),
- * not for a non-symmetric PSD one such as a skew-symmetric M, where a
- * diagonal pivot can be 0 while a 2x2 block is not. Lemke's method walks
- * almost complementary bases of [I -M -e] and processes every LCP whose M
- * is copositive-plus (all PSD matrices, symmetric or not): it ends with a
- * solution or on a secondary ray, which for such M proves that there is
- * none (Cottle, Pang and Stone, "The Linear Complementarity Problem", 2009,
- * section 4.4). Ties in the ratio test go to z0, then lexicographically
- * (rows of the basis inverse), which keeps degenerate problems from
- * cycling as long as rounding does not blur the keys.
- *
- * The covering vector d (z0's column is -d; NULL: every entry 1) sets
- * the path. Any d > 0 gives a path that ends in an answer or a secondary
- * ray; for a matrix that is not copositive-plus (the friction LCP of
- * lcp.c, with its lambda rows) a ray does not prove that there is none,
- * and another d may find one.
- *
- * The ratio test's lexicographic keys zero entries below the noise of
- * their row's largest; an upper bound of it per row, kept up in O(1) a
- * row a pivot, settles most keys without the O(n) scan (cand_key()).
- *
- * Each pivot is a Gauss-Jordan step on the dense n x (2n+1) tableau,
- * O(n^2); the memory (one allocation) is taken only when the fallback runs.
- */
+ * sc_lcp_dantzig() (docs/DESIGN.md 3.5): lcp.c's principal pivoting needs
+ * every clamped block to be nonsingular, which a non-symmetric PSD matrix
+ * does not give, while Lemke's method processes every copositive-plus LCP
+ * (Cottle, Pang and Stone, 2009, section 4.4). Ties in the ratio test are
+ * broken lexicographically against cycling; the covering vector sets the
+ * path. A pivot is a Gauss-Jordan step, O(n^2), on one allocation taken
+ * only when the fallback runs. */
 #include <float.h>
 #include <math.h>
 #include <stdlib.h>

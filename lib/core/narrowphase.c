@@ -1,25 +1,10 @@
 /* narrowphase.c - exact contact detection on ODE's collision primitives
- * (the paper's step 4, polygon level).
- *
- * ODE geoms carry a pose, so they cannot be shared between threads: each
- * thread owns an sc_np_ctx holding its own geoms (two per shape: a pair may
- * collide a shape with itself), all pointing at the shape's immutable,
- * shared trimesh data. Shapes are never written here.
- *
- * ODE on Debian is built without libccd, so there is no convex-trimesh
- * collider: a convex shape meets a trimesh through its own trimesh. Its
- * normals point from o2 into o1; ours point from a to b, so they flip.
- *
- * Debian's ODE is also built without thread-local storage (dTLS_ENABLED
- * off): every trimesh collider then shares one process-global cache
- * (g_ccTrimeshCollidersCache), and two threads colliding trimeshes at once
- * corrupt it (ThreadSanitizer reports the race; ODE then aborts on an
- * internal assertion). On the copy of libode the library links against,
- * trimesh pairs are therefore serialised by one lock guarding that global;
- * sphere, box, plane and convex pairs run concurrently. A context made on
- * a private copy (sc_np_create_on(), ode_copy.c) has globals of its own and
- * needs no lock. tests/test_narrowphase.c runs several threads at once.
- */
+ * (the paper's step 4, polygon level; docs/DESIGN.md 3.3). ODE geoms carry
+ * a pose, so each thread owns an sc_np_ctx with geoms of its own over the
+ * shapes' immutable, shared data. Debian's ODE is built without libccd
+ * (a convex shape meets a trimesh through its own trimesh) and without
+ * thread-local storage, so on the shared libode trimesh pairs are
+ * serialised by one lock; a private copy (ode_copy.c) needs none. */
 #include <pthread.h>
 #include <stdarg.h>
 #include <stdlib.h>
@@ -34,7 +19,8 @@
 
 #define RAW_CONTACTS 64
 
-/* Guards the shared copy's global trimesh collider cache (see above). */
+/* Guards the shared copy's global trimesh collider cache (Debian's ODE has
+ * no thread-local storage, so it is one for the process). */
 static pthread_mutex_t ode_trimesh_lock = PTHREAD_MUTEX_INITIALIZER;
 
 enum { REP_NATIVE, REP_CONVEX, REP_TRIMESH, REP_COUNT };
@@ -410,9 +396,9 @@ static int collide_pieces(sc_np_ctx *ctx, const sc_shape *a, const sc_pose *pa,
             v3_sub(d, qa[i].q.pos, qb[j].q.pos);
             if (v3_dot(d, d) > r * r)
                 continue;
-            /* most pieces whose balls overlap are apart (94 % in a bin):
-             * a face plane that parts them says so faster than ODE's
-             * collider finds no contact */
+            /* most pieces whose balls overlap are apart: a face plane
+             * that parts them says so faster than ODE's collider finds no
+             * contact */
             if (sc_poly_apart(qa[i].s, Ra, qa[i].q.pos, qb[j].s, Rb, qb[j].q.pos))
                 continue;
             int k = sc_np_collide(ctx, qa[i].s, &qa[i].q, qb[j].s, &qb[j].q, &c[n],
@@ -505,13 +491,12 @@ int sc_np_deepest_until(sc_np_ctx *ctx, const sc_shape *a, const sc_pose *pa,
  * Debian's ODE meets two dConvex geoms in dCollideConvexConvexCCD: libccd's
  * MPR penetration (500 iterations, tolerance 1e-6) over a support function
  * that turns the direction into the shape's frame by the geom's quaternion,
- * takes the first vertex of largest projection and turns it back. That
- * support function was 8 % of the 1000-part drop's instructions. The same
+ * takes the first vertex of largest projection and turns it back; that
+ * support function is a large share of a pile's narrow phase. The same
  * query is made here with the same libccd, the same settings, the geom's
  * own position and quaternion (read back from ODE, which keeps a matrix)
  * and the same arithmetic, the vertices taken two at a time from the
- * shape's copy by pairs: the same contact to the bit (the drop's and the
- * bins' hashes are unchanged). */
+ * shape's copy by pairs: the same contact to the bit, only faster. */
 typedef struct mpr_shape {
     ccd_vec3_t pos;
     ccd_quat_t rot, rot_inv;

@@ -1,24 +1,11 @@
 /* polyhedron.c - polygon faces of convex shapes and a face-clipping
- * contact manifold for convex pairs (docs/DESIGN.md section 3.3).
- *
- * ODE's convex-convex and convex-box colliders return one contact per pair
- * (the deepest point of the separating-axis test), wherever the two shapes
- * touch face on face. A body resting on one point that jumps from corner to
- * corner frame by frame rocks, and every rock digs that corner in: two
- * stacked 0.2 m mesh cubes sank 10 mm into each other. Box-box and
- * convex-plane are native in ODE and return several points.
- *
- * So, as Bullet (btPolyhedralContactClipping) and Box2D (b2ClipPolygons)
- * do: take ODE's normal, pick on each shape the face most aligned with it,
- * the better aligned one as reference, clip the other (incident) face by
- * the reference face's side planes, and keep the clipped points below the
- * reference plane, each with its own depth. Pure function of the two poses:
- * no state across frames, so work units stay independent of who ran what.
- *
- * A triangle mesh's faces are triangles; a resting face of a cube is two of
- * them, so coplanar triangles are merged into one convex polygon when the
- * shape is built (shapes are immutable afterwards).
- */
+ * contact manifold for convex pairs (docs/DESIGN.md 3.3). ODE's convex
+ * colliders return one contact per pair, so a body resting face on face
+ * rocks from corner to corner and digs in; as Bullet and Box2D do, the
+ * incident face is clipped by the reference face's side planes and the
+ * points below it kept, each with its depth. A pure function of the two
+ * poses; coplanar mesh triangles are merged into faces when the shape is
+ * built. */
 #include <stdlib.h>
 #include <string.h>
 
@@ -300,8 +287,8 @@ static int best_face(const sc_shape *s, const double R[9], const double dir[3])
  * SSE2, two corners at a time from face_soa: each projection is the same
  * products summed in the same order as v3_dot(), and MINPD with the new
  * value first is min_d() (ties and NaN keep the old), so the answer is the
- * same value (the 1000-part drop's and the bins' hashes are unchanged);
- * 8.5 % of the drop's CPU was this loop. */
+ * same value, bit for bit; this loop is a large share of a pile's narrow
+ * phase. */
 static double corners_min(const sc_shape *o, const double Ro[9], const double nw[3], double stop)
 {
     double nl[3], lo = INFINITY;
@@ -373,8 +360,7 @@ static int face_separates(const sc_shape *s, const double Rs[9], const double ps
 /* 1 if a face plane of s (pose Rs, ps) has o's bounding ball (about its
  * origin po) wholly beyond it: three multiplications a face, where the
  * corners take a pass over o's corners per face. The same answer as the
- * corners when it says apart; 77 % of the tests of the 1000-part drop and
- * 86 % of a 100-part bin's end here. */
+ * corners when it says apart, and most tests of a pile end here. */
 static int ball_beyond_face(const sc_shape *s, const double Rs[9], const double ps[3],
                             const sc_shape *o, const double po[3])
 {

@@ -1,20 +1,10 @@
 /* shape_load.c - triangle meshes from Wavefront OBJ, ASCII STL and binary
- * STL files: sc_mesh_parse() from memory, sc_shape_load() from a path, and
- * sc_shape_load_err(), which also says where and why a file is malformed
- * (the line of a text file, the byte offset of a binary STL).
- *
- * Files are hostile input. Every read is bounded by len (the buffer is not
- * NUL-terminated), every count is checked against SC_MESH_MAX_* before it
- * sizes an allocation, and each byte is looked at a bounded number of times,
- * so time and memory stay linear in the file size.
- *
- * STL stores every facet's corners separately; they are welded by exact
- * coordinate equality through an open-addressing hash table. Its hash is
- * SipHash-1-3 under a key drawn at random for each call, so crafted
- * coordinates cannot pile into one probe chain (hash flooding, as in Redis
- * and Python). Vertices are numbered in order of first appearance, so the
- * result never depends on the key.
- */
+ * STL files, with the line or byte offset of what is malformed
+ * (docs/DESIGN.md 3.8). Files are hostile input: every read is bounded,
+ * every count checked before it sizes an allocation, time and memory
+ * linear in the file size. STL corners are welded through a hash table
+ * under a random SipHash key per call (against hash flooding); vertices
+ * are numbered by first appearance, so the result never depends on it. */
 #include <errno.h>
 #include <fcntl.h>
 #include <stdarg.h>

@@ -21,8 +21,8 @@ void sc_update_states(sc_frame *f, const sc_islands *is, const unsigned char *to
         sc_body *b = &f->st->bodies[i];
         if (!sc_body_movable(b))
             continue;
-        /* the turn by its reach, not in rad/s: 0.02 rad/s held a 45 mm bolt
-         * turning 1 mm/s at its ends awake, and its pile with it */
+        /* the turn by its reach, not in rad/s: a threshold in rad/s keeps
+         * a long part whose ends barely creep awake, and its pile with it */
         int slow = v3_len(b->v) < SLEEP_SPEED && v3_len(b->w) * b->shape->bound_r < SLEEP_SPEED;
         b->rest_s = slow && touched[i] ? b->rest_s + dt : 0;
         b->state = b->collided ? SC_COLLIDING : (touched[i] ? SC_CONTACT : SC_FREE);

@@ -1,17 +1,9 @@
-/* toi.c - time of impact (the paper's step 5): the time at which two
- * moving shapes first touch, so the frame can back up to it.
- *
- * Two searches. Convex pairs (spheres, boxes, hulls, convex meshes, and
- * those against a static plane) use conservative advancement on ccd.c's
- * distances: the pair cannot close its gap along the separating direction
- * n faster than the motion bound along n, so time advances by gap / bound
- * at each step (plus half the tolerance: a touch is found at most that
- * deep; docs/DESIGN.md 3.4 has the figures). Other pairs (non-convex meshes) sample the motion finely
- * enough that no sample can skip a feature (each sub-interval moves any
- * surface point by at most a fraction of the smaller shape), and the first
- * overlapping sample is bracketed and bisected until the penetration is
- * within tolerance, on ODE's narrow phase.
- */
+/* toi.c - time of impact (the paper's step 5; docs/DESIGN.md 3.4): the
+ * time at which two moving shapes first touch, so the frame can back up to
+ * it. Convex pairs use conservative advancement on ccd.c's distances (time
+ * advances by gap / motion bound along the separating direction); other
+ * pairs sample the motion finely enough that no feature is skipped and
+ * bisect the first overlapping sample, on ODE's narrow phase. */
 #include "core.h"
 #include "vecmath.h"
 
@@ -97,7 +89,7 @@ static int sample_count(const sc_shape *a, const sc_pose *a0, const sc_pose *a1,
 
 /* The sampling search for the first touch after t0 (apart at t0): samples
  * at t0 + (1 - t0) k / n, the first overlapping one bisected. t0 = 0 is
- * the whole search (the same bits as before t0 existed). */
+ * the whole search, bit for bit (the samples are then exactly k / n). */
 static int sample_touch(sc_np_ctx *ctx, const sc_shape *a, const sc_pose *a0, const sc_pose *a1,
                         const sc_shape *b, const sc_pose *b0, const sc_pose *b1, double tol_m,
                         double t0, double tmax, double *t)
@@ -320,8 +312,8 @@ int sc_toi_ca_before_ctx(sc_np_ctx *ctx, const sc_shape *a, const sc_pose *a0,
  * below, so it alone keeps a step safe and needs no GJK or MPR: they are
  * asked only where it says the pair is apart (GJK's closest direction
  * then) or past the limit (MPR's direction may bound the depth tighter:
- * it is off now and then, libccd #71, 1.6 % of random polytope overlaps
- * by more than 2x, so it only confirms). */
+ * it is off now and then, by more than 2x on some polytope overlaps,
+ * libccd #71, so it only confirms). */
 static int ca_deep_at(const sc_shape *a, const sc_pose *pa, const sc_shape *b,
                       const sc_pose *pb, const double n[3], double limit_m, sc_ccd_sep *s)
 {
@@ -340,12 +332,12 @@ static int ca_deep_at(const sc_shape *a, const sc_pose *pa, const sc_shape *b,
  * little past the aim *limit (a backed-up substep left it there), the
  * tolerance (*limit / SC_TOI_AIM), or past that its depth plus a
  * hundredth of the tolerance: the sort-out's limits (impact.c), so that a
- * pair sorted out for passing them has a time to back up to (the tenth
- * of the aim held before let one start at 0.9995 mm and end at 1.0095,
- * past the 1 mm it was sorted out for, with no time found; letting it go
- * entirely, a bolt ended 7.9 mm in the floor); far past it (a pile at the
- * substep cap), 0: not held, the push-out works on it (holding those
- * doubled the time of the 1000-body drop). */
+ * pair sorted out for passing them has a time to back up to (a looser
+ * limit lets a pair end past the limit it was sorted out for with no time
+ * found, and no limit lets a part sink deep into the floor); far past it
+ * (a pile at the substep cap), 0: not held, the push-out works on it
+ * (holding those costs a pile much time and gains nothing;
+ * docs/DESIGN.md 3.4). */
 static int held_limit(double d, double *limit)
 {
     if (d > 2 * *limit)
@@ -462,9 +454,9 @@ int sc_toi_before_ctx(sc_np_ctx *ctx, const sc_shape *a, const sc_pose *a0, cons
 {
     /* not routed to conservative advancement for convex pairs, though it
      * is faster a query: its touches are shallower (at most tol/2, where
-     * the sampling aims at 0.9 tol), and shallower touches gained the
-     * elastic Table 1 box energy (peak 1.00265 world-wide, 1.00230 local,
-     * against 1.00094 and 1.00071); docs/DESIGN.md 3.4 */
+     * the sampling aims at 0.9 tol), and shallower touches gain elastic
+     * bodies more energy, in both time-of-impact modes; docs/DESIGN.md
+     * 3.4 */
     return sc_toi_sample_before_ctx(ctx, a, a0, a1, b, b0, b1, tol_m, tmax, t);
 }
 
@@ -479,8 +471,8 @@ int sc_toi_deepen_before_ctx(sc_np_ctx *ctx, const sc_shape *a, const sc_pose *a
                              const sc_pose *a1, const sc_shape *b, const sc_pose *b0,
                              const sc_pose *b1, double limit_m, double tmax, double *t)
 {
-    /* sampled too (see above; this search alone by conservative
-     * advancement gained the local mode's Table 1 box 0.2 %) */
+    /* sampled too (see above: by conservative advancement alone this
+     * search, too, gains elastic bodies energy) */
     return sc_toi_sample_deepen_before_ctx(ctx, a, a0, a1, b, b0, b1, limit_m, tmax, t);
 }
 

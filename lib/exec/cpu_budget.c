@@ -1,11 +1,10 @@
 /* cpu_budget.c - how many CPUs this process may use: its affinity mask,
  * and a cgroup CPU quota where one applies (docs/DESIGN.md 5.3).
  *
- * A thread that polls for work while idle burns what a quota allows: two
- * worker threads under a quota of 0.6 CPU ran the 300-part drop 1.8-2.1
- * times slower than one (2-core VM, 2026-12-05), the idle one's polling
- * taking the working one's share. So idle threads poll only where every
- * thread that may poll has a CPU of its own. */
+ * A thread that polls for work while idle burns what a quota allows and
+ * takes the working threads' share of it, so that under a quota more
+ * threads can run a frame slower than one. So idle threads poll only where
+ * every thread that may poll has a CPU of its own. */
 #include <errno.h>
 #include <limits.h>
 #include <sched.h>

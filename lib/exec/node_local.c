@@ -1,9 +1,18 @@
-/* node_local.c - local nodes: the calling thread itself (node 0, runs its
- * units inside wait()) and worker threads, each with its own narrow-phase
- * context on a private copy of ODE when one can be had (ode_copy.c).
- * The embedded default: no network, no daemons.
- *
- * The scheduler's assignment is a prediction; the local nodes of a world
+/* node_local.c - local nodes (docs/DESIGN.md 5.3): the calling thread
+ * (node 0, running its units inside wait()) and worker threads, each with
+ * a narrow-phase context on a private copy of ODE when one can be had.
+ * The nodes form a pool: one that runs out of work steals the smallest
+ * unstarted unit of another, and records who ran it for the scheduler.
+ * Waking a sleeping thread can take longer than a job, so workers and the
+ * caller spin a while before they sleep; idle members also take shared
+ * tasks (sc_task_runner) below the units. */
+#include <pthread.h>
+#include <stdatomic.h>
+#include <stdlib.h>
+
+#include "exec.h"
+
+/* The scheduler's assignment is a prediction; the local nodes of a world
  * form a pool in which a node that runs out of work takes the smallest
  * not-yet-started unit from the tail of another's list (each list is a
  * deque: its owner takes from the head, the largest first). A unit's
@@ -23,11 +32,6 @@
  * pool that are idle or waiting take tasks from it until none is left.
  * The publisher takes tasks too, so nothing waits for a helper that
  * never comes. */
-#include <pthread.h>
-#include <stdatomic.h>
-#include <stdlib.h>
-
-#include "exec.h"
 
 #define WORKER_SPIN_S 3e-3    /* a worker stays awake this long for more */
 #define WAITER_SPIN_S 2e-3    /* the caller spins this long for results */

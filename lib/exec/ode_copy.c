@@ -1,20 +1,11 @@
-/* ode_copy.c - copies of libode for the worker threads.
- *
- * Debian's ODE is built without thread-local storage: its trimesh
- * colliders share one process-global cache, so trimesh pairs on the copy
- * the library links against are serialised by a lock (narrowphase.c).
- * bench/bench_ode_threads measured the way out: a second copy of libode,
- * loaded with dlmopen(LM_ID_NEWLM) into a link namespace of its own, has
- * its own globals, and threads on different copies collide trimeshes
- * concurrently (1.89x on 2 threads). Each worker thread takes one copy.
- *
- * Copies are process-wide and never unloaded: glibc has 16 namespaces and
- * a small static TLS reserve (about 11 copies by default), and unloading a
- * namespace does not reliably give them back. A copy is handed to one
- * thread at a time; when none can be loaded the caller gets the shared,
- * locked copy, which is slower, never wrong. Sanitizer builds use the
- * shared copy only: a namespace copy of libc bypasses their interceptors.
- */
+/* ode_copy.c - copies of libode for the worker threads (docs/DESIGN.md
+ * 5.4). Debian's ODE shares one trimesh collider cache per process, so
+ * trimesh pairs on the linked copy are serialised by a lock; a copy loaded
+ * with dlmopen(LM_ID_NEWLM) has globals of its own, so threads on
+ * different copies collide trimeshes concurrently. Copies are process-wide
+ * and never unloaded (glibc's namespaces and static TLS are few); with none
+ * to be had, or in sanitizer builds, the caller gets the shared, locked
+ * copy: slower, never wrong. */
 #include <dlfcn.h>
 #include <pthread.h>
 #include <stdarg.h>

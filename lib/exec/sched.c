@@ -1,7 +1,19 @@
-/* sched.c - the scheduler of the paper (docs/DESIGN.md section 6) and what goes
- * beyond it.
- *
- * The paper: estimate each unit's cost (pairs: product of polygon counts;
+/* sched.c - the scheduler of the paper (docs/DESIGN.md 6): each unit's
+ * cost estimated, the units sorted longest first, each given to the node
+ * predicted to finish it soonest. Beyond the paper, a least-squares model
+ * per node and unit kind predicts unit times better than cost / speed, the
+ * finish estimate counts a node's transfer time and latency (so a job too
+ * small to share stays on the calling thread), and each job's makespan is
+ * compared with a lower bound. */
+#include <stdlib.h>
+
+#include <gsl/gsl_matrix.h>
+#include <gsl/gsl_multifit.h>
+#include <gsl/gsl_vector.h>
+
+#include "exec.h"
+
+/* The paper: estimate each unit's cost (pairs: product of polygon counts;
  * islands: contacts^3), sort the units longest first, and give each to the
  * node predicted to finish it soonest, a node's speed being measured from
  * its recent responses (cost per second, averaged over recent jobs).
@@ -15,15 +27,7 @@
  * node's transfer time and its measured latency (waking a thread, a round
  * trip to a daemon), so a job too small to be worth sharing stays on the
  * calling thread; and each job's makespan is compared with a lower
- * bound (total work over total speed, and the largest unit).
- */
-#include <stdlib.h>
-
-#include <gsl/gsl_matrix.h>
-#include <gsl/gsl_multifit.h>
-#include <gsl/gsl_vector.h>
-
-#include "exec.h"
+ * bound (total work over total speed, and the largest unit). */
 
 #define SPEED_KEEP 0.7        /* EWMA weight of the old speed per job */
 #define MIN_FIT 8             /* samples before a model is used */

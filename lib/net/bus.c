@@ -1,24 +1,10 @@
-/* bus.c - the cluster's multicast transport (docs/DESIGN.md section 7.1).
- *
- * LCM 1.3.1's UDP multicast code trusts the fragment headers it reads (a
- * 32-bit offset check that wraps, a malloc of whatever size a header
- * claims) and drops messages silently from a bounded per-subscription
- * queue. This file speaks the same wire format (so lcm-spy and lcm-logger
- * still read the cluster's traffic, and lcm-logplayer can still feed
- * simcluster-view) but reads it on the caller's thread, checks every
- * header field in 64 bits before it is used, keeps reassembly within a
- * fixed budget, and counts every datagram it or the kernel drops.
- *
- * Wire format (all fields big-endian), as LCM's lcm_udpm.c writes it:
- *   LC02  magic 0x4c433032, seqno (u32), channel, NUL, data
- *   LC03  magic 0x4c433033, seqno (u32), message size (u32), fragment
- *         offset (u32), fragment number (u16), fragments (u16), data; the
- *         data of fragment 0 begins with the channel and its NUL, and
- *         offsets count message bytes only.
- * A sender uses LC02 while channel, NUL and data fit in 65499 bytes, else
- * fragments of 65487 bytes after the header; one seqno per message.
- * Fragments are matched by sender address, port and seqno.
- */
+/* bus.c - the cluster's multicast transport (docs/DESIGN.md 7.1). It
+ * speaks LCM 1.3.1's UDP multicast wire format (LC02 datagrams and LC03
+ * fragments, as lcm_udpm.c writes them), so LCM's tools still read the
+ * traffic, but since LCM trusts the fragment headers it reads and drops
+ * messages silently, it reads on the caller's thread, checks every header
+ * field in 64 bits before use, keeps reassembly within a fixed budget and
+ * counts every datagram it or the kernel drops. */
 #include <arpa/inet.h>
 #include <errno.h>
 #include <limits.h>
@@ -36,6 +22,25 @@
 #include <unistd.h>
 
 #include "bus.h"
+
+/* LCM 1.3.1's UDP multicast code trusts the fragment headers it reads (a
+ * 32-bit offset check that wraps, a malloc of whatever size a header
+ * claims) and drops messages silently from a bounded per-subscription
+ * queue. This file speaks the same wire format (so lcm-spy and lcm-logger
+ * still read the cluster's traffic, and lcm-logplayer can still feed
+ * simcluster-view) but reads it on the caller's thread, checks every
+ * header field in 64 bits before it is used, keeps reassembly within a
+ * fixed budget, and counts every datagram it or the kernel drops.
+ *
+ * Wire format (all fields big-endian), as LCM's lcm_udpm.c writes it:
+ *   LC02  magic 0x4c433032, seqno (u32), channel, NUL, data
+ *   LC03  magic 0x4c433033, seqno (u32), message size (u32), fragment
+ *         offset (u32), fragment number (u16), fragments (u16), data; the
+ *         data of fragment 0 begins with the channel and its NUL, and
+ *         offsets count message bytes only.
+ * A sender uses LC02 while channel, NUL and data fit in 65499 bytes, else
+ * fragments of 65487 bytes after the header; one seqno per message.
+ * Fragments are matched by sender address, port and seqno. */
 
 #define DEFAULT_ADDR "239.255.76.67"    /* LCM's defaults */
 #define DEFAULT_PORT 7667

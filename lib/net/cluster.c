@@ -1,32 +1,11 @@
-/* cluster.c - daemons as nodes of a world's scheduler (docs/DESIGN.md section 7).
+/* cluster.c - daemons as nodes of a world's scheduler (docs/DESIGN.md 7.4).
  *
- * The world's node list ends with SC_MAX_DAEMONS remote nodes, one per
- * daemon slot; a slot is bound to a daemon when its first heartbeat comes.
- * A remote node's submit() packs its units (unit_wire.c), seals them and
- * publishes them on the daemon's channel; wait() reads the bus (bus.c) on
- * the calling thread (results of every daemon are merged as they come:
- * each unit writes only its own outputs) until this daemon's units are in
- * or the deadline passes, and then recomputes what is missing here. A result is
- * taken once, only for a unit of the current job that is still out, and
- * merged by sc_wire_result_apply() exactly as a local run would write it:
- * whoever computes what, the bits are the same.
- *
- * A slot follows one start (epoch) of a daemon: the first announce of a
- * new (node, epoch) sends the daemon a random challenge, and the daemon
- * counts (scheduling, sc_stats.daemons) only once its sealed answer with
- * that nonce has come back, so replayed announces of a dead daemon never
- * count. A newer epoch of a node takes over its slot at once (a restart
- * with the same id); messages of the older one are refused by the guard,
- * and an older epoch still heard after the newer began is another daemon
- * with the same id (counted in sc_stats.duplicate_nodes; the newest gets
- * the work). Everything sent to a daemon names its epoch (to_epoch).
- *
- * The scheduler sees a daemon's capacity (cluster.h's capacity op): its
- * idle fraction, or 0 while it is unverified, owner-busy, silent for
- * SILENT_S, or has missed a deadline since its last heartbeat. Its speed is learned from
- * its results' thread times spread over its threads, its latency from the
- * rest of each job's round trip.
- */
+ * One remote node per daemon slot, bound to one start (epoch) of a daemon
+ * once it has answered a challenge. A node's submit() packs, seals and
+ * publishes its units; wait() reads the bus until they are in or the
+ * deadline passes and recomputes what is missing here. Results merge
+ * through sc_wire_result_apply() as a local run writes them, so whoever
+ * computes what, the bits are the same. */
 #include <inttypes.h>
 #include <math.h>
 #include <poll.h>
@@ -53,11 +32,10 @@
 #define LINK_JOBS 4             /* jobs (weighted) before the fit is used */
 #define LINK_SPREAD 0.2         /* ... and their bytes' spread, of the mean */
 #define HOME_BYTE_S 2e-9        /* the calling thread's shipping time per byte
-                                   before any is measured: 1.8-2.0 ns measured
-                                   on the 1000-part drop (2-core build machine,
-                                   2026-12-05, Poly1305 tags). 8 ns before: a
-                                   prior above every unit's worth kept all
-                                   units home, so none was ever measured */
+                                   before any is measured; a prior above every
+                                   unit's worth would keep all units home, so
+                                   none would ever be measured (docs/DESIGN.md
+                                   6.2) */
 #define HOME_MEASURED 65536     /* bytes measured before the rate is used */
 #define HOME_WINDOW 16777216    /* bytes: past this the sums are halved */
 #define OVERHEAD_KEEP 0.8       /* EWMA of a job's communication overhead */

@@ -21,8 +21,9 @@ typedef struct sc_link {
  * jobs (weights decaying by 0.9 a job) once four (weighted) are in and
  * their sizes spread by a fifth of their mean; until then byte_s stays
  * what it was (the prior) and latency is what is left of the mean. byte_s
- * is kept within 1e-11 .. 1e-5 s a byte, latency >= 0. A constant 10 ns a
- * byte was 20-40 times loopback's and an eighth of a 100 Mbit/s hop's. */
+ * is kept within 1e-11 .. 1e-5 s a byte, latency >= 0. It is fitted
+ * because no constant suits every link: loopback and a 100 Mbit/s hop
+ * differ more than a hundredfold a byte. */
 void sc_link_fit(sc_link *l, double x, double y);
 
 /* Join url (a udpm:// URL, bus.c) with the key in key_file (NULL: the all-zero insecure

@@ -1,27 +1,11 @@
 /* cluster_msg.c - sealed cluster messages, their payloads and the key file
- * (docs/DESIGN.md section 7.2; formats in proto/simcluster.lcm).
+ * (docs/DESIGN.md 7.2; formats in proto/simcluster.lcm).
  *
- * A sealed message is the LCM encoding of an envelope_t (big-endian, as LCM
- * is: type fingerprint u64, version i16, node i64, epoch i64, seq i64,
- * to_epoch i64, kind i16, len i32, payload[len], mac[16]). mac is the tag of
- * XChaCha20-Poly1305 (libsodium's crypto_aead_xchacha20poly1305_ietf) under
- * the cluster key with nothing to encrypt and every byte before the tag as
- * associated data, fingerprint included, so a receiver checks it on the
- * bytes as received, before it decodes or allocates anything. Its nonce is
- * (node, epoch, seq) as the envelope encodes them (24 bytes from
- * NONCE_AT): a sender never repeats a seq within an epoch, and an epoch is
- * a start's clock and random bits, so no two messages share one-time
- * Poly1305 keys. Until 2026-12-05 the tag was HMAC-SHA-512/256: 1.75 ns a
- * byte against 0.22 here (100 kB messages on the 2-core build machine),
- * paid by the master on every unit it sends and result it reads.
- *
- * lcm-gen's decoders trust the length fields they read: a negative or huge
- * array or string length reaches malloc and memcpy unchecked, strings are
- * not checked for their NUL, and what was allocated before an error stays
- * allocated. So every length is checked here on the raw bytes first (the
- * whole input must be exactly what the fields say), decoding starts from a
- * zeroed struct, and its cleanup runs on every path.
- */
+ * A message is an LCM envelope_t with a XChaCha20-Poly1305 tag under the
+ * cluster key over every byte before it (nonce: node, epoch, seq, never
+ * repeated), checked on the bytes as received before anything is decoded.
+ * lcm-gen's decoders trust the lengths they read, so every length is
+ * checked here on the raw bytes first and decoding starts from zero. */
 #include <errno.h>
 #include <fcntl.h>
 #include <sodium.h>

@@ -1,8 +1,20 @@
-/* unit_wire.c - the wire form of work units and of their results (docs/DESIGN.md
- * sections 5 and 7.1): what a remote node needs to run a unit, and what it
- * sends back, so that the master's merge gives the bits a local run gives.
- *
- * Self-contained: shapes travel as content hashes resolved in the
+/* unit_wire.c - the wire form of work units and of their results
+ * (docs/DESIGN.md 5 and 7.1): what a remote node needs to run a unit and
+ * what it sends back, so that the master's merge gives the bits a local
+ * run gives. Little-endian whatever the host, doubles as their IEEE bits,
+ * shapes as content hashes, an island's bodies re-indexed one to one (the
+ * solve only looks bodies up and compares them). Received bytes are
+ * hostile: counts are bounded and the length checked before anything is
+ * allocated, settings must be in range, and a result is written only when
+ * all of it matches the master's unit. */
+#include <limits.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "unit_wire.h"
+#include "vecmath.h"
+
+/* Self-contained: shapes travel as content hashes resolved in the
  * receiver's cache; an island carries copies of its bodies and of every
  * static or sleeping body its contacts reach, re-indexed 0..m-1 (members
  * first, in island order, then the others by world id). The solve uses
@@ -80,14 +92,7 @@
  * impulse 0 (narrowphase.c, emit()) and detect.c matches last frame's onto
  * them on the master afterwards, so the master writes 0 where the narrow
  * phase would have. Outputs of a unit that failed (rc < 0) are as undefined as after a
- * local failure.
- */
-#include <limits.h>
-#include <stdlib.h>
-#include <string.h>
-
-#include "unit_wire.h"
-#include "vecmath.h"
+ * local failure. */
 
 #define WIRE_VERSION 13      /* 6: island units carry impact_first, results inelastic, v0, w0;
                                 7: results carry energy_refused, restitution_scaled;
