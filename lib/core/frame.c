@@ -344,31 +344,169 @@ static int keep_solved(const sc_frame_state *st, sc_spec_list *keep)
 }
 
 /* The substeps of a frame, with the frame's arrays in place. */
+/* A frame's first detection after bodies were added: pairs already deep in
+ * each other are counted (the push-out separates them, but not as physics
+ * would). */
+static int detect_initial(sc_frame *f)
+{
+    const sc_frame_state *st = f->st;
+    int rc = sc_detect(f);
+    int la = -1, lb = -1;    /* the last pair counted (contacts sorted by pair) */
+    for (int k = 0; rc == SC_OK && k < st->ncontacts; k++) {
+        const sc_contact *c = &st->contacts[k];
+        if (c->depth > 2 * f->cfg->contact_tol_m && (c->body_a != la || c->body_b != lb)) {
+            f->stats->initial_overlaps++;
+            la = c->body_a;
+            lb = c->body_b;
+        }
+    }
+    return rc;
+}
+
+/* What one substep's time-of-impact handling works on: its start (the
+ * bodies and contacts, kept before it was solved) and its length. */
+typedef struct sub_state {
+    sc_body *saved;           /* the bodies at the substep's start */
+    const sc_contact *c0;     /* its contacts */
+    int n0;
+    double h;                 /* its length, shortened by back-ups */
+    double dt;                /* the frame's */
+    int backups;              /* the frame's back-ups so far */
+    unsigned char *touched;
+    sc_spec_list *spec;       /* speculative contacts of this substep */
+    sc_spec_list *solved;     /* the contacts of its last solve */
+} sub_state;
+
+/* The local mode (docs/DESIGN.md 3.4), after a substep's solve and
+ * detection: pairs past the tolerance enter the substep again as
+ * speculative contacts (slow ones from where they ended, fast ones from
+ * where they first touched), up to SPEC_ROUNDS rounds; what nothing holds
+ * backs the region up, SPEC_BACKUPS times a substep at most. */
+static int local_rounds(sc_frame *f, sub_state *u)
+{
+    sc_frame_state *st = f->st;
+    sc_arena *a = &f->scr->arena;
+    int n = st->nbodies, rc = SC_OK;
+    int rounds = 0, sub_backups = 0;
+    int solved_spec = 0;    /* speculative contacts the last solve had */
+    u->spec->n = 0;
+    for (;;) {
+        unsigned char *fast = sc_arena_alloc(a, (size_t)st->ncontacts + 1);
+        if (!fast)
+            return SC_ENOMEM;
+        /* a substep backed up may back up again (its speculative
+         * contacts change the motion), SPEC_BACKUPS times at most:
+         * every back-up counts against the frame's MAX_SUBSTEPS, and
+         * a pair pushed in by another's push-out is as deep after any
+         * substep, however short, so backing up again only spends the
+         * frame's back-ups; once backed up, pairs too far to hold at
+         * their touch are held where they ended (waiting for the last
+         * back-up instead gains elastic bodies energy) */
+        int nfast = 0, nslow = 0;
+        f->backups = u->backups;
+        int can_back = u->backups < MAX_BACKUPS_LOCAL && sub_backups < SPEC_BACKUPS;
+        if (rounds < SPEC_ROUNDS || can_back)
+            nslow = sc_spec_sort_out(f, u->saved, u->c0, u->n0, u->h, u->spec, fast, &nfast);
+        if (nslow >= 0 && nfast > 0 && rounds < SPEC_ROUNDS) {
+            int nt = sc_spec_touch(f, u->saved, u->c0, u->n0, u->h, u->spec, fast, &nfast,
+                                   sub_backups > 0);
+            nslow = nt < 0 ? nt : nslow + nt;
+        }
+        if (nslow < 0) {
+            sc_arena_free(a, fast);
+            return nslow;
+        }
+        double frac = 1;
+        if (nfast > 0 && can_back)
+            rc = sc_frame_earliest_impact(f, u->saved, u->c0, u->n0, fast, &frac);
+        sc_arena_free(a, fast);
+        if (rc != SC_OK)
+            return rc;
+        int back = frac < 1;
+        if (!back && (nslow == 0 || rounds >= SPEC_ROUNDS))
+            return SC_OK;
+        /* a sleeper that a speculative contact holds against an awake
+         * body wakes for the re-solve, as detection wakes one touched
+         * (else it would stay immovable, and the other body might
+         * come to rest on it at a gap, never touching it) */
+        sc_wake_touched(u->saved, u->spec->c, u->spec->n);
+        /* a round at the same h: only the islands the new speculative
+         * contacts reach are solved again (substep(), redo) */
+        int part = !back && !f->cfg->redo_all;
+        unsigned char *dirty = part ? sc_arena_alloc(a, (size_t)n) : NULL;
+        if (part && !dirty)
+            return SC_ENOMEM;
+        if (dirty) {
+            memset(dirty, 0, (size_t)n);
+            for (int k = solved_spec; k < u->spec->n; k++) {
+                dirty[u->spec->c[k].body_a] = 1;
+                dirty[u->spec->c[k].body_b] = 1;
+            }
+        } else {
+            memcpy(st->bodies, u->saved, (size_t)n * sizeof *u->saved);
+        }
+        if (back) {
+            /* back up to the first impact of the pairs nothing holds;
+             * the speculative contacts stay (their gaps are at the
+             * substep's start, which does not move) */
+            u->backups++;
+            sub_backups++;
+            u->h = max_d(frac * u->h, 1e-6 * u->dt);
+        }
+        rc = sc_spec_merge(st, u->c0, u->n0, u->spec);
+        solved_spec = u->spec->n;
+        f->stats->spec_contacts += u->spec->n;
+        f->stats->spec_rounds += !back;
+        rounds += !back;
+        redo rd = { .saved = u->saved, .dirty = dirty, .old = u->solved->c,
+                    .nold = u->solved->n };
+        if (rc == SC_OK)
+            rc = substep(f, u->h, &f->scr->islands, u->touched, dirty ? &rd : NULL);
+        sc_arena_free(a, dirty);
+        if (rc == SC_OK)
+            rc = keep_solved(st, u->solved);
+        if (rc == SC_OK)
+            rc = sc_detect(f);
+        if (rc != SC_OK)
+            return rc;
+    }
+}
+
+/* The world-wide mode (the paper's steps 5-6), after a substep's solve
+ * and detection: the earliest impact of any pair past the tolerance backs
+ * the whole world (or motion group) up, and it advances only until they
+ * touch; the last substep of a frame takes the rest whole. */
+static int world_backup(sc_frame *f, sub_state *u, int sub)
+{
+    sc_frame_state *st = f->st;
+    double frac = 1;
+    int rc = SC_OK;
+    if (sub + 1 < MAX_SUBSTEPS)
+        rc = sc_frame_earliest_impact(f, u->saved, u->c0, u->n0, NULL, &frac);
+    if (rc != SC_OK || !(frac < 1))
+        return rc;
+    memcpy(st->bodies, u->saved, (size_t)st->nbodies * sizeof *u->saved);
+    if (u->n0 > 0)
+        memcpy(st->contacts, u->c0, (size_t)u->n0 * sizeof *u->c0);
+    st->ncontacts = u->n0;
+    u->backups++;
+    u->h = max_d(frac * u->h, 1e-6 * u->dt);
+    rc = substep(f, u->h, &f->scr->islands, u->touched, NULL);
+    return rc == SC_OK ? sc_detect(f) : rc;
+}
+
+/* The substeps of a frame, with the frame's arrays in place. */
 static int substeps(sc_frame *f, double dt, sc_body *saved, unsigned char *touched)
 {
     sc_frame_state *st = f->st;
     sc_arena *a = &f->scr->arena;
-    sc_islands *is = &f->scr->islands;
     int n = st->nbodies;
     int local = f->cfg->toi_mode == SC_TOI_LOCAL;
-    int rc = SC_OK;
-    if (!st->contacts_valid) {
-        /* bodies were added: pairs already deep in each other are counted
-         * (the push-out separates them, but not as physics would) */
-        rc = sc_detect(f);
-        int la = -1, lb = -1;    /* the last pair counted (contacts sorted by pair) */
-        for (int k = 0; rc == SC_OK && k < st->ncontacts; k++) {
-            const sc_contact *c = &st->contacts[k];
-            if (c->depth > 2 * f->cfg->contact_tol_m && (c->body_a != la || c->body_b != lb)) {
-                f->stats->initial_overlaps++;
-                la = c->body_a;
-                lb = c->body_b;
-            }
-        }
-    }
-    sc_spec_list spec = { 0 };    /* speculative contacts of this substep */
-    sc_spec_list solved = { 0 };  /* the contacts of its last solve */
-    int backups = 0, movable = 0;
+    int rc = st->contacts_valid ? SC_OK : detect_initial(f);
+    sc_spec_list spec = { 0 }, solved = { 0 };
+    sub_state u = { .saved = saved, .dt = dt, .touched = touched, .spec = &spec,
+                    .solved = &solved };
+    int movable = 0;
     for (int i = 0; i < n; i++)
         movable += st->bodies[i].inv_mass > 0;
     double left = dt;
@@ -376,126 +514,26 @@ static int substeps(sc_frame *f, double dt, sc_body *saved, unsigned char *touch
         f->t = dt - left;
         /* keep the start of the substep: contacts and state */
         memcpy(saved, st->bodies, (size_t)n * sizeof *saved);
-        int n0 = st->ncontacts;
-        sc_contact *c0 = sc_arena_alloc(a, (size_t)n0 * sizeof *c0);
+        u.n0 = st->ncontacts;
+        sc_contact *c0 = sc_arena_alloc(a, (size_t)u.n0 * sizeof *c0);
         if (!c0) {
             rc = SC_ENOMEM;
             break;
         }
-        if (n0 > 0)
-            memcpy(c0, st->contacts, (size_t)n0 * sizeof *c0);
-        double h = left;
-        rc = substep(f, h, is, touched, NULL);
+        if (u.n0 > 0)
+            memcpy(c0, st->contacts, (size_t)u.n0 * sizeof *c0);
+        u.c0 = c0;
+        u.h = left;
+        rc = substep(f, u.h, &f->scr->islands, touched, NULL);
         if (rc == SC_OK && local)
             rc = keep_solved(st, &solved);
         if (rc == SC_OK)
             rc = sc_detect(f);
-        spec.n = 0;
-        int rounds = 0, sub_backups = 0;
-        int solved_spec = 0;    /* speculative contacts the last solve had */
-        while (rc == SC_OK && local) {
-            /* local mode: pairs past the tolerance enter the substep again
-             * as speculative contacts (slow ones from where they ended,
-             * fast ones from where they first touched); what is left backs
-             * up */
-            unsigned char *fast = sc_arena_alloc(a, (size_t)st->ncontacts + 1);
-            if (!fast) {
-                rc = SC_ENOMEM;
-                break;
-            }
-            /* a substep backed up may back up again (its speculative
-             * contacts change the motion), SPEC_BACKUPS times at most:
-             * every back-up counts against the frame's MAX_SUBSTEPS, and
-             * a pair pushed in by another's push-out is as deep after any
-             * substep, however short, so backing up again only spends the
-             * frame's back-ups; once backed up, pairs too far to hold at
-             * their touch are held where they ended (waiting for the last
-             * back-up instead gains elastic bodies energy) */
-            int nfast = 0, nslow = 0;
-            f->backups = backups;
-            int can_back = backups < MAX_BACKUPS_LOCAL && sub_backups < SPEC_BACKUPS;
-            if (rounds < SPEC_ROUNDS || can_back)
-                nslow = sc_spec_sort_out(f, saved, c0, n0, h, &spec, fast, &nfast);
-            if (nslow >= 0 && nfast > 0 && rounds < SPEC_ROUNDS) {
-                int nt = sc_spec_touch(f, saved, c0, n0, h, &spec, fast, &nfast, sub_backups > 0);
-                nslow = nt < 0 ? nt : nslow + nt;
-            }
-            if (nslow < 0) {
-                sc_arena_free(a, fast);
-                rc = nslow;
-                break;
-            }
-            double frac = 1;
-            if (nfast > 0 && can_back)
-                rc = sc_frame_earliest_impact(f, saved, c0, n0, fast, &frac);
-            sc_arena_free(a, fast);
-            if (rc != SC_OK)
-                break;
-            int back = frac < 1;
-            if (!back && (nslow == 0 || rounds >= SPEC_ROUNDS))
-                break;
-            /* a sleeper that a speculative contact holds against an awake
-             * body wakes for the re-solve, as detection wakes one touched
-             * (else it would stay immovable, and the other body might
-             * come to rest on it at a gap, never touching it) */
-            sc_wake_touched(saved, spec.c, spec.n);
-            /* a round at the same h: only the islands the new speculative
-             * contacts reach are solved again (substep(), redo) */
-            int part = !back && !f->cfg->redo_all;
-            unsigned char *dirty = part ? sc_arena_alloc(a, (size_t)n) : NULL;
-            if (part && !dirty) {
-                rc = SC_ENOMEM;
-                break;
-            }
-            if (dirty) {
-                memset(dirty, 0, (size_t)n);
-                for (int k = solved_spec; k < spec.n; k++) {
-                    dirty[spec.c[k].body_a] = 1;
-                    dirty[spec.c[k].body_b] = 1;
-                }
-            } else {
-                memcpy(st->bodies, saved, (size_t)n * sizeof *saved);
-            }
-            if (back) {
-                /* back up to the first impact of the pairs nothing holds;
-                 * the speculative contacts stay (their gaps are at the
-                 * substep's start, which does not move) */
-                backups++;
-                sub_backups++;
-                h = max_d(frac * h, 1e-6 * dt);
-            }
-            rc = sc_spec_merge(st, c0, n0, &spec);
-            solved_spec = spec.n;
-            f->stats->spec_contacts += spec.n;
-            f->stats->spec_rounds += !back;
-            rounds += !back;
-            redo rd = { .saved = saved, .dirty = dirty, .old = solved.c, .nold = solved.n };
-            if (rc == SC_OK)
-                rc = substep(f, h, is, touched, dirty ? &rd : NULL);
-            sc_arena_free(a, dirty);
-            if (rc == SC_OK)
-                rc = keep_solved(st, &solved);
-            if (rc == SC_OK)
-                rc = sc_detect(f);
-        }
-        double frac = 1;
-        if (!local && rc == SC_OK && sub + 1 < MAX_SUBSTEPS)
-            rc = sc_frame_earliest_impact(f, saved, c0, n0, NULL, &frac);
-        if (rc == SC_OK && frac < 1) {
-            /* steps 5-6: back up and advance only until they touch */
-            memcpy(st->bodies, saved, (size_t)n * sizeof *saved);
-            if (n0 > 0)
-                memcpy(st->contacts, c0, (size_t)n0 * sizeof *c0);
-            st->ncontacts = n0;
-            backups++;
-            h = max_d(frac * h, 1e-6 * dt);
-            rc = substep(f, h, is, touched, NULL);
-            if (rc == SC_OK)
-                rc = sc_detect(f);
-        }
+        if (rc == SC_OK)
+            rc = local ? local_rounds(f, &u) : world_backup(f, &u, sub);
         sc_arena_free(a, c0);
         f->stats->substeps++;
-        left -= h;
+        left -= u.h;
         if (left < 1e-9 * dt)
             left = 0;
         for (int i = 0; st->track && rc == SC_OK && i < n; i++)
@@ -504,13 +542,13 @@ static int substeps(sc_frame *f, double dt, sc_body *saved, unsigned char *touch
     }
     free(spec.c);
     free(solved.c);
-    f->stats->backups += backups;
-    if (backups > 0) {
+    f->stats->backups += u.backups;
+    if (u.backups > 0) {
         f->stats->backup_regions++;
         f->stats->backup_bodies += movable;
     }
     if (rc == SC_OK)
-        sc_update_states(f, is, touched, dt);
+        sc_update_states(f, &f->scr->islands, touched, dt);
     return rc;
 }
 
