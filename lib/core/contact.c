@@ -1664,50 +1664,35 @@ static void first_touches(const sc_contact *c, const int *ci, int nc, const int 
     }
 }
 
-int sc_island_solve(sc_arena *arena, sc_body *bodies, sc_contact *c, const int *ci, int nc,
-                    double h, const sc_contact_params *p, sc_solve_info *info)
+/* An island's LCP rows and their data, as build_rows() makes them. */
+typedef struct island_rows {
+    row *rows;
+    int *cstart;              /* contact k's first row */
+    int *coll;                /* contact k collides */
+    int *nsel, *findex;       /* the normal rows; a friction row's normal */
+    double *q, *lo, *hi, *mu, *z, *off;
+    double *pull;             /* a held collision's touch() figures, 4 nc */
+    int inelastic;            /* in: solved again without restitution */
+    int nn;                   /* out: normal rows */
+    int friction;             /* out: any friction row */
+    int ncollide, nspecc;     /* out: collisions, of them held (speculative) */
+    int elastic;              /* out: a collision with restitution */
+    int perfect;              /* out: every collision perfectly elastic */
+} island_rows;
+
+/* The rows of contacts c[ci[0 .. nc)]: a normal, then two tangents where
+ * there is friction, each with its target, bounds and warm start; marks
+ * the bodies of a collision (collided = 2) and counts the collisions. */
+static void build_rows(island_rows *ir, sc_body *bodies, sc_contact *c, const int *ci, int nc,
+                       double h, const sc_contact_params *p, sc_solve_info *info)
 {
-    if (nc == 0)
-        return SC_OK;
-    info->solves++;
-    /* rows: normal, then two tangents where there is friction */
-    int nrows = 0;
-    for (int k = 0; k < nc; k++) {
-        const sc_contact *ck = &c[ci[k]];
-        double mu = sqrt(bodies[ck->body_a].friction * bodies[ck->body_b].friction);
-        nrows += mu > 0 ? 3 : 1;
-        if (nrows > SPLIT_MAX_ROWS)
-            return SC_ETOOMANY;    /* not a misleading out-of-memory later */
-    }
-    /* one exact LCP up to split_contacts (and SC_MAX_ISLAND_ROWS), else blocks */
-    int split = (p->split_contacts > 0 && nc > p->split_contacts) || nrows > SC_MAX_ISLAND_ROWS;
-    size_t n = (size_t)nrows;
-    /* per island, from the thread's arena: no allocation once it has
-     * grown to the largest island */
-    row *rows = sc_arena_alloc(arena, n * sizeof *rows);
-    double *A = rows && !split ? sc_arena_alloc(arena, n * n * sizeof *A) : NULL;
-    double *buf = rows && (A || split) ? sc_arena_alloc(arena, n * 7 * sizeof *buf) : NULL;
-    int *findex = buf ? sc_arena_alloc(arena, n * sizeof *findex) : NULL;
-    int *nsel = findex ? sc_arena_alloc(arena, n * sizeof *nsel) : NULL;
-    int *sel = nsel ? sc_arena_alloc(arena, n * sizeof *sel) : NULL;
-    int *cstart = sel ? sc_arena_alloc(arena, (size_t)nc * sizeof *cstart) : NULL;
-    int *coll = cstart ? sc_arena_alloc(arena, (size_t)nc * sizeof *coll) : NULL;
-    double *pull = coll ? sc_arena_alloc(arena, 4 * (size_t)nc * sizeof *pull) : NULL;
-    /* a perfect island's impact speeds (solve_rows()) */
-    double *dsbuf = pull ? sc_arena_alloc(arena, n * sizeof *dsbuf) : NULL, *ds = NULL;
-    int *bid = NULL;                /* an elastic island's bodies, */
-    double *keep = NULL;            /* what its solve changes on them */
-    int rc = SC_ENOMEM;
-    if (!dsbuf)
-        goto out;
-    double *q = buf, *lo = buf + n, *hi = buf + 2 * n, *mu = buf + 3 * n, *z = buf + 4 * n,
-           *off = buf + 6 * n;
-    int r, nn, friction, finite, ncollide, nspecc, elastic, perfect, inelastic = 0, nb = 0;
-    double ke_ref = 0;
-rows_again:
-    r = nn = friction = ncollide = nspecc = elastic = 0;
-    perfect = 1;              /* every collision perfectly elastic */
-    finite = 1;
+    row *rows = ir->rows;
+    int *cstart = ir->cstart, *coll = ir->coll, *nsel = ir->nsel, *findex = ir->findex;
+    double *q = ir->q, *lo = ir->lo, *hi = ir->hi, *mu = ir->mu, *z = ir->z, *off = ir->off,
+           *pull = ir->pull;
+    int inelastic = ir->inelastic;
+    int r = 0, nn = 0, friction = 0, ncollide = 0, nspecc = 0, elastic = 0;
+    int perfect = 1;          /* every collision perfectly elastic */
     for (int k = 0; k < nc; k++) {
         sc_contact *ck = &c[ci[k]];
         const sc_body *A_ = &bodies[ck->body_a], *B_ = &bodies[ck->body_b];
@@ -1774,6 +1759,114 @@ rows_again:
             friction = 1;
         }
     }
+    ir->nn = nn;
+    ir->friction = friction;
+    ir->ncollide = ncollide;
+    ir->nspecc = nspecc;
+    ir->elastic = elastic;
+    ir->perfect = perfect;
+}
+
+/* The kinetic energy of bodies ids[0 .. nb) at their velocities (pre: at
+ * the substep's start, v0 and w0). */
+static double bodies_kinetic(const sc_body *bodies, const int *ids, int nb, int pre)
+{
+    double ke = 0;
+    for (int i = 0; i < nb; i++) {
+        const sc_body *b = &bodies[ids[i]];
+        ke += pre ? kinetic(b, b->v0, b->w0) : kinetic(b, b->v, b->w);
+    }
+    return ke;
+}
+
+/* For a perfectly elastic island (solve_rows()' energy check): each
+ * colliding row's speed moved to its impact, the approach at the touch for
+ * a held one (touch()'s figures in pull), J u0 for the others; 0 on every
+ * other row. Returns ds. */
+static double *impact_speeds(const row *rows, int nrows, const int *cstart, const int *coll,
+                             const double *pull, const sc_body *bodies, const sc_contact *c,
+                             const int *ci, int nc, double *ds)
+{
+    for (int k = 0; k < nc; k++) {
+        int r0 = cstart[k], r1 = k + 1 < nc ? cstart[k + 1] : nrows;
+        for (int rr = r0; rr < r1; rr++)
+            ds[rr] = 0;
+        if (!coll[k])
+            continue;
+        double vpre = row_speed(&rows[r0], bodies, 1), speed = row_speed(&rows[r0], bodies, 0);
+        double at = c[ci[k]].depth < 0 ? -pull[2 * nc + k] : vpre;
+        ds[r0] = speed - at;
+    }
+    return ds;
+}
+
+/* Each contact's impulse from its rows' z (normal, then friction), for the
+ * next solve's warm start and the caller. */
+static void store_impulses(const row *rows, int nrows, const int *cstart, const double *z,
+                           sc_contact *c, const int *ci, int nc)
+{
+    for (int k = 0; k < nc; k++) {
+        sc_contact *ck = &c[ci[k]];
+        int r0 = cstart[k], r1 = k + 1 < nc ? cstart[k + 1] : nrows;
+        v3_scale(ck->impulse, ck->normal, z[r0]);
+        for (int j = r0 + 1; j < r1; j++)
+            v3_madd(ck->impulse, ck->impulse, rows[j].jb, z[j]);
+    }
+}
+
+int sc_island_solve(sc_arena *arena, sc_body *bodies, sc_contact *c, const int *ci, int nc,
+                    double h, const sc_contact_params *p, sc_solve_info *info)
+{
+    if (nc == 0)
+        return SC_OK;
+    info->solves++;
+    /* rows: normal, then two tangents where there is friction */
+    int nrows = 0;
+    for (int k = 0; k < nc; k++) {
+        const sc_contact *ck = &c[ci[k]];
+        double mu = sqrt(bodies[ck->body_a].friction * bodies[ck->body_b].friction);
+        nrows += mu > 0 ? 3 : 1;
+        if (nrows > SPLIT_MAX_ROWS)
+            return SC_ETOOMANY;    /* not a misleading out-of-memory later */
+    }
+    /* one exact LCP up to split_contacts (and SC_MAX_ISLAND_ROWS), else blocks */
+    int split = (p->split_contacts > 0 && nc > p->split_contacts) || nrows > SC_MAX_ISLAND_ROWS;
+    size_t n = (size_t)nrows;
+    /* per island, from the thread's arena: no allocation once it has
+     * grown to the largest island */
+    row *rows = sc_arena_alloc(arena, n * sizeof *rows);
+    double *A = rows && !split ? sc_arena_alloc(arena, n * n * sizeof *A) : NULL;
+    double *buf = rows && (A || split) ? sc_arena_alloc(arena, n * 7 * sizeof *buf) : NULL;
+    int *findex = buf ? sc_arena_alloc(arena, n * sizeof *findex) : NULL;
+    int *nsel = findex ? sc_arena_alloc(arena, n * sizeof *nsel) : NULL;
+    int *sel = nsel ? sc_arena_alloc(arena, n * sizeof *sel) : NULL;
+    int *cstart = sel ? sc_arena_alloc(arena, (size_t)nc * sizeof *cstart) : NULL;
+    int *coll = cstart ? sc_arena_alloc(arena, (size_t)nc * sizeof *coll) : NULL;
+    double *pull = coll ? sc_arena_alloc(arena, 4 * (size_t)nc * sizeof *pull) : NULL;
+    /* a perfect island's impact speeds (solve_rows()) */
+    double *dsbuf = pull ? sc_arena_alloc(arena, n * sizeof *dsbuf) : NULL, *ds = NULL;
+    int *bid = NULL;                /* an elastic island's bodies, */
+    double *keep = NULL;            /* what its solve changes on them */
+    int rc = SC_ENOMEM;
+    if (!dsbuf)
+        goto out;
+    double *q = buf, *lo = buf + n, *hi = buf + 2 * n, *mu = buf + 3 * n, *z = buf + 4 * n,
+           *off = buf + 6 * n;
+    int nn, friction, finite, ncollide, nspecc, elastic, perfect, inelastic = 0, nb = 0;
+    double ke_ref = 0;
+    island_rows ir = { .rows = rows, .cstart = cstart, .coll = coll, .nsel = nsel,
+                       .findex = findex, .q = q, .lo = lo, .hi = hi, .mu = mu, .z = z,
+                       .off = off, .pull = pull };
+rows_again:
+    ir.inelastic = inelastic;
+    build_rows(&ir, bodies, c, ci, nc, h, p, info);
+    nn = ir.nn;
+    friction = ir.friction;
+    ncollide = ir.ncollide;
+    nspecc = ir.nspecc;
+    elastic = ir.elastic;
+    perfect = ir.perfect;
+    finite = 1;
     if (nspecc > 0)
         first_touches(c, ci, nc, cstart, coll, pull, q, off, p->slop);
     if (p->inject & SC_INJECT_NAN)
@@ -1807,13 +1900,7 @@ rows_again:
             goto out;
         }
         bodies_keep(bodies, bid, nb, keep);
-        double ke = 0, ke0 = 0;
-        for (int i = 0; i < nb; i++) {
-            const sc_body *b = &bodies[bid[i]];
-            ke += kinetic(b, b->v, b->w);
-            ke0 += kinetic(b, b->v0, b->w0);
-        }
-        ke_ref = max_d(ke, ke0);
+        ke_ref = max_d(bodies_kinetic(bodies, bid, nb, 0), bodies_kinetic(bodies, bid, nb, 1));
     }
     if (p->impact_first && ncollide > 0 && nspecc == 0) {
         rc = impacts(arena, bodies, c, ci, nc, rows, nrows, nsel, cstart, coll, A, buf, findex, sel,
@@ -1822,28 +1909,15 @@ rows_again:
             goto out;
     }
     /* a perfectly elastic island's collisions checked at their impacts */
-    ds = NULL;
-    if (perfect && ncollide > 0 && !inelastic && !split) {
-        ds = dsbuf;
-        for (int k = 0; k < nc; k++) {
-            int r0 = cstart[k], r1 = k + 1 < nc ? cstart[k + 1] : nrows;
-            for (int rr = r0; rr < r1; rr++)
-                ds[rr] = 0;
-            if (!coll[k])
-                continue;
-            double vpre = row_speed(&rows[r0], bodies, 1), speed = row_speed(&rows[r0], bodies, 0);
-            double at = c[ci[k]].depth < 0 ? -pull[2 * nc + k] : vpre;
-            ds[r0] = speed - at;
-        }
-    }
+    ds = perfect && ncollide > 0 && !inelastic && !split
+             ? impact_speeds(rows, nrows, cstart, coll, pull, bodies, c, ci, nc, dsbuf)
+             : NULL;
     rc = solve_rows(arena, bodies, rows, nrows, nsel, nn, cstart, nc, A, buf, findex, sel, friction,
                     split, 1, perfect, ds, h, p, info);
     if (rc != SC_OK)
         goto out;
     if (elastic) {
-        double ke = 0;
-        for (int i = 0; i < nb; i++)
-            ke += kinetic(&bodies[bid[i]], bodies[bid[i]].v, bodies[bid[i]].w);
+        double ke = bodies_kinetic(bodies, bid, nb, 0);
         if (ke > (1 + ELASTIC_GAIN_MAX) * ke_ref + 1e-12) {
             /* solved again without restitution (counted): the velocity
              * LCP is then a projection and takes energy out */
@@ -1872,14 +1946,7 @@ rows_again:
         rc = rebound(arena, bodies, c, ci, nc, rows, cstart, coll, z, cap, split, h, p, info);
     }
 impulses:
-    /* the impulses, for the next solve's warm start (and the caller) */
-    for (int k = 0; k < nc; k++) {
-        sc_contact *ck = &c[ci[k]];
-        int r0 = cstart[k], r1 = k + 1 < nc ? cstart[k + 1] : nrows;
-        v3_scale(ck->impulse, ck->normal, z[r0]);
-        for (int j = r0 + 1; j < r1; j++)
-            v3_madd(ck->impulse, ck->impulse, rows[j].jb, z[j]);
-    }
+    store_impulses(rows, nrows, cstart, z, c, ci, nc);
 out:
     sc_arena_free(arena, keep);
     sc_arena_free(arena, bid);
