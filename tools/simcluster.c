@@ -147,6 +147,44 @@ static int parse_long(const char *s, long lo, long hi, long *out)
 
 /* Read the options of run or profile into o: -1 to go on, else the exit
  * status (0 after --help or --version). */
+/* The scene parse_options() was given, against the options that need one
+ * kind of scene; a scene file read and checked now, so that a bad one
+ * stops before any work. -1 to go on, else the exit status. */
+static int check_scene(const char *cmd, options *o)
+{
+    if (o->key && !o->cluster)
+        return bad(cmd, "--key needs --cluster");
+    if (o->wait_daemons && !o->cluster)
+        return bad(cmd, "--wait-daemons needs --cluster");
+    int seeded = !strcmp(o->scene, "bolts") || !strcmp(o->scene, "bin");
+    int builtin = seeded || !strcmp(o->scene, "spheres");
+    if (!seeded && (o->bodies_set || o->seed_set))
+        return bad(cmd, builtin ? "--bodies and --seed are for the bolts and bin scenes; spheres "
+                                  "is the paper's fixed 27"
+                                : "--bodies and --seed are for the built-in bolts and bin scenes; a "
+                                  "scene file places its own bodies");
+    if (builtin)
+        return -1;
+    /* a bare word (no folder, no extension) that names no file is a
+     * mistyped scene, not a missing file */
+    if (!strpbrk(o->scene, "/.") && access(o->scene, F_OK) != 0) {
+        char what[256];
+        snprintf(what, sizeof what,
+                 "no scene '%.100s': the built-in scenes are bolts, bin and spheres; else give "
+                 "a scene file's path",
+                 o->scene);
+        return bad(cmd, what);
+    }
+    /* a scene file: read and checked now, so a bad one stops before any work */
+    char err[512];
+    o->file = sc_scene_load(o->scene, err, sizeof err);
+    if (!o->file) {
+        fprintf(stderr, "simcluster: %s: %s\n", cmd, err);
+        return 1;
+    }
+    return -1;
+}
+
 static int parse_options(const char *cmd, int argc, char **argv, options *o)
 {
     static const struct option longs[] = {
@@ -286,38 +324,7 @@ static int parse_options(const char *cmd, int argc, char **argv, options *o)
     if (optind != argc - 1)
         return bad(cmd, "give one scene: bolts, bin, spheres or a scene file");
     o->scene = argv[optind];
-    if (o->key && !o->cluster)
-        return bad(cmd, "--key needs --cluster");
-    if (o->wait_daemons && !o->cluster)
-        return bad(cmd, "--wait-daemons needs --cluster");
-
-    int seeded = !strcmp(o->scene, "bolts") || !strcmp(o->scene, "bin");
-    int builtin = seeded || !strcmp(o->scene, "spheres");
-    if (!seeded && (o->bodies_set || o->seed_set))
-        return bad(cmd, builtin ? "--bodies and --seed are for the bolts and bin scenes; spheres "
-                                  "is the paper's fixed 27"
-                                : "--bodies and --seed are for the built-in bolts and bin scenes; a "
-                                  "scene file places its own bodies");
-    if (builtin)
-        return -1;
-    /* a bare word (no folder, no extension) that names no file is a
-     * mistyped scene, not a missing file */
-    if (!strpbrk(o->scene, "/.") && access(o->scene, F_OK) != 0) {
-        char what[256];
-        snprintf(what, sizeof what,
-                 "no scene '%.100s': the built-in scenes are bolts, bin and spheres; else give "
-                 "a scene file's path",
-                 o->scene);
-        return bad(cmd, what);
-    }
-    /* a scene file: read and checked now, so a bad one stops before any work */
-    char err[512];
-    o->file = sc_scene_load(o->scene, err, sizeof err);
-    if (!o->file) {
-        fprintf(stderr, "simcluster: %s: %s\n", cmd, err);
-        return 1;
-    }
-    return -1;
+    return check_scene(cmd, o);
 }
 
 /* s as a JSON string (a scene file's name can hold anything). */
@@ -806,6 +813,144 @@ static int render(const char *self, const char *log, const char *dir)
     return WIFEXITED(st) && WEXITSTATUS(st) == 0 ? 0 : 1;    /* the viewer said why */
 }
 
+/* run's report as one JSON object (--json). */
+static void report_json(const options *o, const sc_world *w, const sc_stats *stp,
+                        const totals *tp, int rc, const char *seed, unsigned long long hash)
+{
+    const sc_stats st = *stp;
+    const totals t = *tp;
+    double sim = t.frames * DT;
+    int island_split = o->island_split >= 0 ? (int)o->island_split : SC_ISLAND_SPLIT_DEFAULT;
+    printf("{\"scene\": ");
+    json_string(o->scene);
+    printf(", \"bodies\": %d, \"seed\": %s, \"workers\": %d, \"cpu_budget\": %.2f, "
+           "\"spin\": %s, \"frames\": %ld, \"simulated_s\": %.2f, \"wall_s\": %.4f, "
+           "\"realtime_factor\": %.4f, \"at_rest\": %s, \"rest_s\": %.2f, "
+           "\"peak_energy_ratio\": %.6f, \"max_penetration_m\": %.6g, \"units\": %ld, "
+           "\"daemons\": %d, \"remote_units\": %ld, \"recomputed_units\": %ld, "
+           "\"late_results\": %ld, \"dropped_messages\": %ld, \"dropped_auth\": %ld, "
+           "\"dropped_stale\": %ld, "
+           "\"dropped_misaddressed\": %ld, \"duplicate_nodes\": %ld, \"comm_s\": %.4f, "
+           "\"unit_messages\": %ld, \"result_messages\": %ld, \"pipelined_units\": %ld, "
+           "\"kept_out\": %ld, "
+           "\"background_units\": %ld, \"narrow_phase_pairs\": %ld, "
+           "\"narrow_phase_reused\": %ld, "
+           "\"frames_over_budget\": %ld, \"max_frame_s\": %.4f, \"initial_overlaps\": %ld, "
+           "\"solver\": {\"island_split\": %d, \"solves\": %ld, \"kept\": %ld, \"split\": %ld, "
+           "\"blocks\": %ld, \"blocks_shared\": %ld, \"pivots\": %ld, \"max_frame_pivots\": %ld, "
+           "\"staggered_fallbacks\": %ld, \"energy_refused\": %ld, \"split_fallbacks\": %ld, "
+           "\"block_fallbacks\": %ld, \"nan_islands\": %ld, \"inelastic_islands\": %ld, "
+           "\"restitution_scaled\": %ld, \"guessed\": %ld, \"regularised\": %ld, "
+           "\"unconverged\": %ld, "
+           "\"max_sweeps\": %d, \"max_residual\": %.3g, \"max_outer_residual\": %.3g, "
+           "\"substeps\": %ld, \"max_substeps\": %d}, "
+           "\"toi\": {\"mode\": \"%s\", \"backups\": %ld, \"max_frame_backups\": %d, "
+           "\"speculative_contacts\": %ld, \"groups\": %ld, \"groups_retried\": %ld}, "
+           "\"hash\": \"%016llx\", \"interrupted\": %s%s%s, \"error\": %s%s%s}\n",
+           sc_world_body_count(w), seed, (int)(st.nodes - st.daemons), st.cpu_budget,
+           st.spin ? "true" : "false", t.frames,
+           sim, t.wall, t.wall > 0 ? sim / t.wall : 0, t.at_rest ? "true" : "false",
+           t.rest_s, t.peak_energy, t.max_pen, t.units, st.daemons, t.remote, t.recomputed,
+           t.late, st.dropped_messages, st.dropped_auth, st.dropped_stale,
+           st.dropped_misaddressed,
+           st.duplicate_nodes, t.comm, t.msgs_out, t.msgs_in, t.piped, t.kept_out, t.beside,
+           t.np_pairs,
+           t.np_reused, t.over_budget, t.max_frame,
+           t.overlaps,
+           island_split, t.solves, t.kept, t.split, t.blocks, t.shared, t.pivots, t.max_pivots, t.staggered,
+           t.refused, t.split_fb, t.block_fb, t.nan, t.inelastic, t.rscaled, t.guessed,
+           t.regularised, t.unconverged,
+           t.max_sweeps, t.residual,
+           t.outer_residual, t.substeps, t.max_substeps,
+           o->toi_mode == SC_TOI_LOCAL ? "local" : "world", t.backups, t.max_backups, t.spec,
+           t.groups, t.retried, hash,
+           t.interrupted ? "\"" : "null", t.interrupted ? signal_name(t.interrupted) : "",
+           t.interrupted ? "\"" : "", rc ? "\"" : "null",
+           rc ? sc_strerror(rc) : "", rc ? "\"" : "");
+}
+
+/* run's report as lines of text. */
+static void report_text(const options *o, const sc_world *w, const sc_stats *stp,
+                        const totals *tp, const char *seed, unsigned long long hash)
+{
+    const sc_stats st = *stp;
+    const totals t = *tp;
+    double sim = t.frames * DT;
+    printf("%s: %d bodies%s%s, %ld frames of %.2f s\n", o->scene, sc_world_body_count(w),
+           strcmp(seed, "null") ? ", seed " : "", strcmp(seed, "null") ? seed : "", t.frames,
+           DT);
+    printf("  simulated %8.2f s in %.3f s wall (real-time factor %.2f)\n", sim, t.wall,
+           t.wall > 0 ? sim / t.wall : 0);
+    printf("  %d local threads on %.2f CPUs (affinity mask, cgroup quota): idle threads %s\n",
+           (int)(st.nodes - st.daemons), st.cpu_budget,
+           st.spin ? "poll a few ms before they sleep" : "sleep at once (fewer CPUs than threads)");
+    if (o->until_rest)
+        printf("  %s\n", t.at_rest ? "all at rest" : "not at rest at the frame limit");
+    printf("  frames over their %.0f ms: %ld, longest %.1f ms\n", 1e3 * DT, t.over_budget,
+           1e3 * t.max_frame);
+    printf("  peak energy / initial %.5f, max penetration %.3f mm\n", t.peak_energy,
+           1e3 * t.max_pen);
+    if (t.overlaps)
+        printf("  body pairs overlapping where placed: %ld (pushed apart)\n", t.overlaps);
+    printf("  contact solves %ld (split into blocks %ld, block solves %ld, %ld of them by "
+           "helping threads; islands kept by speculative rounds %ld), pivots %ld (most in a "
+           "frame %ld), substeps %.2f a frame (most %d)\n",
+           t.solves, t.split, t.blocks, t.shared, t.kept, t.pivots, t.max_pivots,
+           t.frames ? (double)t.substeps / (double)t.frames : 0.0, t.max_substeps);
+    printf("  LCP residual at most %.3g m/s (exact), %.3g m/s (split, tolerance %.0e; "
+           "%ld stopped at %d sweeps)\n",
+           t.residual, t.outer_residual, SC_SPLIT_TOL, t.unconverged, SC_SPLIT_MAX_SWEEPS);
+    printf("  time of impact (%s): back-ups %.2f a frame (most %d), speculative "
+           "contacts %ld\n",
+           o->toi_mode == SC_TOI_LOCAL ? "local" : "world",
+           t.frames ? (double)t.backups / (double)t.frames : 0.0, t.max_backups, t.spec);
+    if (t.groups)
+        printf("  motion groups %.1f a frame, %ld of them stepped again (bodies of two "
+               "groups came close)\n",
+               t.frames ? (double)t.groups / (double)t.frames : 0.0, t.retried);
+    printf("  fallbacks: staggered friction %ld (%ld of them answers refused for adding "
+           "energy), blocks after staggered %ld, projected Gauss-Seidel blocks %ld, "
+           "non-finite islands %ld, inelastic re-solves %ld, restitution scaled down %ld\n",
+           t.staggered, t.refused, t.split_fb, t.block_fb, t.nan, t.inelastic, t.rscaled);
+    printf("  friction solved from a projected Gauss-Seidel guess (fixed point and Lemke "
+           "failed; exact, no fallback): %ld\n",
+           t.guessed);
+    printf("  LCPs solved with the diagonal raised (singular or near-redundant contacts; "
+           "exact for a compliance of at most 1e-4 of the diagonal, no fallback): %ld\n",
+           t.regularised);
+    printf("  narrow phase: %ld pair tests, %ld of them (%.1f %%) answered by the frame's "
+           "last detection\n",
+           t.np_pairs, t.np_reused,
+           t.np_pairs ? 100.0 * (double)t.np_reused / (double)t.np_pairs : 0.0);
+    printf("  work units %ld", t.units);
+    if (t.beside)
+        printf(", motion groups stepped by idle threads beside the pile %ld", t.beside);
+    if (o->cluster)
+        printf(", from daemons %ld, recomputed %ld, late %ld, dropped messages %ld",
+               t.remote, t.recomputed, t.late, st.dropped_messages);
+    if (o->cluster && (st.dropped_auth || st.dropped_stale || st.dropped_misaddressed ||
+                      st.duplicate_nodes))
+        printf("\n  of them failed authentication %ld, stale %ld, misaddressed %ld; "
+               "duplicate daemon ids %ld",
+               st.dropped_auth, st.dropped_stale, st.dropped_misaddressed,
+               st.duplicate_nodes);
+    if (o->cluster && t.frames) {
+        /* per daemon: over those in use now (at least one) */
+        double nd = st.daemons > 1 ? st.daemons : 1, fr = (double)t.frames;
+        printf("\n  cluster messages a frame: %.2f of units out, %.2f of results in "
+               "(a daemon: %.2f, %.2f); communication %.2f ms a frame; group units "
+               "back while the pile ran %.2f a frame; a daemon kept out of %.2f jobs a "
+               "frame (its share worth too few round trips)",
+               (double)t.msgs_out / fr, (double)t.msgs_in / fr, (double)t.msgs_out / fr / nd,
+               (double)t.msgs_in / fr / nd, 1e3 * t.comm / fr, (double)t.piped / fr,
+               (double)t.kept_out / fr / nd);
+    }
+    printf("\n  state hash %016llx\n", hash);
+    if (t.interrupted)
+        printf("  interrupted by %s after frame %ld\n", signal_name(t.interrupted),
+               t.frames);
+}
+
 static int run_cmd(int argc, char **argv)
 {
     options o;
@@ -847,134 +992,14 @@ static int run_cmd(int argc, char **argv)
         rec_failed |= record_finish(&rec);
     sc_stats st;
     sc_world_stats(w, &st);
-    double sim = t.frames * DT;
     unsigned long long hash = (unsigned long long)sc_world_hash(w);
-    int island_split = o.island_split >= 0 ? (int)o.island_split : SC_ISLAND_SPLIT_DEFAULT;
     char seed[24] = "null";         /* scene files have no seed */
     if (!strcmp(o.scene, "bolts") || !strcmp(o.scene, "bin"))
         snprintf(seed, sizeof seed, "%ld", o.seed);
-    if (o.json) {
-        printf("{\"scene\": ");
-        json_string(o.scene);
-        printf(", \"bodies\": %d, \"seed\": %s, \"workers\": %d, \"cpu_budget\": %.2f, "
-               "\"spin\": %s, \"frames\": %ld, \"simulated_s\": %.2f, \"wall_s\": %.4f, "
-               "\"realtime_factor\": %.4f, \"at_rest\": %s, \"rest_s\": %.2f, "
-               "\"peak_energy_ratio\": %.6f, \"max_penetration_m\": %.6g, \"units\": %ld, "
-               "\"daemons\": %d, \"remote_units\": %ld, \"recomputed_units\": %ld, "
-               "\"late_results\": %ld, \"dropped_messages\": %ld, \"dropped_auth\": %ld, "
-               "\"dropped_stale\": %ld, "
-               "\"dropped_misaddressed\": %ld, \"duplicate_nodes\": %ld, \"comm_s\": %.4f, "
-               "\"unit_messages\": %ld, \"result_messages\": %ld, \"pipelined_units\": %ld, "
-               "\"kept_out\": %ld, "
-               "\"background_units\": %ld, \"narrow_phase_pairs\": %ld, "
-               "\"narrow_phase_reused\": %ld, "
-               "\"frames_over_budget\": %ld, \"max_frame_s\": %.4f, \"initial_overlaps\": %ld, "
-               "\"solver\": {\"island_split\": %d, \"solves\": %ld, \"kept\": %ld, \"split\": %ld, "
-               "\"blocks\": %ld, \"blocks_shared\": %ld, \"pivots\": %ld, \"max_frame_pivots\": %ld, "
-               "\"staggered_fallbacks\": %ld, \"energy_refused\": %ld, \"split_fallbacks\": %ld, "
-               "\"block_fallbacks\": %ld, \"nan_islands\": %ld, \"inelastic_islands\": %ld, "
-               "\"restitution_scaled\": %ld, \"guessed\": %ld, \"regularised\": %ld, "
-               "\"unconverged\": %ld, "
-               "\"max_sweeps\": %d, \"max_residual\": %.3g, \"max_outer_residual\": %.3g, "
-               "\"substeps\": %ld, \"max_substeps\": %d}, "
-               "\"toi\": {\"mode\": \"%s\", \"backups\": %ld, \"max_frame_backups\": %d, "
-               "\"speculative_contacts\": %ld, \"groups\": %ld, \"groups_retried\": %ld}, "
-               "\"hash\": \"%016llx\", \"interrupted\": %s%s%s, \"error\": %s%s%s}\n",
-               sc_world_body_count(w), seed, (int)(st.nodes - st.daemons), st.cpu_budget,
-               st.spin ? "true" : "false", t.frames,
-               sim, t.wall, t.wall > 0 ? sim / t.wall : 0, t.at_rest ? "true" : "false",
-               t.rest_s, t.peak_energy, t.max_pen, t.units, st.daemons, t.remote, t.recomputed,
-               t.late, st.dropped_messages, st.dropped_auth, st.dropped_stale,
-               st.dropped_misaddressed,
-               st.duplicate_nodes, t.comm, t.msgs_out, t.msgs_in, t.piped, t.kept_out, t.beside,
-               t.np_pairs,
-               t.np_reused, t.over_budget, t.max_frame,
-               t.overlaps,
-               island_split, t.solves, t.kept, t.split, t.blocks, t.shared, t.pivots, t.max_pivots, t.staggered,
-               t.refused, t.split_fb, t.block_fb, t.nan, t.inelastic, t.rscaled, t.guessed,
-               t.regularised, t.unconverged,
-               t.max_sweeps, t.residual,
-               t.outer_residual, t.substeps, t.max_substeps,
-               o.toi_mode == SC_TOI_LOCAL ? "local" : "world", t.backups, t.max_backups, t.spec,
-               t.groups, t.retried, hash,
-               t.interrupted ? "\"" : "null", t.interrupted ? signal_name(t.interrupted) : "",
-               t.interrupted ? "\"" : "", rc ? "\"" : "null",
-               rc ? sc_strerror(rc) : "", rc ? "\"" : "");
-    } else {
-        printf("%s: %d bodies%s%s, %ld frames of %.2f s\n", o.scene, sc_world_body_count(w),
-               strcmp(seed, "null") ? ", seed " : "", strcmp(seed, "null") ? seed : "", t.frames,
-               DT);
-        printf("  simulated %8.2f s in %.3f s wall (real-time factor %.2f)\n", sim, t.wall,
-               t.wall > 0 ? sim / t.wall : 0);
-        printf("  %d local threads on %.2f CPUs (affinity mask, cgroup quota): idle threads %s\n",
-               (int)(st.nodes - st.daemons), st.cpu_budget,
-               st.spin ? "poll a few ms before they sleep" : "sleep at once (fewer CPUs than threads)");
-        if (o.until_rest)
-            printf("  %s\n", t.at_rest ? "all at rest" : "not at rest at the frame limit");
-        printf("  frames over their %.0f ms: %ld, longest %.1f ms\n", 1e3 * DT, t.over_budget,
-               1e3 * t.max_frame);
-        printf("  peak energy / initial %.5f, max penetration %.3f mm\n", t.peak_energy,
-               1e3 * t.max_pen);
-        if (t.overlaps)
-            printf("  body pairs overlapping where placed: %ld (pushed apart)\n", t.overlaps);
-        printf("  contact solves %ld (split into blocks %ld, block solves %ld, %ld of them by "
-               "helping threads; islands kept by speculative rounds %ld), pivots %ld (most in a "
-               "frame %ld), substeps %.2f a frame (most %d)\n",
-               t.solves, t.split, t.blocks, t.shared, t.kept, t.pivots, t.max_pivots,
-               t.frames ? (double)t.substeps / (double)t.frames : 0.0, t.max_substeps);
-        printf("  LCP residual at most %.3g m/s (exact), %.3g m/s (split, tolerance %.0e; "
-               "%ld stopped at %d sweeps)\n",
-               t.residual, t.outer_residual, SC_SPLIT_TOL, t.unconverged, SC_SPLIT_MAX_SWEEPS);
-        printf("  time of impact (%s): back-ups %.2f a frame (most %d), speculative "
-               "contacts %ld\n",
-               o.toi_mode == SC_TOI_LOCAL ? "local" : "world",
-               t.frames ? (double)t.backups / (double)t.frames : 0.0, t.max_backups, t.spec);
-        if (t.groups)
-            printf("  motion groups %.1f a frame, %ld of them stepped again (bodies of two "
-                   "groups came close)\n",
-                   t.frames ? (double)t.groups / (double)t.frames : 0.0, t.retried);
-        printf("  fallbacks: staggered friction %ld (%ld of them answers refused for adding "
-               "energy), blocks after staggered %ld, projected Gauss-Seidel blocks %ld, "
-               "non-finite islands %ld, inelastic re-solves %ld, restitution scaled down %ld\n",
-               t.staggered, t.refused, t.split_fb, t.block_fb, t.nan, t.inelastic, t.rscaled);
-        printf("  friction solved from a projected Gauss-Seidel guess (fixed point and Lemke "
-               "failed; exact, no fallback): %ld\n",
-               t.guessed);
-        printf("  LCPs solved with the diagonal raised (singular or near-redundant contacts; "
-               "exact for a compliance of at most 1e-4 of the diagonal, no fallback): %ld\n",
-               t.regularised);
-        printf("  narrow phase: %ld pair tests, %ld of them (%.1f %%) answered by the frame's "
-               "last detection\n",
-               t.np_pairs, t.np_reused,
-               t.np_pairs ? 100.0 * (double)t.np_reused / (double)t.np_pairs : 0.0);
-        printf("  work units %ld", t.units);
-        if (t.beside)
-            printf(", motion groups stepped by idle threads beside the pile %ld", t.beside);
-        if (o.cluster)
-            printf(", from daemons %ld, recomputed %ld, late %ld, dropped messages %ld",
-                   t.remote, t.recomputed, t.late, st.dropped_messages);
-        if (o.cluster && (st.dropped_auth || st.dropped_stale || st.dropped_misaddressed ||
-                          st.duplicate_nodes))
-            printf("\n  of them failed authentication %ld, stale %ld, misaddressed %ld; "
-                   "duplicate daemon ids %ld",
-                   st.dropped_auth, st.dropped_stale, st.dropped_misaddressed,
-                   st.duplicate_nodes);
-        if (o.cluster && t.frames) {
-            /* per daemon: over those in use now (at least one) */
-            double nd = st.daemons > 1 ? st.daemons : 1, fr = (double)t.frames;
-            printf("\n  cluster messages a frame: %.2f of units out, %.2f of results in "
-                   "(a daemon: %.2f, %.2f); communication %.2f ms a frame; group units "
-                   "back while the pile ran %.2f a frame; a daemon kept out of %.2f jobs a "
-                   "frame (its share worth too few round trips)",
-                   (double)t.msgs_out / fr, (double)t.msgs_in / fr, (double)t.msgs_out / fr / nd,
-                   (double)t.msgs_in / fr / nd, 1e3 * t.comm / fr, (double)t.piped / fr,
-                   (double)t.kept_out / fr / nd);
-        }
-        printf("\n  state hash %016llx\n", hash);
-        if (t.interrupted)
-            printf("  interrupted by %s after frame %ld\n", signal_name(t.interrupted),
-                   t.frames);
-    }
+    if (o.json)
+        report_json(&o, w, &st, &t, rc, seed, hash);
+    else
+        report_text(&o, w, &st, &t, seed, hash);
     sc_world_destroy(w);
     if (rc == SC_OK && !rec_failed && o.render && !t.interrupted)
         rec_failed = render(argv[0], o.record, o.render);
