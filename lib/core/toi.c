@@ -1,9 +1,10 @@
 /* toi.c - time of impact (the paper's step 5; docs/DESIGN.md 3.4): the
  * time at which two moving shapes first touch, so the frame can back up to
- * it. Convex pairs use conservative advancement on ccd.c's distances (time
- * advances by gap / motion bound along the separating direction); other
- * pairs sample the motion finely enough that no feature is skipped and
- * bisect the first overlapping sample, on ODE's narrow phase. */
+ * it. Every pair the frame asks about is sampled finely enough that no
+ * feature is skipped, and the first overlapping sample is bisected, on
+ * ODE's narrow phase. Conservative advancement on ccd.c's distances
+ * (sc_toi_ca_*: time advances by gap / motion bound) is here for the tests
+ * and benchmarks that compare it; the frame does not use it. */
 #include "core.h"
 #include "vecmath.h"
 
