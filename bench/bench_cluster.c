@@ -11,8 +11,8 @@
  *             the first daemon count is 0). The rows take turns, one run
  *             each per round, and the speedup is the median of each round's
  *             ratio to that round's 0-daemon run: on a shared machine a
- *             slow minute falls on every row alike (until 2026-12-05 each
- *             row ran its runs in a block).
+ *             slow minute falls on every row alike (it would fall on one
+ *             row alone if each row ran its runs in a block).
  *   model     a prediction of k one-thread daemons (up to 15) from
  *             measured costs: the frame's work outside units, its jobs'
  *             least makespan on n nodes (sc_stats.ideal_makespan_s), the
@@ -522,9 +522,8 @@ static void model(int n, int runs, double seconds)
         /* B's units took longer than A's whole frames: its threads slowed
          * each other (two vCPUs of one core), and W is not the work a
          * node of A's speed does; the model would count negative serial
-         * work and predict far too much (5.4x for 15 daemons on the
-         * world-wide drop on 2026-12-05, where A's own units were 27 ms
-         * of 37) */
+         * work and predict far too much (docs/DESIGN.md 7.8; a measured
+         * case, the world-wide drop, is in docs/HISTORY.md 7.8) */
         printf("no prediction: S < 0, B's units ran slower than A's frames (its CPUs "
                "contend; A's units took %.2f ms a frame)\n",
                1e3 * MED(a, work));

@@ -95,8 +95,8 @@
  * many were made); with -r R every cell gets exactly R. The runs go round
  * the engines in turn (quick, sl1, slN, quick, ...), so that a slow spell
  * of the shared machine falls on every engine of a ratio alike: made a
- * cell after another, five runs of QuickStep and then five of ours put
- * the drop's slN over quick anywhere from 0.92 to 1.36 (2026-12-04).
+ * cell after another (all runs of QuickStep, then all of ours), a ratio
+ * such as the drop's slN over quick swings with the machine's load.
  *
  * Ratios, ours (sc1, scN) over each peer (quick, step) and scN over sc1,
  * follow each body count. Runs cut by the wall budget reach different

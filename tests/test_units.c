@@ -551,10 +551,10 @@ static void test_bad_worker_counts(void **state)
 /* A bin of 100 parts with 45 balls falling above it (the default world:
  * local time of impact, motion groups): the bin is a pile, the balls are
  * other groups, stepped by idle worker threads beside it (docs/DESIGN.md
- * 5, background units), which depends on timing; the result does not.
- * (A drop of 300 parts over 120 frames was the scene until its falling
- * parts stopped being chained into one group, 2026-12-04: it then had a
- * pile in a few frames only, and a loaded machine's workers took none of
+ * 5.3, background units), which depends on timing; the result does not.
+ * (A drop of 300 parts over 120 frames would not do: its falling parts
+ * are not chained into one group (docs/DESIGN.md 3.9), so it has a pile
+ * in a few frames only, and a loaded machine's workers may take none of
  * its groups.) */
 static void test_groups_beside_a_pile_same_bits_for_1_2_4_workers(void **state)
 {
@@ -576,7 +576,7 @@ static void test_groups_beside_a_pile_same_bits_for_1_2_4_workers(void **state)
     }
     /* whether a worker is idle when a group is there to take depends on
      * timing: under the sanitizers on a loaded 2-CPU machine the 4 workers
-     * once took none (2026-12-03); some run with several must */
+     * can take none; some run with several must */
     assert_true(beside > 0);
 }
 

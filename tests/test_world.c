@@ -590,8 +590,9 @@ static void test_a_body_knocked_into_another_group_is_stepped_with_it(void **sta
 /* A bin of 100 parts over 3 s: it settles and its islands fall asleep
  * one by one. Two sleeping neighbours, one in a group that an awake body
  * keeps running and one in none, did not move; the groups' check must not
- * count them as meeting (it did: every such frame was stepped twice, 232
- * groups again in these 300 frames, 2026-12-04). */
+ * count them as meeting (docs/DESIGN.md 3.9: two bodies asleep all frame
+ * are skipped). Counted as meeting, they would make every such frame be
+ * stepped twice, far more groups again than the bound below allows. */
 static void test_sleeping_neighbours_do_not_step_a_frame_again(void **state)
 {
     (void)state;
@@ -664,12 +665,12 @@ static void test_a_pile_never_gains_energy(void **state)
 }
 
 /* A region's frame in local mode may back up more often than the
- * world-wide mode's 15: the 1000-part bin needed 23 back-ups in a frame as
- * its first layer landed, and with 15 it let a part in 8.2 mm in its first
- * 30 frames (docs/DESIGN.md 3.1). Which frame needs how many is chaotic:
- * since free rotation keeps its energy and momentum (2026-12-03) seed 1
- * needs 13 at most (and reaches 1.49 mm), seed 7 18, so the test runs
- * seed 7. */
+ * world-wide mode's 15: as the 1000-part bin's first layer lands a frame
+ * needs more than 15 back-ups, and with 15 a part goes in far deeper than
+ * the tolerance in its first 30 frames (docs/DESIGN.md 3.1; the measured
+ * account is in docs/HISTORY.md 3.1). Which frame needs how many is
+ * chaotic and depends on the seed, so the test runs a seed whose first 30
+ * frames need more than 15, seed 7. */
 static void test_a_landing_pile_may_back_up_more_than_15_times_a_frame(void **state)
 {
     (void)state;
