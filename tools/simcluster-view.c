@@ -50,7 +50,12 @@ typedef struct viewer {
     view_opts o;
     FILE *log, *pipe;
     long event;                    /* events read so far (1-based in errors) */
-    struct { uint64_t hash; GLuint list; } shapes[MAX_SHAPES];  /* lists: shape frame */
+    struct {
+        uint64_t hash;
+        GLuint list;               /* drawn in the shape's frame */
+        int kind;                  /* SC_SHAPE_*: a static box may hide the view */
+        double half[3];
+    } shapes[MAX_SHAPES];
     int nshapes, frames_out, camera_set;
     int quiet;                     /* live: malformed messages are counted, not printed */
     uint8_t *rgba;
@@ -386,6 +391,8 @@ static int add_shape(viewer *v, const uint8_t *data, size_t len)
     int full = v->nshapes == MAX_SHAPES;
     if (!full) {    /* with --dump, no GL: the shape is only checked */
         v->shapes[v->nshapes].hash = m.hash;
+        v->shapes[v->nshapes].kind = m.kind;
+        memcpy(v->shapes[v->nshapes].half, m.half, sizeof m.half);
         v->shapes[v->nshapes++].list = v->o.dump ? 0 : compile_shape(&m);
     }
     sc_frame_shape_free(&m);
@@ -399,8 +406,49 @@ static int decode_state(viewer *v, const uint8_t *data, size_t len, sc_frame_rec
     return rc == SC_OK ? 0 : fail(v, rc == SC_ENOMEM ? "out of memory" : "malformed state");
 }
 
+/* Whether static body i of m, a box, stands between eye and look (a plane
+ * seen from its solid side is culled: it hides nothing). */
+static int hides(const viewer *v, const sc_frame_record *m, int i, const double eye[3],
+                 const double look[3])
+{
+    int k = shape_index(v, m->shape[i]);
+    if (k < 0 || v->shapes[k].kind != SC_SHAPE_BOX)
+        return 0;
+    /* the segment in the box's frame (the pose's rotation transposed),
+     * clipped by its three slabs */
+    const double *q = &m->quat[4 * i], *c = &m->pos[3 * i], *h = v->shapes[k].half;
+    double w = q[0], x = q[1], y = q[2], z = q[3];
+    const double R[3][3] = { { 1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y) },
+                             { 2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x) },
+                             { 2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y) } };
+    double p0[3], p1[3], t0 = 0, t1 = 1;
+    for (int a = 0; a < 3; a++) {
+        p0[a] = p1[a] = 0;
+        for (int b = 0; b < 3; b++) {
+            p0[a] += R[b][a] * (eye[b] - c[b]);
+            p1[a] += R[b][a] * (look[b] - c[b]);
+        }
+    }
+    for (int a = 0; a < 3; a++) {
+        double d = p1[a] - p0[a];
+        if (fabs(d) < 1e-12) {
+            if (fabs(p0[a]) > h[a])
+                return 0;
+            continue;
+        }
+        double ta = (-h[a] - p0[a]) / d, tb = (h[a] - p0[a]) / d;
+        t0 = fmax(t0, fmin(ta, tb));
+        t1 = fmin(t1, fmax(ta, tb));
+        if (t0 > t1)
+            return 0;
+    }
+    return 1;
+}
+
 /* The first frame: unless given, look at the centroid of the moving bodies
- * from up and to the side, far enough that all of them fit. */
+ * from up and to the side, far enough that all of them fit, and from
+ * higher up where a static box stands in the way (a parts bin's walls),
+ * up to nearly straight down. */
 static void default_camera(viewer *v, const sc_frame_record *m)
 {
     double c[3] = { 0, 0, 0 }, r = 0.25;
@@ -421,9 +469,18 @@ static void default_camera(viewer *v, const sc_frame_record *m)
         }
     if (!v->o.have_look)
         memcpy(v->o.look, c, sizeof c);
-    double dist = 1.1 * r / sin(v->o.fov * M_PI / 360), dir[3] = { 0.55, -0.7, 0.45 };  /* ~unit */
-    for (int a = 0; a < 3 && !v->o.have_eye; a++)
-        v->o.eye[a] = v->o.look[a] + dist * dir[a];
+    double dist = 1.1 * r / sin(v->o.fov * M_PI / 360);
+    for (int step = 0; step <= 9 && !v->o.have_eye; step++) {
+        double s = 0.1 * step, dir[3] = { 0.55 * (1 - s), -0.7 * (1 - s), 0.45 * (1 - s) + s };
+        double l = sqrt(dir[0] * dir[0] + dir[1] * dir[1] + dir[2] * dir[2]);
+        for (int a = 0; a < 3; a++)
+            v->o.eye[a] = v->o.look[a] + dist * dir[a] / l;
+        int clear = 1;
+        for (int i = 0; i < m->n && clear; i++)
+            clear = m->state[i] != SC_STATIC || !hides(v, m, i, v->o.eye, v->o.look);
+        if (clear)
+            break;
+    }
     v->camera_set = 1;
 }
 
@@ -562,6 +619,7 @@ typedef struct live {
     size_t len, cap;
     int fresh;
     long states, bad;              /* received; malformed, dropped */
+    long superseded;               /* replaced by a newer one before drawn */
 } live;
 
 static volatile sig_atomic_t stop_live;
@@ -605,6 +663,7 @@ static void on_live(void *user, const char *chan, const uint8_t *data, size_t n,
     }
     memcpy(L->state, data, n);
     L->len = n;
+    L->superseded += L->fresh;
     L->fresh = 1;
     L->states++;
 }
@@ -686,6 +745,10 @@ static int run_live(viewer *v)
     if (sc_bus_dropped(&bc))
         fprintf(stderr, ", %llu datagrams dropped",
                 (unsigned long long)sc_bus_dropped(&bc));
+    if (L.superseded)
+        fprintf(stderr, ", %ld replaced by a newer frame before they were drawn (the viewer "
+                        "draws the newest; a slower viewer skips frames)",
+                L.superseded);
     fprintf(stderr, "\n");
     return rc == 0 && v->frames_out ? 0 : -1;
 }
