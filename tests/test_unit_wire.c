@@ -123,6 +123,29 @@ static unsigned char *remote_run(sc_np_ctx *np, const unsigned char *unit, size_
     return buf;
 }
 
+/* The scheduler's size estimates (sc_unit_bytes_*(): a unit's own, or
+ * the model's for the units these tests cut by hand) against the bytes
+ * that went through the wire, out and back, per unit kind. */
+static double est_bytes[SC_UNIT_GROUP + 1], wire_bytes[SC_UNIT_GROUP + 1];
+
+static void count_bytes(const sc_job *job, const sc_unit *u, size_t len, size_t rlen)
+{
+    size_t est = u->bytes;
+    if (!est && (u->kind == SC_UNIT_COLLIDE || u->kind == SC_UNIT_TOI)) {
+        est = sc_unit_bytes_pairs(u->kind, u->count);
+    } else if (!est && u->kind == SC_UNIT_ISLAND) {
+        /* as the dispatcher counts an island unit's bodies */
+        int nb = 0;
+        for (int i = u->first; i < u->first + u->islands; i++)
+            nb += job->islands->body_start[i + 1] - job->islands->body_start[i] + 1;
+        est = sc_unit_bytes_islands(nb, u->count);
+    }
+    if (est > 0 && u->kind >= 0 && u->kind <= SC_UNIT_GROUP) {
+        est_bytes[u->kind] += (double)est;
+        wire_bytes[u->kind] += (double)(len + rlen);
+    }
+}
+
 /* Unit u of job_l run here, and the same unit of job_r (same inputs, its
  * own outputs) run through the wire: rc, messages and info must agree. */
 static sc_unit run_both(sc_np_ctx *local, sc_np_ctx *remote, cache *cc, const sc_job *job_l,
@@ -133,6 +156,7 @@ static sc_unit run_both(sc_np_ctx *local, sc_np_ctx *remote, cache *cc, const sc
     size_t len, rlen;
     unsigned char *buf = pack_unit(job_r, &ur, &len);
     unsigned char *res = remote_run(remote, buf, len, cc, &rlen);
+    count_bytes(job_r, u, len, rlen);
     ur.rc = 99;
     ur.messages = -1;
     assert_int_equal(sc_wire_result_apply(job_r, &ur, res, rlen), SC_OK);
@@ -783,6 +807,7 @@ static void group_both_ways(group_exec *gx, sc_job *job)
         assert_memory_equal(&u->info, &ul.info, sizeof ul.info);
         gx->groups_max = u->islands > gx->groups_max ? u->islands : gx->groups_max;
         gx->bytes += len + rlen;
+        count_bytes(job, u, len, rlen);
         gx->members += u->count;
         for (int j = u->first; j < u->first + u->islands; j++) {
             int k = gj->list[j];
@@ -1857,6 +1882,26 @@ static void test_group_result_for_another_unit_is_a_format_error(void **state)
     gx_free(&gx);
 }
 
+/* The transfer estimates the scheduler works from (lib/core/unit.c) stay
+ * within a factor of two of what unit_wire.c sends, for every kind the
+ * tests above relayed (after them: it reads their counts). */
+static void test_unit_size_estimates_follow_the_wire(void **state)
+{
+    (void)state;
+    static const char *kind[] = { "collide", "toi", "island", "group" };
+    int seen = 0;
+    for (int k = 0; k <= SC_UNIT_GROUP; k++) {
+        if (!(wire_bytes[k] > 0))
+            continue;
+        double r = est_bytes[k] / wire_bytes[k];
+        print_message("%s units: estimated %.0f bytes, sent %.0f (%.2f)\n",
+                      k < 4 ? kind[k] : "?", est_bytes[k], wire_bytes[k], r);
+        assert_true(r >= 0.5 && r <= 2.0);
+        seen++;
+    }
+    assert_true(seen == SC_UNIT_GROUP + 1);
+}
+
 int main(void)
 {
     const struct CMUnitTest tests[] = {
@@ -1873,6 +1918,7 @@ int main(void)
         cmocka_unit_test(test_group_units_through_wire_are_bit_identical),
         cmocka_unit_test(test_bad_group_fields_are_format_errors),
         cmocka_unit_test(test_group_result_for_another_unit_is_a_format_error),
+        cmocka_unit_test(test_unit_size_estimates_follow_the_wire),
     };
     return cmocka_run_group_tests(tests, scene_setup, scene_teardown);
 }

@@ -29,6 +29,15 @@ typedef struct sc_unit_pair {
     sc_pose a1, b1;                 /* ... and end of the substep */
 } sc_unit_pair;
 
+/* A unit's size on the wire, out and back, as the scheduler estimates its
+ * transfer: one model for every kind (unit.c), which tests/test_unit_wire.c
+ * holds against lib/net/unit_wire.c's encoder. Pair units (COLLIDE, TOI)
+ * of count pairs; island units of bodies and contacts; group units of
+ * static bodies, groups, members and contacts. */
+size_t sc_unit_bytes_pairs(int kind, int count);
+size_t sc_unit_bytes_islands(int bodies, int contacts);
+size_t sc_unit_bytes_groups(int statics, int groups, int members, int contacts);
+
 typedef struct sc_unit {
     int kind;                       /* SC_UNIT_* (the job's kind) */
     int first, count;               /* pairs [first, first + count) of the job,

@@ -48,14 +48,6 @@
 #define REACH_MARGIN 2e-3     /* m added to every body's reach */
 #define BIG_GROUP 0.35        /* share of the awake bodies, or of the groups'
                                  work, that makes a pile */
-#define WIRE_GROUP_HEADER 300 /* bytes: unit and result headers, settings */
-#define WIRE_GROUP_BODY 496   /* per static body, or body constants, out */
-#define WIRE_GROUP_PROFILES 4 /* body constants a unit is taken to carry */
-#define WIRE_GROUP_EACH 100   /* per group: its counts, its figures back */
-#define WIRE_GROUP_MEMBER 250 /* per member: its state out and back, with
-                                 its track's distance and count (its points:
-                                 32 bytes each, only a body that was turned) */
-#define WIRE_GROUP_CONTACT 88 /* per contact, with its impulse */
 #define BUNDLES_PER_NODE 8    /* group units a node, about */
 #define BUNDLE_MAX_GROUPS 1024
 #define BUNDLE_MAX_BODIES 4096
@@ -530,17 +522,12 @@ static int step_groups(const sc_frame_config *cfg, sc_frame_state *st, double dt
             u->islands++;
         } while (j < nl && cost < target && u->islands < BUNDLE_MAX_GROUPS &&
                  nm + g->start[list[j] + 1] - g->start[list[j]] <= BUNDLE_MAX_BODIES);
-        int profiles = nm < WIRE_GROUP_PROFILES ? nm : WIRE_GROUP_PROFILES;
         u->count = nm;
         u->cost = cost;
         u->feat[1] = nm;
         u->feat[2] = nc;
-        /* its wire size (the transfer estimate; unit_wire.c): the statics
-         * and a few body constants out, each group's counts and figures,
-         * the members' states both ways, contacts both ways */
-        u->bytes = WIRE_GROUP_HEADER + WIRE_GROUP_BODY * (size_t)(g->nstatics + profiles) +
-                   WIRE_GROUP_EACH * (size_t)u->islands + WIRE_GROUP_MEMBER * (size_t)nm +
-                   2 * WIRE_GROUP_CONTACT * (size_t)nc;
+        /* its wire size (the transfer estimate) */
+        u->bytes = sc_unit_bytes_groups(g->nstatics, u->islands, nm, nc);
     }
     sc_job job = {
         .kind = SC_UNIT_GROUP,

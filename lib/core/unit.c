@@ -4,6 +4,43 @@
  * only its own outputs (its pairs' slots, its island's bodies). */
 #include "frame.h"
 
+/* The wire form's parts (lib/net/unit_wire.c), in bytes: a header; a
+ * COLLIDE pair (hashes, ids, two poses) and its contacts back; a TOI pair
+ * (four poses) and its time back; an island's body (state, mass
+ * properties) both ways; a contact (88 out with its warm start, 24 back);
+ * a group unit's settings and headers, a static body or body constants,
+ * a group's counts and figures, a member's state both ways with its
+ * track, a contact each way. */
+#define WIRE_HEADER 32
+#define WIRE_PAIR 128
+#define WIRE_TOI_PAIR 240
+#define WIRE_BODY 400
+#define WIRE_CONTACT 112
+#define WIRE_GROUP_HEADER 300
+#define WIRE_GROUP_BODY 496
+#define WIRE_GROUP_PROFILES 4   /* body constants a group unit is taken to carry */
+#define WIRE_GROUP_EACH 100
+#define WIRE_GROUP_MEMBER 250
+#define WIRE_GROUP_CONTACT 88
+
+size_t sc_unit_bytes_pairs(int kind, int count)
+{
+    return WIRE_HEADER + (kind == SC_UNIT_TOI ? WIRE_TOI_PAIR : WIRE_PAIR) * (size_t)count;
+}
+
+size_t sc_unit_bytes_islands(int bodies, int contacts)
+{
+    return WIRE_HEADER + WIRE_BODY * (size_t)bodies + WIRE_CONTACT * (size_t)contacts;
+}
+
+size_t sc_unit_bytes_groups(int statics, int groups, int members, int contacts)
+{
+    int profiles = members < WIRE_GROUP_PROFILES ? members : WIRE_GROUP_PROFILES;
+    return WIRE_GROUP_HEADER + WIRE_GROUP_BODY * (size_t)(statics + profiles) +
+           WIRE_GROUP_EACH * (size_t)groups + WIRE_GROUP_MEMBER * (size_t)members +
+           2 * WIRE_GROUP_CONTACT * (size_t)contacts;
+}
+
 /* Polygons the paper counts for a shape: primitives count as one. */
 static double polygons(const sc_shape *s)
 {

@@ -11,13 +11,6 @@
 #define MAX_UNIT_PAIRS 256    /* pairs per unit at most */
 #define GROUP_CONTACTS 24     /* small islands share a unit up to this */
 
-/* Wire sizes (the transfer estimate): header, per pair, per island part. */
-#define WIRE_HEADER 32
-#define WIRE_PAIR 128
-#define WIRE_TOI_PAIR 240
-#define WIRE_BODY 400
-#define WIRE_CONTACT 112     /* 88 out (its warm-start impulse included), 24 back */
-
 static int grow_units(sc_exec_nodes *x, int n)
 {
     return sc_grow((void **)&x->units, &x->unit_cap, n, sizeof *x->units, INT_MAX);
@@ -49,7 +42,6 @@ static int pair_units(sc_exec_nodes *w, sc_job *job, int nnodes)
     int rc = grow_units(w, want + job->npairs / MAX_UNIT_PAIRS + 2);
     if (rc != SC_OK)
         return rc;
-    size_t per = job->kind == SC_UNIT_TOI ? WIRE_TOI_PAIR : WIRE_PAIR;
     int n = 0, first = 0;
     double cost = 0, touching = 0;
     for (int i = 0; i < job->npairs; i++) {
@@ -64,7 +56,7 @@ static int pair_units(sc_exec_nodes *w, sc_job *job, int nnodes)
             if (n == w->unit_cap && (rc = grow_units(w, n + 1)) != SC_OK)
                 return rc;
             unit_init(&w->units[n++], job->kind, first, count, cost, touching,
-                      cost - touching, WIRE_HEADER + per * (size_t)count);
+                      cost - touching, sc_unit_bytes_pairs(job->kind, count));
             first = i + 1;
             cost = touching = 0;
         }
@@ -99,7 +91,7 @@ static int island_units(sc_exec_nodes *w, sc_job *job)
                  nc + is->contact_start[i + 1] - is->contact_start[i] <= GROUP_CONTACTS);
         sc_unit *u = &w->units[n++];
         unit_init(u, SC_UNIT_ISLAND, first, nc, cost, nc, cost,
-                  WIRE_HEADER + WIRE_BODY * (size_t)nb + WIRE_CONTACT * (size_t)nc);
+                  sc_unit_bytes_islands(nb, nc));
         u->islands = i - first;
     }
     job->units = w->units;
