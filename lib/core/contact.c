@@ -1852,22 +1852,15 @@ int sc_island_solve(sc_arena *arena, sc_body *bodies, sc_contact *c, const int *
         goto out;
     double *q = buf, *lo = buf + n, *hi = buf + 2 * n, *mu = buf + 3 * n, *z = buf + 4 * n,
            *off = buf + 6 * n;
-    int nn, friction, finite, ncollide, nspecc, elastic, perfect, inelastic = 0, nb = 0;
+    int finite, nb = 0;
     double ke_ref = 0;
     island_rows ir = { .rows = rows, .cstart = cstart, .coll = coll, .nsel = nsel,
                        .findex = findex, .q = q, .lo = lo, .hi = hi, .mu = mu, .z = z,
                        .off = off, .pull = pull };
 rows_again:
-    ir.inelastic = inelastic;
     build_rows(&ir, bodies, c, ci, nc, h, p, info);
-    nn = ir.nn;
-    friction = ir.friction;
-    ncollide = ir.ncollide;
-    nspecc = ir.nspecc;
-    elastic = ir.elastic;
-    perfect = ir.perfect;
     finite = 1;
-    if (nspecc > 0)
+    if (ir.nspecc > 0)
         first_touches(c, ci, nc, cstart, coll, pull, q, off, p->slop);
     if (p->inject & SC_INJECT_NAN)
         q[0] = NAN;
@@ -1891,7 +1884,7 @@ rows_again:
      * bounces a gap early and gains energy) */
     /* an elastic answer is checked for energy it adds: the island's
      * bodies and their energy before the solve */
-    if (elastic) {
+    if (ir.elastic) {
         nb = island_movable(arena, bodies, c, ci, nc, &bid);
         keep = nb >= 0 ? sc_arena_alloc(arena, KEEP * (size_t)(nb > 0 ? nb : 1) * sizeof *keep)
                        : NULL;
@@ -1902,27 +1895,27 @@ rows_again:
         bodies_keep(bodies, bid, nb, keep);
         ke_ref = max_d(bodies_kinetic(bodies, bid, nb, 0), bodies_kinetic(bodies, bid, nb, 1));
     }
-    if (p->impact_first && ncollide > 0 && nspecc == 0) {
+    if (p->impact_first && ir.ncollide > 0 && ir.nspecc == 0) {
         rc = impacts(arena, bodies, c, ci, nc, rows, nrows, nsel, cstart, coll, A, buf, findex, sel,
-                     friction, split, inelastic, perfect, h, p, info);
+                     ir.friction, split, ir.inelastic, ir.perfect, h, p, info);
         if (rc != SC_OK)
             goto out;
     }
     /* a perfectly elastic island's collisions checked at their impacts */
-    ds = perfect && ncollide > 0 && !inelastic && !split
+    ds = ir.perfect && ir.ncollide > 0 && !ir.inelastic && !split
              ? impact_speeds(rows, nrows, cstart, coll, pull, bodies, c, ci, nc, dsbuf)
              : NULL;
-    rc = solve_rows(arena, bodies, rows, nrows, nsel, nn, cstart, nc, A, buf, findex, sel, friction,
-                    split, 1, perfect, ds, h, p, info);
+    rc = solve_rows(arena, bodies, rows, nrows, nsel, ir.nn, cstart, nc, A, buf, findex, sel,
+                    ir.friction, split, 1, ir.perfect, ds, h, p, info);
     if (rc != SC_OK)
         goto out;
-    if (elastic) {
+    if (ir.elastic) {
         double ke = bodies_kinetic(bodies, bid, nb, 0);
         if (ke > (1 + ELASTIC_GAIN_MAX) * ke_ref + 1e-12) {
             /* solved again without restitution (counted): the velocity
              * LCP is then a projection and takes energy out */
             info->inelastic++;
-            inelastic = 1;
+            ir.inelastic = 1;
             bodies_restore(bodies, bid, nb, keep);
             sc_arena_free(arena, keep);
             sc_arena_free(arena, bid);
@@ -1936,10 +1929,10 @@ rows_again:
     for (int k = 0; k < nc; k++)
         deep = max_d(deep, c[ci[k]].depth);
     if (deep > p->slop)
-        rc = neutral_push_out(arena, rows, nsel, nn, c, ci, nc, deep, bodies, h, p, split, info);
-    if (nspecc > 0)
+        rc = neutral_push_out(arena, rows, nsel, ir.nn, c, ci, nc, deep, bodies, h, p, split, info);
+    if (ir.nspecc > 0)
         pull_in(rows, cstart, c, ci, nc, coll, z, pull, p->slop, h, bodies);
-    if (rc == SC_OK && p->impact_first && !inelastic && keep) {
+    if (rc == SC_OK && p->impact_first && !ir.inelastic && keep) {
         double cap = 0;
         for (int i = 0; i < nb; i++)
             cap += work_budget(&bodies[bid[i]], &keep[KEEP * i], h);
