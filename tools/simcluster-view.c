@@ -406,6 +406,21 @@ static int decode_state(viewer *v, const uint8_t *data, size_t len, sc_frame_rec
     return rc == SC_OK ? 0 : fail(v, rc == SC_ENOMEM ? "out of memory" : "malformed state");
 }
 
+/* The rotation matrix (R[row][col]) of unit quaternion q (w, x, y, z). */
+static void quat_rot(const double *q, double R[3][3])
+{
+    double w = q[0], x = q[1], y = q[2], z = q[3];
+    R[0][0] = 1 - 2 * (y * y + z * z);
+    R[0][1] = 2 * (x * y - w * z);
+    R[0][2] = 2 * (x * z + w * y);
+    R[1][0] = 2 * (x * y + w * z);
+    R[1][1] = 1 - 2 * (x * x + z * z);
+    R[1][2] = 2 * (y * z - w * x);
+    R[2][0] = 2 * (x * z - w * y);
+    R[2][1] = 2 * (y * z + w * x);
+    R[2][2] = 1 - 2 * (x * x + y * y);
+}
+
 /* Whether static body i of m, a box, stands between eye and look (a plane
  * seen from its solid side is culled: it hides nothing). */
 static int hides(const viewer *v, const sc_frame_record *m, int i, const double eye[3],
@@ -416,12 +431,9 @@ static int hides(const viewer *v, const sc_frame_record *m, int i, const double 
         return 0;
     /* the segment in the box's frame (the pose's rotation transposed),
      * clipped by its three slabs */
-    const double *q = &m->quat[4 * i], *c = &m->pos[3 * i], *h = v->shapes[k].half;
-    double w = q[0], x = q[1], y = q[2], z = q[3];
-    const double R[3][3] = { { 1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y) },
-                             { 2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x) },
-                             { 2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y) } };
-    double p0[3], p1[3], t0 = 0, t1 = 1;
+    const double *c = &m->pos[3 * i], *h = v->shapes[k].half;
+    double R[3][3], p0[3], p1[3], t0 = 0, t1 = 1;
+    quat_rot(&m->quat[4 * i], R);
     for (int a = 0; a < 3; a++) {
         p0[a] = p1[a] = 0;
         for (int b = 0; b < 3; b++) {
@@ -546,13 +558,12 @@ static int render(viewer *v, const sc_frame_record *m)
         if (k < 0)
             return fail(v, "a body's shape is not in the log");
         glColor3fv(state_rgb[m->state[i]]);
-        const double *q = &m->quat[4 * i], *p = &m->pos[3 * i];
-        double w = q[0], x = q[1], y = q[2], z = q[3];
-        /* rotation of the unit quaternion, column-major, then translation */
-        const GLdouble M[16] = { 1 - 2 * (y * y + z * z), 2 * (x * y + w * z), 2 * (x * z - w * y), 0,
-                                 2 * (x * y - w * z), 1 - 2 * (x * x + z * z), 2 * (y * z + w * x), 0,
-                                 2 * (x * z + w * y), 2 * (y * z - w * x), 1 - 2 * (x * x + y * y), 0,
-                                 p[0], p[1], p[2], 1 };
+        const double *p = &m->pos[3 * i];
+        double R[3][3];
+        quat_rot(&m->quat[4 * i], R);
+        /* the rotation column-major, then the translation */
+        const GLdouble M[16] = { R[0][0], R[1][0], R[2][0], 0, R[0][1], R[1][1], R[2][1], 0,
+                                 R[0][2], R[1][2], R[2][2], 0, p[0], p[1], p[2], 1 };
         glPushMatrix();
         glMultMatrixd(M);
         glCallList(v->shapes[k].list);
