@@ -15,7 +15,7 @@
  *             row alone if each row ran its runs in a block).
  *   model     a prediction of k one-thread daemons (up to 15) from
  *             measured costs: the frame's work outside units, its jobs'
- *             least makespan on n nodes (sc_stats.ideal_makespan_s), the
+ *             least makespan on n nodes (sc_stats.frame.sched.ideal_makespan_s), the
  *             work by wire bytes per second of it, the daemon's round trip
  *             and the master's time per byte shipped (see model() below);
  *             checked against one daemon measured.
@@ -169,7 +169,7 @@ static int wait_daemons(sc_world *w, int k)
 {
     for (int i = 0; i < 500; i++) {
         sc_cluster_frame(w->cluster);
-        if (w->stats.daemons >= k)
+        if (w->stats.now.daemons >= k)
             return 0;
         usleep(10000);
     }
@@ -187,7 +187,7 @@ static sc_world *start_world(int n, int k, int workers)
 {
     sc_world *w = make_world_on(n, k > 0, workers);
     if (k > 0 && wait_daemons(w, k) != 0) {
-        fprintf(stderr, "bench_cluster: only %d of %d daemons answered\n", w->stats.daemons, k);
+        fprintf(stderr, "bench_cluster: only %d of %d daemons answered\n", w->stats.now.daemons, k);
         sc_world_destroy(w);
         return NULL;
     }
@@ -220,16 +220,16 @@ static int run(int n, int k, double seconds, result *r)
         sc_stats st;
         if (step_frame(w, &st) != 0)
             return -1;
-        units += st.units;
-        remote += st.remote_units;
-        recomputed += st.recomputed_units;
-        late += st.late_results;
-        comm += st.comm_s;
-        wait += st.remote_wait_s;
-        local += st.makespan_s;
-        msgs_out += st.unit_messages;
-        msgs_in += st.result_messages;
-        piped += st.pipelined_units;
+        units += st.frame.sched.units;
+        remote += st.frame.remote.units;
+        recomputed += st.frame.remote.recomputed_units;
+        late += st.frame.remote.late_results;
+        comm += st.frame.remote.comm_s;
+        wait += st.frame.remote.wait_s;
+        local += st.frame.sched.makespan_s;
+        msgs_out += st.frame.remote.unit_messages;
+        msgs_in += st.frame.remote.result_messages;
+        piped += st.frame.remote.pipelined_units;
     }
     r->wall = now_s() - t0;
     r->remote = units ? (double)remote / (double)units : 0;
@@ -396,20 +396,20 @@ static int profile_run(int n, int workers, int k, double seconds, profile *p)
         sc_stats st;
         if (step_frame(w, &st) != 0)
             return -1;
-        p->work += st.unit_work_s;
-        p->jobs += (double)st.jobs;
-        p->bytes += st.unit_bytes;
+        p->work += st.frame.sched.unit_work_s;
+        p->jobs += (double)st.frame.sched.jobs;
+        p->bytes += st.frame.sched.unit_bytes;
         for (int i = 0; i < SC_STATS_IDEAL_NODES; i++)
-            p->ideal[i] += st.ideal_makespan_s[i];
+            p->ideal[i] += st.frame.sched.ideal_makespan_s[i];
         for (int i = 0; i < SC_STATS_DENSITY_BINS; i++)
-            p->density[i] += st.unit_work_by_density_s[i];
-        p->comm += st.comm_s;
-        p->overhead += st.remote_overhead_s;
-        p->remote_jobs += (double)st.remote_jobs;
-        p->remote_bytes += st.remote_bytes;
-        p->remote_work += st.remote_work_s;
-        p->remote_units += (double)st.remote_units;
-        p->units += (double)st.units;
+            p->density[i] += st.frame.sched.unit_work_by_density_s[i];
+        p->comm += st.frame.remote.comm_s;
+        p->overhead += st.frame.remote.overhead_s;
+        p->remote_jobs += (double)st.frame.remote.jobs;
+        p->remote_bytes += st.frame.remote.bytes;
+        p->remote_work += st.frame.remote.work_s;
+        p->remote_units += (double)st.frame.remote.units;
+        p->units += (double)st.frame.sched.units;
     }
     p->wall = (now_s() - t0) / frames;
     /* every figure a frame */
@@ -689,9 +689,9 @@ static void busy(int n, int runs)
                 break;
             sc_stats st;
             sc_world_stats(w, &st);
-            if (st.daemons_busy > 0 && t_seen < 0)
+            if (st.now.daemons_busy > 0 && t_seen < 0)
                 t_seen = now_s() - t0;
-            if (st.remote_units > 0)
+            if (st.frame.remote.units > 0)
                 t_last = now_s() - t0;
         }
         kill(hog, SIGKILL);

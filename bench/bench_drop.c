@@ -66,7 +66,7 @@
  * initial (kinetic + gravitational potential with z = 0 at the floor; our
  * own sum for ODE, sc_world_energy for simcluster), the deepest penetration
  * seen (ODE: deepest contact depth of any frame; simcluster: the largest
- * sc_stats.max_penetration of any frame) and the time at which all bodies
+ * sc_stats.frame.detect.max_penetration of any frame) and the time at which all bodies
  * came to rest (every body below 1 cm/s and 0.1 rad/s, and staying so for
  * REST_HOLD_S; the run stops then). A run stops as "exploded" when the
  * state has a NaN or the energy passes 100 x the initial; as "budget" when
@@ -593,25 +593,25 @@ static void run_ode(const scene *sc, int quick, int auto_disable, result *r)
 static void solver_add(result *r, const sc_stats *st)
 {
     r->frames++;
-    r->solves += st->lcp_solves;
-    r->split += st->lcp_split;
-    r->blocks += st->lcp_blocks;
-    r->shared += st->lcp_blocks_shared;
-    r->unconverged += st->lcp_unconverged;
-    r->substeps += st->substeps;
-    r->backups += st->backups;
-    r->spec += st->spec_contacts;
-    r->fallbacks += st->lcp_fallbacks;
-    r->refused += st->lcp_energy_refused;
-    r->rscaled += st->lcp_restitution_scaled;
-    r->split_fallbacks += st->lcp_split_fallbacks;
-    r->block_fallbacks += st->lcp_block_fallbacks;
-    r->nan_islands += st->lcp_nan_islands;
-    r->regularised += st->lcp_regularised;
-    if (st->lcp_sweeps_max > r->sweeps_max)
-        r->sweeps_max = st->lcp_sweeps_max;
-    r->outer_res = fmax(r->outer_res, st->lcp_outer_residual);
-    r->exact_res = fmax(r->exact_res, st->lcp_residual);
+    r->solves += st->frame.lcp.solves;
+    r->split += st->frame.lcp.split;
+    r->blocks += st->frame.lcp.blocks;
+    r->shared += st->frame.lcp.blocks_shared;
+    r->unconverged += st->frame.lcp.unconverged;
+    r->substeps += st->frame.toi.substeps;
+    r->backups += st->frame.toi.backups;
+    r->spec += st->frame.toi.spec_contacts;
+    r->fallbacks += st->frame.lcp.fallbacks;
+    r->refused += st->frame.lcp.energy_refused;
+    r->rscaled += st->frame.lcp.restitution_scaled;
+    r->split_fallbacks += st->frame.lcp.split_fallbacks;
+    r->block_fallbacks += st->frame.lcp.block_fallbacks;
+    r->nan_islands += st->frame.lcp.nan_islands;
+    r->regularised += st->frame.lcp.regularised;
+    if (st->frame.lcp.sweeps_max > r->sweeps_max)
+        r->sweeps_max = st->frame.lcp.sweeps_max;
+    r->outer_res = fmax(r->outer_res, st->frame.lcp.outer_residual);
+    r->exact_res = fmax(r->exact_res, st->frame.lcp.residual);
 }
 
 static void run_sc(const scene *sc, int workers, int toi_mode, result *r)
@@ -654,7 +654,8 @@ static void run_sc(const scene *sc, int workers, int toi_mode, result *r)
             sc_body_get_velocity(w, i, v, om);
             rest &= body_at_rest(v, om, r);
         }
-        end = watch_frame(&wt, frame * DT, sc_world_energy(w), st.max_penetration, rest, r);
+        end = watch_frame(&wt, frame * DT, sc_world_energy(w), st.frame.detect.max_penetration,
+                          rest, r);
         if (end < 0 && wall > budget_s)
             end = END_BUDGET;
     }

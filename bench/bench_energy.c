@@ -173,7 +173,7 @@ static box_run run_box(int n, double r, double v, int mode, int frames, int list
         e = sc_world_energy(w);
         sc_stats st;
         sc_world_stats(w, &st);
-        b.inelastic += st.lcp_inelastic;
+        b.inelastic += st.frame.lcp.inelastic;
         int jumped = fabs(e - start) > 0.002 * e0;
         b.jumps += jumped;
         if (jumped && before)

@@ -266,8 +266,8 @@ int main(int argc, char **argv)
         printf("  t = %.2f s (%.1f s wall to get there): last frame %d solves (%d split), %d "
                "substeps, max penetration %.3g m, %d parts asleep; next substep %d islands "
                "with contacts (largest %d) over %d contacts, %d with a matched impulse\n",
-               frame * DT, wall, st.lcp_solves, st.lcp_split, st.substeps, st.max_penetration,
-               asleep, with, big, sn[k].ncontacts, warm);
+               frame * DT, wall, st.frame.lcp.solves, st.frame.lcp.split, st.frame.toi.substeps,
+               st.frame.detect.max_penetration, asleep, with, big, sn[k].ncontacts, warm);
         max_bodies = sn[k].nbodies > max_bodies ? sn[k].nbodies : max_bodies;
         max_contacts = sn[k].ncontacts > max_contacts ? sn[k].ncontacts : max_contacts;
         total_islands += sn[k].is.count;

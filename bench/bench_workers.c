@@ -48,16 +48,16 @@ static int run(int n, int workers, int groups, double seconds, result *r)
         }
         sc_stats st;
         sc_world_stats(w, &st);
-        mk += st.makespan_s;
-        bound += st.makespan_bound_s;
-        sched += st.sched_s;
-        units += st.units;
+        mk += st.frame.sched.makespan_s;
+        bound += st.frame.sched.makespan_bound_s;
+        sched += st.frame.sched.sched_s;
+        units += st.frame.sched.units;
     }
     r->wall = now_s() - t0;
     sc_stats st;
     sc_world_stats(w, &st);
-    r->nodes = st.nodes;
-    r->private_ode = st.private_ode;
+    r->nodes = st.now.nodes;
+    r->private_ode = st.now.private_ode;
     r->ratio = bound > 0 ? mk / bound : 0;
     r->sched = sched / r->wall;
     r->units = (double)units / frames;

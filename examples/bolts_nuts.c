@@ -66,9 +66,9 @@ int main(int argc, char **argv)
         frames++;
         sc_stats st;
         sc_world_stats(w, &st);
-        pen = pen > st.max_penetration ? pen : st.max_penetration;
-        fallbacks += st.lcp_fallbacks;
-        refused += st.lcp_energy_refused;
+        pen = pen > st.frame.detect.max_penetration ? pen : st.frame.detect.max_penetration;
+        fallbacks += st.frame.lcp.fallbacks;
+        refused += st.frame.lcp.energy_refused;
         double e = sc_world_energy(w);
         peak = peak > e ? peak : e;
     }
@@ -76,7 +76,8 @@ int main(int argc, char **argv)
     sc_stats st;
     sc_world_stats(w, &st);
     printf("bolts and nuts: %ld bodies, seed %ld, %d worker thread%s (%d on a private ODE), "
-           "frame %.2f s\n", n, seed, st.nodes, st.nodes == 1 ? "" : "s", st.private_ode, DT);
+           "frame %.2f s\n",
+           n, seed, st.now.nodes, st.now.nodes == 1 ? "" : "s", st.now.private_ode, DT);
     if (sc_world_at_rest(w))
         printf("  all at rest after      %8.2f s simulated\n", sim);
     else
@@ -91,11 +92,11 @@ int main(int argc, char **argv)
                                                  "contact graph", "LCP (Dantzig)", "integration" };
     double total = 0;
     for (int k = 0; k < SC_STAGE_COUNT; k++)
-        total += st.stage_total_s[k];
+        total += st.total.stage_s[k];
     printf("  CPU by stage:\n");
     for (int k = 0; k < SC_STAGE_COUNT; k++)
-        printf("    %-16s %8.3f s %6.2f %%\n", names[k], st.stage_total_s[k],
-               total > 0 ? 100 * st.stage_total_s[k] / total : 0);
+        printf("    %-16s %8.3f s %6.2f %%\n", names[k], st.total.stage_s[k],
+               total > 0 ? 100 * st.total.stage_s[k] / total : 0);
     sc_world_destroy(w);
     return rc == SC_OK && sim < MAX_SIM_S ? 0 : 1;
 }

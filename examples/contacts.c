@@ -75,9 +75,9 @@ int main(void)
     }
     sc_stats s;
     sc_world_stats(w, &s);
-    printf("%ld frames, broad phase %.3f ms, narrow phase %.3f ms CPU in all\n", s.frames,
-           1000 * s.stage_total_s[SC_STAGE_BROADPHASE],
-           1000 * s.stage_total_s[SC_STAGE_NARROWPHASE]);
+    printf("%ld frames, broad phase %.3f ms, narrow phase %.3f ms CPU in all\n", s.total.frames,
+           1000 * s.total.stage_s[SC_STAGE_BROADPHASE],
+           1000 * s.total.stage_s[SC_STAGE_NARROWPHASE]);
     sc_world_destroy(w);
     return ntouched == NSHAPES ? 0 : 1;
 }

@@ -48,11 +48,11 @@ int main(int argc, char **argv)
     };
     double total = 0;
     for (int k = 0; k < SC_STAGE_COUNT; k++)
-        total += st.stage_total_s[k];
+        total += st.total.stage_s[k];
     printf("Table 1 scene, %ld frames: CPU time by stage\n", frames);
     printf("  %-26s %10s %8s %8s\n", "stage", "CPU s", "ours %", "paper %");
     for (size_t i = 0; i < sizeof rows / sizeof rows[0]; i++) {
-        double s = st.stage_total_s[rows[i].stage];
+        double s = st.total.stage_s[rows[i].stage];
         printf("  %-26s %10.4f %8.2f ", rows[i].name, s, total > 0 ? 100 * s / total : 0);
         if (isnan(rows[i].paper))
             printf("%8s\n", "-");

@@ -76,7 +76,7 @@ enum {
 #define SC_ISLAND_SPLIT_DEFAULT 16
 /* A split island's outer iteration stops when no contact row is further than
  * SC_SPLIT_TOL (m/s) from its own answer given the others, or after
- * SC_SPLIT_MAX_SWEEPS sweeps (then counted in sc_stats.lcp_unconverged). */
+ * SC_SPLIT_MAX_SWEEPS sweeps (then counted in sc_stats_lcp.unconverged). */
 #define SC_SPLIT_TOL 1e-3
 #define SC_SPLIT_MAX_SWEEPS 50
 
@@ -288,19 +288,14 @@ enum {
     SC_STAGE_COUNT
 };
 
-/* sc_stats.ideal_makespan_s: node counts 1 .. SC_STATS_IDEAL_NODES */
+/* sc_stats.frame.sched.ideal_makespan_s: node counts 1 .. SC_STATS_IDEAL_NODES */
 #define SC_STATS_IDEAL_NODES 16
-/* sc_stats.unit_work_by_density_s: bins of wire bytes per second of work */
+/* sc_stats.frame.sched.unit_work_by_density_s: bins of wire bytes per second
+ * of work */
 #define SC_STATS_DENSITY_BINS 16
 
-typedef struct sc_stats {
-    /* Figures of the last frame unless a field says otherwise. Seconds by
-     * stage (Table 1's rows) are the thread's CPU time in world mode and the
-     * stage's monotonic time in local mode (docs/DESIGN.md 3.1). */
-    double stage_s[SC_STAGE_COUNT]; /* seconds by stage */
-    double stage_total_s[SC_STAGE_COUNT]; /* seconds by stage, all frames */
-    long frames;              /* frames stepped, all frames */
-    int bodies;               /* bodies in the world, now */
+/* Detection: pairs, contacts and islands of the last frame. */
+typedef struct sc_stats_detect {
     int pairs;                /* broad-phase pairs */
     long np_pairs;            /* narrow-phase pair tests over the frame's detections
                                  (every substep, back-up and speculative round) */
@@ -308,70 +303,70 @@ typedef struct sc_stats {
                                  both poses kept their bits (docs/DESIGN.md 3.3) */
     int contacts;             /* contact points */
     int islands;              /* islands */
-    long lcp_pivots;          /* LCP pivots */
-    int lcp_fallbacks;        /* islands whose coupled friction LCP failed and were solved
-                                 staggered: normals, then friction with fixed bounds */
-    /* the contact solver (docs/DESIGN.md 11): every fallback is counted, none
-     * is an error */
-    int lcp_solves;           /* island solves (islands x substeps) */
-    int lcp_kept;             /* islands a speculative round left as they were, their last
-                                 result kept (docs/DESIGN.md 3.4) */
-    int lcp_split;            /* of the solves, those made as blocks by block Gauss-Seidel */
-    long lcp_blocks;          /* block solves (blocks x sweeps) */
-    long lcp_blocks_shared;   /* of them, those a helping thread solved (docs/DESIGN.md
-                                 11; timing decides it, not the result) */
-    int lcp_sweeps_max;       /* most outer sweeps of one split solve */
-    int lcp_unconverged;      /* split solves that stopped at the sweep limit */
-    int lcp_diverged;         /* split solves whose sweeps diverged, ended on the best
-                                 iterate */
-    int lcp_cold_starts;      /* split solves started from 0 because last frame's impulses
-                                 were a worse start */
-    int lcp_regularised;      /* solves that needed a diagonal raised by 1e-9 to 1e-4 of
-                                 its largest entry (singular or near-redundant contacts),
-                                 exact for that compliance */
-    int lcp_split_fallbacks;  /* exact islands whose staggered solve failed too, solved as
-                                 blocks instead */
-    long lcp_block_fallbacks; /* block solves that failed, given projected Gauss-Seidel
-                                 instead */
-    int lcp_nan_islands;      /* islands with non-finite data, given no impulse */
-    int lcp_inelastic;        /* islands whose elastic answer added kinetic energy, solved
-                                 again with e = 0 */
-    int lcp_energy_refused;   /* of lcp_fallbacks, coupled friction answers refused
-                                 because they added kinetic energy of their own */
-    int lcp_restitution_scaled;/* answers whose restitution at several contacts at once
-                                 added energy, solved again with the bounce scaled down */
-    int lcp_guessed;          /* LCPs whose friction neither the fixed point nor Lemke's
-                                 method settled, solved exactly from a projected
-                                 Gauss-Seidel guess */
-    double lcp_residual;      /* largest complementarity error of an exact solve, m/s */
-    double lcp_outer_residual; /* largest outer residual of a split solve, m/s */
-    int substeps;             /* substeps of the frame (1 + back-ups), the most of one
-                                 region */
-    int backups;              /* time-of-impact back-ups, summed over regions */
-    int backup_regions;       /* regions (motion groups, or the world) that backed up at
-                                 least once */
-    int backup_bodies;        /* dynamic bodies in those regions */
-    long backups_total;       /* back-ups, all frames */
-    int backups_max;          /* most back-ups of one frame, all frames */
-    int spec_contacts;        /* speculative contacts entered in LCPs (approaches held
-                                 without a back-up) */
-    int spec_rounds;          /* substeps solved again with them */
     double max_penetration;   /* deepest contact, m */
     long collider_warnings;   /* ODE collider messages such as a contact buffer overflow
                                  (never printed) */
-    /* work units and the scheduler (docs/DESIGN.md 5 and 6) */
+} sc_stats_detect;
+
+/* The contact solver of the last frame (docs/DESIGN.md 11): every fallback is
+ * counted, none is an error. */
+typedef struct sc_stats_lcp {
+    int solves;               /* island solves (islands x substeps) */
+    int kept;                 /* islands a speculative round left as they were, their last
+                                 result kept (docs/DESIGN.md 3.4) */
+    long pivots;              /* LCP pivots */
+    int fallbacks;            /* islands whose coupled friction LCP failed and were solved
+                                 staggered: normals, then friction with fixed bounds */
+    int split;                /* of the solves, those made as blocks by block Gauss-Seidel */
+    long blocks;              /* block solves (blocks x sweeps) */
+    long blocks_shared;       /* of them, those a helping thread solved (docs/DESIGN.md
+                                 11; timing decides it, not the result) */
+    int sweeps_max;           /* most outer sweeps of one split solve */
+    int unconverged;          /* split solves that stopped at the sweep limit */
+    int diverged;             /* split solves whose sweeps diverged, ended on the best
+                                 iterate */
+    int cold_starts;          /* split solves started from 0 because last frame's impulses
+                                 were a worse start */
+    int regularised;          /* solves that needed a diagonal raised by 1e-9 to 1e-4 of
+                                 its largest entry (singular or near-redundant contacts),
+                                 exact for that compliance */
+    int split_fallbacks;      /* exact islands whose staggered solve failed too, solved as
+                                 blocks instead */
+    long block_fallbacks;     /* block solves that failed, given projected Gauss-Seidel
+                                 instead */
+    int nan_islands;          /* islands with non-finite data, given no impulse */
+    int inelastic;            /* islands whose elastic answer added kinetic energy, solved
+                                 again with e = 0 */
+    int energy_refused;       /* of fallbacks, coupled friction answers refused because
+                                 they added kinetic energy of their own */
+    int restitution_scaled;   /* answers whose restitution at several contacts at once
+                                 added energy, solved again with the bounce scaled down */
+    int guessed;              /* LCPs whose friction neither the fixed point nor Lemke's
+                                 method settled, solved exactly from a projected
+                                 Gauss-Seidel guess */
+    double residual;          /* largest complementarity error of an exact solve, m/s */
+    double outer_residual;    /* largest outer residual of a split solve, m/s */
+} sc_stats_lcp;
+
+/* Time of impact of the last frame. */
+typedef struct sc_stats_toi {
+    int substeps;             /* substeps of the frame (1 + back-ups), the most of one
+                                 region */
+    int backups;              /* back-ups, summed over regions */
+    int backup_regions;       /* regions (motion groups, or the world) that backed up at
+                                 least once */
+    int backup_bodies;        /* dynamic bodies in those regions */
+    int spec_contacts;        /* speculative contacts entered in LCPs (approaches held
+                                 without a back-up) */
+    int spec_rounds;          /* substeps solved again with them */
+} sc_stats_toi;
+
+/* Work units and the scheduler in the last frame (docs/DESIGN.md 5 and 6). */
+typedef struct sc_stats_sched {
     int groups;               /* motion groups stepped apart (bodies that cannot meet
                                  within the frame) */
     int group_retries;        /* times the groups were stepped again because bodies of two
                                  groups came close (docs/DESIGN.md 3.9) */
-    long group_retries_total; /* the same, all frames */
-    int nodes;                /* nodes the scheduler uses (local threads), now */
-    int private_ode;          /* of them, those with their own copy of ODE, the only ones
-                                 that run trimesh pairs concurrently, now */
-    double cpu_budget;        /* CPUs this process may use (sc_cpu_budget()), now */
-    int spin;                 /* 1 when idle local threads poll for work a few ms before
-                                 they sleep, 0 when fewer CPUs than nodes make them sleep
-                                 at once, now */
     long units;               /* work units run */
     long units_background;    /* of them, motion groups stepped by idle local threads
                                  beside a pile (docs/DESIGN.md 5) */
@@ -394,48 +389,88 @@ typedef struct sc_stats {
                               /* makespan_s as it would be on i + 1 nodes of the measured
                                  speed with free communication (the cluster model's input:
                                  bench_cluster -p model) */
-    /* the cluster (sc_world_config.cluster) */
-    int daemons;              /* daemons heard from and not owner-busy, now */
-    int daemons_busy;         /* daemons whose owner is busy, now */
-    long remote_units;        /* units whose result came from a daemon */
+} sc_stats_sched;
+
+/* Daemons' share of the last frame (sc_world_config.cluster). */
+typedef struct sc_stats_remote {
+    long units;               /* units whose result came from a daemon */
     long recomputed_units;    /* units sent but recomputed locally at the deadline */
     long late_results;        /* results that came after the deadline or twice, ignored */
-    long dropped_messages;    /* messages dropped as malformed, unauthentic, replayed,
-                                 stale or misaddressed, and datagrams the transport or the
-                                 kernel dropped, all frames */
-    long dropped_auth;        /* of them, those that failed the MAC (another cluster key,
-                                 or forged), all frames */
-    long dropped_stale;       /* of them, those from an older start (epoch) of a daemon
-                                 than its newest heard, all frames */
-    long dropped_misaddressed; /* of them, those addressed to another start of this master,
-                                 all frames */
-    int daemons_unverified;   /* daemons heard that have not answered this master's
-                                 challenge (not in daemons), now */
-    long duplicate_nodes;     /* daemon ids heard from two live epochs, each pair once,
-                                 all frames */
-    int64_t duplicate_node;   /* the last such id, 0 if none */
     double comm_s;            /* wall seconds packing, sealing, sending and receiving */
-    double remote_wait_s;     /* wall seconds waiting for daemons' results after the local
+    double wait_s;            /* wall seconds waiting for daemons' results after the local
                                  nodes were done, recomputation included */
     long unit_messages;       /* sealed messages of units sent to daemons, a daemon's
                                  units of a job together up to 256 KiB a message */
     long result_messages;     /* sealed messages of results received */
-    double remote_overhead_s; /* daemons' round trips (send to the last result's arrival
-                                 in the kernel) less their compute time, summed over
-                                 remote_jobs */
-    long remote_jobs;         /* jobs a daemon answered in full, one per daemon and job */
-    long remote_refused;      /* daemons kept out of a job by
+    double overhead_s;        /* daemons' round trips (send to the last result's arrival
+                                 in the kernel) less their compute time, summed over jobs */
+    long jobs;                /* jobs a daemon answered in full, one per daemon and job */
+    long refused;             /* daemons kept out of a job by
                                  sc_world_config.cluster_min_gain, one per daemon and job */
-    double remote_bytes;      /* unit_bytes of the units whose result came from a daemon */
-    double remote_work_s;     /* the daemons' compute seconds (per thread) of those units */
+    double bytes;             /* unit_bytes of the units whose result came from a daemon */
+    double work_s;            /* the daemons' compute seconds (per thread) of those units */
     long pipelined_units;     /* motion groups' units sent to daemons before the pile's
                                  frame whose results were in when it ended */
-    /* per-frame scratch (a stack arena that grows to its high-water mark) */
-    size_t arena_bytes;       /* high-water mark of the frame's arena, bytes, since the
-                                 world was created */
-    size_t unit_arena_bytes;  /* the same of the local threads' arenas, the largest seen */
+} sc_stats_remote;
+
+/* The last frame's figures: sc_world_step() zeroes them before it steps. */
+typedef struct sc_stats_frame {
+    double stage_s[SC_STAGE_COUNT]; /* seconds by stage: the thread's CPU time in world
+                                       mode, the stage's monotonic time in local mode
+                                       (docs/DESIGN.md 3.1) */
+    sc_stats_detect detect;
+    sc_stats_lcp lcp;
+    sc_stats_toi toi;
+    sc_stats_sched sched;
+    sc_stats_remote remote;
+} sc_stats_frame;
+
+/* Figures summed or maximised over every frame since the world was created. */
+typedef struct sc_stats_total {
+    long frames;              /* frames stepped */
+    double stage_s[SC_STAGE_COUNT]; /* seconds by stage */
+    long backups;             /* time-of-impact back-ups */
+    int backups_max;          /* most back-ups of one frame */
+    long group_retries;       /* sc_stats_sched.group_retries summed */
     long initial_overlaps;    /* body pairs found overlapping deeper than twice the
-                                 contact tolerance when added, all frames */
+                                 contact tolerance when added */
+    size_t arena_bytes;       /* high-water mark of the frame's arena (a stack arena that
+                                 grows to its high-water mark), bytes */
+    size_t unit_arena_bytes;  /* the same of the local threads' arenas, the largest seen */
+    long dropped_messages;    /* messages dropped as malformed, unauthentic, replayed,
+                                 stale or misaddressed, and datagrams the transport or the
+                                 kernel dropped */
+    long dropped_auth;        /* of them, those that failed the MAC (another cluster key,
+                                 or forged) */
+    long dropped_stale;       /* of them, those from an older start (epoch) of a daemon
+                                 than its newest heard */
+    long dropped_misaddressed; /* of them, those addressed to another start of this master */
+    long duplicate_nodes;     /* daemon ids heard from two live epochs, each pair once */
+} sc_stats_total;
+
+/* The world and its nodes as they are now. */
+typedef struct sc_stats_now {
+    int bodies;               /* bodies in the world */
+    int nodes;                /* nodes the scheduler uses (local threads) */
+    int private_ode;          /* of them, those with their own copy of ODE, the only ones
+                                 that run trimesh pairs concurrently */
+    double cpu_budget;        /* CPUs this process may use (sc_cpu_budget()) */
+    int spin;                 /* 1 when idle local threads poll for work a few ms before
+                                 they sleep, 0 when fewer CPUs than nodes make them sleep
+                                 at once */
+    int daemons;              /* daemons heard from and not owner-busy */
+    int daemons_busy;         /* daemons whose owner is busy */
+    int daemons_unverified;   /* daemons heard that have not answered this master's
+                                 challenge (not in daemons) */
+    int64_t duplicate_node;   /* the last id counted in sc_stats_total.duplicate_nodes,
+                                 0 if none */
+} sc_stats_now;
+
+/* A world's figures (sc_world_stats()). */
+typedef struct sc_stats {
+    sc_stats_frame frame;     /* the last frame */
+    sc_stats_total total;     /* every frame so far */
+    sc_stats_now now;         /* now */
 } sc_stats;
 
 /* A new empty world (cfg NULL: the defaults); NULL on error (sc_last_error()). */

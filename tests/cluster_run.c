@@ -11,7 +11,7 @@
  * --toi local steps by motion groups (sc_world_config.toi_mode); --scene
  * pile is a bin of N parts (sc_scene_bin) with 24 lone spheres falling
  * high above it: a pile and small groups beside it, whose units go out
- * while the pile steps here (sc_stats.pipelined_units, "piped").
+ * while the pile steps here (sc_stats.frame.remote.pipelined_units, "piped").
  * --realtime paces the frames at DT = 10 ms of wall time each, as an
  * interactive program would (a frame that takes longer is not made up).
  * Output (stdout): with --trace one line per frame
@@ -191,14 +191,14 @@ int main(int argc, char **argv)
             break;
         }
         sc_world_stats(w, &st);
-        remote += st.remote_units;
-        recomputed += st.recomputed_units;
-        late += st.late_results;
-        piped += st.pipelined_units;
+        remote += st.frame.remote.units;
+        recomputed += st.frame.remote.recomputed_units;
+        late += st.frame.remote.late_results;
+        piped += st.frame.remote.pipelined_units;
         if (trace) {
             printf("frame %ld wall %.3f daemons %d busy %d remote %ld recomputed %ld late %ld\n",
-                   f, now_s() - t0, st.daemons, st.daemons_busy, st.remote_units,
-                   st.recomputed_units, st.late_results);
+                   f, now_s() - t0, st.now.daemons, st.now.daemons_busy, st.frame.remote.units,
+                   st.frame.remote.recomputed_units, st.frame.remote.late_results);
             fflush(stdout);
         }
         double ahead = t0 + (double)(f + 1) * DT - now_s();
@@ -209,10 +209,10 @@ int main(int argc, char **argv)
     sc_world_stats(w, &st);
     printf("hash %016llx\n", (unsigned long long)sc_world_hash(w));
     printf("remote %ld recomputed %ld late %ld dropped %ld stale %ld misaddressed %ld "
-           "duplicates %ld piped %ld\n", remote, recomputed, late, st.dropped_messages,
-           st.dropped_stale, st.dropped_misaddressed, st.duplicate_nodes, piped);
-    if (st.duplicate_nodes)
-        printf("duplicate node id %016llx\n", (unsigned long long)st.duplicate_node);
+           "duplicates %ld piped %ld\n", remote, recomputed, late, st.total.dropped_messages,
+           st.total.dropped_stale, st.total.dropped_misaddressed, st.total.duplicate_nodes, piped);
+    if (st.total.duplicate_nodes)
+        printf("duplicate node id %016llx\n", (unsigned long long)st.now.duplicate_node);
     printf("wall %.3f frames %ld\n", wall, f);
     sc_world_destroy(w);
     return rc == SC_OK ? 0 : 1;

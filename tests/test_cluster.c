@@ -137,11 +137,11 @@ static void wait_daemons(sc_world *w, int n)
     for (int i = 0; i < 200; i++) {
         sc_cluster_frame(w->cluster);
         sc_world_stats(w, &st);
-        if (st.daemons >= n)
+        if (st.now.daemons >= n)
             return;
         usleep(10000);
     }
-    fail_msg("only %d of %d daemons heard from", st.daemons, n);
+    fail_msg("only %d of %d daemons heard from", st.now.daemons, n);
 }
 
 static uint64_t local_hash_n(int frames)
@@ -169,36 +169,38 @@ static uint64_t run(sc_world *w, daemon_thread *d, int stop_at, sc_stats *sum)
         assert_int_equal(sc_world_step(w, 0.01), SC_OK);
         sc_stats st;
         sc_world_stats(w, &st);
-        sum->remote_units += st.remote_units;
-        sum->recomputed_units += st.recomputed_units;
-        sum->late_results += st.late_results;
-        sum->unit_messages += st.unit_messages;
-        sum->result_messages += st.result_messages;
+        sum->frame.remote.units += st.frame.remote.units;
+        sum->frame.remote.recomputed_units += st.frame.remote.recomputed_units;
+        sum->frame.remote.late_results += st.frame.remote.late_results;
+        sum->frame.remote.unit_messages += st.frame.remote.unit_messages;
+        sum->frame.remote.result_messages += st.frame.remote.result_messages;
         /* the model's figures of the daemons (bench_cluster -p model) */
-        assert_true(st.remote_overhead_s >= 0 && st.remote_work_s >= 0 && st.remote_bytes >= 0);
-        assert_true(st.remote_units > 0 || (st.remote_work_s == 0 && st.remote_bytes == 0));
-        assert_true(st.remote_jobs <= st.jobs * 64);
-        sum->remote_jobs += st.remote_jobs;
-        sum->remote_overhead_s += st.remote_overhead_s;
-        sum->remote_bytes += st.remote_bytes;
-        sum->remote_work_s += st.remote_work_s;
+        assert_true(st.frame.remote.overhead_s >= 0 && st.frame.remote.work_s >= 0 &&
+                    st.frame.remote.bytes >= 0);
+        assert_true(st.frame.remote.units > 0 ||
+                    (st.frame.remote.work_s == 0 && st.frame.remote.bytes == 0));
+        assert_true(st.frame.remote.jobs <= st.frame.sched.jobs * 64);
+        sum->frame.remote.jobs += st.frame.remote.jobs;
+        sum->frame.remote.overhead_s += st.frame.remote.overhead_s;
+        sum->frame.remote.bytes += st.frame.remote.bytes;
+        sum->frame.remote.work_s += st.frame.remote.work_s;
         /* the solver's counters (remote units' come with their results) */
-        sum->lcp_pivots += st.lcp_pivots;
-        sum->lcp_split += st.lcp_split;
-        sum->lcp_blocks += st.lcp_blocks;
-        sum->lcp_unconverged += st.lcp_unconverged;
-        sum->lcp_fallbacks += st.lcp_fallbacks;
-        sum->lcp_energy_refused += st.lcp_energy_refused;
-        sum->lcp_restitution_scaled += st.lcp_restitution_scaled;
-        sum->lcp_regularised += st.lcp_regularised;
-        if (st.lcp_sweeps_max > sum->lcp_sweeps_max)
-            sum->lcp_sweeps_max = st.lcp_sweeps_max;
-        if (st.lcp_residual > sum->lcp_residual)
-            sum->lcp_residual = st.lcp_residual;
-        if (st.lcp_outer_residual > sum->lcp_outer_residual)
-            sum->lcp_outer_residual = st.lcp_outer_residual;
-        sum->dropped_messages = st.dropped_messages;
-        sum->daemons = st.daemons;
+        sum->frame.lcp.pivots += st.frame.lcp.pivots;
+        sum->frame.lcp.split += st.frame.lcp.split;
+        sum->frame.lcp.blocks += st.frame.lcp.blocks;
+        sum->frame.lcp.unconverged += st.frame.lcp.unconverged;
+        sum->frame.lcp.fallbacks += st.frame.lcp.fallbacks;
+        sum->frame.lcp.energy_refused += st.frame.lcp.energy_refused;
+        sum->frame.lcp.restitution_scaled += st.frame.lcp.restitution_scaled;
+        sum->frame.lcp.regularised += st.frame.lcp.regularised;
+        if (st.frame.lcp.sweeps_max > sum->frame.lcp.sweeps_max)
+            sum->frame.lcp.sweeps_max = st.frame.lcp.sweeps_max;
+        if (st.frame.lcp.residual > sum->frame.lcp.residual)
+            sum->frame.lcp.residual = st.frame.lcp.residual;
+        if (st.frame.lcp.outer_residual > sum->frame.lcp.outer_residual)
+            sum->frame.lcp.outer_residual = st.frame.lcp.outer_residual;
+        sum->total.dropped_messages = st.total.dropped_messages;
+        sum->now.daemons = st.now.daemons;
     }
     return sc_world_hash(w);
 }
@@ -236,19 +238,24 @@ static void test_daemons_give_the_same_bits(void **state)
     int gu = remote_group_units(w);
     printf("  remote %ld (group units at least %d) recomputed %ld late %ld; daemon results %ld "
            "and %ld, shapes %ld; messages a frame %.2f out, %.2f in\n",
-           sum.remote_units, gu, sum.recomputed_units, sum.late_results, n0.results, n1.results,
-           n0.shapes, (double)sum.unit_messages / FRAMES, (double)sum.result_messages / FRAMES);
+           sum.frame.remote.units, gu, sum.frame.remote.recomputed_units,
+           sum.frame.remote.late_results, n0.results, n1.results, n0.shapes,
+           (double)sum.frame.remote.unit_messages / FRAMES,
+           (double)sum.frame.remote.result_messages / FRAMES);
     assert_true(h == h0);
-    assert_true(sum.remote_units > 0);
+    assert_true(sum.frame.remote.units > 0);
     /* every answered job's round trip is counted, with the work and the
      * wire bytes of what came back */
     printf("  remote jobs %ld, round trip less work %.3f ms a job, %.0f bytes, %.4f s work\n",
-           sum.remote_jobs, 1e3 * sum.remote_overhead_s / (sum.remote_jobs ? sum.remote_jobs : 1),
-           sum.remote_bytes, sum.remote_work_s);
-    assert_true(sum.remote_jobs > 0 && sum.remote_bytes > 0 && sum.remote_work_s > 0);
+           sum.frame.remote.jobs,
+           1e3 * sum.frame.remote.overhead_s / (sum.frame.remote.jobs ? sum.frame.remote.jobs : 1),
+           sum.frame.remote.bytes, sum.frame.remote.work_s);
+    assert_true(sum.frame.remote.jobs > 0 && sum.frame.remote.bytes > 0 &&
+                sum.frame.remote.work_s > 0);
     /* results came in messages of one or more, units went out in some */
-    assert_true(sum.result_messages > 0 && sum.result_messages <= n0.results + n1.results);
-    assert_true(sum.unit_messages > 0);
+    assert_true(sum.frame.remote.result_messages > 0 &&
+                sum.frame.remote.result_messages <= n0.results + n1.results);
+    assert_true(sum.frame.remote.unit_messages > 0);
     assert_true(n0.results > 0 && n1.results > 0);
     printf("  units found while polling: %ld of %ld (spin 0.1 s), %ld of %ld (spin 0)\n",
            n0.spin_hits, n0.units, n1.spin_hits, n1.units);
@@ -264,7 +271,7 @@ static void test_daemons_give_the_same_bits(void **state)
         assert_true(gu > 0);
     else
         assert_int_equal(gu, 0);
-    assert_int_equal(sum.dropped_messages, 0);
+    assert_int_equal(sum.total.dropped_messages, 0);
     sc_world_destroy(w);
 }
 
@@ -291,8 +298,8 @@ static void test_the_job_level_rule_keeps_daemons_out_not_the_bits(void **state)
             assert_int_equal(sc_world_step(w, 0.01), SC_OK);
             sc_stats st;
             sc_world_stats(w, &st);
-            remote[c] += st.remote_units;
-            refused[c] += st.remote_refused;
+            remote[c] += st.frame.remote.units;
+            refused[c] += st.frame.remote.refused;
         }
         h = sc_world_hash(w);
         printf("  min_gain %g: %ld units from the daemon, kept out of %ld jobs\n", gain[c],
@@ -351,27 +358,29 @@ static void test_split_islands_on_daemons_give_the_same_bits(void **state)
     stop_daemon(&d[1], &n1);
     printf("  remote %ld recomputed %ld late %ld; split %d (local %d), blocks %ld (%ld), "
            "pivots %ld (%ld), sweeps at most %d (%d); daemon results %ld and %ld\n",
-           sum.remote_units, sum.recomputed_units, sum.late_results, sum.lcp_split,
-           ls.lcp_split, sum.lcp_blocks, ls.lcp_blocks, sum.lcp_pivots, ls.lcp_pivots,
-           sum.lcp_sweeps_max, ls.lcp_sweeps_max, n0.results, n1.results);
+           sum.frame.remote.units, sum.frame.remote.recomputed_units, sum.frame.remote.late_results,
+           sum.frame.lcp.split, ls.frame.lcp.split, sum.frame.lcp.blocks, ls.frame.lcp.blocks,
+           sum.frame.lcp.pivots, ls.frame.lcp.pivots, sum.frame.lcp.sweeps_max,
+           ls.frame.lcp.sweeps_max, n0.results, n1.results);
     island_split = SC_ISLAND_SPLIT_DEFAULT;
     assert_true(h == h0);
-    assert_true(sum.lcp_split > 0 && sum.lcp_blocks > 0);
-    assert_int_equal(sum.lcp_split, ls.lcp_split);
-    assert_int_equal(sum.lcp_blocks, ls.lcp_blocks);
-    assert_int_equal(sum.lcp_pivots, ls.lcp_pivots);
-    assert_int_equal(sum.lcp_unconverged, ls.lcp_unconverged);
-    assert_int_equal(sum.lcp_fallbacks, ls.lcp_fallbacks);
-    assert_int_equal(sum.lcp_energy_refused, ls.lcp_energy_refused);
-    assert_int_equal(sum.lcp_restitution_scaled, ls.lcp_restitution_scaled);
-    assert_int_equal(sum.lcp_regularised, ls.lcp_regularised);
-    assert_int_equal(sum.lcp_sweeps_max, ls.lcp_sweeps_max);
-    assert_memory_equal(&sum.lcp_residual, &ls.lcp_residual, sizeof ls.lcp_residual);
-    assert_memory_equal(&sum.lcp_outer_residual, &ls.lcp_outer_residual,
-                        sizeof ls.lcp_outer_residual);
-    assert_true(sum.remote_units > 0);
+    assert_true(sum.frame.lcp.split > 0 && sum.frame.lcp.blocks > 0);
+    assert_int_equal(sum.frame.lcp.split, ls.frame.lcp.split);
+    assert_int_equal(sum.frame.lcp.blocks, ls.frame.lcp.blocks);
+    assert_int_equal(sum.frame.lcp.pivots, ls.frame.lcp.pivots);
+    assert_int_equal(sum.frame.lcp.unconverged, ls.frame.lcp.unconverged);
+    assert_int_equal(sum.frame.lcp.fallbacks, ls.frame.lcp.fallbacks);
+    assert_int_equal(sum.frame.lcp.energy_refused, ls.frame.lcp.energy_refused);
+    assert_int_equal(sum.frame.lcp.restitution_scaled, ls.frame.lcp.restitution_scaled);
+    assert_int_equal(sum.frame.lcp.regularised, ls.frame.lcp.regularised);
+    assert_int_equal(sum.frame.lcp.sweeps_max, ls.frame.lcp.sweeps_max);
+    assert_memory_equal(&sum.frame.lcp.residual, &ls.frame.lcp.residual,
+                        sizeof ls.frame.lcp.residual);
+    assert_memory_equal(&sum.frame.lcp.outer_residual, &ls.frame.lcp.outer_residual,
+                        sizeof ls.frame.lcp.outer_residual);
+    assert_true(sum.frame.remote.units > 0);
     assert_true(n0.results > 0 && n1.results > 0);
-    assert_int_equal(sum.dropped_messages, 0);
+    assert_int_equal(sum.total.dropped_messages, 0);
     /* the setting took effect */
     assert_true(h0 != local_hash());
     sc_world_destroy(w);
@@ -390,10 +399,11 @@ static void test_a_daemon_that_stops_changes_nothing(void **state)
     uint64_t h = run(w, &d[0], FRAMES / 3, &sum);
     stop_daemon(&d[1], NULL);
     int gu = remote_group_units(w);
-    printf("  remote %ld (group units at least %d) recomputed %ld late %ld\n", sum.remote_units,
-           gu, sum.recomputed_units, sum.late_results);
+    printf("  remote %ld (group units at least %d) recomputed %ld late %ld\n",
+           sum.frame.remote.units, gu, sum.frame.remote.recomputed_units,
+           sum.frame.remote.late_results);
     assert_true(h == h0);
-    assert_true(sum.remote_units > 0);
+    assert_true(sum.frame.remote.units > 0);
     if (toi_mode == SC_TOI_LOCAL)
         assert_true(gu > 0);
     sc_world_destroy(w);
@@ -409,7 +419,7 @@ static void test_a_daemon_that_stops_in_local_toi_mode_changes_nothing(void **st
 }
 
 /* With a pile, the other groups' units go to the daemons before the pile
- * steps here and come back while it runs (sc_stats.pipelined_units), and
+ * steps here and come back while it runs (sc_stats.frame.remote.pipelined_units), and
  * the bits are the local run's; a daemon stopped part-way, with group
  * units out to it while a pile runs, changes nothing either (its units
  * are recomputed here after the deadline). */
@@ -430,8 +440,8 @@ static void groups_while_the_pile_runs(int stop)
         assert_int_equal(sc_world_step(w, 0.01), SC_OK);
         sc_stats st;
         sc_world_stats(w, &st);
-        piped += st.pipelined_units;
-        recomputed += st.recomputed_units;
+        piped += st.frame.remote.pipelined_units;
+        recomputed += st.frame.remote.recomputed_units;
         if (f < FRAMES / 2)
             piped_before = piped;
     }
@@ -475,9 +485,9 @@ static void test_wrong_key_daemon_is_never_used(void **state)
     uint64_t h = run(w, NULL, -1, &sum);
     stop_daemon(&d, NULL);
     assert_true(h == h0);
-    assert_int_equal(sum.remote_units, 0);
-    assert_int_equal(sum.daemons, 0);
-    assert_true(sum.dropped_messages > 0);
+    assert_int_equal(sum.frame.remote.units, 0);
+    assert_int_equal(sum.now.daemons, 0);
+    assert_true(sum.total.dropped_messages > 0);
     sc_world_destroy(w);
 }
 
@@ -646,7 +656,7 @@ static void test_a_daemon_restarted_with_its_id_is_used_again_at_once(void **sta
     for (int f = 0; f < FRAMES / 3; f++) {
         assert_int_equal(sc_world_step(w, 0.01), SC_OK);
         sc_world_stats(w, &st);
-        before += st.remote_units;
+        before += st.frame.remote.units;
     }
     stop_daemon(&d, NULL);
     start_daemon(&d, 0x6001, 1);
@@ -661,9 +671,9 @@ static void test_a_daemon_restarted_with_its_id_is_used_again_at_once(void **sta
     for (int f = FRAMES / 3; f < frames; f++) {
         assert_int_equal(sc_world_step(w, 0.01), SC_OK);
         sc_world_stats(w, &st);
-        after += st.remote_units;
+        after += st.frame.remote.units;
         sc_serve_counters_get(d.s, &n);
-        if (used < 0 && st.remote_units > 0 && n.results > 0)
+        if (used < 0 && st.frame.remote.units > 0 && n.results > 0)
             used = mono_s() - t0;
         if (f + 1 == frames && used < 0 && mono_s() - t0 < 1.5 && frames < 8 * FRAMES)
             frames++;
@@ -706,16 +716,16 @@ static void test_a_dead_daemons_replayed_announces_never_count(void **state)
         usleep(20000);
         sc_cluster_frame(w->cluster);
         sc_world_stats(w, &st);
-        assert_int_equal(st.daemons, 0);
-        unverified |= st.daemons_unverified == 1;
+        assert_int_equal(st.now.daemons, 0);
+        unverified |= st.now.daemons_unverified == 1;
     }
     cap.n = 0;
     sc_stats sum;
     uint64_t h = run(w, NULL, -1, &sum);
     printf("  %d announces replayed: heard unverified %d, daemons %d, remote units %ld\n", n,
-           unverified, sum.daemons, sum.remote_units);
+           unverified, sum.now.daemons, sum.frame.remote.units);
     assert_true(unverified);
-    assert_int_equal(sum.remote_units, 0);
+    assert_int_equal(sum.frame.remote.units, 0);
     assert_true(h == h0);
     sc_world_destroy(w);
     sc_bus_close(l);

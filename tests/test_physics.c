@@ -87,7 +87,7 @@ static void held_ball(int mode, double e)
         sc_body_get_velocity(w, id, v, NULL);
         sc_stats st;
         sc_world_stats(w, &st);
-        held += st.spec_contacts > 0;
+        held += st.frame.toi.spec_contacts > 0;
         if (vz_prev < 0 && v[2] > 0)
             bounced = 1;
         if (bounced && v[2] < 0)
@@ -263,7 +263,7 @@ static void cube_stack(int hull, int n, int still, int mode)
         assert_int_equal(sc_world_step(w, DT), SC_OK);
         sc_stats st;
         sc_world_stats(w, &st);
-        pen = fmax(pen, st.max_penetration);
+        pen = fmax(pen, st.frame.detect.max_penetration);
         double z[3];
         for (int i = 0; i < n; i++) {
             double p[3];
@@ -327,7 +327,7 @@ static void table1_energy(int mode)
         peak = fmax(peak, sc_world_energy(w) / e0);
         sc_stats st;
         sc_world_stats(w, &st);
-        collisions += st.contacts;
+        collisions += st.frame.detect.contacts;
     }
     print_message("Table 1 scene, %s mode: worst |E/E0 - 1| = %.5f, peak %.5f over 5000 frames, "
                   "%ld contact points\n", mode == SC_TOI_LOCAL ? "local" : "world", worst, peak,
@@ -449,10 +449,10 @@ static void nut_on_box(int mode, int *backups, int *spec, double *pen, double *v
         sc_stats st;
         sc_world_stats(w, &st);
         if (n == 0) {
-            *backups = st.backups;
-            *spec = st.spec_contacts;
+            *backups = st.frame.toi.backups;
+            *spec = st.frame.toi.spec_contacts;
         }
-        *pen = fmax(*pen, st.max_penetration);
+        *pen = fmax(*pen, st.frame.detect.max_penetration);
         *gain = fmax(*gain, sc_world_energy(w) / e0 - 1);
     }
     double v[3];
@@ -579,9 +579,9 @@ static void fifty_bolts_and_nuts(int motion_groups)
         frames++;
         sc_stats st;
         sc_world_stats(w, &st);
-        pen = fmax(pen, st.max_penetration);
+        pen = fmax(pen, st.frame.detect.max_penetration);
         peak = fmax(peak, sc_world_energy(w));
-        fallbacks += st.lcp_fallbacks;
+        fallbacks += st.frame.lcp.fallbacks;
     }
     /* islands whose friction LCP failed and were solved frictionless are
      * reported, not hidden (an open item of the solver) */

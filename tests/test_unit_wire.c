@@ -692,7 +692,7 @@ static int gx_run(sc_exec *ex, sc_job *job, int stage, sc_stats *st)
     for (int i = 0; i < job->nunits; i++)
         if (job->units[i].rc != SC_OK && rc == SC_OK)
             rc = job->units[i].rc;
-    st->units += job->nunits;
+    st->frame.sched.units += job->nunits;
     return rc;
 }
 
@@ -742,9 +742,10 @@ static void assert_same_figures(const sc_stats *a, const sc_stats *b)
     sc_stats_add_frame(&y, b);
     sc_stats *s[2] = { &x, &y };
     for (int i = 0; i < 2; i++) {
-        memset(s[i]->stage_s, 0, sizeof s[i]->stage_s);
-        memset(s[i]->stage_total_s, 0, sizeof s[i]->stage_total_s);
-        s[i]->sched_s = s[i]->makespan_s = s[i]->makespan_bound_s = 0;
+        memset(s[i]->frame.stage_s, 0, sizeof s[i]->frame.stage_s);
+        memset(s[i]->total.stage_s, 0, sizeof s[i]->total.stage_s);
+        s[i]->frame.sched.sched_s = s[i]->frame.sched.makespan_s =
+            s[i]->frame.sched.makespan_bound_s = 0;
     }
     assert_memory_equal(&x, &y, sizeof x);
 }
@@ -821,12 +822,12 @@ static void group_both_ways(group_exec *gx, sc_job *job)
             /* the daemon's CPU time came with them */
             double cpu = 0;
             for (int s = 0; s < SC_STAGE_COUNT; s++)
-                cpu += b->stats.stage_s[s];
+                cpu += b->stats.frame.stage_s[s];
             assert_true(cpu > 0);
             gx->warm += g->cstart[k + 1] > g->cstart[k];
             gx->found += b->ncontacts > 0;
-            gx->backups += b->stats.backups;
-            gx->spec += b->stats.spec_contacts;
+            gx->backups += b->stats.frame.toi.backups;
+            gx->spec += b->stats.frame.toi.spec_contacts;
             for (int q = g->start[k]; q < g->start[k + 1]; q++)
                 gx->asleep += gj->st->bodies[g->members[q]].state == SC_ASLEEP;
         }

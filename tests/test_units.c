@@ -27,23 +27,28 @@ static int motion_groups;    /* the mode the determinism tests run in */
  * hold the work of every unit that took time. */
 static void check_model_figures(const sc_stats *st)
 {
-    assert_true(st->jobs >= 0 && st->unit_work_s >= 0 && st->unit_bytes >= 0);
-    if (st->jobs == 0) {
-        assert_true(st->unit_work_s == 0 && st->ideal_makespan_s[0] == 0);
+    assert_true(st->frame.sched.jobs >= 0 && st->frame.sched.unit_work_s >= 0 &&
+                st->frame.sched.unit_bytes >= 0);
+    if (st->frame.sched.jobs == 0) {
+        assert_true(st->frame.sched.unit_work_s == 0 && st->frame.sched.ideal_makespan_s[0] == 0);
         return;
     }
-    assert_true(st->unit_bytes > 0);
-    assert_true(fabs(st->ideal_makespan_s[0] - st->unit_work_s) <= 1e-12 + 1e-9 * st->unit_work_s);
+    assert_true(st->frame.sched.unit_bytes > 0);
+    assert_true(fabs(st->frame.sched.ideal_makespan_s[0] - st->frame.sched.unit_work_s) <=
+                1e-12 + 1e-9 * st->frame.sched.unit_work_s);
     for (int k = 1; k < SC_STATS_IDEAL_NODES; k++) {
-        assert_true(st->ideal_makespan_s[k] <= st->ideal_makespan_s[k - 1] * (1 + 1e-12));
-        assert_true(st->ideal_makespan_s[k] >= st->unit_work_s / (k + 1) * (1 - 1e-9));
+        assert_true(st->frame.sched.ideal_makespan_s[k] <=
+                    st->frame.sched.ideal_makespan_s[k - 1] * (1 + 1e-12));
+        assert_true(st->frame.sched.ideal_makespan_s[k] >=
+                    st->frame.sched.unit_work_s / (k + 1) * (1 - 1e-9));
     }
     double binned = 0;
     for (int k = 0; k < SC_STATS_DENSITY_BINS; k++) {
-        assert_true(st->unit_work_by_density_s[k] >= 0);
-        binned += st->unit_work_by_density_s[k];
+        assert_true(st->frame.sched.unit_work_by_density_s[k] >= 0);
+        binned += st->frame.sched.unit_work_by_density_s[k];
     }
-    assert_true(fabs(binned - st->unit_work_s) <= 1e-9 * st->unit_work_s + 1e-12);
+    assert_true(fabs(binned - st->frame.sched.unit_work_s) <=
+                1e-9 * st->frame.sched.unit_work_s + 1e-12);
 }
 
 static uint64_t run_bolts(int workers, uint64_t shuffle, int frames, sc_stats *st)
@@ -60,13 +65,13 @@ static uint64_t run_bolts(int workers, uint64_t shuffle, int frames, sc_stats *s
     for (int f = 0; f < frames; f++) {
         assert_int_equal(sc_world_step(w, 0.01), SC_OK);
         sc_world_stats(w, st);
-        units += st->units;
-        if (st->makespan_bound_s > 0 && st->spin) {
+        units += st->frame.sched.units;
+        if (st->frame.sched.makespan_bound_s > 0 && st->now.spin) {
             /* the bound is below the makespan (clock granularity aside),
              * where each thread has a CPU: with more threads than CPUs
              * a unit's time holds others' turns too (8 workers on the
              * 2-CPU machine it failed once in about 20 runs) */
-            assert_true(st->makespan_ratio >= 0.99);
+            assert_true(st->frame.sched.makespan_ratio >= 0.99);
         }
         check_model_figures(st);
     }
@@ -81,14 +86,14 @@ static void test_same_bits_for_1_2_3_8_workers(void **state)
     (void)state;
     sc_stats st;
     uint64_t h1 = run_bolts(1, 0, FRAMES, &st);
-    assert_int_equal(st.nodes, 1);
+    assert_int_equal(st.now.nodes, 1);
     const int workers[] = { 2, 3, 8 };
     for (int i = 0; i < 3; i++) {
         uint64_t h = run_bolts(workers[i], 0, FRAMES, &st);
         printf("  %d workers (%d with a private ODE): hash %016llx (1 worker: %016llx)\n",
-               workers[i], st.private_ode, (unsigned long long)h, (unsigned long long)h1);
+               workers[i], st.now.private_ode, (unsigned long long)h, (unsigned long long)h1);
         assert_true(h == h1);
-        assert_int_equal(st.nodes, workers[i]);
+        assert_int_equal(st.now.nodes, workers[i]);
     }
 }
 
@@ -154,14 +159,14 @@ static uint64_t run_scene(int workers, int bin, int n, uint64_t seed, int frames
         sc_stats st;
         assert_int_equal(sc_world_step(w, 0.01), SC_OK);
         sc_world_stats(w, &st);
-        assert_true(st.units_background <= st.units);
-        s->blocks += st.lcp_blocks;
-        s->shared += st.lcp_blocks_shared;
-        s->split += st.lcp_split;
-        s->units += st.units;
-        s->background += st.units_background;
-        s->kept += st.lcp_kept;
-        s->solves += st.lcp_solves;
+        assert_true(st.frame.sched.units_background <= st.frame.sched.units);
+        s->blocks += st.frame.lcp.blocks;
+        s->shared += st.frame.lcp.blocks_shared;
+        s->split += st.frame.lcp.split;
+        s->units += st.frame.sched.units;
+        s->background += st.frame.sched.units_background;
+        s->kept += st.frame.lcp.kept;
+        s->solves += st.frame.lcp.solves;
     }
     uint64_t h = sc_world_hash(w);
     sc_world_destroy(w);
@@ -544,7 +549,7 @@ static void test_bad_worker_counts(void **state)
     assert_non_null(w);
     sc_stats st;
     sc_world_stats(w, &st);
-    assert_true(st.nodes >= 1 && st.nodes <= SC_MAX_WORKERS);
+    assert_true(st.now.nodes >= 1 && st.now.nodes <= SC_MAX_WORKERS);
     sc_world_destroy(w);
 }
 
@@ -580,7 +585,7 @@ static void test_groups_beside_a_pile_same_bits_for_1_2_4_workers(void **state)
     assert_true(beside > 0);
 }
 
-/* Idle threads that sleep at once (fewer CPUs than threads: sc_stats.spin
+/* Idle threads that sleep at once (fewer CPUs than threads: sc_stats.now.spin
  * 0, docs/DESIGN.md 5.3): the same bits, no group units stepped beside the
  * pile (those are for polling threads) and no blocks shared (helpers are
  * threads that poll). */
@@ -604,9 +609,9 @@ static void test_threads_that_sleep_at_once_same_bits_for_1_2_4_workers(void **s
     assert_non_null(w);
     sc_stats st;
     sc_world_stats(w, &st);
-    assert_true(st.cpu_budget > 0);
-    assert_true(fabs(st.cpu_budget - sc_cpu_budget()) < 1e-12);
-    assert_int_equal(st.spin, st.cpu_budget >= 2);
+    assert_true(st.now.cpu_budget > 0);
+    assert_true(fabs(st.now.cpu_budget - sc_cpu_budget()) < 1e-12);
+    assert_int_equal(st.now.spin, st.now.cpu_budget >= 2);
     sc_world_destroy(w);
 }
 
@@ -772,14 +777,14 @@ static void test_narrow_phase_memo_answers_as_a_fresh_one(void **state)
     sc_stats fs;
     memset(&fs, 0, sizeof fs);
     int n1 = detect_copy(w, &st, &scr, &ex.base, &fs, first);
-    long pairs = fs.np_pairs;
+    long pairs = fs.frame.detect.np_pairs;
     assert_true(n1 > 50);
-    assert_int_equal(fs.np_reused, 0);
+    assert_int_equal(fs.frame.detect.np_reused, 0);
     /* the same poses: every pair from the memo, the same contacts */
     memset(&fs, 0, sizeof fs);
     int n2 = detect_copy(w, &st, &scr, &ex.base, &fs, again);
-    assert_int_equal(fs.np_pairs, pairs);
-    assert_int_equal(fs.np_reused, pairs);
+    assert_int_equal(fs.frame.detect.np_pairs, pairs);
+    assert_int_equal(fs.frame.detect.np_reused, pairs);
     assert_int_equal(n2, n1);
     assert_same_geometry(first, again, n1);
     /* a body in contact moved: its pairs collided again, the same as a
@@ -792,11 +797,11 @@ static void test_narrow_phase_memo_answers_as_a_fresh_one(void **state)
     for (int k = 0; k < scr.memo.npairs; k++)
         with_moved += scr.memo.pairs[k].a == moved || scr.memo.pairs[k].b == moved;
     assert_true(with_moved > 0);
-    assert_int_equal(fs.np_reused, fs.np_pairs - with_moved);
+    assert_int_equal(fs.frame.detect.np_reused, fs.frame.detect.np_pairs - with_moved);
     sc_stats fs2;
     memset(&fs2, 0, sizeof fs2);
     int n4 = detect_copy(w, &st, &scr2, &ex.base, &fs2, fresh);
-    assert_int_equal(fs2.np_reused, 0);
+    assert_int_equal(fs2.frame.detect.np_reused, 0);
     assert_int_equal(n3, n4);
     assert_same_geometry(again, fresh, n3);
     printf("  bin of 60: %ld pairs, %d contacts; one part moved: %ld pairs collided again\n",
@@ -899,9 +904,9 @@ static void frame_value_case(int groups, int mode)
             assert_int_equal(st.bodies[i].state, w->st.bodies[i].state);
         }
     }
-    assert_true(fs.contacts > 0);    /* it did touch */
+    assert_true(fs.frame.detect.contacts > 0);    /* it did touch */
     /* the arena held the frame's arrays, nothing is left in it */
-    assert_true(fs.arena_bytes > 0);
+    assert_true(fs.total.arena_bytes > 0);
     assert_int_equal(scr.arena.depth, 0);
     assert_int_equal(scr.arena.used, 0);
     sc_np_destroy(np);
@@ -939,10 +944,11 @@ static void test_arena_high_water_is_reported_and_settles(void **state)
     for (int f = 0; f < 150; f++)
         assert_int_equal(sc_world_step(w, 0.01), SC_OK);
     sc_world_stats(w, &st);
-    assert_true(st.arena_bytes > 0);
-    assert_true(st.unit_arena_bytes > 0);    /* islands were solved */
+    assert_true(st.total.arena_bytes > 0);
+    assert_true(st.total.unit_arena_bytes > 0);    /* islands were solved */
     /* bodies' arrays alone: saved state, poses, centres, radii, flags */
-    assert_true(st.arena_bytes >= (size_t)BODIES * (sizeof(sc_body) + sizeof(sc_pose) + 4 * sizeof(double)));
+    assert_true(st.total.arena_bytes >=
+                (size_t)BODIES * (sizeof(sc_body) + sizeof(sc_pose) + 4 * sizeof(double)));
     long overflows = w->scr.arena.overflows;
     size_t cap = w->scr.arena.cap;
     for (int f = 0; f < 20; f++)

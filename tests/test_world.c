@@ -167,8 +167,8 @@ static void test_ball_lands_on_the_floor_not_through_it(void **state)
         int k = sc_world_contacts(w, c, 4);
         sc_stats st;
         sc_world_stats(w, &st);
-        assert_int_equal(st.contacts, k);
-        assert_true(st.max_penetration <= 1e-3 + 1e-9);
+        assert_int_equal(st.frame.detect.contacts, k);
+        assert_true(st.frame.detect.max_penetration <= 1e-3 + 1e-9);
         if (k > 0) {
             seen = 1;
             assert_int_equal(c[0].body_a, 0);
@@ -325,7 +325,7 @@ static void test_an_empty_world_steps(void **state)
         assert_int_equal(sc_world_step(w, 0.01), SC_OK);
     sc_stats st;
     sc_world_stats(w, &st);
-    assert_int_equal(st.frames, 3);
+    assert_int_equal(st.total.frames, 3);
     sc_world_destroy(w);
 }
 
@@ -399,7 +399,7 @@ static void test_values_the_engine_cannot_simulate_are_refused(void **state)
     sc_world_destroy(w);
 }
 
-/* Bodies placed inside each other are counted (sc_stats.initial_overlaps);
+/* Bodies placed inside each other are counted (sc_stats.total.initial_overlaps);
  * a heap so dense that one island's contact LCP passes the exact solver's
  * size is split into blocks, never a misleading out-of-memory (1000
  * coincident spheres ended in "out of memory" at 330 MB). */
@@ -431,11 +431,11 @@ static void test_overlapping_bodies_are_counted_and_a_huge_island_split(void **s
     sc_stats st;
     assert_int_equal(sc_world_step(w, 0.01), SC_OK);
     sc_world_stats(w, &st);
-    assert_int_equal(st.initial_overlaps, 30 * 29 / 2);
+    assert_int_equal(st.total.initial_overlaps, 30 * 29 / 2);
     for (int f = 0; f < 10; f++)
         assert_int_equal(sc_world_step(w, 0.01), SC_OK);
     sc_world_stats(w, &st);
-    assert_int_equal(st.initial_overlaps, 30 * 29 / 2);    /* counted once */
+    assert_int_equal(st.total.initial_overlaps, 30 * 29 / 2);    /* counted once */
     sc_world_destroy(w);
     /* 80 with friction, 3 rows a contact: more than SC_MAX_ISLAND_ROWS for
      * one exact LCP, so split into blocks (also with island_split 0, the
@@ -447,9 +447,9 @@ static void test_overlapping_bodies_are_counted_and_a_huge_island_split(void **s
         w = coincident_cfg(80, 0.5, &c);
         assert_int_equal(sc_world_step(w, 0.01), SC_OK);
         sc_world_stats(w, &st);
-        assert_true(st.lcp_split >= 1);
-        assert_int_equal(st.lcp_nan_islands, 0);
-        assert_true(st.unit_arena_bytes < (size_t)256 << 20);
+        assert_true(st.frame.lcp.split >= 1);
+        assert_int_equal(st.frame.lcp.nan_islands, 0);
+        assert_true(st.total.unit_arena_bytes < (size_t)256 << 20);
         for (int i = 1; i <= 80; i++) {
             double x[3], q[4], v[3], om[3];
             sc_body_get_pose(w, i, x, q);
@@ -467,7 +467,7 @@ static void test_overlapping_bodies_are_counted_and_a_huge_island_split(void **s
     add_body(w, ball, 1, 0.3, 0, 0.5);
     assert_int_equal(sc_world_step(w, 0.01), SC_OK);
     sc_world_stats(w, &st);
-    assert_int_equal(st.initial_overlaps, 0);
+    assert_int_equal(st.total.initial_overlaps, 0);
     sc_shape_release(ball);
     sc_world_destroy(w);
 }
@@ -500,14 +500,14 @@ static void box_closing_slowly(int mode, sc_stats *out, double *pen, double *gai
         sc_world_stats(w, &st);
         if (k == 0)
             *out = st;
-        *pen = fmax(*pen, st.max_penetration);
+        *pen = fmax(*pen, st.frame.detect.max_penetration);
         *gain = fmax(*gain, sc_world_energy(w) - e0);
     }
     sc_stats st;
     sc_world_stats(w, &st);
-    out->backups_total = st.backups_total;
-    out->backups_max = st.backups_max;
-    out->frames = st.frames;
+    out->total.backups = st.total.backups;
+    out->total.backups_max = st.total.backups_max;
+    out->total.frames = st.total.frames;
     sc_shape_release(box);
     sc_world_destroy(w);
 }
@@ -520,17 +520,18 @@ static void test_slow_approach_is_speculative_in_local_mode(void **state)
     box_closing_slowly(SC_TOI_WORLD, &sw, &pw, &gw);
     box_closing_slowly(SC_TOI_LOCAL, &sl, &pl, &gl);
     /* the first frame: a back-up in the paper's mode, none in local */
-    assert_true(sw.backups >= 1);
-    assert_true(sw.substeps >= 2);
-    assert_int_equal(sw.spec_contacts, 0);
-    assert_int_equal(sl.backups, 0);
-    assert_int_equal(sl.substeps, 1);
-    assert_true(sl.spec_contacts >= 1);
-    assert_int_equal(sl.spec_rounds, 1);
-    assert_int_equal(sl.backup_regions, 0);
+    assert_true(sw.frame.toi.backups >= 1);
+    assert_true(sw.frame.toi.substeps >= 2);
+    assert_int_equal(sw.frame.toi.spec_contacts, 0);
+    assert_int_equal(sl.frame.toi.backups, 0);
+    assert_int_equal(sl.frame.toi.substeps, 1);
+    assert_true(sl.frame.toi.spec_contacts >= 1);
+    assert_int_equal(sl.frame.toi.spec_rounds, 1);
+    assert_int_equal(sl.frame.toi.backup_regions, 0);
     /* run totals: back-ups of all frames, the most of one */
-    assert_true(sw.backups_total >= sw.backups && sw.backups_max >= sw.backups);
-    assert_int_equal(sl.frames, 20);
+    assert_true(sw.total.backups >= sw.frame.toi.backups &&
+                sw.total.backups_max >= sw.frame.toi.backups);
+    assert_int_equal(sl.total.frames, 20);
     /* both within the tolerance, neither gains energy */
     assert_true(pw <= 1e-3 + 1e-9);
     assert_true(pl <= 1e-3 + 1e-9);
@@ -579,12 +580,12 @@ static void test_a_body_knocked_into_another_group_is_stepped_with_it(void **sta
     uint64_t h1, h2;
     knock_into_another_group(1, &s1, &v1, &h1);
     knock_into_another_group(2, &s2, &v2, &h2);
-    assert_true(s1.group_retries >= 1);
-    assert_int_equal(s1.groups, 1);         /* the groups that stood: one */
+    assert_true(s1.frame.sched.group_retries >= 1);
+    assert_int_equal(s1.frame.sched.groups, 1);         /* the groups that stood: one */
     assert_true(v1 > 0.5);                  /* C was hit in the frame */
-    assert_true(s1.max_penetration <= 1e-3 + 1e-9);
+    assert_true(s1.frame.detect.max_penetration <= 1e-3 + 1e-9);
     assert_true(h1 == h2);
-    assert_int_equal(s2.group_retries, s1.group_retries);
+    assert_int_equal(s2.frame.sched.group_retries, s1.frame.sched.group_retries);
 }
 
 /* A bin of 100 parts over 3 s: it settles and its islands fall asleep
@@ -604,8 +605,8 @@ static void test_sleeping_neighbours_do_not_step_a_frame_again(void **state)
         assert_int_equal(sc_world_step(w, 0.01), SC_OK);
     sc_stats st;
     sc_world_stats(w, &st);
-    printf("  groups stepped again in 300 frames: %ld\n", st.group_retries_total);
-    assert_true(st.group_retries_total < 30);
+    printf("  groups stepped again in 300 frames: %ld\n", st.total.group_retries);
+    assert_true(st.total.group_retries < 30);
     sc_world_destroy(w);
 }
 
@@ -650,9 +651,9 @@ static void test_a_pile_never_gains_energy(void **state)
             peak = fmax(peak, sc_world_energy(w));
             sc_stats st;
             sc_world_stats(w, &st);
-            refused += st.lcp_energy_refused;
-            fallbacks += st.lcp_fallbacks;
-            scaled += st.lcp_restitution_scaled;
+            refused += st.frame.lcp.energy_refused;
+            fallbacks += st.frame.lcp.fallbacks;
+            scaled += st.frame.lcp.restitution_scaled;
         }
         print_message("bin of 200, %s mode: peak energy / initial %.6f; friction fallbacks %ld "
                       "(%ld refused for adding energy), restitution scaled down %ld\n",
@@ -685,8 +686,8 @@ static void test_a_landing_pile_may_back_up_more_than_15_times_a_frame(void **st
         assert_int_equal(sc_world_step(w, 0.01), SC_OK);
         sc_stats st;
         sc_world_stats(w, &st);
-        pen = fmax(pen, st.max_penetration);
-        most = st.backups > most ? st.backups : most;
+        pen = fmax(pen, st.frame.detect.max_penetration);
+        most = st.frame.toi.backups > most ? st.frame.toi.backups : most;
     }
     print_message("bin of 1000, 30 frames: most back-ups in a frame %d, deepest %.4f mm\n",
                   most, 1e3 * pen);
@@ -716,8 +717,8 @@ static void test_a_pressed_pair_does_not_back_up_a_pile_to_the_cap(void **state)
         assert_int_equal(sc_world_step(w, 0.01), SC_OK);
         sc_stats st;
         sc_world_stats(w, &st);
-        pen = fmax(pen, st.max_penetration);
-        most = st.backups > most ? st.backups : most;
+        pen = fmax(pen, st.frame.detect.max_penetration);
+        most = st.frame.toi.backups > most ? st.frame.toi.backups : most;
     }
     print_message("bin of 200, seed 14, 140 frames: most back-ups in a frame %d, deepest %.4f mm\n",
                   most, 1e3 * pen);
@@ -741,8 +742,8 @@ static void drop_run(int mode, int n, int frames, double *pen, double *substeps)
         assert_int_equal(sc_world_step(w, 0.01), SC_OK);
         sc_stats st;
         sc_world_stats(w, &st);
-        *pen = fmax(*pen, st.max_penetration);
-        *substeps += (double)st.substeps / frames;
+        *pen = fmax(*pen, st.frame.detect.max_penetration);
+        *substeps += (double)st.frame.toi.substeps / frames;
     }
     sc_world_destroy(w);
 }

@@ -674,64 +674,67 @@ static int simulate(const options *o, sc_world *w, totals *t, int progress, reco
         sc_stats st;
         sc_world_stats(w, &st);
         t->frames++;
-        t->units += st.units;
-        t->remote += st.remote_units;
-        t->recomputed += st.recomputed_units;
-        t->late += st.late_results;
-        t->comm += st.comm_s;
-        t->msgs_out += st.unit_messages;
-        t->msgs_in += st.result_messages;
-        t->piped += st.pipelined_units;
-        t->kept_out += st.remote_refused;
-        t->beside += st.units_background;
-        t->np_pairs += st.np_pairs;
-        t->np_reused += st.np_reused;
-        if (st.duplicate_nodes > t->duplicates) {
+        t->units += st.frame.sched.units;
+        t->remote += st.frame.remote.units;
+        t->recomputed += st.frame.remote.recomputed_units;
+        t->late += st.frame.remote.late_results;
+        t->comm += st.frame.remote.comm_s;
+        t->msgs_out += st.frame.remote.unit_messages;
+        t->msgs_in += st.frame.remote.result_messages;
+        t->piped += st.frame.remote.pipelined_units;
+        t->kept_out += st.frame.remote.refused;
+        t->beside += st.frame.sched.units_background;
+        t->np_pairs += st.frame.detect.np_pairs;
+        t->np_reused += st.frame.detect.np_reused;
+        if (st.total.duplicate_nodes > t->duplicates) {
             /* two running daemons with one id: said once per pair */
-            t->duplicates = st.duplicate_nodes;
+            t->duplicates = st.total.duplicate_nodes;
             fprintf(stderr, "%ssimcluster: run: daemon node id %016llx is used by two running "
                     "daemons; only the one started last gets work\n", progress ? "\n" : "",
-                    (unsigned long long)st.duplicate_node);
+                    (unsigned long long)st.now.duplicate_node);
         }
-        t->max_pen = fmax(t->max_pen, st.max_penetration);
-        t->solves += st.lcp_solves;
-        t->kept += st.lcp_kept;
-        t->split += st.lcp_split;
-        t->blocks += st.lcp_blocks;
-        t->shared += st.lcp_blocks_shared;
-        t->pivots += st.lcp_pivots;
-        t->max_pivots = st.lcp_pivots > t->max_pivots ? st.lcp_pivots : t->max_pivots;
-        t->staggered += st.lcp_fallbacks;
-        t->refused += st.lcp_energy_refused;
-        t->rscaled += st.lcp_restitution_scaled;
-        t->guessed += st.lcp_guessed;
-        t->regularised += st.lcp_regularised;
-        t->split_fb += st.lcp_split_fallbacks;
-        t->block_fb += st.lcp_block_fallbacks;
-        t->nan += st.lcp_nan_islands;
-        t->inelastic += st.lcp_inelastic;
-        t->unconverged += st.lcp_unconverged;
-        t->max_sweeps = st.lcp_sweeps_max > t->max_sweeps ? st.lcp_sweeps_max : t->max_sweeps;
-        t->residual = fmax(t->residual, st.lcp_residual);
-        t->outer_residual = fmax(t->outer_residual, st.lcp_outer_residual);
-        t->substeps += st.substeps;
-        t->max_substeps = st.substeps > t->max_substeps ? st.substeps : t->max_substeps;
-        t->backups += st.backups;
-        t->groups += st.groups;
-        t->retried += st.group_retries;
-        t->max_backups = st.backups > t->max_backups ? st.backups : t->max_backups;
-        t->spec += st.spec_contacts;
-        if (st.initial_overlaps > t->overlaps)
+        t->max_pen = fmax(t->max_pen, st.frame.detect.max_penetration);
+        t->solves += st.frame.lcp.solves;
+        t->kept += st.frame.lcp.kept;
+        t->split += st.frame.lcp.split;
+        t->blocks += st.frame.lcp.blocks;
+        t->shared += st.frame.lcp.blocks_shared;
+        t->pivots += st.frame.lcp.pivots;
+        t->max_pivots = st.frame.lcp.pivots > t->max_pivots ? st.frame.lcp.pivots : t->max_pivots;
+        t->staggered += st.frame.lcp.fallbacks;
+        t->refused += st.frame.lcp.energy_refused;
+        t->rscaled += st.frame.lcp.restitution_scaled;
+        t->guessed += st.frame.lcp.guessed;
+        t->regularised += st.frame.lcp.regularised;
+        t->split_fb += st.frame.lcp.split_fallbacks;
+        t->block_fb += st.frame.lcp.block_fallbacks;
+        t->nan += st.frame.lcp.nan_islands;
+        t->inelastic += st.frame.lcp.inelastic;
+        t->unconverged += st.frame.lcp.unconverged;
+        t->max_sweeps =
+            st.frame.lcp.sweeps_max > t->max_sweeps ? st.frame.lcp.sweeps_max : t->max_sweeps;
+        t->residual = fmax(t->residual, st.frame.lcp.residual);
+        t->outer_residual = fmax(t->outer_residual, st.frame.lcp.outer_residual);
+        t->substeps += st.frame.toi.substeps;
+        t->max_substeps =
+            st.frame.toi.substeps > t->max_substeps ? st.frame.toi.substeps : t->max_substeps;
+        t->backups += st.frame.toi.backups;
+        t->groups += st.frame.sched.groups;
+        t->retried += st.frame.sched.group_retries;
+        t->max_backups =
+            st.frame.toi.backups > t->max_backups ? st.frame.toi.backups : t->max_backups;
+        t->spec += st.frame.toi.spec_contacts;
+        if (st.total.initial_overlaps > t->overlaps)
             fprintf(stderr, "%s: warning: %ld body pairs overlap by more than twice the "
                     "contact tolerance where they were placed; they are pushed apart, not "
                     "simulated as physics would\n", "simcluster",
-                    st.initial_overlaps - t->overlaps);
-        t->overlaps = st.initial_overlaps;
-        if (st.dropped_auth > 0 && !t->auth_warned) {
+                    st.total.initial_overlaps - t->overlaps);
+        t->overlaps = st.total.initial_overlaps;
+        if (st.total.dropped_auth > 0 && !t->auth_warned) {
             /* another key on the group: say it, once (daemons with it get no work) */
             fprintf(stderr, "simcluster: warning: cluster messages fail authentication (%ld so "
                     "far): daemons with another key are not used; do they use this key "
-                    "(--key)?\n", st.dropped_auth);
+                    "(--key)?\n", st.total.dropped_auth);
             t->auth_warned = 1;
         }
         if (e0 > 0)
@@ -740,7 +743,7 @@ static int simulate(const options *o, sc_world *w, totals *t, int progress, reco
         if (progress && now - shown > 0.2) {
             shown = now;
             fprintf(stderr, "\r  frame %ld  t %.2f s  RT %.2fx  awake %d  nodes %d  ", t->frames,
-                    t->frames * DT, t->frames * DT / (now - t0), awake(w), st.nodes);
+                    t->frames * DT, t->frames * DT / (now - t0), awake(w), st.now.nodes);
         }
         if (o->realtime) {             /* no faster than simulated time */
             double ahead = t0 + t->frames * DT - now_s();
@@ -847,13 +850,13 @@ static void report_json(const options *o, const sc_world *w, const sc_stats *stp
            "\"toi\": {\"mode\": \"%s\", \"backups\": %ld, \"max_frame_backups\": %d, "
            "\"speculative_contacts\": %ld, \"groups\": %ld, \"groups_retried\": %ld}, "
            "\"hash\": \"%016llx\", \"interrupted\": %s%s%s, \"error\": %s%s%s}\n",
-           sc_world_body_count(w), seed, (int)(st.nodes - st.daemons), st.cpu_budget,
-           st.spin ? "true" : "false", t.frames,
+           sc_world_body_count(w), seed, (int)(st.now.nodes - st.now.daemons), st.now.cpu_budget,
+           st.now.spin ? "true" : "false", t.frames,
            sim, t.wall, t.wall > 0 ? sim / t.wall : 0, t.at_rest ? "true" : "false",
-           t.rest_s, t.peak_energy, t.max_pen, t.units, st.daemons, t.remote, t.recomputed,
-           t.late, st.dropped_messages, st.dropped_auth, st.dropped_stale,
-           st.dropped_misaddressed,
-           st.duplicate_nodes, t.comm, t.msgs_out, t.msgs_in, t.piped, t.kept_out, t.beside,
+           t.rest_s, t.peak_energy, t.max_pen, t.units, st.now.daemons, t.remote, t.recomputed,
+           t.late, st.total.dropped_messages, st.total.dropped_auth, st.total.dropped_stale,
+           st.total.dropped_misaddressed,
+           st.total.duplicate_nodes, t.comm, t.msgs_out, t.msgs_in, t.piped, t.kept_out, t.beside,
            t.np_pairs,
            t.np_reused, t.over_budget, t.max_frame,
            t.overlaps,
@@ -882,8 +885,9 @@ static void report_text(const options *o, const sc_world *w, const sc_stats *stp
     printf("  simulated %8.2f s in %.3f s wall (real-time factor %.2f)\n", sim, t.wall,
            t.wall > 0 ? sim / t.wall : 0);
     printf("  %d local threads on %.2f CPUs (affinity mask, cgroup quota): idle threads %s\n",
-           (int)(st.nodes - st.daemons), st.cpu_budget,
-           st.spin ? "poll a few ms before they sleep" : "sleep at once (fewer CPUs than threads)");
+           (int)(st.now.nodes - st.now.daemons), st.now.cpu_budget,
+           st.now.spin ? "poll a few ms before they sleep"
+                       : "sleep at once (fewer CPUs than threads)");
     if (o->until_rest)
         printf("  %s\n", t.at_rest ? "all at rest" : "not at rest at the frame limit");
     printf("  frames over their %.0f ms: %ld, longest %.1f ms\n", 1e3 * DT, t.over_budget,
@@ -927,16 +931,16 @@ static void report_text(const options *o, const sc_world *w, const sc_stats *stp
         printf(", motion groups stepped by idle threads beside the pile %ld", t.beside);
     if (o->cluster)
         printf(", from daemons %ld, recomputed %ld, late %ld, dropped messages %ld",
-               t.remote, t.recomputed, t.late, st.dropped_messages);
-    if (o->cluster && (st.dropped_auth || st.dropped_stale || st.dropped_misaddressed ||
-                      st.duplicate_nodes))
+               t.remote, t.recomputed, t.late, st.total.dropped_messages);
+    if (o->cluster && (st.total.dropped_auth || st.total.dropped_stale ||
+                       st.total.dropped_misaddressed || st.total.duplicate_nodes))
         printf("\n  of them failed authentication %ld, stale %ld, misaddressed %ld; "
                "duplicate daemon ids %ld",
-               st.dropped_auth, st.dropped_stale, st.dropped_misaddressed,
-               st.duplicate_nodes);
+               st.total.dropped_auth, st.total.dropped_stale, st.total.dropped_misaddressed,
+               st.total.duplicate_nodes);
     if (o->cluster && t.frames) {
         /* per daemon: over those in use now (at least one) */
-        double nd = st.daemons > 1 ? st.daemons : 1, fr = (double)t.frames;
+        double nd = st.now.daemons > 1 ? st.now.daemons : 1, fr = (double)t.frames;
         printf("\n  cluster messages a frame: %.2f of units out, %.2f of results in "
                "(a daemon: %.2f, %.2f); communication %.2f ms a frame; group units "
                "back while the pile ran %.2f a frame; a daemon kept out of %.2f jobs a "
@@ -1049,7 +1053,7 @@ static int chart(const char *path, const char *scene, long frames, const stage_r
         fputs(*c == '\'' ? "''" : (char[]){ *c, 0 }, g);
     fprintf(g, "'\n$d << EOD\n");
     for (int i = 0; i < nrows; i++) {
-        double s = st->stage_total_s[rows[i].stage];
+        double s = st->total.stage_s[rows[i].stage];
         fprintf(g, "\"%s\" %.4f %.4f\n", rows[i].name, total > 0 ? 100 * s / total : 0,
                 rows[i].paper < 0 ? 0 : rows[i].paper);
     }
@@ -1100,14 +1104,14 @@ static int profile_cmd(int argc, char **argv)
     };
     double total = 0;
     for (int k = 0; k < SC_STAGE_COUNT; k++)
-        total += st.stage_total_s[k];
+        total += st.total.stage_s[k];
     if (o.json) {
         printf("{\"scene\": ");
         json_string(o.scene);
         printf(", \"frames\": %ld, \"toi_mode\": \"%s\", \"cpu_s\": {", t.frames,
                o.toi_mode == SC_TOI_LOCAL ? "local" : "world");
         for (size_t i = 0; i < sizeof rows / sizeof *rows; i++)
-            printf("%s\"%s\": %.6f", i ? ", " : "", rows[i].key, st.stage_total_s[rows[i].stage]);
+            printf("%s\"%s\": %.6f", i ? ", " : "", rows[i].key, st.total.stage_s[rows[i].stage]);
         printf("}, \"interrupted\": %s%s%s}\n", t.interrupted ? "\"" : "null",
                t.interrupted ? signal_name(t.interrupted) : "", t.interrupted ? "\"" : "");
     } else {
@@ -1116,7 +1120,7 @@ static int profile_cmd(int argc, char **argv)
                o.scene, t.frames, o.toi_mode == SC_TOI_LOCAL ? "local" : "world-wide");
         printf("  %-26s %10s %8s %8s\n", "stage", "CPU s", "ours %", "paper %");
         for (size_t i = 0; i < sizeof rows / sizeof *rows; i++) {
-            double s = st.stage_total_s[rows[i].stage];
+            double s = st.total.stage_s[rows[i].stage];
             printf("  %-26s %10.4f %8.2f ", rows[i].name, s, total > 0 ? 100 * s / total : 0);
             if (rows[i].paper < 0)
                 printf("%8s\n", "-");

@@ -54,9 +54,9 @@ SC_API sc_world *sc_world_create(const sc_world_config *cfg)
     w->ex.sched.ship_share = c.cluster_ship_share == 0 ? SC_SHIP_SHARE_DEFAULT
                                                         : c.cluster_ship_share;
     w->ex.sched.min_gain = c.cluster_min_gain == 0 ? SC_MIN_GAIN_DEFAULT : c.cluster_min_gain;
-    w->stats.private_ode = w->ex.private_ode;
-    w->stats.cpu_budget = w->ex.cpu_budget;
-    w->stats.spin = sc_local_pool_spins(w->ex.pool);
+    w->stats.now.private_ode = w->ex.private_ode;
+    w->stats.now.cpu_budget = w->ex.cpu_budget;
+    w->stats.now.spin = sc_local_pool_spins(w->ex.pool);
     if (rc == SC_OK && c.cluster)
         rc = sc_cluster_create(&w->ex, &w->stats, &w->st, c.cluster, c.key_file,
                                c.cluster_deadline_s, &w->cluster);
@@ -65,7 +65,7 @@ SC_API sc_world *sc_world_create(const sc_world_config *cfg)
         sc_set_error(rc);
         return NULL;
     }
-    w->stats.nodes = w->ex.nlocal;
+    w->stats.now.nodes = w->ex.nlocal;
     return w;
 }
 
@@ -292,7 +292,7 @@ SC_API void sc_world_stats(const sc_world *w, sc_stats *s)
         return;
     }
     *s = w->stats;
-    s->bodies = w->st.nbodies;
+    s->now.bodies = w->st.nbodies;
 }
 
 SC_API int sc_world_contacts(const sc_world *w, sc_contact *out, int max)
@@ -311,42 +311,9 @@ SC_API int sc_world_step(sc_world *w, double dt)
         return SC_EINVAL;
     if (dt > SC_MAX_DT)
         return SC_ELIMIT;
-    /* the last frame's figures start again; totals and cluster counts stay */
+    /* the last frame's figures start again; totals and the state now stay */
     sc_stats *st = &w->stats;
-    memset(st->stage_s, 0, sizeof st->stage_s);
-    sc_stats_clear_solver(st);
-    st->collider_warnings = 0;
-    st->units = 0;
-    st->units_background = 0;
-    st->np_pairs = 0;
-    st->np_reused = 0;
-    st->sched_s = 0;
-    st->makespan_s = 0;
-    st->makespan_bound_s = 0;
-    st->jobs = 0;
-    st->unit_work_s = 0;
-    st->unit_bytes = 0;
-    memset(st->ideal_makespan_s, 0, sizeof st->ideal_makespan_s);
-    memset(st->unit_work_by_density_s, 0, sizeof st->unit_work_by_density_s);
-    st->groups = 0;
-    st->group_retries = 0;
-    st->pairs = 0;
-    st->contacts = 0;
-    st->islands = 0;
-    st->max_penetration = 0;
-    st->remote_units = 0;
-    st->recomputed_units = 0;
-    st->late_results = 0;
-    st->comm_s = 0;
-    st->remote_wait_s = 0;
-    st->unit_messages = 0;
-    st->result_messages = 0;
-    st->pipelined_units = 0;
-    st->remote_overhead_s = 0;
-    st->remote_jobs = 0;
-    st->remote_refused = 0;
-    st->remote_bytes = 0;
-    st->remote_work_s = 0;
+    memset(&st->frame, 0, sizeof st->frame);
     if (w->cluster)
         sc_cluster_frame(w->cluster);
     int rc = sc_arena_reset(&w->scr.arena);
@@ -356,13 +323,13 @@ SC_API int sc_world_step(sc_world *w, double dt)
              ? sc_groups_step(&w->fcfg, &w->st, dt, &w->scr, &w->ex.base, st)
              : sc_frame_step(&w->fcfg, &w->st, dt, &w->scr, &w->ex.base, st);
     if (rc == SC_OK) {
-        st->frames++;
-        st->backups_total += st->backups;
-        st->group_retries_total += st->group_retries;
-        if (st->backups > st->backups_max)
-            st->backups_max = st->backups;
-        st->makespan_ratio = st->makespan_bound_s > 0 ? st->makespan_s / st->makespan_bound_s
-                                                      : 0;
+        st->total.frames++;
+        st->total.backups += st->frame.toi.backups;
+        st->total.group_retries += st->frame.sched.group_retries;
+        if (st->frame.toi.backups > st->total.backups_max)
+            st->total.backups_max = st->frame.toi.backups;
+        sc_stats_sched *sd = &st->frame.sched;
+        sd->makespan_ratio = sd->makespan_bound_s > 0 ? sd->makespan_s / sd->makespan_bound_s : 0;
     }
     return rc;
 }

@@ -65,8 +65,8 @@ double sc_wall_now(void)
 /* dt seconds into row stage of the frame's figures and of the run's. */
 static void stage_credit(sc_stats *st, int stage, double dt)
 {
-    st->stage_s[stage] += dt;
-    st->stage_total_s[stage] += dt;
+    st->frame.stage_s[stage] += dt;
+    st->total.stage_s[stage] += dt;
 }
 
 void sc_stage_add(sc_stats *st, int stage, double t0)
@@ -86,53 +86,57 @@ void sc_stage_since(sc_frame *f, int stage, double t0)
 
 void sc_stats_add_solve(sc_stats *st, const sc_solve_info *info)
 {
-    st->lcp_solves += info->solves;
-    st->lcp_pivots += info->pivots;
-    st->lcp_fallbacks += info->failures;
-    st->lcp_split += info->split;
-    st->lcp_blocks += info->blocks;
-    st->lcp_blocks_shared += info->blocks_shared;
-    if (info->sweeps_max > st->lcp_sweeps_max)
-        st->lcp_sweeps_max = info->sweeps_max;
-    st->lcp_unconverged += info->unconverged;
-    st->lcp_diverged += info->diverged;
-    st->lcp_cold_starts += info->cold_starts;
-    st->lcp_regularised += info->regularised;
-    st->lcp_split_fallbacks += info->split_fallbacks;
-    st->lcp_block_fallbacks += info->block_fallbacks;
-    st->lcp_nan_islands += info->nan_islands;
-    st->lcp_inelastic += info->inelastic;
-    st->lcp_energy_refused += info->energy_refused;
-    st->lcp_restitution_scaled += info->restitution_scaled;
-    st->lcp_guessed += info->guessed;
-    st->lcp_residual = max_d(st->lcp_residual, info->residual_exact);
-    st->lcp_outer_residual = max_d(st->lcp_outer_residual, info->residual_split);
+    st->frame.lcp.solves += info->solves;
+    st->frame.lcp.pivots += info->pivots;
+    st->frame.lcp.fallbacks += info->failures;
+    st->frame.lcp.split += info->split;
+    st->frame.lcp.blocks += info->blocks;
+    st->frame.lcp.blocks_shared += info->blocks_shared;
+    if (info->sweeps_max > st->frame.lcp.sweeps_max)
+        st->frame.lcp.sweeps_max = info->sweeps_max;
+    st->frame.lcp.unconverged += info->unconverged;
+    st->frame.lcp.diverged += info->diverged;
+    st->frame.lcp.cold_starts += info->cold_starts;
+    st->frame.lcp.regularised += info->regularised;
+    st->frame.lcp.split_fallbacks += info->split_fallbacks;
+    st->frame.lcp.block_fallbacks += info->block_fallbacks;
+    st->frame.lcp.nan_islands += info->nan_islands;
+    st->frame.lcp.inelastic += info->inelastic;
+    st->frame.lcp.energy_refused += info->energy_refused;
+    st->frame.lcp.restitution_scaled += info->restitution_scaled;
+    st->frame.lcp.guessed += info->guessed;
+    st->frame.lcp.residual = max_d(st->frame.lcp.residual, info->residual_exact);
+    st->frame.lcp.outer_residual = max_d(st->frame.lcp.outer_residual, info->residual_split);
 }
 
-void sc_stats_add_solver(sc_stats *s, const sc_stats *g)
+static void add_lcp(sc_stats_lcp *s, const sc_stats_lcp *g)
 {
-    s->lcp_solves += g->lcp_solves;
-    s->lcp_kept += g->lcp_kept;
-    s->lcp_pivots += g->lcp_pivots;
-    s->lcp_fallbacks += g->lcp_fallbacks;
-    s->lcp_split += g->lcp_split;
-    s->lcp_blocks += g->lcp_blocks;
-    s->lcp_blocks_shared += g->lcp_blocks_shared;
-    if (g->lcp_sweeps_max > s->lcp_sweeps_max)
-        s->lcp_sweeps_max = g->lcp_sweeps_max;
-    s->lcp_unconverged += g->lcp_unconverged;
-    s->lcp_diverged += g->lcp_diverged;
-    s->lcp_cold_starts += g->lcp_cold_starts;
-    s->lcp_regularised += g->lcp_regularised;
-    s->lcp_split_fallbacks += g->lcp_split_fallbacks;
-    s->lcp_block_fallbacks += g->lcp_block_fallbacks;
-    s->lcp_nan_islands += g->lcp_nan_islands;
-    s->lcp_inelastic += g->lcp_inelastic;
-    s->lcp_energy_refused += g->lcp_energy_refused;
-    s->lcp_restitution_scaled += g->lcp_restitution_scaled;
-    s->lcp_guessed += g->lcp_guessed;
-    s->lcp_residual = max_d(s->lcp_residual, g->lcp_residual);
-    s->lcp_outer_residual = max_d(s->lcp_outer_residual, g->lcp_outer_residual);
+    s->solves += g->solves;
+    s->kept += g->kept;
+    s->pivots += g->pivots;
+    s->fallbacks += g->fallbacks;
+    s->split += g->split;
+    s->blocks += g->blocks;
+    s->blocks_shared += g->blocks_shared;
+    if (g->sweeps_max > s->sweeps_max)
+        s->sweeps_max = g->sweeps_max;
+    s->unconverged += g->unconverged;
+    s->diverged += g->diverged;
+    s->cold_starts += g->cold_starts;
+    s->regularised += g->regularised;
+    s->split_fallbacks += g->split_fallbacks;
+    s->block_fallbacks += g->block_fallbacks;
+    s->nan_islands += g->nan_islands;
+    s->inelastic += g->inelastic;
+    s->energy_refused += g->energy_refused;
+    s->restitution_scaled += g->restitution_scaled;
+    s->guessed += g->guessed;
+    s->residual = max_d(s->residual, g->residual);
+    s->outer_residual = max_d(s->outer_residual, g->outer_residual);
+}
+
+static void add_toi(sc_stats_toi *s, const sc_stats_toi *g)
+{
     if (g->substeps > s->substeps)
         s->substeps = g->substeps;
     s->backups += g->backups;
@@ -142,50 +146,24 @@ void sc_stats_add_solver(sc_stats *s, const sc_stats *g)
     s->spec_rounds += g->spec_rounds;
 }
 
-void sc_stats_clear_solver(sc_stats *st)
+void sc_stats_add_solver(sc_stats *s, const sc_stats *g)
 {
-    st->lcp_solves = 0;
-    st->lcp_kept = 0;
-    st->lcp_pivots = 0;
-    st->lcp_fallbacks = 0;
-    st->lcp_split = 0;
-    st->lcp_blocks = 0;
-    st->lcp_blocks_shared = 0;
-    st->lcp_sweeps_max = 0;
-    st->lcp_unconverged = 0;
-    st->lcp_diverged = 0;
-    st->lcp_cold_starts = 0;
-    st->lcp_regularised = 0;
-    st->lcp_split_fallbacks = 0;
-    st->lcp_block_fallbacks = 0;
-    st->lcp_nan_islands = 0;
-    st->lcp_inelastic = 0;
-    st->lcp_energy_refused = 0;
-    st->lcp_restitution_scaled = 0;
-    st->lcp_guessed = 0;
-    st->lcp_residual = 0;
-    st->lcp_outer_residual = 0;
-    st->substeps = 0;
-    st->backups = 0;
-    st->backup_regions = 0;
-    st->backup_bodies = 0;
-    st->spec_contacts = 0;
-    st->spec_rounds = 0;
+    add_lcp(&s->frame.lcp, &g->frame.lcp);
+    add_toi(&s->frame.toi, &g->frame.toi);
 }
 
-void sc_stats_add_frame(sc_stats *s, const sc_stats *g)
+static void add_detect(sc_stats_detect *s, const sc_stats_detect *g)
 {
-    for (int k = 0; k < SC_STAGE_COUNT; k++) {
-        s->stage_s[k] += g->stage_s[k];
-        s->stage_total_s[k] += g->stage_s[k];
-    }
     s->pairs += g->pairs;
     s->np_pairs += g->np_pairs;
     s->np_reused += g->np_reused;
     s->islands += g->islands;
-    sc_stats_add_solver(s, g);
     s->max_penetration = max_d(s->max_penetration, g->max_penetration);
     s->collider_warnings += g->collider_warnings;
+}
+
+static void add_sched(sc_stats_sched *s, const sc_stats_sched *g)
+{
     s->units += g->units;
     s->sched_s += g->sched_s;
     s->makespan_s += g->makespan_s;
@@ -197,9 +175,20 @@ void sc_stats_add_frame(sc_stats *s, const sc_stats *g)
         s->ideal_makespan_s[k] += g->ideal_makespan_s[k];
     for (int k = 0; k < SC_STATS_DENSITY_BINS; k++)
         s->unit_work_by_density_s[k] += g->unit_work_by_density_s[k];
-    s->initial_overlaps += g->initial_overlaps;
-    if (g->arena_bytes > s->unit_arena_bytes)
-        s->unit_arena_bytes = g->arena_bytes;
-    if (g->unit_arena_bytes > s->unit_arena_bytes)
-        s->unit_arena_bytes = g->unit_arena_bytes;
+}
+
+void sc_stats_add_frame(sc_stats *s, const sc_stats *g)
+{
+    for (int k = 0; k < SC_STAGE_COUNT; k++) {
+        s->frame.stage_s[k] += g->frame.stage_s[k];
+        s->total.stage_s[k] += g->frame.stage_s[k];
+    }
+    add_detect(&s->frame.detect, &g->frame.detect);
+    sc_stats_add_solver(s, g);
+    add_sched(&s->frame.sched, &g->frame.sched);
+    s->total.initial_overlaps += g->total.initial_overlaps;
+    if (g->total.arena_bytes > s->total.unit_arena_bytes)
+        s->total.unit_arena_bytes = g->total.arena_bytes;
+    if (g->total.unit_arena_bytes > s->total.unit_arena_bytes)
+        s->total.unit_arena_bytes = g->total.unit_arena_bytes;
 }

@@ -1036,7 +1036,7 @@ static int solve_rows(sc_arena *arena, sc_body *bodies, row *rows, int nrows,
                  * tangents as a boxed LCP with the bounds fixed at +-mu p_n.
                  * Exact for each half, the coupling of friction back into
                  * the normals is lost for this substep: counted in
-                 * sc_stats.lcp_fallbacks, never silent. */
+                 * sc_stats.frame.lcp.fallbacks, never silent. */
                 info->failures++;
                 double *sbuf = sc_arena_alloc(arena, 6 * n * sizeof *sbuf);
                 rc = SC_ENOMEM;

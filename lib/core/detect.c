@@ -285,8 +285,8 @@ static int narrowphase(sc_frame *f, int npairs)
         ncontact[i] = 0;
         run_of[nrun++] = i;
     }
-    f->stats->np_pairs += npairs;
-    f->stats->np_reused += npairs - nrun;
+    f->stats->frame.detect.np_pairs += npairs;
+    f->stats->frame.detect.np_reused += npairs - nrun;
     /* the old contacts that carry an impulse, for the warm start */
     int nold = 0;
     for (int k = 0; k < st->ncontacts; k++)
@@ -355,8 +355,8 @@ static int narrowphase(sc_frame *f, int npairs)
     sc_arena_free(a, up);
     if (rc != SC_OK)
         return rc;
-    f->stats->contacts = st->ncontacts;
-    f->stats->max_penetration = maxpen;
+    f->stats->frame.detect.contacts = st->ncontacts;
+    f->stats->frame.detect.max_penetration = maxpen;
     return SC_OK;
 }
 
@@ -369,7 +369,7 @@ int sc_detect(sc_frame *f)
     sc_stage_since(f, SC_STAGE_BROADPHASE, t0);
     if (rc != SC_OK)
         return rc;
-    f->stats->pairs = npairs;
+    f->stats->frame.detect.pairs = npairs;
     t0 = sc_stage_now(f);
     rc = narrowphase(f, npairs);
     sc_stage_since(f, SC_STAGE_NARROWPHASE, t0);
@@ -384,7 +384,7 @@ int sc_detect(sc_frame *f)
         sc_stage_since(f, SC_STAGE_BROADPHASE, t0);
         if (rc != SC_OK)
             break;
-        f->stats->pairs = npairs;
+        f->stats->frame.detect.pairs = npairs;
         t0 = sc_stage_now(f);
         rc = narrowphase(f, npairs);
         sc_stage_since(f, SC_STAGE_NARROWPHASE, t0);

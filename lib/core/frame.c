@@ -290,7 +290,7 @@ static int substep(sc_frame *f, double h, sc_islands *is, unsigned char *touched
             return kept;
         }
         solve = &sub;
-        f->stats->lcp_kept += kept;
+        f->stats->frame.lcp.kept += kept;
     }
     memset(touched, 0, (size_t)n);
     for (int k = 0; k < st->ncontacts; k++) {
@@ -310,7 +310,7 @@ static int substep(sc_frame *f, double h, sc_islands *is, unsigned char *touched
     };
     rc = solve->count > 0 ? f->ex->run(f->ex, &job, SC_STAGE_LCP, f->stats) : SC_OK;
     sc_stage_since(f, SC_STAGE_LCP, t0);
-    f->stats->islands = is->count;
+    f->stats->frame.detect.islands = is->count;
     if (rc == SC_OK) {
         t0 = sc_stage_now(f);
         sc_integrate_positions(f, h, mask);
@@ -355,7 +355,7 @@ static int detect_initial(sc_frame *f)
     for (int k = 0; rc == SC_OK && k < st->ncontacts; k++) {
         const sc_contact *c = &st->contacts[k];
         if (c->depth > 2 * f->cfg->contact_tol_m && (c->body_a != la || c->body_b != lb)) {
-            f->stats->initial_overlaps++;
+            f->stats->total.initial_overlaps++;
             la = c->body_a;
             lb = c->body_b;
         }
@@ -455,8 +455,8 @@ static int local_rounds(sc_frame *f, sub_state *u)
         }
         rc = sc_spec_merge(st, u->c0, u->n0, u->spec);
         solved_spec = u->spec->n;
-        f->stats->spec_contacts += u->spec->n;
-        f->stats->spec_rounds += !back;
+        f->stats->frame.toi.spec_contacts += u->spec->n;
+        f->stats->frame.toi.spec_rounds += !back;
         rounds += !back;
         redo rd = { .saved = u->saved, .dirty = dirty, .old = u->solved->c,
                     .nold = u->solved->n };
@@ -532,7 +532,7 @@ static int substeps(sc_frame *f, double dt, sc_body *saved, unsigned char *touch
         if (rc == SC_OK)
             rc = local ? local_rounds(f, &u) : world_backup(f, &u, sub);
         sc_arena_free(a, c0);
-        f->stats->substeps++;
+        f->stats->frame.toi.substeps++;
         left -= u.h;
         if (left < 1e-9 * dt)
             left = 0;
@@ -542,10 +542,10 @@ static int substeps(sc_frame *f, double dt, sc_body *saved, unsigned char *touch
     }
     free(spec.c);
     free(solved.c);
-    f->stats->backups += u.backups;
+    f->stats->frame.toi.backups += u.backups;
     if (u.backups > 0) {
-        f->stats->backup_regions++;
-        f->stats->backup_bodies += movable;
+        f->stats->frame.toi.backup_regions++;
+        f->stats->frame.toi.backup_bodies += movable;
     }
     if (rc == SC_OK)
         sc_update_states(f, &f->scr->islands, touched, dt);
@@ -595,8 +595,8 @@ int sc_frame_step(const sc_frame_config *cfg, sc_frame_state *st, double dt,
     sc_arena_free(a, touched);
     sc_arena_free(a, saved);
     sc_arena_free(a, f.drift);
-    if (a->high > stats->arena_bytes)
-        stats->arena_bytes = a->high;
+    if (a->high > stats->total.arena_bytes)
+        stats->total.arena_bytes = a->high;
     if (rc != SC_OK)
         return rc;
     /* a body near its drift is checked by it; one with too many points

@@ -328,7 +328,7 @@ sc_contact_params sc_frame_contact_params(const sc_frame_config *cfg);
 #define SC_BOUNCE_SPEED 0.1
 /* Adding the CPU time since t0 to a Table 1 row of f's figures. */
 void sc_stage_add(sc_stats *st, int stage, double t0);
-/* The clock a frame's stages time themselves with (sc_stats.stage_s): the
+/* The clock a frame's stages time themselves with (sc_stats.frame.stage_s): the
  * thread's CPU time in world mode (Table 1 is CPU by stage; a few dozen
  * reads a frame), the monotonic clock in local mode, where every motion
  * group's frame times its stages: a thread CPU read is a system call, and
@@ -337,15 +337,13 @@ void sc_stage_add(sc_stats *st, int stage, double t0);
  * clock) to stage. */
 double sc_stage_now(const sc_frame *f);
 void sc_stage_since(sc_frame *f, int stage, double t0);
-/* One island solve's figures into the frame's (sc_stats.lcp_*). */
+/* One island solve's figures into the frame's (sc_stats_lcp). */
 void sc_stats_add_solve(sc_stats *st, const sc_solve_info *info);
 /* The solver figures of s2 (a motion group's frame) into s. */
 void sc_stats_add_solver(sc_stats *s, const sc_stats *s2);
 /* The figures of g (a motion group's or a region's frame, its own stats
  * from zero) into s: stage times, counters, maxima. */
 void sc_stats_add_frame(sc_stats *s, const sc_stats *g);
-/* Clearing the solver figures for a new frame. */
-void sc_stats_clear_solver(sc_stats *st);
 /* Step 5 (impact.c): the earliest time of impact (fraction of the
  * substep) among the pairs whose contacts are marked 1 in fast, or, fast
  * NULL, among all contacts deeper than the tolerance; 1 when there is

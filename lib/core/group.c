@@ -460,7 +460,7 @@ static int step_groups(const sc_frame_config *cfg, sc_frame_state *st, double dt
 {
     sc_arena *a = &scr->arena;
     int ng = g->ngroups;
-    stats->groups = ng;
+    stats->frame.sched.groups = ng;
     sc_unit *units = sc_arena_calloc(a, (size_t)ng, sizeof *units);
     if (!units)
         return SC_ENOMEM;
@@ -841,7 +841,7 @@ int sc_groups_step(const sc_frame_config *cfg, sc_frame_state *st, double dt,
                 } else if (prev) {
                     for (int j = g.start[k]; j < g.start[k + 1]; j++)
                         st->bodies[g.members[j]] = start[g.members[j]];
-                    stats->group_retries++;
+                    stats->frame.sched.group_retries++;
                 }
             }
             free(size);
@@ -886,11 +886,11 @@ int sc_groups_step(const sc_frame_config *cfg, sc_frame_state *st, double dt,
         free(prev[k].contacts);
     free(prev);
     tries_free(a, &t);
-    if (a->high > stats->arena_bytes)
-        stats->arena_bytes = a->high;
+    if (a->high > stats->total.arena_bytes)
+        stats->total.arena_bytes = a->high;
     if (rc != SC_OK)
         return rc;
-    stats->contacts = st->ncontacts;
+    stats->frame.detect.contacts = st->ncontacts;
     for (int i = 0; i < n; i++) {
         v3_set(st->bodies[i].force, 0, 0, 0);
         v3_set(st->bodies[i].torque, 0, 0, 0);

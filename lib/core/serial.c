@@ -29,11 +29,11 @@ static int serial_run(sc_exec *ex, sc_job *job, int stage, sc_stats *st)
         int rc = SC_OK;
         for (int i = 0; i < job->nunits; i++) {
             sc_unit_run(s->np, job, &job->units[i]);
-            st->collider_warnings += job->units[i].messages;
+            st->frame.detect.collider_warnings += job->units[i].messages;
             if (job->units[i].rc != SC_OK && rc == SC_OK)
                 rc = job->units[i].rc;
         }
-        st->units += job->nunits;
+        st->frame.sched.units += job->nunits;
         return rc;
     }
     job->units = &one;
@@ -41,12 +41,12 @@ static int serial_run(sc_exec *ex, sc_job *job, int stage, sc_stats *st)
     sc_unit_run(s->np, job, &one);
     job->units = NULL;
     job->nunits = 0;
-    st->collider_warnings += one.messages;
-    st->units++;
+    st->frame.detect.collider_warnings += one.messages;
+    st->frame.sched.units++;
     if (job->kind == SC_UNIT_ISLAND)
         sc_stats_add_solve(st, &one.info);
-    if (one.arena_high > st->unit_arena_bytes)
-        st->unit_arena_bytes = one.arena_high;
+    if (one.arena_high > st->total.unit_arena_bytes)
+        st->total.unit_arena_bytes = one.arena_high;
     return one.rc;
 }
 

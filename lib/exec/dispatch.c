@@ -146,7 +146,7 @@ static double wait_nodes(sc_exec_nodes *x, const int *start)
     return cpu_others;
 }
 
-/* sc_stats.unit_work_by_density_s's bin of bytes_per_s: from 2^i MB/s. */
+/* sc_stats.frame.sched.unit_work_by_density_s's bin of bytes_per_s: from 2^i MB/s. */
 static int density_bin(double bytes_per_s)
 {
     int bin = 0;
@@ -169,39 +169,40 @@ static int account(sc_exec_nodes *x, sc_job *job, int stage, sc_stats *st, doubl
     /* CPU of the other nodes is CPU of this stage too (Table 1); group
      * units count their own */
     if (stage >= 0) {
-        st->stage_s[stage] += cpu_others;
-        st->stage_total_s[stage] += cpu_others;
+        st->frame.stage_s[stage] += cpu_others;
+        st->total.stage_s[stage] += cpu_others;
     }
-    st->units += job->nunits;
-    st->makespan_s += makespan_s;
-    st->makespan_bound_s += bound;
-    st->jobs++;
+    st->frame.sched.units += job->nunits;
+    st->frame.sched.makespan_s += makespan_s;
+    st->frame.sched.makespan_bound_s += bound;
+    st->frame.sched.jobs++;
     double work = 0, largest = 0;
     for (int i = 0; i < job->nunits; i++) {
         const sc_unit *u = &job->units[i];
         work += u->time_s;
         if (u->time_s > largest)
             largest = u->time_s;
-        st->unit_bytes += (double)u->bytes;
+        st->frame.sched.unit_bytes += (double)u->bytes;
         if (u->time_s > 0)
-            st->unit_work_by_density_s[density_bin((double)u->bytes / u->time_s)] += u->time_s;
-        st->collider_warnings += u->messages;
+            st->frame.sched.unit_work_by_density_s[density_bin((double)u->bytes / u->time_s)] +=
+                u->time_s;
+        st->frame.detect.collider_warnings += u->messages;
         if (job->kind == SC_UNIT_ISLAND)
             sc_stats_add_solve(st, &u->info);
-        if (u->arena_high > st->unit_arena_bytes)
-            st->unit_arena_bytes = u->arena_high;
+        if (u->arena_high > st->total.unit_arena_bytes)
+            st->total.unit_arena_bytes = u->arena_high;
         if (u->rc != SC_OK && rc == SC_OK)
             rc = u->rc;    /* the first in unit order: the same for any assignment */
     }
-    st->unit_work_s += work;
+    st->frame.sched.unit_work_s += work;
     /* the least makespan on n equal nodes with free communication (the
      * cluster model's input, bench_cluster -p model) */
     int divisible = job->kind == SC_UNIT_COLLIDE || job->kind == SC_UNIT_TOI;
     for (int k = 0; k < SC_STATS_IDEAL_NODES; k++) {
         double share = work / (k + 1);
-        st->ideal_makespan_s[k] += divisible || share > largest ? share : largest;
+        st->frame.sched.ideal_makespan_s[k] += divisible || share > largest ? share : largest;
     }
-    st->sched_s += sched_s + (sc_wall_now() - t2);
+    st->frame.sched.sched_s += sched_s + (sc_wall_now() - t2);
     return rc;
 }
 
@@ -218,7 +219,7 @@ static int nodes_run(sc_exec *ex, sc_job *job, int stage, sc_stats *st)
     rc = sc_sched_assign(s, x->nodes, job->units, job->nunits);
     if (rc != SC_OK)
         return rc;
-    st->remote_refused += s->refused;
+    st->frame.remote.refused += s->refused;
     if (x->prov.ctx && (rc = x->prov.job_begin(x->prov.ctx, job)) != SC_OK)
         return rc;
     double t1 = sc_wall_now();
@@ -292,7 +293,7 @@ static int nodes_finish(sc_exec *ex, sc_job *job, int stage, sc_stats *st)
     sc_sched *s = &x->sched;
     int n = x->nnodes;
     x->prov.job_resume(x->prov.ctx, job);
-    st->remote_refused += x->pend.refused;
+    st->frame.remote.refused += x->pend.refused;
     double t1 = sc_wall_now();
     submit_nodes(x, job, x->pend.assigned, x->pend.start, 0, x->nlocal);
     double cpu_others = wait_nodes(x, x->pend.start);
@@ -323,7 +324,7 @@ static int nodes_drain(sc_exec *ex, sc_job *job, sc_stats *st)
     sc_exec_nodes *x = (sc_exec_nodes *)ex;
     sc_local_pool_drain(x->pool);
     for (int i = 0; i < job->nunits; i++)
-        st->units_background += job->units[i].node != 0;
+        st->frame.sched.units_background += job->units[i].node != 0;
     /* the units' times are not the scheduler's to learn from: they ran
      * in gaps, not as assigned */
     return account(x, job, -1, st, 0, 0, 0, 0);

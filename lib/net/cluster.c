@@ -101,7 +101,7 @@ struct sc_cluster {
     uint8_t key[SC_KEY_BYTES];
     int64_t id, epoch, seq;     /* this master: random id, epoch of this start */
     sc_msg_guard guard;
-    long duplicates;            /* sc_stats.duplicate_nodes */
+    long duplicates;            /* sc_stats.total.duplicate_nodes */
     int64_t duplicate;
     sc_sched *sched;            /* the executor's scheduler */
     sc_stats *stats;            /* the owner's figures */
@@ -269,7 +269,7 @@ static void take_result(sc_cluster *c, sc_msg_work *r)
     const sc_job *job = cj ? cj->job : NULL;
     if (!job || r->unit >= job->nunits || cj->out[r->unit] != OUT_SENT) {
         c->late++;              /* an old job, taken already, or recomputed */
-        c->stats->late_results++;
+        c->stats->frame.remote.late_results++;
         return;
     }
     sc_unit *u = &job->units[r->unit];
@@ -287,8 +287,8 @@ static void take_result(sc_cluster *c, sc_msg_work *r)
     u->time_s = sec / (threads > 0 ? threads : 1);
     dj->done++;
     dj->compute_s += u->time_s;
-    c->stats->remote_bytes += (double)u->bytes;
-    c->stats->remote_work_s += u->time_s;
+    c->stats->frame.remote.bytes += (double)u->bytes;
+    c->stats->frame.remote.work_s += u->time_s;
     /* when it was there for the master: read now for the current job
      * (after the calling thread's own units: the round trip the scheduler
      * must weigh), at the kernel's arrival stamp for a started one (read
@@ -298,13 +298,13 @@ static void take_result(sc_cluster *c, sc_msg_work *r)
         dj->last_us = at;
     if (c->recv_us > dj->arrive_us)
         dj->arrive_us = c->recv_us;
-    c->stats->remote_units++;
+    c->stats->frame.remote.units++;
 }
 
 static void on_result(sc_cluster *c, const sc_msg *m)
 {
     size_t off = 0;
-    c->stats->result_messages++;
+    c->stats->frame.remote.result_messages++;
     c->home_bytes += (double)m->len;
     while (off < m->len) {
         sc_msg_work r;
@@ -377,7 +377,7 @@ static void on_message(void *ctx, const char *channel, const uint8_t *data, size
 static void comm_since(sc_cluster *c, double t0)
 {
     double t = sc_wall_now() - t0;
-    c->stats->comm_s += t;
+    c->stats->frame.remote.comm_s += t;
     c->home_s += t;
 }
 
@@ -447,7 +447,7 @@ static int flush(sc_cluster *c, daemon_slot *d)
     rc = sc_bus_publish(c->bus, d->channel, env, elen);
     free(env);
     if (rc == SC_OK)
-        c->stats->unit_messages++;
+        c->stats->frame.remote.unit_messages++;
     return rc;
 }
 
@@ -530,7 +530,7 @@ static void recompute(sc_cluster *c, daemon_slot *d, int k)
         u->time_s = sc_wall_now() - t0;
         u->node = 0;            /* it taught us about this thread, not the daemon */
         cj->out[i] = OUT_LOCAL;
-        c->stats->recomputed_units++;
+        c->stats->frame.remote.recomputed_units++;
         missed++;
     }
     if (missed)
@@ -611,7 +611,7 @@ static int remote_wait(sc_node *n, double *cpu_s)
         /* the round trip itself, for the cluster model (bench_cluster -p
          * model): to the kernel's arrival, not to when this thread read it */
         double wire = 1e-6 * (double)(dj->arrive_us - dj->submit_us) - dj->compute_s;
-        c->stats->remote_overhead_s += wire > 0 ? wire : 0;
+        c->stats->frame.remote.overhead_s += wire > 0 ? wire : 0;
         sc_link_fit(&d->link, dj->bytes, wire > 0 ? wire : 0);
         if (wire > 0) {
             /* (not at or below 0: the clocks' noise on a reply faster than
@@ -620,9 +620,9 @@ static int remote_wait(sc_node *n, double *cpu_s)
             d->rt_next = (d->rt_next + 1) % RT_WINDOW;
             d->nrt += d->nrt < RT_WINDOW;
         }
-        c->stats->remote_jobs++;
+        c->stats->frame.remote.jobs++;
     }
-    c->stats->remote_wait_s += sc_wall_now() - t_wait;
+    c->stats->frame.remote.wait_s += sc_wall_now() - t_wait;
     *cpu_s = dj->compute_s;
     return SC_OK;
 }
@@ -764,7 +764,7 @@ void sc_cluster_frame(sc_cluster *c)
 {
     pump(c, 0, 0);
     double now = sc_wall_now();
-    c->stats->daemons = c->stats->daemons_busy = c->stats->daemons_unverified = 0;
+    c->stats->now.daemons = c->stats->now.daemons_busy = c->stats->now.daemons_unverified = 0;
     for (int k = 0; k < SC_MAX_DAEMONS; k++) {
         daemon_slot *d = &c->d[k];
         if (d->used && now - d->heard > FORGET_S) {
@@ -776,27 +776,27 @@ void sc_cluster_frame(sc_cluster *c)
         if (!d->used || now - d->heard > SILENT_S)
             continue;
         if (!d->verified)
-            c->stats->daemons_unverified++;
+            c->stats->now.daemons_unverified++;
         else if (d->a.owner_busy)
-            c->stats->daemons_busy++;
+            c->stats->now.daemons_busy++;
         else
-            c->stats->daemons++;
+            c->stats->now.daemons++;
     }
-    c->stats->nodes = c->first_node + c->stats->daemons;
-    c->available = c->stats->daemons;
+    c->stats->now.nodes = c->first_node + c->stats->now.daemons;
+    c->available = c->stats->now.daemons;
     /* what the bus dropped (datagrams, fragments, the kernel's overflows)
      * and the envelopes that did not open */
     sc_bus_counters bc;
     sc_bus_counters_get(c->bus, &bc);
     const sc_msg_guard *g = &c->guard;
-    c->stats->dropped_messages = g->dropped_format + g->dropped_auth + g->dropped_replay +
+    c->stats->total.dropped_messages = g->dropped_format + g->dropped_auth + g->dropped_replay +
                                  g->dropped_stale + g->dropped_misaddressed +
                                  (long)sc_bus_dropped(&bc);
-    c->stats->dropped_auth = g->dropped_auth;
-    c->stats->dropped_stale = g->dropped_stale;
-    c->stats->dropped_misaddressed = g->dropped_misaddressed;
-    c->stats->duplicate_nodes = c->duplicates;
-    c->stats->duplicate_node = c->duplicate;
+    c->stats->total.dropped_auth = g->dropped_auth;
+    c->stats->total.dropped_stale = g->dropped_stale;
+    c->stats->total.dropped_misaddressed = g->dropped_misaddressed;
+    c->stats->total.duplicate_nodes = c->duplicates;
+    c->stats->now.duplicate_node = c->duplicate;
 }
 
 static int prov_available(void *ctx)
@@ -856,7 +856,7 @@ static void prov_resume(void *ctx, const sc_job *job)
     /* what came back while other jobs ran (nobody may have read the bus) */
     pump(c, 0, 0);
     for (int i = 0; i < job->nunits; i++)
-        c->stats->pipelined_units += c->cur->out[i] == OUT_DONE;
+        c->stats->frame.remote.pipelined_units += c->cur->out[i] == OUT_DONE;
 }
 
 void sc_cluster_force(sc_cluster *c)
@@ -929,7 +929,7 @@ static void on_heartbeat(void *ctx, const char *channel, const uint8_t *data, si
 }
 
 /* Daemons heard within SILENT_S that answered and are not owner-busy
- * (sc_stats.daemons). */
+ * (sc_stats.now.daemons). */
 static int available(const listener *l)
 {
     double now = sc_wall_now();

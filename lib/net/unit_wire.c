@@ -1274,21 +1274,38 @@ typedef struct stat_ptrs {
 static void stat_fields(sc_stats *s, stat_ptrs *p)
 {
     for (int k = 0; k < SC_STAGE_COUNT; k++)
-        p->d[k] = &s->stage_s[k];
-    double *d[] = { &s->lcp_residual, &s->lcp_outer_residual, &s->max_penetration,
-                    &s->sched_s, &s->makespan_s, &s->makespan_bound_s };
-    long *l[STAT_LONGS] = { &s->lcp_pivots, &s->lcp_blocks, &s->lcp_block_fallbacks,
-                            &s->collider_warnings, &s->units, &s->initial_overlaps,
-                            &s->np_pairs,  &s->np_reused };
-    size_t *z[STAT_SIZES] = { &s->arena_bytes, &s->unit_arena_bytes };
-    int *i[STAT_INTS] = { &s->pairs,          &s->islands,          &s->lcp_solves,
-                          &s->lcp_fallbacks,  &s->lcp_split,        &s->lcp_sweeps_max,
-                          &s->lcp_unconverged, &s->lcp_diverged,    &s->lcp_cold_starts,
-                          &s->lcp_regularised, &s->lcp_split_fallbacks, &s->lcp_nan_islands,
-                          &s->substeps,       &s->backups,          &s->backup_regions,
-                          &s->backup_bodies,  &s->spec_contacts,    &s->spec_rounds,
-                          &s->lcp_inelastic,  &s->lcp_energy_refused,
-                          &s->lcp_restitution_scaled, &s->lcp_kept, &s->lcp_guessed };
+        p->d[k] = &s->frame.stage_s[k];
+    double *d[] = {&s->frame.lcp.residual,           &s->frame.lcp.outer_residual,
+                   &s->frame.detect.max_penetration, &s->frame.sched.sched_s,
+                   &s->frame.sched.makespan_s,       &s->frame.sched.makespan_bound_s};
+    long *l[STAT_LONGS] = {&s->frame.lcp.pivots,          &s->frame.lcp.blocks,
+                           &s->frame.lcp.block_fallbacks, &s->frame.detect.collider_warnings,
+                           &s->frame.sched.units,         &s->total.initial_overlaps,
+                           &s->frame.detect.np_pairs,     &s->frame.detect.np_reused};
+    size_t *z[STAT_SIZES] = { &s->total.arena_bytes, &s->total.unit_arena_bytes };
+    int *i[STAT_INTS] = {&s->frame.detect.pairs,
+                         &s->frame.detect.islands,
+                         &s->frame.lcp.solves,
+                         &s->frame.lcp.fallbacks,
+                         &s->frame.lcp.split,
+                         &s->frame.lcp.sweeps_max,
+                         &s->frame.lcp.unconverged,
+                         &s->frame.lcp.diverged,
+                         &s->frame.lcp.cold_starts,
+                         &s->frame.lcp.regularised,
+                         &s->frame.lcp.split_fallbacks,
+                         &s->frame.lcp.nan_islands,
+                         &s->frame.toi.substeps,
+                         &s->frame.toi.backups,
+                         &s->frame.toi.backup_regions,
+                         &s->frame.toi.backup_bodies,
+                         &s->frame.toi.spec_contacts,
+                         &s->frame.toi.spec_rounds,
+                         &s->frame.lcp.inelastic,
+                         &s->frame.lcp.energy_refused,
+                         &s->frame.lcp.restitution_scaled,
+                         &s->frame.lcp.kept,
+                         &s->frame.lcp.guessed};
     _Static_assert(sizeof d / sizeof d[0] == STAT_F64 - SC_STAGE_COUNT, "stat doubles");
     memcpy(&p->d[SC_STAGE_COUNT], d, sizeof d);
     memcpy(p->l, l, sizeof l);
