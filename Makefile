@@ -137,6 +137,12 @@ DAEMON_LIB := $(BUILD)/daemon/libscd.a
 DAEMON_HDR := $(wildcard daemon/*.h)
 BENCH_SRC := $(sort $(wildcard bench/*.c))
 BENCH_BIN := $(BENCH_SRC:%.c=$(BUILD)/%)
+# Conservative advancement (extra/ca/, docs/DESIGN.md 3.4): not in the
+# library; linked into the test and the benchmark that compare it with the
+# library's sampling search.
+CA_SRC    := $(sort $(wildcard extra/ca/*.c))
+CA_OBJ    := $(CA_SRC:%.c=$(BUILD)/%.o)
+CA_USERS  := $(BUILD)/tests/test_ccd $(BUILD)/bench/bench_toi
 FUZZ_SRC  := $(sort $(wildcard tests/fuzz/fuzz_*.c))
 FUZZ_REPLAY := $(FUZZ_SRC:tests/fuzz/%.c=$(BUILD)/tests/fuzz/%_replay)
 # Programs tests/cluster.sh drives (not test_*: run.sh does not run them itself).
@@ -155,6 +161,11 @@ deps:
 	$(Q)sh scripts/deps.sh
 
 $(foreach l,$(LAYERS),$(eval $(BUILD)/lib/$(l)/%.o: LAYER_INC := $(INC_$(l))))
+$(BUILD)/extra/ca/%.o: LAYER_INC := $(INC_core)
+$(CA_OBJ): extra/ca/ca.h
+$(CA_USERS): $(CA_OBJ) extra/ca/ca.h
+$(CA_USERS): private EXTRA_CPPFLAGS := -Iextra/ca
+$(CA_USERS): private EXTRA_OBJ := $(CA_OBJ)
 $(BUILD)/%.o: %.c $(LIB_HDR) Makefile $(WDEP)
 	@mkdir -p $(dir $@)
 	@$(if $(Q),echo "  CC      $<")
@@ -199,7 +210,8 @@ $(BUILD)/tests/%: tests/%.c $(wildcard tests/*.h) $(DAEMON_LIB) $(STATIC) $(WDEP
 	@mkdir -p $(dir $@)
 	@$(if $(Q),echo "  TEST    $@")
 	$(Q)$(WFORGET)
-	$(Q)$(CC) $(CPPFLAGS) $(INC_$(LAYER_$(notdir $*))) -Idaemon $(CFLAGS) $< -o $@ $(LDFLAGS) $(DAEMON_LIB) $(STATIC) $(TESTLIBS)
+	$(Q)$(CC) $(CPPFLAGS) $(INC_$(LAYER_$(notdir $*))) $(EXTRA_CPPFLAGS) -Idaemon $(CFLAGS) $< -o $@ \
+	    $(LDFLAGS) $(EXTRA_OBJ) $(DAEMON_LIB) $(STATIC) $(TESTLIBS)
 
 $(BUILD)/examples/%: examples/%.c include/simcluster.h $(STATIC) $(WDEP)
 	@mkdir -p $(dir $@)
@@ -239,7 +251,8 @@ $(BUILD)/bench/%: bench/%.c $(wildcard bench/*.h tests/canon.h) $(DAEMON_LIB) $(
 	@mkdir -p $(dir $@)
 	@$(if $(Q),echo "  BENCH   $@")
 	$(Q)$(WFORGET)
-	$(Q)$(CC) $(CPPFLAGS) $(INC_$(LAYER_$*)) -Idaemon $(CFLAGS) $< -o $@ $(LDFLAGS) $(DAEMON_LIB) $(STATIC) $(LIBS) -ldl
+	$(Q)$(CC) $(CPPFLAGS) $(INC_$(LAYER_$*)) $(EXTRA_CPPFLAGS) -Idaemon $(CFLAGS) $< -o $@ \
+	    $(LDFLAGS) $(EXTRA_OBJ) $(DAEMON_LIB) $(STATIC) $(LIBS) -ldl
 
 # Fuzz targets: a replay driver (every file of the corpus, run by make check)
 # and, with clang, a libFuzzer binary (make fuzz).

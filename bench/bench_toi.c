@@ -1,6 +1,6 @@
 /* bench_toi.c - time per query of the time-of-impact searches for convex
- * pairs (lib/core/toi.c): today's sampling and bisection on ODE's narrow
- * phase against conservative advancement on ccd.c's distances; what one
+ * pairs: the library's sampling and bisection (lib/core/toi.c) on ODE's narrow
+ * phase against conservative advancement (extra/ca/) on its distances; what one
  * narrow-phase call costs (ODE's dCollide alone, and sc_np_collide with its
  * face clipping and reduction: a sample pays the second); and the distance
  * queries: ccd.c's GJK distance, libccd's MPR and GJK intersection tests
@@ -32,6 +32,7 @@
 #include <string.h>
 
 #include "core.h"
+#include "ca.h"
 #include "ode_table.h"
 #include "vecmath.h"
 

@@ -10,6 +10,7 @@
 #include <cmocka.h>
 
 #include "core.h"
+#include "ca.h"
 #include "vecmath.h"
 
 #define TOL 0.9e-3    /* the frame's aim at the default 1 mm contact tolerance */

@@ -1,13 +1,13 @@
-/* ccd.c - distances between convex shapes (docs/DESIGN.md 3.4), for the
- * time-of-impact search's conservative advancement (toi.c). Shapes go to
- * libccd 2.1 as support functions inflated by a margin (FCL's trick); as
- * libccd has no distance query, a GJK distance of our own runs on the
- * shapes' cores. libccd's known defects (danfis/libccd #7, #25, #44, #71)
- * are worked around where its calls are set up. Every function here is
- * pure, so a query gives the same bits on any thread. */
+/* ccd.c - distances between convex shapes (docs/DESIGN.md 3.4), for
+ * conservative advancement (toi_ca.c). Shapes go to libccd 2.1 as support
+ * functions inflated by a margin (FCL's trick); as libccd has no distance
+ * query, a GJK distance of our own runs on the shapes' cores. libccd's
+ * known defects (danfis/libccd #7, #25, #44, #71) are worked around where
+ * its calls are set up. Every function here is pure, so a query gives the
+ * same bits on any thread. */
 #include <ccd/ccd.h>
 
-#include "core.h"
+#include "ca.h"
 #include "vecmath.h"
 
 #define CCD_MAX_ITER 128     /* libccd GJK and MPR iterations */
