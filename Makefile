@@ -43,12 +43,16 @@ XFLAGS  :=
 OPT     ?= -O3
 endif
 
+# CHOLMOD (SuiteSparse) factors big islands (island_sparse.c); Debian ships
+# no pkg-config file for it.
+SUITESPARSE_INC := -I/usr/include/suitesparse
+SUITESPARSE_LIBS := -lcholmod
 DEP_PKGS := ode ccd gsl lcm libsodium
 GEN     := $(BUILD)/gen
 # The library's layers, each seeing only its own and lower layers' headers
 # (docs/DESIGN.md section 2): core <- exec <- net <- api.
 LAYERS  := core exec net api
-INC_core := -Ilib/core
+INC_core := -Ilib/core $(SUITESPARSE_INC)
 INC_exec := $(INC_core) -Ilib/exec
 INC_net  := $(INC_exec) -Ilib/net -I$(GEN)
 INC_api  := $(INC_net) -Ilib/api
@@ -90,7 +94,7 @@ CFLAGS  += -std=c11 $(OPT) -g -Wall -Wextra $(WERROR) -fPIC -fvisibility=hidden 
            -pthread $(XFLAGS)
 LDFLAGS += -pthread $(XFLAGS)
 LIBS    := $(shell pkg-config --libs $(DEP_PKGS) 2>/dev/null || \
-             echo -lode -lccd -lgsl -lgslcblas -llcm -lsodium) -lm -ldl
+             echo -lode -lccd -lgsl -lgslcblas -llcm -lsodium) $(SUITESPARSE_LIBS) -lm -ldl
 TESTLIBS := $(LIBS) -lcmocka
 # simcluster-view(1) renders with OSMesa and writes PNG; tests/png_check reads PNG.
 PNG_LIBS := $(shell pkg-config --cflags --libs libpng 2>/dev/null || echo -lpng)

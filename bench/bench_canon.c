@@ -7,7 +7,13 @@
  * dContactBounce | dContactApprox1, mu the geometric mean of the bodies',
  * bounce the larger restitution, bounce_vel 0.1 m/s (simcluster's bounce
  * speed), default ERP and CFM.
- * Usage: bench_canon [-w workers] [-m] (-m: a markdown table) */
+ * With -s, the structures (stacks, pyramid, wall: big islands) standing for
+ * T s instead, and each engine's wall time per scene.
+ * Usage: bench_canon [-w workers] [-m] [-s] [-T seconds]
+ *   -m a markdown table; -s the structures; -T their time (default 10);
+ *   -B the wall seconds an ODE run may take (default 120): dWorldStep's
+ *   dense LCP on a pyramid of 15 rows takes far longer, and its figures
+ *   then cover the simulated time it reached (printed) */
 #include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -47,9 +53,12 @@ static void near_cb(void *ctx, dGeomID o1, dGeomID o2)
     }
 }
 
-/* The scene in ODE, stepped by dWorldQuickStep (quick) or dWorldStep. */
-static int run_ode(const canon_scene *sc, int quick, canon_traj *t)
+/* The scene in ODE, stepped by dWorldQuickStep (quick) or dWorldStep,
+ * for at most budget_s of wall time: past it the record ends at the frame
+ * reached (t->frames), judged as far as it goes. */
+static int run_ode(const canon_scene *sc, int quick, double budget_s, canon_traj *t)
 {
+    double t0 = now_s();
     ode_run r;
     r.world = dWorldCreate();
     r.space = dSimpleSpaceCreate(0);
@@ -106,6 +115,10 @@ static int run_ode(const canon_scene *sc, int quick, canon_traj *t)
             for (int j = 0; j < 4; j++)
                 s[3 + j] = q[j];
         }
+        if (f > 0 && f < t->frames && now_s() - t0 > budget_s) {
+            t->frames = f;
+            break;
+        }
     }
     dJointGroupDestroy(r.group);
     dSpaceDestroy(r.space);
@@ -118,14 +131,21 @@ static const char *engine_name[E_COUNT] = { "local", "world", "ODE step", "ODE q
 
 int main(int argc, char **argv)
 {
-    int workers = 1, md = 0, opt;
-    while ((opt = getopt(argc, argv, "w:m")) != -1) {
+    int workers = 1, md = 0, structures = 0, opt;
+    double T = 10, budget = 120;
+    while ((opt = getopt(argc, argv, "w:msT:B:")) != -1) {
         if (opt == 'w')
             workers = atoi(optarg);
         else if (opt == 'm')
             md = 1;
+        else if (opt == 's')
+            structures = 1;
+        else if (opt == 'T' && atof(optarg) > 0)
+            T = atof(optarg);
+        else if (opt == 'B' && atof(optarg) > 0)
+            budget = atof(optarg);
         else {
-            fprintf(stderr, "usage: bench_canon [-w workers] [-m]\n");
+            fprintf(stderr, "usage: bench_canon [-w workers] [-m] [-s] [-T seconds] [-B seconds]\n");
             return 2;
         }
     }
@@ -133,18 +153,20 @@ int main(int argc, char **argv)
     canon_scene *scenes = malloc(64 * sizeof *scenes);
     if (!scenes)
         return 1;
-    int ns = canon_suite(scenes, 64), missed[E_COUNT] = { 0 }, figs = 0;
-    printf("canonical scenes (tests/canon.h): simcluster local and world time of impact "
+    int ns = structures ? canon_structures(scenes, 64, T) : canon_suite(scenes, 64);
+    int missed[E_COUNT] = { 0 }, figs = 0;
+    printf("%s (tests/canon.h): simcluster local and world time of impact "
            "(workers = %d), ODE %s dWorldStep and dWorldQuickStep (%d iterations); "
            "* = outside the tolerance\n",
-           workers, dGetConfiguration(), QUICK_ITERS);
+           structures ? "structures standing" : "canonical scenes", workers, dGetConfiguration(),
+           QUICK_ITERS);
     if (md)
         printf("\n| scene | figure | analytic | tolerance | local | world | ODE step | "
                "ODE quick |\n|---|---|---|---|---|---|---|---|\n");
     else
         printf("%-28s %-28s %10s %8s %11s %11s %11s %11s\n", "scene", "figure", "analytic",
                "tol", "local", "world", "ODE step", "ODE quick");
-    double wall[E_COUNT] = { 0 };
+    double wall[E_COUNT] = { 0 }, swall[64][E_COUNT], reached[64][E_COUNT];
     for (int i = 0; i < ns; i++) {
         const canon_scene *sc = &scenes[i];
         canon_fig f[E_COUNT][CANON_MAX_FIGS];
@@ -156,8 +178,10 @@ int main(int argc, char **argv)
             double t0 = now_s();
             err[e] = e == E_LOCAL   ? canon_run_sc(sc, SC_TOI_LOCAL, workers, &t)
                    : e == E_WORLD   ? canon_run_sc(sc, SC_TOI_WORLD, workers, &t)
-                                    : run_ode(sc, e == E_QUICK, &t);
-            wall[e] += now_s() - t0;
+                                    : run_ode(sc, e == E_QUICK, budget, &t);
+            reached[i][e] = t.frames * sc->dt;
+            swall[i][e] = now_s() - t0;
+            wall[e] += swall[i][e];
             nf = canon_judge(sc, &t, f[e]);
             canon_traj_free(&t);
         }
@@ -188,6 +212,18 @@ int main(int argc, char **argv)
     printf("%s%d figures; missed:", md ? "\n" : "", figs);
     for (int e = 0; e < E_COUNT; e++)
         printf(" %s %d%s", engine_name[e], missed[e], e + 1 < E_COUNT ? "," : "\n");
+    if (structures) {
+        printf("%swall s per scene (%.0f s simulated):\n", md ? "\n" : "", T);
+        for (int i = 0; i < ns; i++) {
+            printf("%s%-28s", md ? "    " : "  ", scenes[i].name);
+            for (int e = 0; e < E_COUNT; e++) {
+                printf(" %s %.3f", engine_name[e], swall[i][e]);
+                if (reached[i][e] < T - 1e-9)
+                    printf(" (stopped at %.2f s)", reached[i][e]);
+            }
+            printf("\n");
+        }
+    }
     printf("wall s for the suite:");
     for (int e = 0; e < E_COUNT; e++)
         printf(" %s %.3f%s", engine_name[e], wall[e], e + 1 < E_COUNT ? "," : "\n");

@@ -207,6 +207,15 @@ enum {
                                  backs the whole world up (Table 1) */
 };
 
+/* How an island split into blocks is solved (sc_world_config.island_method). */
+enum {
+    SC_ISLAND_ACTIVE_SET,     /* the whole island's LCP exactly: an active set on a
+                                 sparse Cholesky factor, iterations nearly independent
+                                 of the island's size (the default) */
+    SC_ISLAND_BLOCK_GS        /* block Gauss-Seidel over exact blocks, to
+                                 SC_SPLIT_TOL or SC_SPLIT_MAX_SWEEPS sweeps */
+};
+
 /* Local threads a world uses at most (sc_world_config.workers). */
 #define SC_MAX_WORKERS 64
 /* Daemons a world uses at most, and the default cluster URL: LCM UDP
@@ -244,6 +253,8 @@ typedef struct sc_world_config {
                                  SC_ISLAND_SPLIT_DEFAULT */
     int toi_mode;             /* SC_TOI_*, how a frame handles a pair that got too deep
                                  (simcluster(3)); default SC_TOI_LOCAL */
+    int island_method;        /* SC_ISLAND_*, how a split island is solved; default
+                                 SC_ISLAND_ACTIVE_SET */
     int internal_cookie;      /* set by sc_world_config_default(); do not touch */
 } sc_world_config;
 /* The default world configuration. */
@@ -344,6 +355,14 @@ typedef struct sc_stats_lcp {
     int guessed;              /* LCPs whose friction neither the fixed point nor Lemke's
                                  method settled, solved exactly from a projected
                                  Gauss-Seidel guess */
+    int as_solves;            /* split solves made whole by the active set
+                                 (SC_ISLAND_ACTIVE_SET) */
+    int as_fallbacks;         /* of them, those whose guesses did not settle, solved by
+                                 block Gauss-Seidel instead */
+    long as_iterations;       /* guesses factored by those solves, summed (the mean is
+                                 as_iterations / as_solves) */
+    int as_iterations_max;    /* most guesses of one solve */
+    long factor_nnz_max;      /* entries of the largest sparse factor */
     double residual;          /* largest complementarity error of an exact solve, m/s */
     double outer_residual;    /* largest outer residual of a split solve, m/s */
 } sc_stats_lcp;
@@ -529,6 +548,22 @@ SC_API int sc_scene_bolts_nuts(sc_world *w, int n, uint64_t seed);
  * length apart, four layers deep, turned at random from seed, inside four
  * walls on a floor, to w; SC_OK or a code. */
 SC_API int sc_scene_bin(sc_world *w, int n, uint64_t seed);
+
+/* ---- structures: stacks, pyramids and walls of boxes (big islands) ---- */
+/* The structures' boxes: wooden cubes of 0.2 m (600 kg/m^3, restitution
+ * 0.2, friction 0.6) on a floor, each layer resting 0.2 mm into the one
+ * below (faces touching at exactly 0 give no contact). Most boxes of one. */
+#define SC_STRUCTURE_MAX 10000
+/* Add a floor and a stack of n boxes to w, every other one offset sideways
+ * by offset m (0: aligned; at most 0.05); SC_OK or a code. */
+SC_API int sc_scene_stack(sc_world *w, int n, double offset);
+/* Add a floor and a pyramid of rows rows to w: rows boxes at the bottom,
+ * one fewer each row up, each box on two below; SC_OK or a code. */
+SC_API int sc_scene_pyramid(sc_world *w, int rows);
+/* Add a floor and a wall of rows rows to w: cols boxes a row 1 mm apart,
+ * every other row shifted by a quarter of a box, each box on two below;
+ * SC_OK or a code. */
+SC_API int sc_scene_wall(sc_world *w, int cols, int rows);
 
 /* ---- scene files (format: simcluster.conf(5), SCENE FILES) ---- */
 typedef struct sc_scene sc_scene;

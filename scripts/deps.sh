@@ -7,7 +7,7 @@
 #                           (bench/figs34.sh: gnuplot, ip and tc)
 #   scripts/deps.sh video   what simcluster-view --mp4 needs besides (ffmpeg)
 PKGS="build-essential pkg-config libode-dev libccd-dev liblcm-dev liblcm-bin libglib2.0-dev \
-libgsl-dev libsodium-dev libcmocka-dev libosmesa6-dev libpng-dev mandoc cppcheck"
+libgsl-dev libsodium-dev libsuitesparse-dev libcmocka-dev libosmesa6-dev libpng-dev mandoc cppcheck"
 BENCH_PKGS="gnuplot-nox iproute2"
 VIDEO_PKGS="ffmpeg"
 case ${1:-} in

@@ -18,7 +18,7 @@
 #include <simcluster.h>
 
 #define CANON_G 9.81
-#define CANON_MAX_BODIES 64
+#define CANON_MAX_BODIES 256
 #define CANON_MAX_FIGS 5
 
 enum { CANON_PLANE, CANON_BOX, CANON_SPHERE };
@@ -296,6 +296,37 @@ static inline canon_scene canon_stack(int n)
     return sc;
 }
 
+/* A stack of n cubes of 0.2 m whose every other cube is offset by dx (m)
+ * sideways, well inside static balance: nothing moves. */
+static inline canon_scene canon_stack_offset(const char *name, int n, double dx, double T)
+{
+    canon_scene sc = canon_stack(n);
+    sc.name = name;
+    sc.T = T;
+    for (int i = 0; i < n; i++)
+        sc.b[i + 1].pos[0] = i % 2 ? dx : 0;
+    return sc;
+}
+
+/* A wall of cubes of 0.2 m: rows of cols cubes 1 mm apart (faces that
+ * touch at exactly 0 make contacts come and go), every other row shifted
+ * by a quarter of a cube, so that each cube rests on two below (the end
+ * cubes on three quarters of one): nothing moves. */
+static inline canon_scene canon_wall(const char *name, int cols, int rows, double T)
+{
+    canon_scene sc = { .name = name, .dt = 0.01, .T = T, .gravity = CANON_G, .nb = 1,
+                       .family = CANON_F_STAND, .what = "wall stands: no drift, at rest" };
+    sc.b[0] = canon_floor(0, 0.5);
+    for (int r = 0; r < rows; r++)
+        for (int i = 0; i < cols && sc.nb < CANON_MAX_BODIES; i++) {
+            canon_body *b = &sc.b[sc.nb++];
+            *b = canon_box(0.1, 1.0, 0, 0.5);
+            b->pos[0] = 0.201 * i + 0.05 * (r % 2) - 0.1005 * (cols - 1);
+            b->pos[2] = CANON_REST_Z(r);
+        }
+    return sc;
+}
+
 /* A pyramid of cubes of 0.2 m: rows of rows, rows - 1, ... 1, each cube on
  * two of the row below (half a cube apart): nothing moves. */
 static inline canon_scene canon_pyramid(int rows)
@@ -312,6 +343,33 @@ static inline canon_scene canon_pyramid(int rows)
             b->pos[2] = CANON_REST_Z(r);
         }
     return sc;
+}
+
+/* The structures suite (big islands: docs/DESIGN.md 11): stacks of 10, 20
+ * and 40 cubes, two of them offset, a pyramid of 15 rows and a wall, each
+ * standing for T s; *n its size. */
+static inline canon_scene canon_named(canon_scene sc, const char *name, double T)
+{
+    sc.name = name;
+    sc.T = T;
+    return sc;
+}
+
+static inline int canon_structures(canon_scene *out, int max, double T)
+{
+    canon_scene all[] = {
+        canon_named(canon_stack(10), "stack of 10", T),
+        canon_named(canon_stack(20), "stack of 20", T),
+        canon_named(canon_stack(40), "stack of 40", T),
+        canon_stack_offset("stack of 20, offset 1 cm", 20, 0.01, T),
+        canon_stack_offset("stack of 40, offset 1 cm", 40, 0.01, T),
+        canon_named(canon_pyramid(15), "pyramid of 15 rows", T),
+        canon_wall("wall of 10 x 12", 10, 12, T),
+    };
+    int n = (int)(sizeof all / sizeof all[0]);
+    for (int i = 0; i < n && i < max; i++)
+        out[i] = all[i];
+    return n < max ? n : max;
 }
 
 /* A ball resting on the floor stepped at a large frame dt: it stays on it. */

@@ -1,4 +1,6 @@
-/* test_canon.c - the canonical scenes with known answers (tests/canon.h):
+/* test_canon.c - the canonical scenes with known answers (tests/canon.h)
+ * and the structures (stacks of 10 to 40 boxes, two of them offset, a
+ * pyramid of 15 rows and a wall: big islands, standing for STRUCT_T s):
  * every scene in both time-of-impact modes, on 1 and 2 workers, each
  * figure within its tolerance, and the same bits for either worker count.
  * bench/bench_canon prints the same figures beside ODE's. */
@@ -11,6 +13,7 @@
 #include "canon.h"
 
 #define MAX_SCENES 64
+#define STRUCT_T 3.0
 
 static canon_scene scenes[MAX_SCENES];
 
@@ -48,6 +51,7 @@ static void scene_meets_its_known_answer(void **state)
 int main(void)
 {
     int n = canon_suite(scenes, MAX_SCENES);
+    n += canon_structures(scenes + n, MAX_SCENES - n, STRUCT_T);
     struct CMUnitTest tests[MAX_SCENES];
     for (int i = 0; i < n; i++)
         tests[i] = (struct CMUnitTest){ scenes[i].name, scene_meets_its_known_answer, NULL, NULL,

@@ -1160,7 +1160,7 @@ static void test_bad_fields_are_format_errors(void **state)
      * islands 16; h, bounce_speed, slop, baumgarte, tol 40; gravity 24;
      * split_contacts, block_contacts, max_sweeps, cold, impact_first 20;
      * per island 8 */
-    const size_t tol = 8 + 16 + 32, grav = tol + 8, ints = grav + 24, isl0 = ints + 20;
+    const size_t tol = 8 + 16 + 32, grav = tol + 8, ints = grav + 24, isl0 = ints + 24;
     size_t ilen = sm.len[SC_UNIT_ISLAND];
     print_message("island sample: %d islands, %d members, %d bodies\n", nisl, nm, m);
     /* the offsets are right: other valid values there decode as such */
@@ -1205,6 +1205,8 @@ static void test_bad_fields_are_format_errors(void **state)
     bad_at(ib, ilen, ints + 12, (uint32_t)-1, 4);
     bad_at(ib, ilen, ints + 16, 2, 4);                       /* impact_first */
     bad_at(ib, ilen, ints + 16, (uint32_t)-1, 4);
+    bad_at(ib, ilen, ints + 20, 2, 4);                       /* island_method */
+    bad_at(ib, ilen, ints + 20, (uint32_t)-1, 4);
     /* a NaN or infinite warm-start impulse (contact 0's, after its ids,
      * pos, normal and depth) */
     size_t imp0 = isl0 + 8 * (size_t)nisl + (size_t)m * (31 * 8 + 8) + 8 + 7 * 8;
@@ -1390,8 +1392,9 @@ static void test_result_for_another_unit_is_a_format_error(void **state)
         assert_int_equal(sc_wire_result_apply(&ij.jr, &ua, res, rlen), SC_OK);
     }
     /* an island result whose contact count or counters are wrong changes
-     * nothing (layout: header 8, members 4, rc 4, messages 8, pivots 8,
-     * failures ... guessed 18 x 4, residuals 16, contacts 4) */
+     * nothing (layout: header 8, members 4, rc 4, messages 8, pivots,
+     * as_iterations, factor_nnz_max 3 x 8, failures ... as_iterations_max
+     * 21 x 4, residuals 16, contacts 4) */
     int big = 0;
     for (int i = 1; i < ij.is.count; i++)
         if (island_unit(&ij.is, i, 1).count > island_unit(&ij.is, big, 1).count)
@@ -1402,7 +1405,7 @@ static void test_result_for_another_unit_is_a_format_error(void **state)
     free(res);
     buf = pack_unit(&ij.jr, &ui, &len);
     res = remote_run(np, buf, len, &cc, &rlen);
-    const size_t pivots = 24, counters = pivots + 8, ncont = counters + 72 + 16;
+    const size_t pivots = 24, counters = pivots + 24, ncont = counters + 84 + 16;
     assert_int_equal(rlen, ncont + 4 +
                                (size_t)(ij.is.body_start[big + 1] - ij.is.body_start[big]) *
                                    (19 * 8 + 4) +
@@ -1415,12 +1418,13 @@ static void test_result_for_another_unit_is_a_format_error(void **state)
     memcpy(contacts_before, ij.cr, ncb);
     struct { size_t at; int n; uint64_t v; } wrong[] = {
         { ncont, 4, (uint64_t)ui.count + 1 }, { ncont, 4, (uint64_t)ui.count - 1 },
-        { pivots, 8, (uint64_t)-1 },
+        { pivots, 8, (uint64_t)-1 }, { pivots + 8, 8, (uint64_t)-1 },
+        { pivots + 16, 8, (uint64_t)-1 },
     };
-    for (int k = 0; k < 3 + 18; k++) {
-        size_t at = k < 3 ? wrong[k].at : counters + 4 * (size_t)(k - 3);
-        int nbytes = k < 3 ? wrong[k].n : 4;
-        uint64_t v = k < 3 ? wrong[k].v : (uint32_t)-1;   /* a negative counter */
+    for (int k = 0; k < 5 + 21; k++) {
+        size_t at = k < 5 ? wrong[k].at : counters + 4 * (size_t)(k - 5);
+        int nbytes = k < 5 ? wrong[k].n : 4;
+        uint64_t v = k < 5 ? wrong[k].v : (uint32_t)-1;   /* a negative counter */
         unsigned char keep[8];
         memcpy(keep, res + at, (size_t)nbytes);
         for (int i = 0; i < nbytes; i++)
@@ -1434,7 +1438,7 @@ static void test_result_for_another_unit_is_a_format_error(void **state)
     assert_memory_equal(contacts_before, ij.cr, ncb);
     /* the residuals are carried as they are */
     double odd = NAN;
-    memcpy(res + counters + 72, &odd, sizeof odd);
+    memcpy(res + counters + 84, &odd, sizeof odd);
     ui.info.residual_exact = 0;
     assert_int_equal(sc_wire_result_apply(&ij.jr, &ui, res, rlen), SC_OK);
     assert_true(isnan(ui.info.residual_exact));
@@ -1450,8 +1454,8 @@ static void test_result_for_another_unit_is_a_format_error(void **state)
 
 /* A GROUP unit's layout (see unit_wire.c's header): the header; groups,
  * statics, profiles, members, contacts, contacts_valid at 8; dt, gravity,
- * tol at 32; broadphase, island_split, toi_mode at 72; the static bodies
- * from 84, 500 bytes each (world id, hash, 60 doubles, state, collided);
+ * tol at 32; broadphase, island_split, toi_mode, island_method at 72; the
+ * static bodies from 88, 500 bytes each (world id, hash, 60 doubles, state, collided);
  * the profiles, 208 each (hash, 25 doubles); each group's members and
  * contacts, 8 each; the members, 121 bytes each (world id, profile,
  * flags, x, q, v, w, rest_s) and 48 more with force and torque; then the
@@ -1466,7 +1470,7 @@ static void test_result_for_another_unit_is_a_format_error(void **state)
 #define G_GRAVITY 40
 #define G_TOL 64
 #define G_INTS 72
-#define G_STATIC(j) (84 + 500 * (size_t)(j))
+#define G_STATIC(j) (88 + 500 * (size_t)(j))
 #define GS_HASH 4
 #define GS_INV_MASS 20
 #define GS_STATE 492
@@ -1591,6 +1595,8 @@ static void test_bad_group_fields_are_format_errors(void **state)
     GROUP_BAD(G_INTS + 4, (uint32_t)-1, 4);       /* island_split */
     GROUP_BAD(G_INTS + 8, 2, 4);                  /* toi_mode */
     GROUP_BAD(G_INTS + 8, (uint32_t)-1, 4);
+    GROUP_BAD(G_INTS + 12, 2, 4);                 /* island_method */
+    GROUP_BAD(G_INTS + 12, (uint32_t)-1, 4);
     /* the offsets are right: other valid settings decode as such */
     size_t m0 = l.members, m1 = g_member(b, &l, 1);
     GROUP_GOOD(G_DT, bits(0.5), 8);
@@ -1598,6 +1604,7 @@ static void test_bad_group_fields_are_format_errors(void **state)
     GROUP_GOOD(G_INTS, SC_BROADPHASE_SAP, 4);
     GROUP_GOOD(G_INTS + 4, 0, 4);
     GROUP_GOOD(G_INTS + 8, SC_TOI_WORLD, 4);
+    GROUP_GOOD(G_INTS + 12, SC_ISLAND_BLOCK_GS, 4);
     GROUP_GOOD(m0 + GM_REST, bits(2.5), 8);
     GROUP_GOOD(m0 + GM_FLAGS, SC_ASLEEP | 2 << 2, 1);
     /* static bodies: a shape nobody has, given mass, not static, a world
@@ -1682,12 +1689,12 @@ static void test_bad_group_fields_are_format_errors(void **state)
 }
 
 /* A group result at its layout (header 8, members 4, rc 4, messages 8,
- * info 96), then per group: rc 4, its figures (a mask u64 and the fields
- * it names: 22 of 8 bytes, then 23 of 4), per member 122 bytes (flags,
+ * info 124), then per group: rc 4, its figures (a mask u64 and the fields
+ * it names: 24 of 8 bytes, then 26 of 4), per member 122 bytes (flags,
  * 14 doubles, dev, points u8) and 32 a point, then contacts 4 and 88
  * each. */
 #define GR_RC 12
-#define GR_GROUPS 120
+#define GR_GROUPS 148
 
 /* Where group j of a result for u (of job) is. */
 typedef struct gr_at {
@@ -1720,8 +1727,8 @@ static gr_at gr_group(const unsigned char *res, const sc_job *job, const sc_unit
         r.stats = at + 4;
         uint64_t mask;
         memcpy(&mask, res + r.stats, 8);
-        r.first_int = r.stats + 8 + 8 * (size_t)popcount64(mask & ((1u << 22) - 1));
-        at = r.first_int + 4 * (size_t)popcount64(mask >> 22);
+        r.first_int = r.stats + 8 + 8 * (size_t)popcount64(mask & ((1u << 24) - 1));
+        at = r.first_int + 4 * (size_t)popcount64(mask >> 24);
         r.members = at;
         for (int q = 0; q < r.nm; q++)
             at += gr_member_len(res, at);
@@ -1803,7 +1810,7 @@ static void group_hostile_results(group_exec *gx, sc_job *job)
         tm += gr_member_len(res, tm);
     uint64_t mask;
     memcpy(&mask, res + c.stats, 8);
-    assert_true(mask >> 22 != 0);                         /* an int field is there */
+    assert_true(mask >> 24 != 0);                         /* an int field is there */
     struct { size_t at; int n; uint64_t v; } wrong[] = {
         { 8, 4, (uint64_t)ua->count + 1 },                /* members */
         { GR_RC, 4, (uint32_t)SC_ENUMERIC },              /* not its groups' rc */

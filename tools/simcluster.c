@@ -2,8 +2,8 @@
  * scenes (run), print their Table 1 breakdown (profile), solve an LCP given
  * as text (lcp), and write a cluster key (keygen); run --record writes
  * an LCM log that simcluster-view(1) renders (run --render runs it), and
- * run --publish sends the same messages live. A scene is bolts, spheres or
- * a scene file (simcluster.conf(5), lib/api/scene_file.c). */
+ * run --publish sends the same messages live. A scene is bolts, bin,
+ * spheres, stack, pyramid, wall or a scene file (simcluster.conf(5), lib/api/scene_file.c). */
 #include <errno.h>
 #include <getopt.h>
 #include <limits.h>
@@ -35,6 +35,8 @@ static const char run_help[] =
     "    trips of work, default 2; negative: always)\n"
     "  --wait-daemons K (before the first frame, at most 10 s)\n"
     "  --island-split N (islands of more contacts solved as blocks; 0: exact)\n"
+    "  --island-method active-set|block-gs (how a split island is solved:\n"
+    "    whole and exact by an active set, the default; or block Gauss-Seidel)\n"
     "  --toi local|world (time of impact: motion groups with speculative\n"
     "    contacts, run's default; or the paper's world-wide back-up, profile's)\n"
     "profile only: --chart PNG (CPU by stage beside the paper's, by gnuplot)\n";
@@ -128,7 +130,7 @@ typedef struct options {
     const char *scene;
     sc_scene *file;         /* a scene file, else NULL: the built-in scene */
     long bodies, seed, frames, workers, wait_daemons, island_split;
-    int until_rest, groups, json, realtime, bodies_set, seed_set, toi_mode;
+    int until_rest, groups, json, realtime, bodies_set, seed_set, toi_mode, island_method;
     const char *cluster, *key, *record, *render, *publish, *chart;
     double deadline;
     double min_gain;        /* 0: the library's default */
@@ -157,12 +159,18 @@ static int check_scene(const char *cmd, options *o)
     if (o->wait_daemons && !o->cluster)
         return bad(cmd, "--wait-daemons needs --cluster");
     int seeded = !strcmp(o->scene, "bolts") || !strcmp(o->scene, "bin");
-    int builtin = seeded || !strcmp(o->scene, "spheres");
-    if (!seeded && (o->bodies_set || o->seed_set))
-        return bad(cmd, builtin ? "--bodies and --seed are for the bolts and bin scenes; spheres "
-                                  "is the paper's fixed 27"
-                                : "--bodies and --seed are for the built-in bolts and bin scenes; a "
+    int structure = !strcmp(o->scene, "stack") || !strcmp(o->scene, "pyramid") ||
+                    !strcmp(o->scene, "wall");
+    int builtin = seeded || structure || !strcmp(o->scene, "spheres");
+    if (structure && o->seed_set)
+        return bad(cmd, "--seed is for the bolts and bin scenes; a structure has no randomness");
+    if (!seeded && !structure && (o->bodies_set || o->seed_set))
+        return bad(cmd, builtin ? "--bodies and --seed are for the bolts, bin and structure "
+                                  "scenes; spheres is the paper's fixed 27"
+                                : "--bodies and --seed are for the built-in scenes; a "
                                   "scene file places its own bodies");
+    if (structure && !o->bodies_set)
+        o->bodies = !strcmp(o->scene, "stack") ? 20 : !strcmp(o->scene, "pyramid") ? 15 : 12;
     if (builtin)
         return -1;
     /* a bare word (no folder, no extension) that names no file is a
@@ -170,8 +178,8 @@ static int check_scene(const char *cmd, options *o)
     if (!strpbrk(o->scene, "/.") && access(o->scene, F_OK) != 0) {
         char what[256];
         snprintf(what, sizeof what,
-                 "no scene '%.100s': the built-in scenes are bolts, bin and spheres; else give "
-                 "a scene file's path",
+                 "no scene '%.100s': the built-in scenes are bolts, bin, spheres, stack, "
+                 "pyramid and wall; else give a scene file's path",
                  o->scene);
         return bad(cmd, what);
     }
@@ -198,6 +206,7 @@ static int parse_options(const char *cmd, int argc, char **argv, options *o)
         { "wait-daemons", required_argument, 0, 'W' },
         { "chart", required_argument, 0, 'C' },
         { "island-split", required_argument, 0, 'I' },
+        { "island-method", required_argument, 0, 'M' },
         { "toi", required_argument, 0, 'T' },
         { "min-gain", required_argument, 0, 'G' },
         { "help", no_argument, 0, 'h' },           { "version", no_argument, 0, 'V' },
@@ -301,6 +310,14 @@ static int parse_options(const char *cmd, int argc, char **argv, options *o)
             if (!parse_long(optarg, 0, 1000000, &o->island_split))
                 return bad(cmd, "--island-split takes 0..1000000 contacts (0: one exact LCP "
                                 "an island)");
+            break;
+        case 'M':
+            if (!strcmp(optarg, "active-set"))
+                o->island_method = SC_ISLAND_ACTIVE_SET;
+            else if (!strcmp(optarg, "block-gs"))
+                o->island_method = SC_ISLAND_BLOCK_GS;
+            else
+                return bad(cmd, "--island-method takes active-set or block-gs");
             break;
         case 'T':
             if (!strcmp(optarg, "world"))
@@ -416,6 +433,7 @@ static sc_world *make_world(const options *o, const char *cmd)
     if (o->island_split >= 0)
         c.island_split = (int)o->island_split;
     c.toi_mode = o->toi_mode;
+    c.island_method = o->island_method;
     sc_world *w = sc_world_create(&c);
     if (!w) {
         int err = sc_last_error();
@@ -433,6 +451,9 @@ static sc_world *make_world(const options *o, const char *cmd)
     int rc = o->file                     ? sc_scene_build(o->file, w)
              : !strcmp(o->scene, "bolts") ? sc_scene_bolts_nuts(w, (int)o->bodies, (uint64_t)o->seed)
              : !strcmp(o->scene, "bin")   ? sc_scene_bin(w, (int)o->bodies, (uint64_t)o->seed)
+             : !strcmp(o->scene, "stack") ? sc_scene_stack(w, (int)o->bodies, 0)
+             : !strcmp(o->scene, "pyramid") ? sc_scene_pyramid(w, (int)o->bodies)
+             : !strcmp(o->scene, "wall")  ? sc_scene_wall(w, 10, (int)o->bodies)
                                           : sc_scene_spheres_box(w);
     if (rc < 0) {
         fprintf(stderr, "simcluster: %s: scene: %s\n", cmd, sc_strerror(rc));
@@ -614,6 +635,8 @@ typedef struct totals {
     long substeps, max_pivots, backups, spec, groups, retried;
     int max_sweeps, max_substeps, max_backups;
     double residual, outer_residual;
+    long as_solves, as_fallbacks, as_iterations, factor_nnz_max;
+    int as_iterations_max;
 } totals;
 
 /* SIGINT and SIGTERM during run and profile: the handler only notes the
@@ -711,6 +734,13 @@ static int simulate(const options *o, sc_world *w, totals *t, int progress, reco
         t->nan += st.frame.lcp.nan_islands;
         t->inelastic += st.frame.lcp.inelastic;
         t->unconverged += st.frame.lcp.unconverged;
+        t->as_solves += st.frame.lcp.as_solves;
+        t->as_fallbacks += st.frame.lcp.as_fallbacks;
+        t->as_iterations += st.frame.lcp.as_iterations;
+        if (st.frame.lcp.as_iterations_max > t->as_iterations_max)
+            t->as_iterations_max = st.frame.lcp.as_iterations_max;
+        if (st.frame.lcp.factor_nnz_max > t->factor_nnz_max)
+            t->factor_nnz_max = st.frame.lcp.factor_nnz_max;
         t->max_sweeps =
             st.frame.lcp.sweeps_max > t->max_sweeps ? st.frame.lcp.sweeps_max : t->max_sweeps;
         t->residual = fmax(t->residual, st.frame.lcp.residual);
@@ -846,7 +876,9 @@ static void report_json(const options *o, const sc_world *w, const sc_stats *stp
            "\"restitution_scaled\": %ld, \"guessed\": %ld, \"regularised\": %ld, "
            "\"unconverged\": %ld, "
            "\"max_sweeps\": %d, \"max_residual\": %.3g, \"max_outer_residual\": %.3g, "
-           "\"substeps\": %ld, \"max_substeps\": %d}, "
+           "\"substeps\": %ld, \"max_substeps\": %d, \"island_method\": \"%s\", "
+           "\"active_set\": {\"solves\": %ld, \"fallbacks\": %ld, \"iterations_mean\": %.2f, "
+           "\"iterations_max\": %d, \"factor_nnz_max\": %ld}}, "
            "\"toi\": {\"mode\": \"%s\", \"backups\": %ld, \"max_frame_backups\": %d, "
            "\"speculative_contacts\": %ld, \"groups\": %ld, \"groups_retried\": %ld}, "
            "\"hash\": \"%016llx\", \"interrupted\": %s%s%s, \"error\": %s%s%s}\n",
@@ -865,6 +897,9 @@ static void report_json(const options *o, const sc_world *w, const sc_stats *stp
            t.regularised, t.unconverged,
            t.max_sweeps, t.residual,
            t.outer_residual, t.substeps, t.max_substeps,
+           o->island_method == SC_ISLAND_BLOCK_GS ? "block-gs" : "active-set", t.as_solves,
+           t.as_fallbacks, t.as_solves ? (double)t.as_iterations / (double)t.as_solves : 0.0,
+           t.as_iterations_max, t.factor_nnz_max,
            o->toi_mode == SC_TOI_LOCAL ? "local" : "world", t.backups, t.max_backups, t.spec,
            t.groups, t.retried, hash,
            t.interrupted ? "\"" : "null", t.interrupted ? signal_name(t.interrupted) : "",
@@ -904,6 +939,11 @@ static void report_text(const options *o, const sc_world *w, const sc_stats *stp
     printf("  LCP residual at most %.3g m/s (exact), %.3g m/s (split, tolerance %.0e; "
            "%ld stopped at %d sweeps)\n",
            t.residual, t.outer_residual, SC_SPLIT_TOL, t.unconverged, SC_SPLIT_MAX_SWEEPS);
+    if (t.as_solves)
+        printf("  active set: %ld split solves, %.2f guesses a solve (most %d), factor of "
+               "%ld entries at most, %ld left to block Gauss-Seidel\n",
+               t.as_solves, (double)t.as_iterations / (double)t.as_solves, t.as_iterations_max,
+               t.factor_nnz_max, t.as_fallbacks);
     printf("  time of impact (%s): back-ups %.2f a frame (most %d), speculative "
            "contacts %ld\n",
            o->toi_mode == SC_TOI_LOCAL ? "local" : "world",

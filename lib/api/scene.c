@@ -3,6 +3,8 @@
  * sc_scene_spheres_box: Table 1 (27 UV spheres, e = 1, in a closed 4 m box).
  * sc_scene_bolts_nuts: Table 2 and Figs 3-4 (n bolts and nuts dropped on a
  * floor from random, non-overlapping poses).
+ * sc_scene_stack, sc_scene_pyramid, sc_scene_wall: structures of boxes that
+ * must stand (big islands, docs/DESIGN.md 11).
  *
  * Both use the public API only, so they build exactly what a program could
  * build by hand. They are deterministic: the random poses come from our own
@@ -363,5 +365,79 @@ SC_API int sc_scene_bin(sc_world *w, int n, uint64_t seed)
     }
     sc_shape_release(bolt);
     sc_shape_release(nut);
+    return rc;
+}
+
+/* ---- structures ---- */
+
+#define ST_HALF 0.1              /* m, the cubes' half extent */
+#define ST_SINK 2e-4             /* m, each layer into the one below */
+#define ST_PITCH 0.201           /* m, a wall's cubes: 1 mm apart */
+#define ST_DENSITY 600.0         /* kg/m^3, wood */
+#define ST_RESTITUTION 0.2
+#define ST_FRICTION 0.6
+
+/* A floor and a cube shape; *cube NULL on error (the code returned). */
+static int structure_begin(sc_world *w, sc_shape **cube)
+{
+    *cube = NULL;
+    int rc = add_static(w, sc_shape_plane(0, 0, 1, 0), ST_RESTITUTION, ST_FRICTION);
+    if (rc != SC_OK)
+        return rc;
+    *cube = sc_shape_box(ST_HALF, ST_HALF, ST_HALF);
+    return *cube ? SC_OK : sc_last_error();
+}
+
+/* A cube of layer k (0: on the floor) at x. */
+static int add_cube(sc_world *w, sc_shape *cube, double x, int k)
+{
+    sc_body_desc d = sc_body_desc_default();
+    d.shape = cube;
+    d.mass = SC_MASS_FROM_DENSITY;
+    d.density = ST_DENSITY;
+    d.restitution = ST_RESTITUTION;
+    d.friction = ST_FRICTION;
+    d.pos[0] = x;
+    d.pos[2] = ST_HALF - ST_SINK + k * (2 * ST_HALF - ST_SINK);
+    int id = sc_body_add(w, &d);
+    return id < 0 ? id : SC_OK;
+}
+
+SC_API int sc_scene_stack(sc_world *w, int n, double offset)
+{
+    if (!w || n < 1 || n > SC_STRUCTURE_MAX || !(fabs(offset) <= 0.05))
+        return SC_EINVAL;
+    sc_shape *cube;
+    int rc = structure_begin(w, &cube);
+    for (int k = 0; k < n && rc == SC_OK; k++)
+        rc = add_cube(w, cube, k % 2 ? offset : 0, k);
+    sc_shape_release(cube);
+    return rc;
+}
+
+SC_API int sc_scene_pyramid(sc_world *w, int rows)
+{
+    if (!w || rows < 1 || (long)rows * (rows + 1) / 2 > SC_STRUCTURE_MAX)
+        return SC_EINVAL;
+    sc_shape *cube;
+    int rc = structure_begin(w, &cube);
+    for (int r = 0; r < rows && rc == SC_OK; r++)
+        for (int i = 0; i < rows - r && rc == SC_OK; i++)
+            rc = add_cube(w, cube, 2 * ST_HALF * i + ST_HALF * r - ST_HALF * (rows - 1), r);
+    sc_shape_release(cube);
+    return rc;
+}
+
+SC_API int sc_scene_wall(sc_world *w, int cols, int rows)
+{
+    if (!w || cols < 2 || rows < 1 || (long)cols * rows > SC_STRUCTURE_MAX)
+        return SC_EINVAL;
+    sc_shape *cube;
+    int rc = structure_begin(w, &cube);
+    for (int r = 0; r < rows && rc == SC_OK; r++)
+        for (int i = 0; i < cols && rc == SC_OK; i++)
+            rc = add_cube(w, cube, ST_PITCH * i + 0.5 * ST_HALF * (r % 2) - ST_PITCH * (cols - 1) / 2,
+                          r);
+    sc_shape_release(cube);
     return rc;
 }

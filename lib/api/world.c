@@ -23,7 +23,8 @@ SC_API sc_world *sc_world_create(const sc_world_config *cfg)
         !isfinite(c.cluster_ship_share) || !isfinite(c.cluster_min_gain) ||
         !isfinite(c.cluster_deadline_s) || (c.key_file && !c.cluster) || c.broadphase < SC_BROADPHASE_AUTO ||
         c.broadphase > SC_BROADPHASE_SAP || (c.motion_groups != 0 && c.motion_groups != 1) ||
-        c.island_split < 0 || (c.toi_mode != SC_TOI_LOCAL && c.toi_mode != SC_TOI_WORLD)) {
+        c.island_split < 0 ||
+        (c.island_method != SC_ISLAND_ACTIVE_SET && c.island_method != SC_ISLAND_BLOCK_GS) || (c.toi_mode != SC_TOI_LOCAL && c.toi_mode != SC_TOI_WORLD)) {
         sc_set_error(SC_EINVAL);
         return NULL;
     }
@@ -39,6 +40,7 @@ SC_API sc_world *sc_world_create(const sc_world_config *cfg)
     w->fcfg.contact_tol_m = c.contact_tol_m;
     w->fcfg.broadphase = c.broadphase;
     w->fcfg.island_split = c.island_split;
+    w->fcfg.island_method = c.island_method;
     w->fcfg.toi_mode = c.toi_mode;
     /* nodes: this thread (node 0) and workers - 1 worker threads */
     int nodes = c.workers;

@@ -107,6 +107,13 @@ void sc_stats_add_solve(sc_stats *st, const sc_solve_info *info)
     st->frame.lcp.guessed += info->guessed;
     st->frame.lcp.residual = max_d(st->frame.lcp.residual, info->residual_exact);
     st->frame.lcp.outer_residual = max_d(st->frame.lcp.outer_residual, info->residual_split);
+    st->frame.lcp.as_solves += info->as_solves;
+    st->frame.lcp.as_fallbacks += info->as_fallbacks;
+    st->frame.lcp.as_iterations += info->as_iterations;
+    if (info->as_iterations_max > st->frame.lcp.as_iterations_max)
+        st->frame.lcp.as_iterations_max = info->as_iterations_max;
+    if (info->factor_nnz_max > st->frame.lcp.factor_nnz_max)
+        st->frame.lcp.factor_nnz_max = info->factor_nnz_max;
 }
 
 static void add_lcp(sc_stats_lcp *s, const sc_stats_lcp *g)
@@ -133,6 +140,13 @@ static void add_lcp(sc_stats_lcp *s, const sc_stats_lcp *g)
     s->guessed += g->guessed;
     s->residual = max_d(s->residual, g->residual);
     s->outer_residual = max_d(s->outer_residual, g->outer_residual);
+    s->as_solves += g->as_solves;
+    s->as_fallbacks += g->as_fallbacks;
+    s->as_iterations += g->as_iterations;
+    if (g->as_iterations_max > s->as_iterations_max)
+        s->as_iterations_max = g->as_iterations_max;
+    if (g->factor_nnz_max > s->factor_nnz_max)
+        s->factor_nnz_max = g->factor_nnz_max;
 }
 
 static void add_toi(sc_stats_toi *s, const sc_stats_toi *g)

@@ -10,19 +10,9 @@
 #include <stdlib.h>
 #include <string.h>
 
-#include "core.h"
+#include "contact_rows.h"
 #include "lcp.h"
 #include "vecmath.h"
-
-typedef struct row {
-    int a, b;                 /* body indices (static or asleep: W = 0) */
-    int la, lb;               /* their slots in the island's local velocities */
-    unsigned char ma, mb;     /* movable (W != 0): only their slots are
-                                 written, so blocks of one colour that share
-                                 a static body can run at once */
-    double ja[6], jb[6];      /* Jacobian: linear, angular */
-    double wa[6], wb[6];      /* W J^T per body */
-} row;
 
 static int movable(const sc_body *b)
 {
@@ -59,11 +49,6 @@ static void make_row(row *rw, const sc_body *bodies, const sc_contact *c, const 
     row_body(B, rb, d, +1.0, rw->jb, rw->wb);
 }
 
-static double dot6(const double *x, const double *y)
-{
-    return x[0] * y[0] + x[1] * y[1] + x[2] * y[2] + x[3] * y[3] + x[4] * y[4] + x[5] * y[5];
-}
-
 /* J u for a row, u being each body's current (v, w) or (v0, w0). */
 static double row_speed(const row *rw, const sc_body *bodies, int pre)
 {
@@ -76,41 +61,12 @@ static double row_speed(const row *rw, const sc_body *bodies, int pre)
     return dot6(rw->ja, ua) + dot6(rw->jb, ub);
 }
 
-/* J u for a row on the island's local velocities (6 per slot). */
-static double local_speed(const row *rw, const double *u)
-{
-    return dot6(rw->ja, &u[6 * rw->la]) + dot6(rw->jb, &u[6 * rw->lb]);
-}
-
-static void local_apply(const row *rw, double dz, double *u)
-{
-    double *ua = &u[6 * rw->la], *ub = &u[6 * rw->lb];
-    if (rw->ma)
-        for (int k = 0; k < 6; k++)
-            ua[k] += rw->wa[k] * dz;
-    if (rw->mb)
-        for (int k = 0; k < 6; k++)
-            ub[k] += rw->wb[k] * dz;
-}
-
-/* A_rs = J_r W J_s^T */
-static double a_entry(const row *r, const row *s)
-{
-    double v = 0;
-    if (r->a == s->a) v += dot6(r->ja, s->wa);
-    if (r->a == s->b) v += dot6(r->ja, s->wb);
-    if (r->b == s->a) v += dot6(r->jb, s->wa);
-    if (r->b == s->b) v += dot6(r->jb, s->wb);
-    return v;
-}
-
 /* A = J W J^T over the given rows (dense, symmetric), plus a compliance
  * of 1e-6 of its largest diagonal entry on the diagonal: several contacts
  * on one face make A singular and the split of the load among them
  * arbitrary (a basic solution loads three corners of a box, not four, and
  * friction then twists it); the tiny compliance makes the solution unique
  * and symmetric, at the cost of 1e-6 relative softness. */
-#define COMPLIANCE 1e-6
 
 static void build_a(const row *rows, const int *sel, int n, double *A)
 {
@@ -421,30 +377,6 @@ typedef struct blocks {
     int *cstart;              /* count + 1 entries */
     int *order;               /* count entries */
 } blocks;
-
-/* The problem the blocks iterate on: w = J u + off, bounds lo/hi or, for
- * friction rows (findex >= 0), +-mu z[findex]; u the local velocities. */
-typedef struct gs_problem {
-    const row *rows;
-    int nrows;
-    const double *off, *lo, *hi, *mu;
-    const int *findex;        /* island row indices, -1 none; NULL: none */
-    int cold;                 /* no warm starts (sc_contact_params.cold) */
-    int pseudo;               /* the push-out: pseudo velocities, its own
-                                 relative tolerance, not in the residual and
-                                 sweep figures (its unit scales with 1/h) */
-} gs_problem;
-
-static void row_bounds(const gs_problem *pb, const double *z, int r, double *lo, double *hi)
-{
-    if (pb->findex && pb->findex[r] >= 0) {
-        *hi = pb->mu[r] * z[pb->findex[r]];
-        *lo = -*hi;
-    } else {
-        *lo = pb->lo[r];
-        *hi = pb->hi[r];
-    }
-}
 
 /* Greedy colouring in block order: colour c takes every block not yet
  * coloured whose movable bodies no block of colour c has taken (mark[] is
@@ -838,6 +770,13 @@ static int slots_build(sc_arena *a, row *rows, int nrows, int **body_out)
     return u;
 }
 
+/* Split islands of more contacts than this are solved whole by the active
+ * set first: block Gauss-Seidel settles smaller ones (a stack of up to 16
+ * boxes) within its sweeps, and on a bolt pile's small islands, whose
+ * friction the active set rarely settles, its tries would only add cost
+ * (docs/DESIGN.md 11). */
+#define AS_MIN_CONTACTS 64
+
 /* Rows solved by blocks: local velocities from the bodies (pseudo: from
  * 0), warm start z applied, block Gauss-Seidel, then velocities written
  * back (pseudo: bodies moved by h times them). cstart[k] is the first row
@@ -892,9 +831,22 @@ static int solve_split(sc_arena *a, row *rows, int nrows, const int *cstart, int
         }
         sc_arena_free(a, zcold);
         sc_arena_free(a, ucold);
+        int as = rc == SC_OK && p->island_method == SC_ISLAND_ACTIVE_SET && nc > AS_MIN_CONTACTS;
+        if (as) {
+            /* the whole island exactly; where its guesses do not settle,
+             * block Gauss-Seidel (counted; an active set started from its
+             * iterate settled no more of a bin's islands) */
+            info->as_solves++;
+            rc = sc_island_active_set(&pb, bodies, body, m, z, u, info);
+            if (rc == SC_OK)
+                goto done;
+            rc = rc == SC_ENUMERIC ? SC_OK : rc;
+        }
         if (rc == SC_OK)
             rc = block_gs(a, &pb, &bl, z, u, 6 * m, p, tol, info);
+        info->as_fallbacks += as;
     }
+done:
     if (rc == SC_OK)
         for (int i = 0; i < m; i++) {
             sc_body *b = &bodies[body[i]];

@@ -210,6 +210,7 @@ typedef struct sc_contact_params {
     int block_contacts;             /* contacts per block (whole pairs) */
     double tol;                     /* outer residual to reach, m/s */
     int max_sweeps;                 /* outer sweeps at most */
+    int island_method;              /* SC_ISLAND_*: how a split island is solved */
     int cold;                       /* benchmarks: no warm starts (every solve
                                        from z = 0) */
     double gravity[3];              /* m/s^2: the push-out's lift (its potential
@@ -270,6 +271,13 @@ typedef struct sc_solve_info {
                                        on the best iterate) */
     int cold_starts;                /* split solves that started from 0: the
                                        warm start was further from the answer */
+    int as_solves;                  /* split islands solved whole by the active
+                                       set (island_sparse.c) */
+    int as_fallbacks;               /* of them, those it did not settle: block
+                                       Gauss-Seidel instead */
+    long as_iterations;             /* guesses factored, summed */
+    int as_iterations_max;          /* most of one solve */
+    long factor_nnz_max;            /* entries of the largest factor */
     double residual_exact;          /* largest LCP residual of an exact island, m/s */
     double residual_split;          /* largest outer residual of a split island, m/s */
 } sc_solve_info;

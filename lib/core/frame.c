@@ -33,6 +33,7 @@ sc_contact_params sc_frame_contact_params(const sc_frame_config *cfg)
         .block_contacts = SPLIT_BLOCK_CONTACTS,
         .tol = SC_SPLIT_TOL,
         .max_sweeps = SC_SPLIT_MAX_SWEEPS,
+        .island_method = cfg->island_method,
         .impact_first = cfg->toi_mode == SC_TOI_LOCAL,
         .gravity = { cfg->gravity[0], cfg->gravity[1], cfg->gravity[2] },
     };

@@ -140,6 +140,7 @@ typedef struct sc_frame_config {
     double contact_tol_m;
     int broadphase;                 /* SC_BROADPHASE_* */
     int island_split;               /* sc_world_config.island_split */
+    int island_method;              /* sc_world_config.island_method */
     int toi_mode;                   /* sc_world_config.toi_mode */
     int redo_all;                   /* tests: a speculative round solves every
                                        island again (frame.c) */

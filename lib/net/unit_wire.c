@@ -31,14 +31,14 @@
  *   ISLAND unit (consecutive islands, each solved on its own): bodies u32,
  *             members u32, contacts u32, islands u32, h, bounce_speed, slop,
  *             baumgarte, tol f64, gravity f64[3], split_contacts, block_contacts, max_sweeps,
- *             cold i32, impact_first i32, per island: members u32, contacts
+ *             cold i32, impact_first i32, island_method i32, per island: members u32, contacts
  *             u32; per body: see
  *             put_body(), per contact: a contact (local body indices) and its
  *             impulse f64[3] (the warm start)
  *   GROUP unit (motion groups' whole frames, group.c): groups, statics,
  *             profiles, members, contacts u32, contacts_valid i32, dt,
  *             gravity f64[3], contact_tol_m f64, broadphase, island_split,
- *             toi_mode i32; per static body (world ids ascending): world id
+ *             toi_mode, island_method i32; per static body (world ids ascending): world id
  *             u32, shape hash u64, every double of sc_body (see
  *             gbody_fields()), state i32, collided i32; per profile (a
  *             member's constants, once a unit): shape hash u64 and the
@@ -53,11 +53,13 @@
  *             v0, w0 and iw are a substep's (set before they are read,
  *             integrate.c) and stay home both ways
  *   result:   count u32 (pairs, island members or group members), rc i32,
- *             messages i64, pivots i64, failures, regularised, lemke,
+ *             messages i64, pivots, as_iterations, factor_nnz_max i64,
+ *             failures, regularised, lemke,
  *             collisions, split, split_fallbacks, blocks, block_fallbacks,
  *             nan_islands, sweeps_max, unconverged, solves, diverged,
  *             cold_starts, inelastic, energy_refused, restitution_scaled,
- *             guessed i32, residual_exact, residual_split f64,
+ *             guessed, as_solves, as_fallbacks, as_iterations_max i32,
+ *             residual_exact, residual_split f64,
  *             then per pair: n u8 and n contacts (COLLIDE), toi f64 (TOI);
  *             (ISLAND) contacts u32, per member: x f64[3], q f64[4], v, w,
  *             v0, w0 f64[3], collided i32, per contact in the unit's contact order:
@@ -94,14 +96,16 @@
  * phase would have. Outputs of a unit that failed (rc < 0) are as undefined as after a
  * local failure. */
 
-#define WIRE_VERSION 13      /* 6: island units carry impact_first, results inelastic, v0, w0;
+#define WIRE_VERSION 14      /* 6: island units carry impact_first, results inelastic, v0, w0;
                                 7: results carry energy_refused, restitution_scaled;
                                 8: and np_pairs, np_reused; 9: and lcp_kept;
                                 10: island units carry gravity (the push-out's lift);
                                 11: results carry guessed, stats lcp_guessed;
                                 12: group results carry the members' tracks;
                                 13: group units of several groups, members
-                                by state and profile (docs/DESIGN.md 7.4) */
+                                by state and profile (docs/DESIGN.md 7.4);
+                                14: island_method in island and group units,
+                                active-set figures in results and stats */
 #define MAGIC_UNIT 0x55574353u        /* "SCWU" */
 #define MAGIC_RESULT 0x52574353u      /* "SCWR" */
 #define MAX_PAIRS (1 << 16)
@@ -443,7 +447,9 @@ static int params_ok(const sc_contact_params *p)
            p->tol >= 0 && p->split_contacts >= 0 && p->block_contacts >= 1 &&
            p->block_contacts <= MAX_CONTACTS && p->max_sweeps >= 1 &&
            p->max_sweeps <= MAX_SWEEPS && (p->cold == 0 || p->cold == 1) &&
-           (p->impact_first == 0 || p->impact_first == 1) && p->inject == 0;
+           (p->impact_first == 0 || p->impact_first == 1) &&
+           (p->island_method == SC_ISLAND_ACTIVE_SET || p->island_method == SC_ISLAND_BLOCK_GS) &&
+           p->inject == 0;
 }
 
 static void write_island(wbuf *w, const void *job_, const void *im_)
@@ -464,6 +470,7 @@ static void write_island(wbuf *w, const void *job_, const void *im_)
     put_i32(w, p->max_sweeps);
     put_i32(w, p->cold);
     put_i32(w, p->impact_first);
+    put_i32(w, p->island_method);
     const sc_islands *is = job->islands;
     for (int i = im->first; i < im->first + im->nisl; i++) {
         put(w, (uint64_t)(is->body_start[i + 1] - is->body_start[i]), 4);
@@ -564,6 +571,7 @@ static int frame_cfg_ok(const sc_frame_config *c, double dt)
     return sc_finite3(c->gravity) && isfinite(c->contact_tol_m) && c->contact_tol_m > 0 &&
            c->broadphase >= SC_BROADPHASE_AUTO && c->broadphase <= SC_BROADPHASE_SAP &&
            c->island_split >= 0 &&
+           (c->island_method == SC_ISLAND_ACTIVE_SET || c->island_method == SC_ISLAND_BLOCK_GS) &&
            (c->toi_mode == SC_TOI_LOCAL || c->toi_mode == SC_TOI_WORLD) && isfinite(dt) &&
            dt > 0;
 }
@@ -733,6 +741,7 @@ static void write_group(wbuf *w, const void *job_, const void *bm_)
     put_i32(w, cfg->broadphase);
     put_i32(w, cfg->island_split);
     put_i32(w, cfg->toi_mode);
+    put_i32(w, cfg->island_method);
     for (int j = 0; j < g->nstatics; j++)
         put_static(w, &st->bodies[g->statics[j]], g->statics[j]);
     for (int p = 0; p < bm->np; p++) {
@@ -875,6 +884,7 @@ static int decode_island(rbuf *r, sc_wire_unit *wu)
     p.max_sweeps = get_i32(r);
     p.cold = get_i32(r);
     p.impact_first = get_i32(r);
+    p.island_method = get_i32(r);
     if (r->bad || nm < 1 || nm > m || m > MAX_BODIES || nc > MAX_CONTACTS || nisl < 1 ||
         nisl > nm || !(head[0] > 0) || !params_ok(&p) ||
         r->len - r->n != (size_t)nisl * 8 + (size_t)m * BODY_BYTES +
@@ -1023,6 +1033,7 @@ static int decode_group(rbuf *r, sc_shape_lookup_fn lookup, void *ctx, sc_wire_u
     cfg.broadphase = get_i32(r);
     cfg.island_split = get_i32(r);
     cfg.toi_mode = get_i32(r);
+    cfg.island_method = get_i32(r);
     /* every group has a member, every profile a holder; the last frame's
      * contacts only when they are valid (group.c); the length within what
      * the counts allow (forces and torques are optional) */
@@ -1214,7 +1225,7 @@ void sc_wire_unit_free(sc_wire_unit *wu)
  * field added there must be added here; test_unit_wire compares whole
  * infos of a local and a remote run), and pivots. blocks_shared stays
  * home: a daemon's island shares no blocks. */
-#define INFO_INTS 18
+#define INFO_INTS 21
 
 static void info_ints(sc_solve_info *info, int *f[INFO_INTS])
 {
@@ -1224,7 +1235,9 @@ static void info_ints(sc_solve_info *info, int *f[INFO_INTS])
                           &info->nan_islands,     &info->sweeps_max,  &info->unconverged,
                           &info->solves,          &info->diverged,    &info->cold_starts,
                           &info->inelastic,       &info->energy_refused,
-                          &info->restitution_scaled, &info->guessed };
+                          &info->restitution_scaled, &info->guessed,
+                          &info->as_solves,       &info->as_fallbacks,
+                          &info->as_iterations_max };
     memcpy(f, p, sizeof p);
 }
 
@@ -1233,6 +1246,8 @@ static void put_info(wbuf *w, sc_solve_info info)
     int *f[INFO_INTS];
     info_ints(&info, f);
     put(w, (uint64_t)info.pivots, 8);
+    put(w, (uint64_t)info.as_iterations, 8);
+    put(w, (uint64_t)info.factor_nnz_max, 8);
     for (int k = 0; k < INFO_INTS; k++)
         put_i32(w, *f[k]);
     put_f64s(w, &info.residual_exact, 1);
@@ -1249,6 +1264,12 @@ static void get_info(rbuf *r, sc_solve_info *info)
     if (pivots < 0 || pivots > LONG_MAX)
         r->bad = 1;
     info->pivots = (long)pivots;
+    for (int k = 0; k < 2; k++) {
+        int64_t v = get_signed(r, 8);
+        if (v < 0 || v > LONG_MAX)
+            r->bad = 1;
+        *(k == 0 ? &info->as_iterations : &info->factor_nnz_max) = (long)v;
+    }
     for (int k = 0; k < INFO_INTS; k++)
         if ((*f[k] = get_i32(r)) < 0)
             r->bad = 1;
@@ -1260,9 +1281,9 @@ static void get_info(rbuf *r, sc_solve_info *info)
  * sc_stats_add_solver() (clock.c) read, field by field: a field they
  * start to read must be added here (test_unit_wire compares them). */
 #define STAT_F64 (SC_STAGE_COUNT + 6)
-#define STAT_LONGS 8
+#define STAT_LONGS 10
 #define STAT_SIZES 2
-#define STAT_INTS 23
+#define STAT_INTS 26
 
 typedef struct stat_ptrs {
     double *d[STAT_F64];
@@ -1281,31 +1302,19 @@ static void stat_fields(sc_stats *s, stat_ptrs *p)
     long *l[STAT_LONGS] = {&s->frame.lcp.pivots,          &s->frame.lcp.blocks,
                            &s->frame.lcp.block_fallbacks, &s->frame.detect.collider_warnings,
                            &s->frame.sched.units,         &s->total.initial_overlaps,
-                           &s->frame.detect.np_pairs,     &s->frame.detect.np_reused};
+                           &s->frame.detect.np_pairs,     &s->frame.detect.np_reused,
+                           &s->frame.lcp.as_iterations,   &s->frame.lcp.factor_nnz_max};
     size_t *z[STAT_SIZES] = { &s->total.arena_bytes, &s->total.unit_arena_bytes };
-    int *i[STAT_INTS] = {&s->frame.detect.pairs,
-                         &s->frame.detect.islands,
-                         &s->frame.lcp.solves,
-                         &s->frame.lcp.fallbacks,
-                         &s->frame.lcp.split,
-                         &s->frame.lcp.sweeps_max,
-                         &s->frame.lcp.unconverged,
-                         &s->frame.lcp.diverged,
-                         &s->frame.lcp.cold_starts,
-                         &s->frame.lcp.regularised,
-                         &s->frame.lcp.split_fallbacks,
-                         &s->frame.lcp.nan_islands,
-                         &s->frame.toi.substeps,
-                         &s->frame.toi.backups,
-                         &s->frame.toi.backup_regions,
-                         &s->frame.toi.backup_bodies,
-                         &s->frame.toi.spec_contacts,
-                         &s->frame.toi.spec_rounds,
-                         &s->frame.lcp.inelastic,
-                         &s->frame.lcp.energy_refused,
-                         &s->frame.lcp.restitution_scaled,
-                         &s->frame.lcp.kept,
-                         &s->frame.lcp.guessed};
+    int *i[STAT_INTS] = {
+        &s->frame.detect.pairs,       &s->frame.detect.islands,     &s->frame.lcp.solves,
+        &s->frame.lcp.fallbacks,      &s->frame.lcp.split,          &s->frame.lcp.sweeps_max,
+        &s->frame.lcp.unconverged,    &s->frame.lcp.diverged,       &s->frame.lcp.cold_starts,
+        &s->frame.lcp.regularised,    &s->frame.lcp.split_fallbacks, &s->frame.lcp.nan_islands,
+        &s->frame.toi.substeps,       &s->frame.toi.backups,        &s->frame.toi.backup_regions,
+        &s->frame.toi.backup_bodies,  &s->frame.toi.spec_contacts,  &s->frame.toi.spec_rounds,
+        &s->frame.lcp.inelastic,      &s->frame.lcp.energy_refused,
+        &s->frame.lcp.restitution_scaled, &s->frame.lcp.kept,       &s->frame.lcp.guessed,
+        &s->frame.lcp.as_solves,      &s->frame.lcp.as_fallbacks,   &s->frame.lcp.as_iterations_max };
     _Static_assert(sizeof d / sizeof d[0] == STAT_F64 - SC_STAGE_COUNT, "stat doubles");
     memcpy(&p->d[SC_STAGE_COUNT], d, sizeof d);
     memcpy(p->l, l, sizeof l);
