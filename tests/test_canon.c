@@ -13,7 +13,7 @@
 #include "canon.h"
 
 #define MAX_SCENES 64
-#define STRUCT_T 3.0
+#define STRUCT_T 2.0
 
 static canon_scene scenes[MAX_SCENES];
 

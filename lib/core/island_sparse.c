@@ -490,6 +490,41 @@ static void as_velocities(const as_ctx *s, const double *z, double *u)
     }
 }
 
+/* The movable velocities as unknowns (uv, from u), M u* = M u - J^T z, its
+ * magnitudes |u*|, and each row's constant d: off and its immovable side's
+ * J u. */
+static void as_begin(as_ctx *s, const double *u, const double *z, double *uv)
+{
+    const gs_problem *pb = s->pb;
+    for (int t = 0; t < s->nslots; t++) {
+        if (s->var[t] < 0)
+            continue;
+        double *ut = uv + s->var[t], *ms = s->mu_star + s->var[t];
+        memcpy(ut, &u[6 * t], 6 * sizeof *ut);
+        const double *m = s->mass + AS_MASS * t;
+        for (int k = 0; k < 3; k++)
+            ms[k] = m[0] * ut[k];
+        m3_mulv(ms + 3, m + 1, ut + 3);
+    }
+    for (int r = 0; r < s->n; r++) {
+        const row *rw = &pb->rows[r];
+        jt_add(s, rw, -z[r], s->mu_star);
+        s->d[r] = pb->off[r] + (rw->ma ? 0 : dot6(rw->ja, &u[6 * rw->la])) +
+                  (rw->mb ? 0 : dot6(rw->jb, &u[6 * rw->lb]));
+    }
+    for (int t = 0; t < s->nslots; t++) {
+        if (s->var[t] < 0)
+            continue;
+        const double *m = s->mass + AS_MASS * t, *ms = s->mu_star + s->var[t];
+        double *us = s->ustar + s->var[t];
+        for (int k = 0; k < 3; k++)
+            us[k] = fabs(ms[k] / m[0]);
+        m3_mulv(us + 3, m + 10, ms + 3);
+        for (int k = 3; k < 6; k++)
+            us[k] = fabs(us[k]);
+    }
+}
+
 static void as_free(as_ctx *s)
 {
     if (s->B)
@@ -563,36 +598,7 @@ int sc_island_active_set(const gs_problem *pb, const sc_body *bodies, const int 
            *xe = rbuf + 4 * nn;
     double *uv = vbuf, *b = vbuf + nv, *tmp = vbuf + 2 * nv, *tmp2 = vbuf + 3 * nv;
     unsigned char *ef = st + nn, *ef2 = st + 2 * nn;
-    /* the movable velocities as unknowns, M u* = M u - J^T z, and each
-     * row's constant: off and its immovable side's J u */
-    for (int t = 0; t < nslots; t++) {
-        if (s.var[t] < 0)
-            continue;
-        double *ut = &uv[s.var[t]];
-        memcpy(ut, &u[6 * t], 6 * sizeof *ut);
-        const double *m = &s.mass[AS_MASS * t];
-        double *ms = &s.mu_star[s.var[t]];
-        for (int k = 0; k < 3; k++)
-            ms[k] = m[0] * ut[k];
-        m3_mulv(ms + 3, m + 1, ut + 3);
-    }
-    for (int r = 0; r < n; r++) {
-        const row *rw = &pb->rows[r];
-        jt_add(&s, rw, -z[r], s.mu_star);
-        s.d[r] = pb->off[r] + (rw->ma ? 0 : dot6(rw->ja, &u[6 * rw->la])) +
-                 (rw->mb ? 0 : dot6(rw->jb, &u[6 * rw->lb]));
-    }
-    for (int t = 0; t < nslots; t++) {
-        if (s.var[t] < 0)
-            continue;
-        const double *m = &s.mass[AS_MASS * t], *ms = &s.mu_star[s.var[t]];
-        double *us = &s.ustar[s.var[t]];
-        for (int k = 0; k < 3; k++)
-            us[k] = fabs(ms[k] / m[0]);
-        m3_mulv(us + 3, m + 10, ms + 3);
-        for (int k = 3; k < 6; k++)
-            us[k] = fabs(us[k]);
-    }
+    as_begin(&s, u, z, uv);
     s.comp = 0;
     for (int r = 0; r < n; r++)
         s.comp = max_d(s.comp, a_entry(&pb->rows[r], &pb->rows[r]));
