@@ -273,10 +273,10 @@ fuzz:
 # make check builds on every CPU unless given -j itself: its two builds
 # (plain and sanitized) are most of its time.
 JOBS ?= $(shell nproc 2>/dev/null || echo 2)
+JFLAG = $(if $(filter -j% j%,$(MAKEFLAGS)),,-j$(JOBS))
 check: deps
-	$(Q)$(MAKE) --no-print-directory $(if $(filter -j% j%,$(MAKEFLAGS)),,-j$(JOBS)) WERROR=-Werror \
-	    all $(TEST_BIN) $(FUZZ_REPLAY) $(CLUSTER_BIN) $(VIEW_BIN)
-	$(Q)$(MAKE) --no-print-directory $(if $(filter -j% j%,$(MAKEFLAGS)),,-j$(JOBS)) WERROR=-Werror SAN=1 lib $(TEST_BIN:$(BUILD)/%=build-san/%) $(FUZZ_REPLAY:$(BUILD)/%=build-san/%) \
+	$(Q)$(MAKE) --no-print-directory $(JFLAG) WERROR=-Werror all $(TEST_BIN) $(FUZZ_REPLAY) $(CLUSTER_BIN) $(VIEW_BIN)
+	$(Q)$(MAKE) --no-print-directory $(JFLAG) WERROR=-Werror SAN=1 lib $(TEST_BIN:$(BUILD)/%=build-san/%) $(FUZZ_REPLAY:$(BUILD)/%=build-san/%) \
 	    $(TOOL_BIN:$(BUILD)/%=build-san/%) $(DAEMON_BIN:$(BUILD)/%=build-san/%) $(VIEW_BIN:$(BUILD)/%=build-san/%)
 	$(Q)sh tests/run.sh $(BUILD) build-san
 
