@@ -566,11 +566,15 @@ w "(\"*\": outside it), in both time-of-impact modes on one worker and in ODE's"
 w "dWorldStep and dWorldQuickStep on the same scenes. test_canon (make check) asserts"
 w "the same figures in both modes on 1 and 2 workers."
 run j_canon "$B/bench/bench_canon"
-# shellcheck disable=SC2016 # an awk program
-v=$(awk '/figures; missed:/ { gsub(",", ""); n = $1; l = $5; wd = $7 }
-    END { if (n == "") print "not measured";
-          else if (l == 0 && wd == 0) printf "met: all %d figures in both modes", n;
-          else printf "missed: local %d, world %d of %d figures", l, wd, n }' "$tmp/j_canon")
+# bench_canon's closing count as a verdict: met when neither mode missed
+canon_verdict() {
+    # shellcheck disable=SC2016 # an awk program
+    awk '/figures; missed:/ { gsub(",", ""); n = $1; l = $5; wd = $7 }
+        END { if (n == "") print "not measured";
+              else if (l == 0 && wd == 0) printf "met: all %d figures in both modes", n;
+              else printf "missed: local %d, world %d of %d figures", l, wd, n }' "$1"
+}
+v=$(canon_verdict "$tmp/j_canon")
 target "(j) canonical scenes: every figure within its tolerance in both time-of-impact modes" "$v"
 
 # ---- (k) structures ----
@@ -582,11 +586,7 @@ w "other cube), a pyramid of 15 rows, a wall of 10 x 12, standing 10 s, in both"
 w "time-of-impact modes and in ODE's steppers; dWorldStep's dense LCP gets 30 s of"
 w "wall time a scene and is judged on the time it reached (printed)."
 run k_structures "$B/bench/bench_canon" -s -T 10 -B 30
-# shellcheck disable=SC2016 # an awk program
-v=$(awk '/figures; missed:/ { gsub(",", ""); n = $1; l = $5; wd = $7 }
-    END { if (n == "") print "not measured";
-          else if (l == 0 && wd == 0) printf "met: all %d figures in both modes", n;
-          else printf "missed: local %d, world %d of %d figures", l, wd, n }' "$tmp/k_structures")
+v=$(canon_verdict "$tmp/k_structures")
 target "(k) structures: drift <= 1 mm, at rest, in both time-of-impact modes" "$v"
 w ""
 w "Island method against island size: each structure 1000 frames on one worker,"
