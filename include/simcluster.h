@@ -209,9 +209,10 @@ enum {
 
 /* How an island split into blocks is solved (sc_world_config.island_method). */
 enum {
-    SC_ISLAND_ACTIVE_SET,     /* the whole island's LCP exactly: an active set on a
-                                 sparse Cholesky factor, iterations nearly independent
-                                 of the island's size (the default) */
+    SC_ISLAND_ACTIVE_SET,     /* an island of more than 64 contacts solved whole and
+                                 exactly first: an active set on a sparse Cholesky
+                                 factor, iterations nearly independent of its height
+                                 (the default); blocks where it does not settle */
     SC_ISLAND_BLOCK_GS        /* block Gauss-Seidel over exact blocks, to
                                  SC_SPLIT_TOL or SC_SPLIT_MAX_SWEEPS sweeps */
 };
