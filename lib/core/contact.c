@@ -14,11 +14,6 @@
 #include "lcp.h"
 #include "vecmath.h"
 
-static int movable(const sc_body *b)
-{
-    return b->inv_mass > 0 && b->state != SC_ASLEEP;
-}
-
 static void row_body(const sc_body *b, const double r[3], const double d[3], double sign,
                      double j[6], double wj[6])
 {

@@ -16,6 +16,13 @@ typedef struct row {
     double wa[6], wb[6];      /* W J^T per body */
 } row;
 
+/* A body the contact solves move (W != 0); static and sleeping ones are
+ * only read. */
+static inline int movable(const sc_body *b)
+{
+    return b->inv_mass > 0 && b->state != SC_ASLEEP;
+}
+
 static inline double dot6(const double *x, const double *y)
 {
     return x[0] * y[0] + x[1] * y[1] + x[2] * y[2] + x[3] * y[3] + x[4] * y[4] + x[5] * y[5];

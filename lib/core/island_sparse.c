@@ -120,9 +120,8 @@ static int as_pattern(as_ctx *s, const sc_body *bodies, const int *slot_body)
     int nv = 0;
     for (int t = 0; t < ns; t++) {
         const sc_body *b = &bodies[slot_body[t]];
-        int mov = b->inv_mass > 0 && b->state != SC_ASLEEP;
-        s->var[t] = mov ? 6 * nv++ : -1;
-        if (mov) {
+        s->var[t] = movable(b) ? 6 * nv++ : -1;
+        if (movable(b)) {
             double *m = &s->mass[AS_MASS * t];
             m[0] = 1 / b->inv_mass;
             memcpy(m + 10, b->iw, 9 * sizeof *m);
@@ -604,21 +603,17 @@ int sc_island_active_set(const gs_problem *pb, const sc_body *bodies, const int 
         s.comp = max_d(s.comp, a_entry(&pb->rows[r], &pb->rows[r]));
     s.comp *= COMPLIANCE;
     memcpy(x, z, nn * sizeof *x);
-    for (int r = 0; r < n; r++)
-        w[r] = j_u(&s, &pb->rows[r], uv) + s.d[r] + s.comp * z[r];
-    int iter = 0, done = 0, factored = 0, rounds = 0, steps = 0;
+    int iter = 0, done = 0, factored = 0, rounds = 0;
     double worst = INFINITY;
     memcpy(zb, x, nn * sizeof *zb);
-    /* Inner: Newton's method with an exact line search on the convex
-     * problem the bounds fixed at +-mu times the normal impulses zb make
-     * (as_places() and as_line() say which); it ends when a full step
-     * keeps every row's place. Outer: the answer is checked against its
+    /* Inner: full Newton steps on the convex problem the bounds fixed at
+     * +-mu times the normal impulses zb make (as_places() says which row
+     * sits where); it ends when a step keeps every row's place. Outer: the answer is checked against its
      * own bounds, and zb becomes its normals when it fails (lcp.c's
      * friction fixed point). A new set of places costs a factorisation. */
     as_guess(&s, zb, x, uv, ef);
     int first = 1, stall = 0, last_changed = n + 1;
-    while (rc == SC_OK && iter < AS_MAX_ITER && rounds < AS_BOUND_ROUNDS &&
-           steps++ < 4 * AS_MAX_ITER) {
+    while (rc == SC_OK && iter < AS_MAX_ITER && rounds < AS_BOUND_ROUNDS) {
         if (!factored) {
             iter++;
             as_matrix(&s, ef);
