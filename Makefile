@@ -43,10 +43,10 @@ XFLAGS  :=
 OPT     ?= -O3
 endif
 
-# CHOLMOD (SuiteSparse) factors big islands (island_sparse.c); Debian ships
-# no pkg-config file for it.
+# KLU (SuiteSparse) factors big islands (island_sparse.c); Debian ships no
+# pkg-config file for it.
 SUITESPARSE_INC := -I/usr/include/suitesparse
-SUITESPARSE_LIBS := -lcholmod
+SUITESPARSE_LIBS := -lklu
 DEP_PKGS := ode ccd gsl lcm libsodium
 GEN     := $(BUILD)/gen
 # The library's layers, each seeing only its own and lower layers' headers

@@ -210,7 +210,7 @@ enum {
 /* How an island split into blocks is solved (sc_world_config.island_method). */
 enum {
     SC_ISLAND_ACTIVE_SET,     /* an island of more than 64 contacts solved whole and
-                                 exactly first: an active set on a sparse Cholesky
+                                 exactly first: an active set on a sparse LU
                                  factor, iterations nearly independent of its height
                                  (the default); blocks where it does not settle */
     SC_ISLAND_BLOCK_GS        /* block Gauss-Seidel over exact blocks, to

@@ -1,9 +1,9 @@
 /* island_sparse.c - a big island's whole contact LCP, exact, by an active
- * set: which rows sit at a bound decided by full Newton steps (block
- * principal pivoting) on the convex problem the LCP is the optimality
- * condition of, each step's linear system solved by a sparse Cholesky
- * factor (CHOLMOD), until a step keeps every row's place; the answer is
- * then verified as Dantzig's are (docs/DESIGN.md 11).
+ * set: which rows sit at a bound decided by full Newton steps on the
+ * piecewise linear equations the LCP and its friction bounds make, each
+ * step's linear system solved by a sparse LU factor (KLU), until a step
+ * keeps every row's place; the answer is then verified as Dantzig's are
+ * (docs/DESIGN.md 11).
  *
  * The system is solved in the bodies' velocities, not in the rows'
  * impulses: with the compliance c of the exact solves (COMPLIANCE), a free
@@ -11,9 +11,13 @@
  * bodies solve (M + sum_free J^T J / c) u = M u* + sum_held J^T z - sum_free
  * J^T d / c, six unknowns a body whatever its contacts (a body in a pile
  * has tens of rows; the rows' own matrix would be many times larger). The
- * same answer as (A + c I) z = -q on the free rows, A = J M^-1 J^T. */
-#include <cholmod.h>
+ * same answer as (A + c I) z = -q on the free rows, A = J M^-1 J^T.
+ * Friction held at a bound is z_t = s mu z_n: with a free normal it moves
+ * with u too, which makes the system unsymmetric, hence LU, not Cholesky;
+ * the coupling inside the step settles what a fixed point on the bounds
+ * (lcp.c) takes rounds for. */
 #include <float.h>
+#include <klu.h>
 #include <math.h>
 #include <stdlib.h>
 #include <string.h>
@@ -21,7 +25,9 @@
 #include "contact_rows.h"
 #include "vecmath.h"
 
-/* A row's place: free (w = 0 between its bounds) or held at a bound. */
+/* A row's place: free (w = 0 between its bounds) or held at a bound.
+ * Friction held at a bound is held at +-mu times its normal's impulse,
+ * whatever place that normal has: the coupling is in the Newton system. */
 enum { AS_FREE, AS_LO, AS_HI };
 
 /* The answer must meet Dantzig's verification (lcp.c): every violation at
@@ -31,15 +37,18 @@ enum { AS_FREE, AS_LO, AS_HI };
  * the scale is near 0 (a push-out of a few micrometres): the exact
  * solves' own residuals reach 1e-13 to 1e-12 m/s on piles. */
 #define AS_FLOOR 1e-12
-/* Factorisations (sets of places) at most: Newton's method on a convex
- * piecewise quadratic takes a few (a stack or a pyramid 1 to 5); a pile of
- * bolts whose friction does not settle within these goes to block
+/* Factorisations (sets of places) at most: Newton's method on the
+ * piecewise linear equations takes a few (a stack or a pyramid 1 to 5);
+ * an island whose places do not settle within these goes to block
  * Gauss-Seidel instead (contact.c), before it costs many factors. */
 #define AS_MAX_ITER 12
 #define AS_STALL 2
-/* Rounds of friction bounds taken from the last normal impulses at most;
- * refinement steps of each solve. */
-#define AS_BOUND_ROUNDS 12
+/* A step that changes more than 1/AS_CHURN of the places gives up at once:
+ * a structure's steps change a few in a hundred, a bolt pile's friction a
+ * quarter to a half, step after step, and never settles (docs/DESIGN.md
+ * 11): block Gauss-Seidel takes it before it costs more factors. */
+#define AS_CHURN 8
+/* Refinement steps of each solve. */
 #define AS_REFINE 2
 
 #define AS_MASS 19
@@ -53,18 +62,20 @@ typedef struct as_ctx {
     double *mass;             /* per slot: m, the world inertia 3 x 3 and its
                                  inverse (AS_MASS doubles) */
     double comp;              /* c */
-    int round;                /* of the friction fixed point (bounds_fixed()) */
     double *d;                /* per row: off plus J u of its immovable side */
     double *mu_star;          /* M u* per unknown (u*: u without the impulses) */
     double *ustar;            /* |u*| per unknown */
     double *duabs;            /* sum over rows of |M^-1 J_r^T z_r| per unknown */
-    /* the pattern of K: upper triangle, compressed columns of 6 x 6 blocks */
-    int *kp, *ki;
-    int *roff;                /* row -> offset of its (a, b) block's column 0 entry, -1 */
-    cholmod_common cm;
-    cholmod_sparse *K;
-    cholmod_factor *L;
-    cholmod_dense *B;
+    /* K in compressed columns of 6 x 6 blocks: slot t's six columns hold
+     * the slots that share a row with it and itself (ascending, deg[t] of
+     * them), six rows each */
+    int *kp, *ki, *deg;
+    int *rpos;                /* per row, 4: position of side p's slot in side
+                                 q's list at [2 p + q], -1: a side not movable */
+    double *kx;
+    klu_common kc;
+    klu_symbolic *sym;
+    klu_numeric *num;
 } as_ctx;
 
 /* Row r's Jacobian on its movable slot side t (0: a, 1: b), or NULL. */
@@ -73,25 +84,20 @@ static const double *jac(const row *rw, int t)
     return t == 0 ? (rw->ma ? rw->ja : NULL) : (rw->mb ? rw->jb : NULL);
 }
 
+static int side_slot(const row *rw, int t)
+{
+    return t ? rw->lb : rw->la;
+}
+
 /* Bounds of row r given z (friction: +-mu z_normal). */
 static void bounds(const as_ctx *s, const double *z, int r, double *lo, double *hi)
 {
     row_bounds(s->pb, z, r, lo, hi);
 }
 
-/* Row r's bounds in a round of the friction fixed point, from the normal
- * impulses zb: in the first round, friction of a contact whose normal has
- * no impulse yet sticks (unbounded) rather than sliding freely (bounds 0):
- * a resting structure solved cold then finds its normal loads with its
- * friction holding, as it does, and later rounds bound it by them. */
-static void bounds_fixed(const as_ctx *s, const double *zb, int r, double *lo, double *hi)
+static int friction_row(const as_ctx *s, int r)
 {
-    row_bounds(s->pb, zb, r, lo, hi);
-    const int *fx = s->pb->findex;
-    if (s->round == 0 && fx && fx[r] >= 0 && !(zb[fx[r]] > 0)) {
-        *lo = -INFINITY;
-        *hi = INFINITY;
-    }
+    return s->pb->findex && s->pb->findex[r] >= 0;
 }
 
 static int cmp_int(const void *x, const void *y)
@@ -100,23 +106,34 @@ static int cmp_int(const void *x, const void *y)
     return (a > b) - (a < b);
 }
 
-/* The unknowns, masses and the block pattern of K: slot t's block column
- * holds the slots s < t that share a row with it (ascending), then its
- * own diagonal block's upper triangle. Arrays from malloc (CHOLMOD's own
- * are, and they outlive any arena order). */
+/* The unknowns, masses and the block pattern of K (both triangles: the
+ * friction coupling makes K unsymmetric): slot t's block column holds the
+ * slots that share a row with it and itself, ascending. A friction row
+ * couples to its normal, which must join the same two bodies (a contact's
+ * rows do); otherwise SC_ENUMERIC. Arrays from malloc (KLU's own are, and
+ * they outlive any arena order). */
 static int as_pattern(as_ctx *s, const sc_body *bodies, const int *slot_body)
 {
     const row *rows = s->pb->rows;
     int n = s->n, ns = s->nslots;
     s->var = malloc((size_t)ns * sizeof *s->var);
+    s->deg = malloc((size_t)ns * sizeof *s->deg);
     s->mass = malloc((size_t)ns * AS_MASS * sizeof *s->mass);
-    s->roff = malloc((size_t)(n > 0 ? n : 1) * sizeof *s->roff);
+    s->rpos = malloc(4 * (size_t)(n > 0 ? n : 1) * sizeof *s->rpos);
     int *cnt = calloc((size_t)ns + 1, sizeof *cnt);
-    int *adj = malloc((size_t)(n > 0 ? n : 1) * sizeof *adj);
-    int *pos = malloc((size_t)(ns > n ? ns : n) * sizeof *pos + sizeof *pos);
+    int *adj = malloc(2 * (size_t)(n + ns) * sizeof *adj + sizeof *adj);
+    int *pos = malloc((size_t)(ns > 0 ? ns : 1) * sizeof *pos);
     int rc = SC_ENOMEM;
-    if (!s->var || !s->mass || !s->roff || !cnt || !adj || !pos)
+    if (!s->var || !s->deg || !s->mass || !s->rpos || !cnt || !adj || !pos)
         goto out;
+    rc = SC_ENUMERIC;
+    for (int r = 0; r < n; r++)
+        if (friction_row(s, r)) {
+            const row *f = &rows[s->pb->findex[r]];
+            if (f->la != rows[r].la || f->lb != rows[r].lb || f->ma != rows[r].ma ||
+                f->mb != rows[r].mb)
+                goto out;
+        }
     int nv = 0;
     for (int t = 0; t < ns; t++) {
         const sc_body *b = &bodies[slot_body[t]];
@@ -125,77 +142,72 @@ static int as_pattern(as_ctx *s, const sc_body *bodies, const int *slot_body)
             double *m = &s->mass[AS_MASS * t];
             m[0] = 1 / b->inv_mass;
             memcpy(m + 10, b->iw, 9 * sizeof *m);
-            if (!m3_inverse(m + 1, b->iw)) {
-                rc = SC_ENUMERIC;
+            if (!m3_inverse(m + 1, b->iw))
                 goto out;
-            }
         }
     }
     s->nvar = 6 * nv;
-    /* the pairs (lo, hi) of movable slots sharing a row, grouped by hi,
-     * each once: counted, listed, sorted, deduplicated */
-    for (int r = 0; r < n; r++) {
-        s->roff[r] = -1;
-        if (rows[r].ma && rows[r].mb && rows[r].la != rows[r].lb)
-            cnt[(rows[r].la > rows[r].lb ? rows[r].la : rows[r].lb) + 1]++;
-    }
+    /* each movable slot's list: itself and the other side of every row
+     * joining two movable slots; counted, listed, sorted, deduplicated */
+    for (int t = 0; t < ns; t++)
+        cnt[t + 1] = s->var[t] >= 0;
+    for (int r = 0; r < n; r++)
+        if (rows[r].ma && rows[r].mb && rows[r].la != rows[r].lb) {
+            cnt[rows[r].la + 1]++;
+            cnt[rows[r].lb + 1]++;
+        }
     for (int t = 0; t < ns; t++)
         cnt[t + 1] += cnt[t];
     memcpy(pos, cnt, (size_t)ns * sizeof *pos);
+    for (int t = 0; t < ns; t++)
+        if (s->var[t] >= 0)
+            adj[pos[t]++] = t;
     for (int r = 0; r < n; r++)
         if (rows[r].ma && rows[r].mb && rows[r].la != rows[r].lb) {
-            int hi = rows[r].la > rows[r].lb ? rows[r].la : rows[r].lb;
-            int lo = rows[r].la + rows[r].lb - hi;
-            adj[pos[hi]++] = lo;
+            adj[pos[rows[r].la]++] = rows[r].lb;
+            adj[pos[rows[r].lb]++] = rows[r].la;
         }
-    int *nb = pos;            /* per slot: distinct lower neighbours */
+    size_t nnz = 0;
     for (int t = 0; t < ns; t++) {
         int a = cnt[t], b = cnt[t + 1], u = a;
         qsort(&adj[a], (size_t)(b - a), sizeof *adj, cmp_int);
         for (int k = a; k < b; k++)
             if (k == a || adj[k] != adj[k - 1])
                 adj[u++] = adj[k];
-        nb[t] = u - a;
+        s->deg[t] = u - a;
+        nnz += 36 * (size_t)s->deg[t];
     }
-    /* columns: slot t's 6 columns, column k: 6 per lower neighbour, then
-     * k + 1 of its diagonal block */
-    size_t nnz = 0;
-    for (int t = 0; t < ns; t++)
-        if (s->var[t] >= 0)
-            nnz += 36 * (size_t)nb[t] + 21;
-    if (nnz > (size_t)1 << 30) {
-        rc = SC_ETOOMANY;
+    if (nnz > (size_t)1 << 30)
         goto out;
-    }
+    rc = SC_ENOMEM;
     s->kp = malloc((size_t)(s->nvar + 1) * sizeof *s->kp);
     s->ki = malloc((nnz > 0 ? nnz : 1) * sizeof *s->ki);
-    if (!s->kp || !s->ki)
+    s->kx = malloc((nnz > 0 ? nnz : 1) * sizeof *s->kx);
+    if (!s->kp || !s->ki || !s->kx)
         goto out;
     int p = 0;
     for (int t = 0; t < ns; t++) {
         if (s->var[t] < 0)
             continue;
-        int c0 = s->var[t];
         for (int k = 0; k < 6; k++) {
-            s->kp[c0 + k] = p;
-            for (int j = 0; j < nb[t]; j++) {
-                int v = s->var[adj[cnt[t] + j]];
+            s->kp[s->var[t] + k] = p;
+            for (int j = 0; j < s->deg[t]; j++)
                 for (int i = 0; i < 6; i++)
-                    s->ki[p++] = v + i;
-            }
-            for (int i = 0; i <= k; i++)
-                s->ki[p++] = c0 + i;
+                    s->ki[p++] = s->var[adj[cnt[t] + j]] + i;
         }
     }
     s->kp[s->nvar] = p;
-    /* each coupling row's block: the position of lo in hi's list */
     for (int r = 0; r < n; r++)
-        if (rows[r].ma && rows[r].mb && rows[r].la != rows[r].lb) {
-            int hi = rows[r].la > rows[r].lb ? rows[r].la : rows[r].lb;
-            int lo = rows[r].la + rows[r].lb - hi;
-            int *f = bsearch(&lo, &adj[cnt[hi]], (size_t)nb[hi], sizeof *adj, cmp_int);
-            s->roff[r] = (int)(f - &adj[cnt[hi]]) * 6;
-        }
+        for (int sp = 0; sp < 2; sp++)
+            for (int sq = 0; sq < 2; sq++) {
+                int *rp = &s->rpos[4 * r + 2 * sp + sq];
+                *rp = -1;
+                if (!jac(&rows[r], sp) || !jac(&rows[r], sq))
+                    continue;
+                int v = side_slot(&rows[r], sp), t = side_slot(&rows[r], sq);
+                int *f = bsearch(&v, &adj[cnt[t]], (size_t)s->deg[t], sizeof *adj, cmp_int);
+                *rp = (int)(f - &adj[cnt[t]]);
+            }
     rc = SC_OK;
 out:
     free(pos);
@@ -204,72 +216,78 @@ out:
     return rc;
 }
 
-/* Entry (row i of slot lo's block, column k of slot hi's block) of K for
- * a coupling block at list offset off (roff), or the diagonal block. */
-static double *k_off(const as_ctx *s, double *kx, int hi, int off, int i, int k)
+/* Entry (row i of the slot at position pos in slot t's list, column k of
+ * slot t) of K. */
+static double *k_at(const as_ctx *s, int t, int pos, int i, int k)
 {
-    return &kx[s->kp[s->var[hi] + k] + off + i];
+    return &s->kx[s->kp[s->var[t]] + 6 * (k * s->deg[t] + pos) + i];
 }
 
-static double *k_diag(const as_ctx *s, double *kx, int t, int i, int k)
+/* K += g J_p^T J_q over the sides p of row r and q of row f (which joins
+ * the same slots). */
+static void k_add(as_ctx *s, int r, const row *rr, const row *rf, double g)
 {
-    /* column k of the diagonal block starts k(k+1)/2 + 6 k nb entries
-     * after column 0's; the diagonal part is the column's tail */
-    int col = s->var[t] + k;
-    return &kx[s->kp[col + 1] - (k + 1) + i];
+    for (int sp = 0; sp < 2; sp++)
+        for (int sq = 0; sq < 2; sq++) {
+            int pos = s->rpos[4 * r + 2 * sp + sq];
+            if (pos < 0)
+                continue;
+            const double *jp = jac(rr, sp), *jq = jac(rf, sq);
+            int t = side_slot(rr, sq);
+            for (int k = 0; k < 6; k++) {
+                double *col = k_at(s, t, pos, 0, k), gk = g * jq[k];
+                for (int i = 0; i < 6; i++)
+                    col[i] += jp[i] * gk;
+            }
+        }
 }
 
-/* K's values for the free rows of ef: M, plus J_r^T J_r / c of each. */
+/* A friction row held at a bound, and the sign of the bound. */
+static double held_sign(unsigned char e)
+{
+    return e == AS_HI ? 1.0 : -1.0;
+}
+
+/* K for the places ef: M, plus J_r^T J_r / c of each free row, plus
+ * s mu J_t^T J_n / c of each friction row t held at the bound s mu z_n of
+ * a free normal n (z_t = s mu z_n moves with u through z_n = -(J_n u +
+ * d_n) / c). */
 static void as_matrix(as_ctx *s, const unsigned char *ef)
 {
-    double *kx = s->K->x;
-    memset(kx, 0, (size_t)s->kp[s->nvar] * sizeof *kx);
+    memset(s->kx, 0, (size_t)s->kp[s->nvar] * sizeof *s->kx);
+    const gs_problem *pb = s->pb;
     for (int t = 0; t < s->nslots; t++) {
         if (s->var[t] < 0)
             continue;
         const double *m = &s->mass[AS_MASS * t];
+        int self = 0;     /* t's own position in its list */
+        while (s->ki[s->kp[s->var[t]] + 6 * self] != s->var[t])
+            self++;
         for (int k = 0; k < 3; k++)
-            *k_diag(s, kx, t, k, k) = m[0];
+            *k_at(s, t, self, k, k) = m[0];
         for (int k = 0; k < 3; k++)
-            for (int i = 0; i <= k; i++)
-                *k_diag(s, kx, t, 3 + i, 3 + k) = m[1 + 3 * i + k];
+            for (int i = 0; i < 3; i++)
+                *k_at(s, t, self, 3 + i, 3 + k) = m[1 + 3 * i + k];
     }
     double ic = 1 / s->comp;
     for (int r = 0; r < s->n; r++) {
-        if (ef[r] != AS_FREE)
-            continue;
-        const row *rw = &s->pb->rows[r];
-        for (int t = 0; t < 2; t++) {
-            const double *j = jac(rw, t);
-            if (!j)
-                continue;
-            int sl = t ? rw->lb : rw->la;
-            for (int k = 0; k < 6; k++)
-                for (int i = 0; i <= k; i++)
-                    *k_diag(s, kx, sl, i, k) += j[i] * j[k] * ic;
-        }
-        if (s->roff[r] >= 0) {
-            int hi = rw->la > rw->lb ? rw->la : rw->lb;
-            const double *jl = hi == rw->la ? rw->jb : rw->ja, *jh = hi == rw->la ? rw->ja : rw->jb;
-            for (int k = 0; k < 6; k++)
-                for (int i = 0; i < 6; i++)
-                    *k_off(s, kx, hi, s->roff[r], i, k) += jl[i] * jh[k] * ic;
+        const row *rw = &pb->rows[r];
+        if (ef[r] == AS_FREE) {
+            k_add(s, r, rw, rw, ic);
+        } else if (friction_row(s, r) && ef[pb->findex[r]] == AS_FREE) {
+            const row *rn = &pb->rows[pb->findex[r]];
+            k_add(s, r, rw, rn, held_sign(ef[r]) * pb->mu[r] * ic);
         }
     }
 }
 
-/* y = K x from the upper triangle. */
+/* y = K x. */
 static void k_mul(const as_ctx *s, const double *x, double *y)
 {
-    const double *kx = s->K->x;
     memset(y, 0, (size_t)s->nvar * sizeof *y);
     for (int j = 0; j < s->nvar; j++)
-        for (int p = s->kp[j]; p < s->kp[j + 1]; p++) {
-            int i = s->ki[p];
-            y[i] += kx[p] * x[j];
-            if (i != j)
-                y[j] += kx[p] * x[i];
-        }
+        for (int p = s->kp[j]; p < s->kp[j + 1]; p++)
+            y[s->ki[p]] += s->kx[p] * x[j];
 }
 
 /* J_r u over the movable sides (u per unknown). */
@@ -294,51 +312,48 @@ static void jt_add(const as_ctx *s, const row *rw, double z, double *b)
             b[s->var[rw->lb] + k] += rw->jb[k] * z;
 }
 
-/* The value a held row is held at, from z's normal impulses. */
-static double held_value(const as_ctx *s, const double *z, const unsigned char *ef, int r)
+/* The right-hand side for the places ef: M u* + sum_r J_r^T a_r, where
+ * row r's impulse is a_r - g_r u: a free row's a is -d / c, a held row's
+ * its bound, a friction row's held at the bound of a free normal n
+ * s mu (-d_n / c), of a held normal s mu z_n. */
+static void as_rhs(const as_ctx *s, const unsigned char *ef, double *b)
 {
-    double lo, hi;
-    bounds_fixed(s, z, r, &lo, &hi);
-    return ef[r] == AS_HI ? hi : lo;
-}
-
-/* The right-hand side for the places ef, held rows at their values from
- * the normal impulses in zb (written into z): M u* + sum_held J^T z -
- * sum_free J^T d / c. */
-static void as_rhs(const as_ctx *s, const unsigned char *ef, const double *zb, double *z,
-                   double *b)
-{
+    const gs_problem *pb = s->pb;
     memcpy(b, s->mu_star, (size_t)s->nvar * sizeof *b);
     for (int r = 0; r < s->n; r++) {
-        const row *rw = &s->pb->rows[r];
-        if (ef[r] != AS_FREE) {
-            z[r] = held_value(s, zb, ef, r);
-            jt_add(s, rw, z[r], b);
+        const row *rw = &pb->rows[r];
+        double a;
+        if (ef[r] == AS_FREE) {
+            a = -s->d[r] / s->comp;
+        } else if (friction_row(s, r)) {
+            int f = pb->findex[r];
+            double zn = ef[f] == AS_FREE ? -s->d[f] / s->comp
+                        : ef[f] == AS_HI ? pb->hi[f]
+                                         : pb->lo[f];
+            a = held_sign(ef[r]) * pb->mu[r] * zn;
         } else {
-            jt_add(s, rw, -s->d[r] / s->comp, b);
+            a = ef[r] == AS_HI ? pb->hi[r] : pb->lo[r];
         }
+        if (a != 0)
+            jt_add(s, rw, a, b);
     }
 }
 
 /* u = K^-1 b with AS_REFINE steps of refinement. */
-static int as_solve(as_ctx *s, const double *b, double *u, double *tmp)
+static int as_solve(as_ctx *s, const double *b, double *u, double *tmp, double *dx)
 {
     size_t nv = (size_t)s->nvar;
-    double *bx = s->B->x;
-    memcpy(bx, b, nv * sizeof *bx);
+    memcpy(dx, b, nv * sizeof *dx);
     for (int it = 0; it <= AS_REFINE; it++) {
-        cholmod_dense *X = cholmod_solve(CHOLMOD_A, s->L, s->B, &s->cm);
-        if (!X)
+        if (!klu_solve(s->sym, s->num, s->nvar, 1, dx, &s->kc))
             return SC_ENUMERIC;
-        const double *dx = X->x;
         for (size_t i = 0; i < nv; i++)
             u[i] = it ? u[i] + dx[i] : dx[i];
-        cholmod_free_dense(&X, &s->cm);
         if (it == AS_REFINE)
             break;
         k_mul(s, u, tmp);
         for (size_t i = 0; i < nv; i++)
-            bx[i] = b[i] - tmp[i];
+            dx[i] = b[i] - tmp[i];
     }
     return SC_OK;
 }
@@ -403,72 +418,61 @@ static int as_check(const as_ctx *s, const double *z, const double *w, const dou
     return ok;
 }
 
-/* Each row's impulse at velocities u with bounds from the normal
- * impulses zb, z = clamp(-(J u + d) / c, lo, hi), into z, and its place:
- * free inside its bounds or on one, else held at the one it passed
- * (friction whose bounds are 0 is held at 0). A row on its bound is free:
- * a resting contact whose bodies do not approach yet, as in a stack whose
- * lower contacts take the load first, then carries its share in the same
- * step instead of one level a step. */
-static void as_places(const as_ctx *s, const double *zb, const double *u, double *z,
-                      unsigned char *ef)
+/* A row's place for an unclamped impulse v within [lo, hi]: held at the
+ * bound it passed, else free (on a bound too: a resting contact whose
+ * bodies do not approach yet, as in a stack whose lower contacts take the
+ * load first, then carries its share in the same step instead of one level
+ * a step). A friction row whose bounds are 0 is held at 0. */
+static unsigned char place(double v, double lo, double hi)
 {
-    for (int r = 0; r < s->n; r++) {
-        double lo, hi;
-        bounds_fixed(s, zb, r, &lo, &hi);
-        double v = -(j_u(s, &s->pb->rows[r], u) + s->d[r]) / s->comp;
-        ef[r] = lo == hi ? AS_LO : v < lo ? AS_LO : v > hi ? AS_HI : AS_FREE;
-        z[r] = ef[r] == AS_LO ? lo : ef[r] == AS_HI ? hi : v;
-    }
+    return lo == hi ? AS_LO : v < lo ? AS_LO : v > hi ? AS_HI : AS_FREE;
+}
+
+/* Each row's impulse at velocities u, z = clamp(-(J u + d) / c, lo, hi),
+ * into z, and its place; the normals first, so that friction is bounded
+ * by the normal impulses of the same u. */
+static void as_places(const as_ctx *s, const double *u, double *z, unsigned char *ef)
+{
+    for (int pass = 0; pass < 2; pass++)
+        for (int r = 0; r < s->n; r++) {
+            if (friction_row(s, r) != pass)
+                continue;
+            double lo, hi;
+            bounds(s, z, r, &lo, &hi);
+            double v = -(j_u(s, &s->pb->rows[r], u) + s->d[r]) / s->comp;
+            ef[r] = place(v, lo, hi);
+            z[r] = ef[r] == AS_LO ? lo : ef[r] == AS_HI ? hi : v;
+        }
 }
 
 /* The first places, from the warm start z and its w = J u + d + c z
  * (where u holds it): a row inside its bounds is free, and so is one on a
  * bound whose w does not push it there (w = 0: a resting contact, or a
  * stack's contact above one that takes the load first); friction whose
- * bounds are 0 is held at 0. Not the places at u: there the velocities
- * before this frame's impulses settle (gravity's h g) over the tiny
- * compliance put every friction row at a bound. */
-static void as_guess(const as_ctx *s, const double *zb, const double *z, const double *u,
-                     unsigned char *ef)
+ * normal is held at 0 is held at 0, and friction of a free normal that
+ * has no load yet sticks (free). Not the places at u: there the
+ * velocities before this frame's impulses settle (gravity's h g) over the
+ * tiny compliance put every friction row at a bound. */
+static void as_guess(const as_ctx *s, const double *z, const double *u, unsigned char *ef)
 {
-    for (int r = 0; r < s->n; r++) {
-        double lo, hi;
-        bounds_fixed(s, zb, r, &lo, &hi);
-        double w = j_u(s, &s->pb->rows[r], u) + s->d[r] + s->comp * z[r];
-        ef[r] = lo == hi                 ? AS_LO
-                : z[r] <= lo && w > 0 ? AS_LO
-                : z[r] >= hi && w < 0 ? AS_HI
-                                      : AS_FREE;
-    }
-}
-
-/* The convex function Newton's method minimises, up to a constant: 1/2
- * u^T M u - u^T M u* + sum_r phi_r(J_r u + d_r), phi(y) = max over z in
- * the bounds of -z y - c z^2 / 2 (its gradient M (u - u*) - J^T z(u)). y
- * holds n doubles of scratch. */
-static double as_objective(const as_ctx *s, const double *zb, const double *u, double *y)
-{
-    double f = 0;
-    for (int t = 0; t < s->nslots; t++) {
-        if (s->var[t] < 0)
-            continue;
-        const double *m = &s->mass[AS_MASS * t];
-        const double *ut = &u[s->var[t]], *ms = &s->mu_star[s->var[t]];
-        double mw[3];
-        m3_mulv(mw, m + 1, ut + 3);
-        for (int k = 0; k < 3; k++)
-            f += 0.5 * (m[0] * ut[k] * ut[k] + ut[k + 3] * mw[k]) - ut[k] * ms[k] -
-                 ut[k + 3] * ms[k + 3];
-    }
-    for (int r = 0; r < s->n; r++) {
-        double lo, hi;
-        bounds_fixed(s, zb, r, &lo, &hi);
-        y[r] = j_u(s, &s->pb->rows[r], u) + s->d[r];
-        double z = min_d(max_d(-y[r] / s->comp, lo), hi);
-        f += -z * y[r] - 0.5 * s->comp * z * z;
-    }
-    return f;
+    const gs_problem *pb = s->pb;
+    for (int pass = 0; pass < 2; pass++)
+        for (int r = 0; r < s->n; r++) {
+            if (friction_row(s, r) != pass)
+                continue;
+            double lo, hi;
+            bounds(s, z, r, &lo, &hi);
+            double w = j_u(s, &pb->rows[r], u) + s->d[r] + s->comp * z[r];
+            if (pass && ef[pb->findex[r]] != AS_FREE && lo == hi)
+                ef[r] = AS_LO;
+            else if (pass && lo == hi)
+                ef[r] = AS_FREE;
+            else
+                ef[r] = lo == hi                 ? AS_LO
+                        : z[r] <= lo && w > 0 ? AS_LO
+                        : z[r] >= hi && w < 0 ? AS_HI
+                                              : AS_FREE;
+        }
 }
 
 /* u = u* + M^-1 J^T z (per unknown). */
@@ -526,44 +530,44 @@ static void as_begin(as_ctx *s, const double *u, const double *z, double *uv)
 
 static void as_free(as_ctx *s)
 {
-    if (s->B)
-        cholmod_free_dense(&s->B, &s->cm);
-    if (s->L)
-        cholmod_free_factor(&s->L, &s->cm);
-    if (s->K)
-        cholmod_free_sparse(&s->K, &s->cm);
-    cholmod_finish(&s->cm);
+    if (s->num)
+        klu_free_numeric(&s->num, &s->kc);
+    if (s->sym)
+        klu_free_symbolic(&s->sym, &s->kc);
     free(s->duabs);
     free(s->ustar);
     free(s->mu_star);
     free(s->d);
+    free(s->kx);
     free(s->ki);
     free(s->kp);
-    free(s->roff);
+    free(s->rpos);
+    free(s->deg);
     free(s->mass);
     free(s->var);
 }
 
-/* CHOLMOD for one solve: no printing, a simplicial factor (no BLAS threads:
- * the same bits on any machine load), AMD ordering. */
-static int as_start(as_ctx *s)
+/* K's factor for the places ef: the first one ordered (AMD) and pivoted
+ * by KLU (no threads, the same bits on any machine load), later ones
+ * refactored with its pivots, afresh when that fails. */
+static int as_factor(as_ctx *s, const unsigned char *ef)
 {
-    cholmod_start(&s->cm);
-    s->cm.print = 0;
-    s->cm.supernodal = CHOLMOD_SIMPLICIAL;
-    s->cm.final_ll = 0;
-    s->cm.nmethods = 1;
-    s->cm.method[0].ordering = CHOLMOD_AMD;
-    s->cm.postorder = 1;
-    size_t nv = (size_t)s->nvar, nnz = (size_t)s->kp[s->nvar];
-    s->K = cholmod_allocate_sparse(nv, nv, nnz, 1, 1, 1, CHOLMOD_REAL, &s->cm);
-    s->B = s->K ? cholmod_allocate_dense(nv, 1, nv, CHOLMOD_REAL, &s->cm) : NULL;
-    if (!s->B)
-        return SC_ENOMEM;
-    memcpy(s->K->p, s->kp, (nv + 1) * sizeof *s->kp);
-    memcpy(s->K->i, s->ki, nnz * sizeof *s->ki);
-    s->L = cholmod_analyze(s->K, &s->cm);
-    return s->L ? SC_OK : SC_ENOMEM;
+    as_matrix(s, ef);
+    if (!s->sym) {
+        klu_defaults(&s->kc);
+        s->sym = klu_analyze(s->nvar, s->kp, s->ki, &s->kc);
+        if (!s->sym)
+            return s->kc.status == KLU_OUT_OF_MEMORY ? SC_ENOMEM : SC_ENUMERIC;
+    }
+    if (s->num && klu_refactor(s->kp, s->ki, s->kx, s->sym, s->num, &s->kc) &&
+        s->kc.status == KLU_OK)
+        return SC_OK;
+    if (s->num)
+        klu_free_numeric(&s->num, &s->kc);
+    s->num = klu_factor(s->kp, s->ki, s->kx, s->sym, &s->kc);
+    if (!s->num)
+        return s->kc.status == KLU_OUT_OF_MEMORY ? SC_ENOMEM : SC_ENUMERIC;
+    return SC_OK;
 }
 
 int sc_island_active_set(const gs_problem *pb, const sc_body *bodies, const int *slot_body,
@@ -573,9 +577,9 @@ int sc_island_active_set(const gs_problem *pb, const sc_body *bodies, const int 
     as_ctx s = { .pb = pb, .n = n, .nslots = nslots };
     int rc = as_pattern(&s, bodies, slot_body);
     size_t nn = (size_t)n, nv = (size_t)(s.nvar > 0 ? s.nvar : 1);
-    double *rbuf = rc == SC_OK ? malloc(5 * nn * sizeof *rbuf) : NULL;
+    double *rbuf = rc == SC_OK ? malloc(4 * nn * sizeof *rbuf) : NULL;
     double *vbuf = rbuf ? malloc(4 * nv * sizeof *vbuf) : NULL;
-    unsigned char *st = vbuf ? malloc(3 * nn) : NULL;
+    unsigned char *st = vbuf ? malloc(2 * nn) : NULL;
     s.d = st ? malloc(nn * sizeof *s.d) : NULL;
     s.mu_star = s.d ? malloc(nv * sizeof *s.mu_star) : NULL;
     s.ustar = s.mu_star ? malloc(nv * sizeof *s.ustar) : NULL;
@@ -584,80 +588,56 @@ int sc_island_active_set(const gs_problem *pb, const sc_body *bodies, const int 
         rc = SC_ENOMEM;
     if (rc == SC_OK && s.nvar == 0)
         rc = SC_ENUMERIC;     /* nothing movable: not an island to solve */
-    if (rc == SC_OK)
-        rc = as_start(&s);
     if (rc != SC_OK) {
         as_free(&s);
         free(st);
         free(vbuf);
         free(rbuf);
-        return rc == SC_ETOOMANY ? SC_ENUMERIC : rc;
+        return rc;
     }
-    double *x = rbuf, *w = rbuf + nn, *sc = rbuf + 2 * nn, *zb = rbuf + 3 * nn,
-           *xe = rbuf + 4 * nn;
-    double *uv = vbuf, *b = vbuf + nv, *tmp = vbuf + 2 * nv, *tmp2 = vbuf + 3 * nv;
-    unsigned char *ef = st + nn, *ef2 = st + 2 * nn;
+    double *x = rbuf, *w = rbuf + nn, *sc = rbuf + 2 * nn, *xe = rbuf + 3 * nn;
+    double *uv = vbuf, *b = vbuf + nv, *tmp = vbuf + 2 * nv, *dx = vbuf + 3 * nv;
+    unsigned char *ef = st, *ef2 = st + nn;
     as_begin(&s, u, z, uv);
     s.comp = 0;
     for (int r = 0; r < n; r++)
         s.comp = max_d(s.comp, a_entry(&pb->rows[r], &pb->rows[r]));
     s.comp *= COMPLIANCE;
-    memcpy(x, z, nn * sizeof *x);
-    int iter = 0, done = 0, factored = 0, rounds = 0;
+    /* Semismooth Newton on M (u - u*) = sum_r J_r^T z_r(u), z_r(u) the
+     * row's impulse clamped into its bounds, friction's +-mu z_n(u): each
+     * step fixes every row's place (as_places()) and solves the linear
+     * equations they make; it ends when a step keeps every place. */
+    as_guess(&s, z, uv, ef);
+    int iter = 0, done = 0, stall = 0, last_changed = n + 1;
     double worst = INFINITY;
-    memcpy(zb, x, nn * sizeof *zb);
-    /* Inner: full Newton steps on the convex problem the bounds fixed at
-     * +-mu times the normal impulses zb make (as_places() says which row
-     * sits where); it ends when a step keeps every row's place. Outer: the answer is checked against its
-     * own bounds, and zb becomes its normals when it fails (lcp.c's
-     * friction fixed point). A new set of places costs a factorisation. */
-    as_guess(&s, zb, x, uv, ef);
-    int first = 1, stall = 0, last_changed = n + 1;
-    while (rc == SC_OK && iter < AS_MAX_ITER && rounds < AS_BOUND_ROUNDS) {
-        if (!factored) {
-            iter++;
-            as_matrix(&s, ef);
-            if (!cholmod_factorize(s.K, s.L, &s.cm) || s.cm.status != CHOLMOD_OK) {
-                rc = SC_ENUMERIC;
-                break;
-            }
-            factored = 1;
+    while (iter < AS_MAX_ITER) {
+        iter++;
+        rc = as_factor(&s, ef);
+        if (rc == SC_OK) {
+            as_rhs(&s, ef, b);
+            rc = as_solve(&s, b, uv, tmp, dx);
         }
-        /* the Newton target: the velocities of these places */
-        as_rhs(&s, ef, zb, x, b);
-        rc = as_solve(&s, b, tmp, tmp2);
         if (rc != SC_OK)
             break;
-        /* the full step (the block principal pivoting step), from the
-         * guess or where it lowers the objective; where it does not, or
-         * where the places that change stop getting fewer, the island
-         * goes to block Gauss-Seidel (a line search would take tiny steps
-         * on the stiff compliance, and a bolt pile's friction rarely
-         * settles: docs/DESIGN.md 11) */
-        double f0 = as_objective(&s, zb, uv, sc), f1 = as_objective(&s, zb, tmp, sc);
-        if (!first && !(f1 <= f0 + 1e-12 * fabs(f0)))
-            break;
-        first = 0;
-        memcpy(uv, tmp, (size_t)s.nvar * sizeof *uv);
         memcpy(ef2, ef, nn);
-        as_places(&s, zb, uv, x, ef);
+        as_places(&s, uv, x, ef);
         int changed = 0;
         for (int r = 0; r < n; r++)
             changed += ef2[r] != ef[r];
         if (changed > 0) {
-            if (changed >= last_changed && ++stall >= AS_STALL)
+            /* places that change stop getting fewer: a cycle, which block
+             * Gauss-Seidel takes over (docs/DESIGN.md 11) */
+            if (AS_CHURN * changed > n || (changed >= last_changed && ++stall >= AS_STALL))
                 break;
             last_changed = changed;
-            factored = 0;
             continue;
         }
-        /* the held rows at the bounds of the answer's own impulses, free
-         * ones within rounding of a bound on it, the velocities and w of
-         * exactly these impulses */
+        /* the held rows at the bounds of the answer's own impulses, the
+         * velocities and w of exactly these impulses */
         for (int r = 0; r < n; r++) {
             double lo, hi;
             bounds(&s, x, r, &lo, &hi);
-            xe[r] = ef[r] != AS_FREE ? (ef[r] == AS_HI ? hi : lo) : min_d(max_d(x[r], lo), hi);
+            xe[r] = min_d(max_d(x[r], lo), hi);
         }
         as_velocities(&s, xe, tmp);
         for (int r = 0; r < n; r++)
@@ -666,23 +646,13 @@ int sc_island_active_set(const gs_problem *pb, const sc_body *bodies, const int 
         if (as_check(&s, xe, w, sc, &worst)) {
             memcpy(x, xe, nn * sizeof *x);
             done = 1;
-            break;
         }
-        if (!pb->findex)
-            break;            /* no friction bounds to move: rounding */
-        rounds++;
-        s.round = rounds;
-        stall = 0;
-        last_changed = n + 1;
-        memcpy(zb, x, nn * sizeof *zb);
-        memcpy(ef2, ef, nn);
-        as_places(&s, zb, uv, x, ef);
-        factored = memcmp(ef2, ef, nn) == 0;
+        break;
     }
     info->as_iterations += iter;
     info->as_iterations_max = iter > info->as_iterations_max ? iter : info->as_iterations_max;
-    if (s.L) {
-        long fnz = (long)s.cm.lnz;
+    if (s.num) {
+        long fnz = (long)s.num->lnz + s.num->unz + s.num->nzoff;
         info->factor_nnz_max = fnz > info->factor_nnz_max ? fnz : info->factor_nnz_max;
     }
     if (rc == SC_OK && !done)
