@@ -55,8 +55,21 @@
  *
  * Buckets pool the islands of every snapshot, in snapshot order.
  *
+ * -m: the big-island methods instead (docs/DESIGN.md 11): every island of
+ * more than 64 contacts (the size the engine tries the active set from) of
+ * every snapshot, solved as the engine solves it (split) from the matched
+ * impulses (warm) and from 0 (cold), with island_method
+ * SC_ISLAND_ACTIVE_SET and SC_ISLAND_BLOCK_GS, one line each:
+ * median time of R solves, factorisations (active set, summed over the
+ * solve's velocity and push-out passes) or sweeps (the most of one pass),
+ * whether the active set settled (else the blocks took it: "fallback"),
+ * unconverged block passes and the largest residual. -S picks the scene:
+ * bin (-n parts, the default), stack (-n cubes), pyramid (-n rows) or wall
+ * (-n rows of 10), the structures of sc_scene_stack/pyramid/wall.
+ *
  * usage: bench_islands [-n parts] [-t settle_s] [-k snapshots] [-g gap_s]
- *                      [-s seed] [-r reps] [-b bucket_budget_s] */
+ *                      [-s seed] [-r reps] [-b bucket_budget_s]
+ *                      [-m] [-S bin|stack|pyramid|wall] */
 #include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -122,6 +135,8 @@ typedef struct bench {
     sc_contact *wc;
     sc_arena arena;
     int island_split;
+    int island_method;        /* SC_ISLAND_* of the split solves */
+    int always_split;         /* -m: cold solves split too */
 } bench;
 
 /* Solves island (ci, nc) of snapshot sn once in mode m; returns the wall
@@ -135,7 +150,9 @@ static double solve_once(bench *b, const snap *sn, int m, const int *ci, int nc,
     if (m == MODE_COLD)
         for (int k = 0; k < nc; k++)
             memset(b->wc[ci[k]].impulse, 0, sizeof b->wc[ci[k]].impulse);
-    sc_contact_params p = frame_params(m == MODE_SPLIT ? b->island_split : 0, m == MODE_COLD);
+    sc_contact_params p =
+        frame_params(m == MODE_SPLIT || b->always_split ? b->island_split : 0, m == MODE_COLD);
+    p.island_method = b->island_method;
     sc_arena_reset(&b->arena);
     long over = b->arena.overflows;
     memset(info, 0, sizeof *info);
@@ -195,8 +212,83 @@ static double median(double *x, int n)
 static void usage(void)
 {
     fprintf(stderr, "usage: bench_islands [-n parts] [-t settle_s] [-k snapshots] [-g gap_s] "
-                    "[-s seed] [-r reps] [-b bucket_budget_s]\n");
+                    "[-s seed] [-r reps] [-b bucket_budget_s] [-m] "
+                    "[-S bin|stack|pyramid|wall]\n");
     exit(2);
+}
+
+/* Rows of island (ci, nc): three a contact with friction, else one. */
+static int island_rows(const snap *S, const int *ci, int nc)
+{
+    int rows = 0;
+    for (int c = 0; c < nc; c++)
+        rows += sqrt(S->bodies[S->contacts[ci[c]].body_a].friction *
+                     S->bodies[S->contacts[ci[c]].body_b].friction) > 0 ? 3 : 1;
+    return rows;
+}
+
+#define METHOD_MIN_CONTACTS 64
+
+/* -m: each island of more than METHOD_MIN_CONTACTS contacts by both
+ * island methods (see the top). Returns nonzero if a solve failed. */
+static int methods_table(bench *b, const snap *sn, int nsnap, int reps)
+{
+    static const int method[2] = { SC_ISLAND_ACTIVE_SET, SC_ISLAND_BLOCK_GS };
+    static const char *method_name[2] = { "active-set", "block-gs" };
+    printf("%4s %6s %8s %6s  %-10s %-5s %11s %7s %7s %-9s %5s %10s\n", "snap", "island",
+           "contacts", "rows", "method", "start", "median_us", "factors", "sweeps", "result", "uncv",
+           "residual");
+    b->always_split = 1;
+    int failed = 0, shown = 0;
+    for (int k = 0; k < nsnap; k++)
+        for (int i = 0; i < sn[k].is.count; i++) {
+            const int *ci = &sn[k].is.contacts[sn[k].is.contact_start[i]];
+            int nc = sn[k].is.contact_start[i + 1] - sn[k].is.contact_start[i];
+            if (nc <= METHOD_MIN_CONTACTS)
+                continue;
+            shown++;
+            for (int mm = 0; mm < 4; mm++) {
+                int m = mm / 2, start = mm % 2 ? MODE_COLD : MODE_SPLIT;
+                const char *start_name = start == MODE_COLD ? "cold" : "warm";
+                b->island_method = method[m];
+                double t[MAX_REPS];
+                int got = 0, rc = SC_OK, warmups = 0, have_first = 0;
+                sc_solve_info info, first = { 0 };
+                while (got < reps) {
+                    int grew;
+                    double s = solve_once(b, &sn[k], start, ci, nc, &info, &rc, &grew);
+                    if (rc != SC_OK)
+                        break;
+                    if (!have_first) {
+                        first = info;
+                        have_first = 1;
+                    }
+                    if (grew && warmups++ < 3)
+                        continue;
+                    t[got++] = s;
+                }
+                if (rc != SC_OK) {
+                    printf("%4d %6d %8d %6d  %-10s %-5s error: %s\n", k, i, nc,
+                           island_rows(&sn[k], ci, nc), method_name[m], start_name,
+                           sc_strerror(rc));
+                    failed = 1;
+                    continue;
+                }
+                const char *result = m == 1 ? "blocks"
+                                     : first.as_fallbacks ? "fallback"
+                                                          : "exact";
+                char factors[16];
+                snprintf(factors, sizeof factors, m == 0 ? "%ld" : "-", first.as_iterations);
+                printf("%4d %6d %8d %6d  %-10s %-5s %11.1f %7s %7d %-9s %5d %10.2e\n", k, i, nc,
+                       island_rows(&sn[k], ci, nc), method_name[m], start_name, 1e6 * median(t, got),
+                       factors, first.sweeps_max, result, first.unconverged,
+                       fmax(first.residual_exact, first.residual_split));
+            }
+            fflush(stdout);
+        }
+    if (!shown)
+        printf("no island of more than %d contacts\n", METHOD_MIN_CONTACTS);
+    return failed;
 }
 
 int main(int argc, char **argv)
@@ -204,8 +296,9 @@ int main(int argc, char **argv)
     int parts = 200, reps = 5, nsnap = 3;
     double settle_s = 1.0, gap_s = 0.25, budget_s = 20;
     uint64_t seed = 1;
-    int opt;
-    while ((opt = getopt(argc, argv, "n:t:k:g:s:r:b:h")) != -1) {
+    int opt, methods = 0;
+    const char *scene = "bin";
+    while ((opt = getopt(argc, argv, "n:t:k:g:s:r:b:mS:h")) != -1) {
         switch (opt) {
         case 'n': parts = atoi(optarg); break;
         case 't': settle_s = atof(optarg); break;
@@ -214,28 +307,37 @@ int main(int argc, char **argv)
         case 's': seed = strtoull(optarg, NULL, 0); break;
         case 'r': reps = atoi(optarg); break;
         case 'b': budget_s = atof(optarg); break;
+        case 'm': methods = 1; break;
+        case 'S': scene = optarg; break;
         default: usage();
         }
     }
     if (optind != argc || parts < 1 || parts > 100000 || !(settle_s >= 0) || settle_s > 1e4 ||
         nsnap < 1 || nsnap > MAX_SNAPS || !(gap_s >= DT) || gap_s > 1e4 || reps < 1 ||
-        reps > MAX_REPS || !(budget_s > 0) || budget_s > 1e6)
+        reps > MAX_REPS || !(budget_s > 0) || budget_s > 1e6 ||
+        (strcmp(scene, "bin") && strcmp(scene, "stack") && strcmp(scene, "pyramid") &&
+         strcmp(scene, "wall")))
         usage();
 
     /* ---- the pile, and its snapshots ---- */
     sc_world_config cfg = sc_world_config_default();
     cfg.workers = 1;
     sc_world *w = sc_world_create(&cfg);
-    int rc = w ? sc_scene_bin(w, parts, seed) : sc_last_error();
+    int rc = !w                        ? sc_last_error()
+             : !strcmp(scene, "stack")   ? sc_scene_stack(w, parts, 0)
+             : !strcmp(scene, "pyramid") ? sc_scene_pyramid(w, parts)
+             : !strcmp(scene, "wall")    ? sc_scene_wall(w, 10, parts)
+                                         : sc_scene_bin(w, parts, seed);
     if (rc != SC_OK) {
-        fprintf(stderr, "sc_scene_bin(%d): %s\n", parts, sc_strerror(rc));
+        fprintf(stderr, "scene %s (%d): %s\n", scene, parts, sc_strerror(rc));
         return 1;
     }
-    printf("islands of the parts bin: sc_scene_bin(%d, seed %llu), frames of %.2f s on one "
-           "worker; %d snapshot%s from t = %.2f s, %.2f s apart\n",
-           parts, (unsigned long long)seed, DT, nsnap, nsnap == 1 ? "" : "s", settle_s, gap_s);
+    printf("islands of the %s of %d (seed %llu), frames of %.2f s on one worker; %d "
+           "snapshot%s from t = %.2f s, %.2f s apart\n",
+           scene, parts, (unsigned long long)seed, DT, nsnap, nsnap == 1 ? "" : "s", settle_s,
+           gap_s);
     static snap sn[MAX_SNAPS];
-    bench b = { .island_split = w->fcfg.island_split };
+    bench b = { .island_split = w->fcfg.island_split, .island_method = w->fcfg.island_method };
     long frame = 0;
     int max_bodies = 0, max_contacts = 0, total_islands = 0, with_contacts = 0;
     for (int k = 0; k < nsnap; k++) {
@@ -278,6 +380,19 @@ int main(int argc, char **argv)
     if (!b.wb || !b.wc)
         return 1;
     sc_arena_init(&b.arena);
+    if (methods) {
+        printf("%d islands with contacts in all; h = %.2f s; split at island_split = %d; %d "
+               "repeats an island, median\n\n",
+               with_contacts, DT, b.island_split, reps);
+        int failed = methods_table(&b, sn, nsnap, reps);
+        sc_arena_destroy(&b.arena);
+        for (int k = 0; k < nsnap; k++)
+            snap_free(&sn[k]);
+        free(b.wc);
+        free(b.wb);
+        sc_world_destroy(w);
+        return failed;
+    }
     printf("%d islands with contacts in all; h = %.2f s; split mode at island_split = %d; %d "
            "repeats an island, median; budget %.0f s a bucket\n\n",
            with_contacts, DT, b.island_split, reps, budget_s);
@@ -327,10 +442,7 @@ int main(int argc, char **argv)
                 capped = 1;
                 break;
             }
-            int rows = 0;
-            for (int c = 0; c < nc; c++)
-                rows += sqrt(S->bodies[S->contacts[ci[c]].body_a].friction *
-                             S->bodies[S->contacts[ci[c]].body_b].friction) > 0 ? 3 : 1;
+            int rows = island_rows(S, ci, nc);
             over_rows += rows > SC_MAX_ISLAND_ROWS;
             for (int m = 0; m < NMODE; m++) {
                 double t[MAX_REPS];

@@ -20,8 +20,10 @@
 #   (j) canonical scenes with known answers: bench_canon (both modes and
 #       ODE's two steppers)
 #   (k) structures standing 10 s: bench_canon -s (stacks, a pyramid, a
-#       wall; ODE's two steppers beside), and each island method's solve
-#       figures on them (simcluster run --island-method)
+#       wall; ODE's two steppers beside), and island size against each
+#       island method's solve time on them and on bins (bench_islands -m)
+#   (l) big bins: bench_drop -S bin, 1000 parts (1 and every thread) and
+#       4000 (every thread), 2 s simulated, ODE QuickStep beside
 # Each section has the exact command, its output and, where docs/DESIGN.md section 10 sets a
 # target, a line computed here from the figures (met, or missed by how much).
 # The prose that cannot be computed is bench/RESULTS.notes.md, included at
@@ -145,6 +147,7 @@ if [ $quick -eq 1 ]; then
     model_args="-p model -n $model_n -s 0.2 -r 1"
     steal_args="-p fg,busy -r 1"
     pile_args="-S bin -r 1 -T 0.3 -F -b 10 -e qalL 200"
+    big_args="-S bin -r 1 -T 0.05 -F -b 30 -e qlL 1000"
     island_args="-n 50 -t 0.5 -k 1 -r 1 -b 2"
     pieces_args="-r 1 -n 50"
     energy_args="-f 200 -n 8 -r 0.1 -v 1"
@@ -172,6 +175,8 @@ else
     # the whole 10 s, the rest time recorded), 3 runs a cell; the world
     # mode (sc1) runs 3 s only, in its own table below
     pile_args="-S bin -T 10 -F -b 600 -e qalL 200"
+    big_args="-S bin -r 1 -T 2 -F -b 600 -e qlL 1000"
+    huge_args="-S bin -r 1 -T 2 -F -b 900 -e qL 4000"
     island_args=
 fi
 load0=$(cut -d' ' -f1-3 /proc/loadavg)
@@ -589,17 +594,62 @@ run k_structures "$B/bench/bench_canon" -s -T 10 -B 30
 v=$(canon_verdict "$tmp/k_structures")
 target "(k) structures: drift <= 1 mm, at rest, in both time-of-impact modes" "$v"
 w ""
-w "Island method against island size: each structure 1000 frames on one worker,"
-w "solved whole by the active set or by block Gauss-Seidel (factorisations a"
-w "split solve, the largest factor, sweeps, unconverged solves, the largest"
-w "residual; islands of at most 64 contacts are blocks either way)."
-for sc in "stack --bodies 20" "stack --bodies 40" "pyramid --bodies 15" "wall --bodies 12"; do
-    for m in active-set block-gs; do
-        # shellcheck disable=SC2086 # the scene's words
-        run "k_$(echo "$sc" | tr -dc 'a-z0-9')_$m" "$B/tools/simcluster" run $sc --frames 1000 \
-            --workers 1 --island-method "$m" --json
-    done
+w "Island method against island size (bench/bench_islands.c -m): every island of"
+w "more than 64 contacts of a snapshot, solved as the frame would (split), warm"
+w "(last frame's impulses) and cold (from 0), whole by the active set (factors: its"
+w "factorisations; fallback: it did not settle and block Gauss-Seidel took it) and"
+w "by block Gauss-Seidel (sweeps: the most of one pass, 50 at most; uncv: passes"
+w "that stopped there; residual: the largest, m/s). The structures one frame after"
+w "they are placed; the bins as they pile up."
+if [ $quick -eq 1 ]; then
+    k_sets="stack:20:0.01:1 bin:200:1.0:1"
+else
+    k_sets="stack:20:0.01:1 stack:40:0.01:1 stack:80:0.01:1 pyramid:15:0.01:1 wall:12:0.01:1 bin:200:1.0:3 bin:1000:1.0:1"
+fi
+for set in $k_sets; do
+    IFS=: read -r sc n t k <<EOT
+$set
+EOT
+    run "k_methods_${sc}_$n" "$B/bench/bench_islands" -m -S "$sc" -n "$n" -t "$t" -k "$k" -r 3
 done
+
+# ---- (l) big bins ----
+w ""
+w "## (l) Big bins: 1000 and 4000 parts"
+w ""
+w "sc_scene_bin(1000) and (4000), as (f), 2 s simulated (the parts fall and pile"
+w "up), ODE QuickStep beside in the same process run; one run each (a run of 4000"
+w "takes minutes)."
+# shellcheck disable=SC2086 # the arguments are words
+run l_bin1000 "$B/bench/bench_drop" $big_args
+# big_ratio ENGINE NEED LABEL: ENGINE's real-time factor over QuickStep's at
+# N = 1000 against NEED
+big_ratio() {
+    rline=$(awk -v e="$1" '/ratios at N = / { n = $5 } n == "1000" && $1 == e && $2 == "/" && $3 == "quick"' "$tmp/l_bin1000")
+    if [ -z "$rline" ]; then
+        v="not measured (no $1 / quick ratio line at N = 1000)"
+    else
+        v=$(echo "$rline" | awk -v need="$2" '{ r = $5 + 0
+            if (r >= need) printf "met: %.3gx QuickStep'"'"'s real-time factor over %.2f s", r, $4;
+            else printf "missed: %.3gx QuickStep'"'"'s real-time factor over %.2f s (needs %.3gx faster)", r, $4, need / r }')
+    fi
+    target "(l) bin of 1000, $3: real-time factor >= ${2}x QuickStep's" "$v"
+}
+big_ratio sl1 1 "1 thread"
+big_ratio slN 2 "$ncpu threads"
+# shellcheck disable=SC2016 # an awk program
+v=$(awk '$1 == 1000 && ($2 == "sl1" || $2 == "slN") { p = $9 > p ? $9 : p; n++ }
+    / solver: / && /unconverged/ { for (i = 1; i < NF; i++) if ($(i + 1) ~ /^unconverged/) u += $i }
+    END { if (!n) print "not measured"; else printf "%s: max penetration %.3f mm; %d unconverged split solves", (p <= 0.001 && u == 0) ? "met" : "missed", 1000 * p, u }' "$tmp/l_bin1000")
+target "(l) bin of 1000: max penetration <= 1 mm, no unconverged solve" "$v"
+if [ -n "$huge_args" ]; then
+    # shellcheck disable=SC2086 # the arguments are words
+    run l_bin4000 "$B/bench/bench_drop" $huge_args
+    # shellcheck disable=SC2016 # an awk program
+    v=$(awk '$1 == 4000 && ($2 == "slN" || $2 == "quick") { printf "%s%s %sx real time, max penetration %.1f mm, %s", n++ ? "; " : "", $2, $7, 1000 * $9, $6 >= 2 - 1e-9 ? "no error over 2 s" : "stopped at " $6 " s" }
+        END { if (!n) print "not measured" }' "$tmp/l_bin4000")
+    target "(l) bin of 4000 (for information)" "$v"
+fi
 
 # ---- the file ----
 t_end=$(date +%s)
