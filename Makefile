@@ -63,6 +63,7 @@ LAYER_test_arena := core
 LAYER_test_broadphase := core
 LAYER_test_hull := core
 LAYER_test_island := core
+LAYER_test_island_schur := core
 LAYER_test_lcp := core
 LAYER_test_shape_load := core
 LAYER_test_units := api

@@ -59,11 +59,14 @@
  * more than 64 contacts (the size the engine tries the active set from) of
  * every snapshot, solved as the engine solves it (split) from the matched
  * impulses (warm) and from 0 (cold), with island_method
- * SC_ISLAND_ACTIVE_SET and SC_ISLAND_BLOCK_GS, one line each:
+ * SC_ISLAND_ACTIVE_SET, SC_ISLAND_SUBDOMAINS (here on this one thread) and
+ * SC_ISLAND_BLOCK_GS, one line each:
  * median time of R solves, factorisations (active set, summed over the
  * solve's velocity and push-out passes) or sweeps (the most of one pass),
  * whether the active set settled (else the blocks took it: "fallback"),
- * unconverged block passes and the largest residual. -S picks the scene:
+ * unconverged block passes and the largest residual; for subdomains the
+ * parts, the interface unknowns, and the rounds and bytes they would
+ * exchange with a master (island_schur.c). -S picks the scene:
  * bin (-n parts, the default), stack (-n cubes), pyramid (-n rows) or wall
  * (-n rows of 10), the structures of sc_scene_stack/pyramid/wall.
  *
@@ -233,11 +236,12 @@ static int island_rows(const snap *S, const int *ci, int nc)
  * island methods (see the top). Returns nonzero if a solve failed. */
 static int methods_table(bench *b, const snap *sn, int nsnap, int reps)
 {
-    static const int method[2] = { SC_ISLAND_ACTIVE_SET, SC_ISLAND_BLOCK_GS };
-    static const char *method_name[2] = { "active-set", "block-gs" };
-    printf("%4s %6s %8s %6s  %-10s %-5s %11s %7s %7s %-9s %5s %10s\n", "snap", "island",
-           "contacts", "rows", "method", "start", "median_us", "factors", "sweeps", "result", "uncv",
-           "residual");
+    static const int method[3] = { SC_ISLAND_ACTIVE_SET, SC_ISLAND_SUBDOMAINS,
+                                   SC_ISLAND_BLOCK_GS };
+    static const char *method_name[3] = { "active-set", "subdomains", "block-gs" };
+    printf("%4s %6s %8s %6s  %-10s %-5s %11s %7s %7s %-9s %5s %10s %5s %6s %5s %9s\n", "snap",
+           "island", "contacts", "rows", "method", "start", "median_us", "factors", "sweeps",
+           "result", "uncv", "residual", "parts", "iface", "exch", "bytes");
     b->always_split = 1;
     int failed = 0, shown = 0;
     for (int k = 0; k < nsnap; k++)
@@ -247,7 +251,7 @@ static int methods_table(bench *b, const snap *sn, int nsnap, int reps)
             if (nc <= METHOD_MIN_CONTACTS)
                 continue;
             shown++;
-            for (int mm = 0; mm < 4; mm++) {
+            for (int mm = 0; mm < 6; mm++) {
                 int m = mm / 2, start = mm % 2 ? MODE_COLD : MODE_SPLIT;
                 const char *start_name = start == MODE_COLD ? "cold" : "warm";
                 b->island_method = method[m];
@@ -274,15 +278,17 @@ static int methods_table(bench *b, const snap *sn, int nsnap, int reps)
                     failed = 1;
                     continue;
                 }
-                const char *result = m == 1 ? "blocks"
+                const char *result = m == 2 ? "blocks"
                                      : first.as_fallbacks ? "fallback"
                                                           : "exact";
                 char factors[16];
-                snprintf(factors, sizeof factors, m == 0 ? "%ld" : "-", first.as_iterations);
-                printf("%4d %6d %8d %6d  %-10s %-5s %11.1f %7s %7d %-9s %5d %10.2e\n", k, i, nc,
-                       island_rows(&sn[k], ci, nc), method_name[m], start_name, 1e6 * median(t, got),
-                       factors, first.sweeps_max, result, first.unconverged,
-                       fmax(first.residual_exact, first.residual_split));
+                snprintf(factors, sizeof factors, m < 2 ? "%ld" : "-", first.as_iterations);
+                printf("%4d %6d %8d %6d  %-10s %-5s %11.1f %7s %7d %-9s %5d %10.2e %5d %6d %5ld "
+                       "%9ld\n",
+                       k, i, nc, island_rows(&sn[k], ci, nc), method_name[m], start_name,
+                       1e6 * median(t, got), factors, first.sweeps_max, result, first.unconverged,
+                       fmax(first.residual_exact, first.residual_split), first.as_parts_max,
+                       first.as_interface_max, first.as_exchanges, first.as_exchange_bytes);
             }
             fflush(stdout);
         }

@@ -213,8 +213,12 @@ enum {
                                  exactly first: an active set on a sparse LU
                                  factor, iterations nearly independent of its height
                                  (the default); blocks where it does not settle */
-    SC_ISLAND_BLOCK_GS        /* block Gauss-Seidel over exact blocks, to
+    SC_ISLAND_BLOCK_GS,       /* block Gauss-Seidel over exact blocks, to
                                  SC_SPLIT_TOL or SC_SPLIT_MAX_SWEEPS sweeps */
+    SC_ISLAND_SUBDOMAINS      /* the active set with each factorisation by
+                                 subdomains of 32 bodies (an island of at least
+                                 64), their interiors on the world's threads, coupled
+                                 by a Schur complement on the interface */
 };
 
 /* Local threads a world uses at most (sc_world_config.workers). */
@@ -364,6 +368,12 @@ typedef struct sc_stats_lcp {
                                  as_iterations / as_solves) */
     int as_iterations_max;    /* most guesses of one solve */
     long factor_nnz_max;      /* entries of the largest sparse factor */
+    int as_parts_max;         /* most subdomains of one solve (SC_ISLAND_SUBDOMAINS; 1:
+                                 one factor) */
+    int as_interface_max;     /* unknowns of the largest interface between subdomains */
+    long as_exchanges;        /* rounds the subdomains would exchange with a master,
+                                 summed over solves */
+    long as_exchange_bytes;   /* bytes of those rounds, both ways, summed */
     double residual;          /* largest complementarity error of an exact solve, m/s */
     double outer_residual;    /* largest outer residual of a split solve, m/s */
 } sc_stats_lcp;

@@ -618,14 +618,17 @@ static inline void canon_sc_record(sc_world *w, const int *id, canon_traj *t, in
     }
 }
 
-/* The scene in a simcluster world (toi_mode, workers), recorded into t
- * (canon_traj_init first). 0, or the failed call's code (also t->error). */
-static inline int canon_run_sc(const canon_scene *sc, int toi_mode, int workers, canon_traj *t)
+/* The scene in a simcluster world (toi_mode, workers, island_method),
+ * recorded into t (canon_traj_init first). 0, or the failed call's code
+ * (also t->error). */
+static inline int canon_run_sc_method(const canon_scene *sc, int toi_mode, int workers,
+                                      int island_method, canon_traj *t)
 {
     sc_world_config cfg = sc_world_config_default();
     cfg.gravity[2] = -sc->gravity;
     cfg.toi_mode = toi_mode;
     cfg.workers = workers;
+    cfg.island_method = island_method;
     sc_world *w = sc_world_create(&cfg);
     if (!w)
         return t->error = sc_last_error();
@@ -657,6 +660,12 @@ static inline int canon_run_sc(const canon_scene *sc, int toi_mode, int workers,
     }
     sc_world_destroy(w);
     return t->error = rc;
+}
+
+/* The same with the default island method. */
+static inline int canon_run_sc(const canon_scene *sc, int toi_mode, int workers, canon_traj *t)
+{
+    return canon_run_sc_method(sc, toi_mode, workers, sc_world_config_default().island_method, t);
 }
 
 #endif /* SC_CANON_H */

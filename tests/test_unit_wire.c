@@ -1158,7 +1158,8 @@ static void test_bad_fields_are_format_errors(void **state)
     sc_wire_unit_free(&wu);
     /* island header: magic, version, kind 8; bodies, members, contacts,
      * islands 16; h, bounce_speed, slop, baumgarte, tol 40; gravity 24;
-     * split_contacts, block_contacts, max_sweeps, cold, impact_first 20;
+     * split_contacts, block_contacts, max_sweeps, cold, impact_first,
+     * island_method 24;
      * per island 8 */
     const size_t tol = 8 + 16 + 32, grav = tol + 8, ints = grav + 24, isl0 = ints + 24;
     size_t ilen = sm.len[SC_UNIT_ISLAND];
@@ -1167,9 +1168,9 @@ static void test_bad_fields_are_format_errors(void **state)
     struct { size_t at; uint64_t v; int n; } good[] = {
         { tol, bits(0.25), 8 }, { ints, 5, 4 }, { ints + 4, 1u << 16, 4 },
         { ints + 8, 10000, 4 }, { ints + 12, 1, 4 }, { ints + 16, 1, 4 },
-        { grav + 16, bits(-1.62), 8 },
+        { grav + 16, bits(-1.62), 8 }, { ints + 20, SC_ISLAND_SUBDOMAINS, 4 },
     };
-    for (int k = 0; k < 7; k++) {
+    for (int k = 0; k < 8; k++) {
         unsigned char keep8[8];
         memcpy(keep8, ib + good[k].at, (size_t)good[k].n);
         for (int i = 0; i < good[k].n; i++)
@@ -1182,7 +1183,8 @@ static void test_bad_fields_are_format_errors(void **state)
                : k == 3 ? q->max_sweeps == 10000
                : k == 4 ? q->cold == 1
                : k == 5 ? q->impact_first == 1
-                        : q->gravity[2] == -1.62;
+               : k == 6 ? q->gravity[2] == -1.62
+                        : q->island_method == SC_ISLAND_SUBDOMAINS;
         assert_true(ok);
         assert_int_equal(q->inject, 0);
         sc_wire_unit_free(&wu);
@@ -1205,7 +1207,7 @@ static void test_bad_fields_are_format_errors(void **state)
     bad_at(ib, ilen, ints + 12, (uint32_t)-1, 4);
     bad_at(ib, ilen, ints + 16, 2, 4);                       /* impact_first */
     bad_at(ib, ilen, ints + 16, (uint32_t)-1, 4);
-    bad_at(ib, ilen, ints + 20, 2, 4);                       /* island_method */
+    bad_at(ib, ilen, ints + 20, 3, 4);                       /* island_method */
     bad_at(ib, ilen, ints + 20, (uint32_t)-1, 4);
     /* a NaN or infinite warm-start impulse (contact 0's, after its ids,
      * pos, normal and depth) */
@@ -1275,7 +1277,8 @@ static void test_island_settings_and_impulses_travel(void **state)
     const scene *s = *state;
     sc_contact_params p = { .bounce_speed = 0.25, .slop = 1e-4, .baumgarte = 0.3,
                             .split_contacts = 3, .block_contacts = 2, .tol = 0.125,
-                            .max_sweeps = 7, .cold = 1, .impact_first = 1 };
+                            .max_sweeps = 7, .cold = 1, .impact_first = 1,
+                            .island_method = SC_ISLAND_SUBDOMAINS };
     islands_job ij;
     islands_job_init_p(&ij, s->w, &p);
     /* warm starts of every sign and size, on every contact */
@@ -1294,7 +1297,8 @@ static void test_island_settings_and_impulses_travel(void **state)
                     wu.params.split_contacts == p.split_contacts &&
                     wu.params.block_contacts == p.block_contacts &&
                     wu.params.max_sweeps == p.max_sweeps && wu.params.cold == p.cold &&
-                    wu.params.impact_first == p.impact_first && wu.params.inject == 0);
+                    wu.params.impact_first == p.impact_first &&
+                    wu.params.island_method == p.island_method && wu.params.inject == 0);
         assert_int_equal(wu.unit.count, u.count);
         const int *ci = &ij.is.contacts[ij.is.contact_start[i]];
         for (int k = 0; k < u.count; k++) {
@@ -1313,9 +1317,10 @@ static void test_island_settings_and_impulses_travel(void **state)
     sc_unit u = island_unit(&ij.is, 0, 1);
     const sc_contact_params keep = p;
     sc_contact_params *q = &p;
-    for (int k = 0; k < 9; k++) {
+    for (int k = 0; k < 10; k++) {
         *q = keep;
         switch (k) {
+        case 8: q->island_method = SC_ISLAND_SUBDOMAINS + 1; break;
         case 7: q->impact_first = 2; break;
         case 0: q->inject = SC_INJECT_NAN; break;
         case 1: q->tol = NAN; break;
@@ -1393,8 +1398,8 @@ static void test_result_for_another_unit_is_a_format_error(void **state)
     }
     /* an island result whose contact count or counters are wrong changes
      * nothing (layout: header 8, members 4, rc 4, messages 8, pivots,
-     * as_iterations, factor_nnz_max 3 x 8, failures ... as_iterations_max
-     * 21 x 4, residuals 16, contacts 4) */
+     * as_iterations, factor_nnz_max, as_exchanges, as_exchange_bytes 5 x 8,
+     * failures ... as_interface_max 23 x 4, residuals 16, contacts 4) */
     int big = 0;
     for (int i = 1; i < ij.is.count; i++)
         if (island_unit(&ij.is, i, 1).count > island_unit(&ij.is, big, 1).count)
@@ -1405,7 +1410,7 @@ static void test_result_for_another_unit_is_a_format_error(void **state)
     free(res);
     buf = pack_unit(&ij.jr, &ui, &len);
     res = remote_run(np, buf, len, &cc, &rlen);
-    const size_t pivots = 24, counters = pivots + 24, ncont = counters + 84 + 16;
+    const size_t pivots = 24, counters = pivots + 40, ncont = counters + 92 + 16;
     assert_int_equal(rlen, ncont + 4 +
                                (size_t)(ij.is.body_start[big + 1] - ij.is.body_start[big]) *
                                    (19 * 8 + 4) +
@@ -1419,12 +1424,13 @@ static void test_result_for_another_unit_is_a_format_error(void **state)
     struct { size_t at; int n; uint64_t v; } wrong[] = {
         { ncont, 4, (uint64_t)ui.count + 1 }, { ncont, 4, (uint64_t)ui.count - 1 },
         { pivots, 8, (uint64_t)-1 }, { pivots + 8, 8, (uint64_t)-1 },
-        { pivots + 16, 8, (uint64_t)-1 },
+        { pivots + 16, 8, (uint64_t)-1 }, { pivots + 24, 8, (uint64_t)-1 },
+        { pivots + 32, 8, (uint64_t)-1 },
     };
-    for (int k = 0; k < 5 + 21; k++) {
-        size_t at = k < 5 ? wrong[k].at : counters + 4 * (size_t)(k - 5);
-        int nbytes = k < 5 ? wrong[k].n : 4;
-        uint64_t v = k < 5 ? wrong[k].v : (uint32_t)-1;   /* a negative counter */
+    for (int k = 0; k < 7 + 23; k++) {
+        size_t at = k < 7 ? wrong[k].at : counters + 4 * (size_t)(k - 7);
+        int nbytes = k < 7 ? wrong[k].n : 4;
+        uint64_t v = k < 7 ? wrong[k].v : (uint32_t)-1;   /* a negative counter */
         unsigned char keep[8];
         memcpy(keep, res + at, (size_t)nbytes);
         for (int i = 0; i < nbytes; i++)
@@ -1438,7 +1444,7 @@ static void test_result_for_another_unit_is_a_format_error(void **state)
     assert_memory_equal(contacts_before, ij.cr, ncb);
     /* the residuals are carried as they are */
     double odd = NAN;
-    memcpy(res + counters + 84, &odd, sizeof odd);
+    memcpy(res + counters + 92, &odd, sizeof odd);
     ui.info.residual_exact = 0;
     assert_int_equal(sc_wire_result_apply(&ij.jr, &ui, res, rlen), SC_OK);
     assert_true(isnan(ui.info.residual_exact));
@@ -1595,7 +1601,7 @@ static void test_bad_group_fields_are_format_errors(void **state)
     GROUP_BAD(G_INTS + 4, (uint32_t)-1, 4);       /* island_split */
     GROUP_BAD(G_INTS + 8, 2, 4);                  /* toi_mode */
     GROUP_BAD(G_INTS + 8, (uint32_t)-1, 4);
-    GROUP_BAD(G_INTS + 12, 2, 4);                 /* island_method */
+    GROUP_BAD(G_INTS + 12, 3, 4);                 /* island_method */
     GROUP_BAD(G_INTS + 12, (uint32_t)-1, 4);
     /* the offsets are right: other valid settings decode as such */
     size_t m0 = l.members, m1 = g_member(b, &l, 1);
@@ -1605,6 +1611,7 @@ static void test_bad_group_fields_are_format_errors(void **state)
     GROUP_GOOD(G_INTS + 4, 0, 4);
     GROUP_GOOD(G_INTS + 8, SC_TOI_WORLD, 4);
     GROUP_GOOD(G_INTS + 12, SC_ISLAND_BLOCK_GS, 4);
+    GROUP_GOOD(G_INTS + 12, SC_ISLAND_SUBDOMAINS, 4);
     GROUP_GOOD(m0 + GM_REST, bits(2.5), 8);
     GROUP_GOOD(m0 + GM_FLAGS, SC_ASLEEP | 2 << 2, 1);
     /* static bodies: a shape nobody has, given mass, not static, a world
@@ -1689,12 +1696,12 @@ static void test_bad_group_fields_are_format_errors(void **state)
 }
 
 /* A group result at its layout (header 8, members 4, rc 4, messages 8,
- * info 124), then per group: rc 4, its figures (a mask u64 and the fields
- * it names: 24 of 8 bytes, then 26 of 4), per member 122 bytes (flags,
+ * info 148), then per group: rc 4, its figures (a mask u64 and the fields
+ * it names: 26 of 8 bytes, then 28 of 4), per member 122 bytes (flags,
  * 14 doubles, dev, points u8) and 32 a point, then contacts 4 and 88
  * each. */
 #define GR_RC 12
-#define GR_GROUPS 148
+#define GR_GROUPS 172
 
 /* Where group j of a result for u (of job) is. */
 typedef struct gr_at {
@@ -1727,8 +1734,8 @@ static gr_at gr_group(const unsigned char *res, const sc_job *job, const sc_unit
         r.stats = at + 4;
         uint64_t mask;
         memcpy(&mask, res + r.stats, 8);
-        r.first_int = r.stats + 8 + 8 * (size_t)popcount64(mask & ((1u << 24) - 1));
-        at = r.first_int + 4 * (size_t)popcount64(mask >> 24);
+        r.first_int = r.stats + 8 + 8 * (size_t)popcount64(mask & ((1u << 26) - 1));
+        at = r.first_int + 4 * (size_t)popcount64(mask >> 26);
         r.members = at;
         for (int q = 0; q < r.nm; q++)
             at += gr_member_len(res, at);
@@ -1810,7 +1817,7 @@ static void group_hostile_results(group_exec *gx, sc_job *job)
         tm += gr_member_len(res, tm);
     uint64_t mask;
     memcpy(&mask, res + c.stats, 8);
-    assert_true(mask >> 24 != 0);                         /* an int field is there */
+    assert_true(mask >> 26 != 0);                         /* an int field is there */
     struct { size_t at; int n; uint64_t v; } wrong[] = {
         { 8, 4, (uint64_t)ua->count + 1 },                /* members */
         { GR_RC, 4, (uint32_t)SC_ENUMERIC },              /* not its groups' rc */

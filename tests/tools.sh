@@ -40,8 +40,18 @@ PY
 check "run stack --island-method block-gs" 0 "$tool" run stack --bodies 30 --frames 100 --json --island-method block-gs
 python3 -c 'import json,sys; r=json.load(open(sys.argv[1]))["solver"]; sys.exit(not (r["island_method"] == "block-gs" and r["active_set"]["solves"] == 0 and r["unconverged"] > 0))' "$dir/out" ||
     { echo "FAIL: run stack --island-method block-gs"; cat "$dir/out"; fail=1; }
+# a stack of 100 cubes by subdomains: one island of several parts, their
+# exchanges counted
+check "run stack --island-method subdomains" 0 "$tool" run stack --bodies 100 --frames 20 \
+    --json --island-method subdomains
+python3 - "$dir/out" <<'PY' || { echo "FAIL: run stack --island-method subdomains"; cat "$dir/out"; fail=1; }
+import json, sys
+r = json.load(open(sys.argv[1]))["solver"]; a = r["active_set"]
+sys.exit(not (r["island_method"] == "subdomains" and a["solves"] > 0 and a["parts_max"] > 1
+              and a["interface_max"] > 0 and a["exchanges"] > 0 and a["exchange_bytes"] > 0))
+PY
 check "run --island-method sideways" 2 "$tool" run stack --island-method sideways
-one_line "run --island-method sideways" "--island-method takes active-set or block-gs"
+one_line "run --island-method sideways" "--island-method takes active-set, block-gs or subdomains"
 check "--bodies for bin" 0 "$tool" run bin --bodies 8 --frames 1
 # plain make builds the library, tools, daemon and examples
 goal=$(make -C "$(dirname "$0")/.." -pn 2>/dev/null | sed -n 's/^\.DEFAULT_GOAL := //p' | tail -n 1)

@@ -35,8 +35,9 @@ static const char run_help[] =
     "    trips of work, default 2; negative: always)\n"
     "  --wait-daemons K (before the first frame, at most 10 s)\n"
     "  --island-split N (islands of more contacts solved as blocks; 0: exact)\n"
-    "  --island-method active-set|block-gs (how a split island is solved:\n"
-    "    whole and exact by an active set, the default; or block Gauss-Seidel)\n"
+    "  --island-method active-set|block-gs|subdomains (how a split island is\n"
+    "    solved: whole and exact by an active set, the default; by block\n"
+    "    Gauss-Seidel; or by the active set on subdomains of 32 bodies)\n"
     "  --toi local|world (time of impact: motion groups with speculative\n"
     "    contacts, run's default; or the paper's world-wide back-up, profile's)\n"
     "profile only: --chart PNG (CPU by stage beside the paper's, by gnuplot)\n";
@@ -316,8 +317,10 @@ static int parse_options(const char *cmd, int argc, char **argv, options *o)
                 o->island_method = SC_ISLAND_ACTIVE_SET;
             else if (!strcmp(optarg, "block-gs"))
                 o->island_method = SC_ISLAND_BLOCK_GS;
+            else if (!strcmp(optarg, "subdomains"))
+                o->island_method = SC_ISLAND_SUBDOMAINS;
             else
-                return bad(cmd, "--island-method takes active-set or block-gs");
+                return bad(cmd, "--island-method takes active-set, block-gs or subdomains");
             break;
         case 'T':
             if (!strcmp(optarg, "world"))
@@ -635,8 +638,8 @@ typedef struct totals {
     long substeps, max_pivots, backups, spec, groups, retried;
     int max_sweeps, max_substeps, max_backups;
     double residual, outer_residual;
-    long as_solves, as_fallbacks, as_iterations, factor_nnz_max;
-    int as_iterations_max;
+    long as_solves, as_fallbacks, as_iterations, factor_nnz_max, as_exchanges, as_exchange_bytes;
+    int as_iterations_max, as_parts_max, as_interface_max;
 } totals;
 
 /* SIGINT and SIGTERM during run and profile: the handler only notes the
@@ -741,6 +744,12 @@ static int simulate(const options *o, sc_world *w, totals *t, int progress, reco
             t->as_iterations_max = st.frame.lcp.as_iterations_max;
         if (st.frame.lcp.factor_nnz_max > t->factor_nnz_max)
             t->factor_nnz_max = st.frame.lcp.factor_nnz_max;
+        if (st.frame.lcp.as_parts_max > t->as_parts_max)
+            t->as_parts_max = st.frame.lcp.as_parts_max;
+        if (st.frame.lcp.as_interface_max > t->as_interface_max)
+            t->as_interface_max = st.frame.lcp.as_interface_max;
+        t->as_exchanges += st.frame.lcp.as_exchanges;
+        t->as_exchange_bytes += st.frame.lcp.as_exchange_bytes;
         t->max_sweeps =
             st.frame.lcp.sweeps_max > t->max_sweeps ? st.frame.lcp.sweeps_max : t->max_sweeps;
         t->residual = fmax(t->residual, st.frame.lcp.residual);
@@ -846,6 +855,14 @@ static int render(const char *self, const char *log, const char *dir)
     return WIFEXITED(st) && WEXITSTATUS(st) == 0 ? 0 : 1;    /* the viewer said why */
 }
 
+/* An SC_ISLAND_* method by its --island-method name. */
+static const char *island_method_name(int method)
+{
+    return method == SC_ISLAND_BLOCK_GS     ? "block-gs"
+           : method == SC_ISLAND_SUBDOMAINS ? "subdomains"
+                                            : "active-set";
+}
+
 /* run's report as one JSON object (--json). */
 static void report_json(const options *o, const sc_world *w, const sc_stats *stp,
                         const totals *tp, int rc, const char *seed, unsigned long long hash)
@@ -878,7 +895,8 @@ static void report_json(const options *o, const sc_world *w, const sc_stats *stp
            "\"max_sweeps\": %d, \"max_residual\": %.3g, \"max_outer_residual\": %.3g, "
            "\"substeps\": %ld, \"max_substeps\": %d, \"island_method\": \"%s\", "
            "\"active_set\": {\"solves\": %ld, \"fallbacks\": %ld, \"iterations_mean\": %.2f, "
-           "\"iterations_max\": %d, \"factor_nnz_max\": %ld}}, "
+           "\"iterations_max\": %d, \"factor_nnz_max\": %ld, \"parts_max\": %d, "
+           "\"interface_max\": %d, \"exchanges\": %ld, \"exchange_bytes\": %ld}}, "
            "\"toi\": {\"mode\": \"%s\", \"backups\": %ld, \"max_frame_backups\": %d, "
            "\"speculative_contacts\": %ld, \"groups\": %ld, \"groups_retried\": %ld}, "
            "\"hash\": \"%016llx\", \"interrupted\": %s%s%s, \"error\": %s%s%s}\n",
@@ -897,9 +915,10 @@ static void report_json(const options *o, const sc_world *w, const sc_stats *stp
            t.regularised, t.unconverged,
            t.max_sweeps, t.residual,
            t.outer_residual, t.substeps, t.max_substeps,
-           o->island_method == SC_ISLAND_BLOCK_GS ? "block-gs" : "active-set", t.as_solves,
+           island_method_name(o->island_method), t.as_solves,
            t.as_fallbacks, t.as_solves ? (double)t.as_iterations / (double)t.as_solves : 0.0,
-           t.as_iterations_max, t.factor_nnz_max,
+           t.as_iterations_max, t.factor_nnz_max, t.as_parts_max, t.as_interface_max,
+           t.as_exchanges, t.as_exchange_bytes,
            o->toi_mode == SC_TOI_LOCAL ? "local" : "world", t.backups, t.max_backups, t.spec,
            t.groups, t.retried, hash,
            t.interrupted ? "\"" : "null", t.interrupted ? signal_name(t.interrupted) : "",
@@ -944,6 +963,11 @@ static void report_text(const options *o, const sc_world *w, const sc_stats *stp
                "%ld entries at most, %ld left to block Gauss-Seidel\n",
                t.as_solves, (double)t.as_iterations / (double)t.as_solves, t.as_iterations_max,
                t.factor_nnz_max, t.as_fallbacks);
+    if (t.as_solves && t.as_parts_max > 1)
+        printf("  subdomains: %d parts at most, interface of %d unknowns at most, %.2f "
+               "exchanges a solve (%.0f bytes a solve)\n",
+               t.as_parts_max, t.as_interface_max, (double)t.as_exchanges / (double)t.as_solves,
+               (double)t.as_exchange_bytes / (double)t.as_solves);
     printf("  time of impact (%s): back-ups %.2f a frame (most %d), speculative "
            "contacts %ld\n",
            o->toi_mode == SC_TOI_LOCAL ? "local" : "world",

@@ -24,7 +24,8 @@ SC_API sc_world *sc_world_create(const sc_world_config *cfg)
         !isfinite(c.cluster_deadline_s) || (c.key_file && !c.cluster) || c.broadphase < SC_BROADPHASE_AUTO ||
         c.broadphase > SC_BROADPHASE_SAP || (c.motion_groups != 0 && c.motion_groups != 1) ||
         c.island_split < 0 ||
-        (c.island_method != SC_ISLAND_ACTIVE_SET && c.island_method != SC_ISLAND_BLOCK_GS) || (c.toi_mode != SC_TOI_LOCAL && c.toi_mode != SC_TOI_WORLD)) {
+        (c.island_method != SC_ISLAND_ACTIVE_SET && c.island_method != SC_ISLAND_BLOCK_GS &&
+         c.island_method != SC_ISLAND_SUBDOMAINS) || (c.toi_mode != SC_TOI_LOCAL && c.toi_mode != SC_TOI_WORLD)) {
         sc_set_error(SC_EINVAL);
         return NULL;
     }

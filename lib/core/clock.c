@@ -114,6 +114,12 @@ void sc_stats_add_solve(sc_stats *st, const sc_solve_info *info)
         st->frame.lcp.as_iterations_max = info->as_iterations_max;
     if (info->factor_nnz_max > st->frame.lcp.factor_nnz_max)
         st->frame.lcp.factor_nnz_max = info->factor_nnz_max;
+    if (info->as_parts_max > st->frame.lcp.as_parts_max)
+        st->frame.lcp.as_parts_max = info->as_parts_max;
+    if (info->as_interface_max > st->frame.lcp.as_interface_max)
+        st->frame.lcp.as_interface_max = info->as_interface_max;
+    st->frame.lcp.as_exchanges += info->as_exchanges;
+    st->frame.lcp.as_exchange_bytes += info->as_exchange_bytes;
 }
 
 static void add_lcp(sc_stats_lcp *s, const sc_stats_lcp *g)
@@ -147,6 +153,12 @@ static void add_lcp(sc_stats_lcp *s, const sc_stats_lcp *g)
         s->as_iterations_max = g->as_iterations_max;
     if (g->factor_nnz_max > s->factor_nnz_max)
         s->factor_nnz_max = g->factor_nnz_max;
+    if (g->as_parts_max > s->as_parts_max)
+        s->as_parts_max = g->as_parts_max;
+    if (g->as_interface_max > s->as_interface_max)
+        s->as_interface_max = g->as_interface_max;
+    s->as_exchanges += g->as_exchanges;
+    s->as_exchange_bytes += g->as_exchange_bytes;
 }
 
 static void add_toi(sc_stats_toi *s, const sc_stats_toi *g)

@@ -826,13 +826,15 @@ static int solve_split(sc_arena *a, row *rows, int nrows, const int *cstart, int
         }
         sc_arena_free(a, zcold);
         sc_arena_free(a, ucold);
-        int as = rc == SC_OK && p->island_method == SC_ISLAND_ACTIVE_SET && nc > AS_MIN_CONTACTS;
+        int as = rc == SC_OK && p->island_method != SC_ISLAND_BLOCK_GS && nc > AS_MIN_CONTACTS;
         if (as) {
             /* the whole island exactly; where its guesses do not settle,
              * block Gauss-Seidel (counted; an active set started from its
              * iterate settled no more of a bin's islands) */
             info->as_solves++;
-            rc = sc_island_active_set(&pb, bodies, body, m, z, u, info);
+            rc = sc_island_active_set(&pb, bodies, body, m,
+                                      p->island_method == SC_ISLAND_SUBDOMAINS, p->runner, a, z,
+                                      u, info);
             if (rc == SC_OK)
                 goto done;
             rc = rc == SC_ENUMERIC ? SC_OK : rc;

@@ -84,9 +84,11 @@ static inline void row_bounds(const gs_problem *pb, const double *z, int r, doub
  * (warm start, already in the local velocities u, 6 a slot; slot t is body
  * slot_body[t]): the answer in z and u, verified as a Dantzig answer;
  * SC_ENUMERIC when the guesses did not settle (z and u unchanged),
- * SC_ENOMEM. */
+ * SC_ENOMEM. subdomains: each factorisation by subdomains (island_schur.c),
+ * their parts as tasks of runner (NULL: here) with this thread's arena. */
 int sc_island_active_set(const gs_problem *pb, const sc_body *bodies, const int *slot_body,
-                         int nslots, double *z, double *u, sc_solve_info *info);
+                         int nslots, int subdomains, const sc_task_runner *runner,
+                         sc_arena *arena, double *z, double *u, sc_solve_info *info);
 
 /* A = J W J^T gets a compliance of COMPLIANCE times its largest diagonal
  * entry on the diagonal (contact.c build_a() says why). */

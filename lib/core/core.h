@@ -278,6 +278,12 @@ typedef struct sc_solve_info {
     long as_iterations;             /* guesses factored, summed */
     int as_iterations_max;          /* most of one solve */
     long factor_nnz_max;            /* entries of the largest factor */
+    int as_parts_max;               /* most subdomains of one solve
+                                       (SC_ISLAND_SUBDOMAINS; 1: one factor) */
+    int as_interface_max;           /* largest interface, unknowns */
+    long as_exchanges;              /* rounds the subdomains would exchange
+                                       with a master, summed over solves */
+    long as_exchange_bytes;         /* the bytes of those rounds, both ways */
     double residual_exact;          /* largest LCP residual of an exact island, m/s */
     double residual_split;          /* largest outer residual of a split island, m/s */
 } sc_solve_info;

@@ -23,6 +23,7 @@
 #include <string.h>
 
 #include "contact_rows.h"
+#include "island_schur.h"
 #include "vecmath.h"
 
 /* A row's place: free (w = 0 between its bounds) or held at a bound.
@@ -48,10 +49,19 @@ enum { AS_FREE, AS_LO, AS_HI };
  * quarter to a half, step after step, and never settles (docs/DESIGN.md
  * 11): block Gauss-Seidel takes it before it costs more factors. */
 #define AS_CHURN 8
-/* Refinement steps of each solve. */
+/* Refinement steps of each solve: one factor's, the subdomains'. */
 #define AS_REFINE 2
+#define AS_REFINE_SUB 6
 
 #define AS_MASS 19
+
+/* Subdomains (island_schur.c): an island of at least 2 AS_PART_BODIES
+ * movable bodies is cut into one part per AS_PART_BODIES (at most
+ * AS_MAX_PARTS) along the contact graph from its resting contacts up, so
+ * that a stack or a pile splits by height. The count depends on the
+ * island only, never on the workers: the same bits on any machine. */
+#define AS_PART_BODIES 32
+#define AS_MAX_PARTS 16
 
 typedef struct as_ctx {
     const gs_problem *pb;
@@ -76,6 +86,9 @@ typedef struct as_ctx {
     klu_common kc;
     klu_symbolic *sym;
     klu_numeric *num;
+    sc_schur *sch;            /* subdomains, or NULL: one factor */
+    const sc_task_runner *runner;   /* the subdomains' threads */
+    sc_arena *arena;
 } as_ctx;
 
 /* Row r's Jacobian on its movable slot side t (0: a, 1: b), or NULL. */
@@ -339,17 +352,22 @@ static void as_rhs(const as_ctx *s, const unsigned char *ef, double *b)
     }
 }
 
-/* u = K^-1 b with AS_REFINE steps of refinement. */
+/* u = K^-1 b, refined: AS_REFINE steps after one factor, AS_REFINE_SUB
+ * after subdomains (their Schur complement is formed by cancelling terms
+ * of 1/c, and a place decided on its rounding can send Newton's steps
+ * elsewhere). */
 static int as_solve(as_ctx *s, const double *b, double *u, double *tmp, double *dx)
 {
     size_t nv = (size_t)s->nvar;
     memcpy(dx, b, nv * sizeof *dx);
-    for (int it = 0; it <= AS_REFINE; it++) {
-        if (!klu_solve(s->sym, s->num, s->nvar, 1, dx, &s->kc))
+    int steps = s->sch ? AS_REFINE_SUB : AS_REFINE;
+    for (int it = 0;; it++) {
+        if (s->sch ? sc_schur_solve(s->sch, dx, s->runner, s->arena) != SC_OK
+                   : !klu_solve(s->sym, s->num, s->nvar, 1, dx, &s->kc))
             return SC_ENUMERIC;
         for (size_t i = 0; i < nv; i++)
             u[i] = it ? u[i] + dx[i] : dx[i];
-        if (it == AS_REFINE)
+        if (it == steps)
             break;
         k_mul(s, u, tmp);
         for (size_t i = 0; i < nv; i++)
@@ -528,8 +546,77 @@ static void as_begin(as_ctx *s, const double *u, const double *z, double *uv)
     }
 }
 
+/* The subdomains (see AS_PART_BODIES): the movable slots in breadth-first
+ * order over the rows that join two of them, from the slots resting on an
+ * immovable body (then from the first slot not reached), cut into equal
+ * runs; a slot with a row to a slot of an earlier part joins the
+ * interface, so no row joins the interiors of two parts. SC_OK with no
+ * plan for a small island. */
+static int as_parts(as_ctx *s)
+{
+    int ns = s->nslots, nmov = s->nvar / 6;
+    int np = nmov / AS_PART_BODIES;
+    if (np < 2)
+        return SC_OK;
+    np = np > AS_MAX_PARTS ? AS_MAX_PARTS : np;
+    const row *rows = s->pb->rows;
+    int *slot = malloc((size_t)nmov * sizeof *slot);     /* movable -> slot */
+    int *order = malloc((size_t)nmov * sizeof *order);
+    int *part = malloc((size_t)ns * sizeof *part);
+    int *pv = malloc((size_t)s->nvar * sizeof *pv);
+    int rc = SC_ENOMEM;
+    if (!slot || !order || !part || !pv)
+        goto out;
+    for (int t = 0; t < ns; t++) {
+        part[t] = -2;         /* not reached */
+        if (s->var[t] >= 0)
+            slot[s->var[t] / 6] = t;
+    }
+    int head = 0, tail = 0;
+    for (int r = 0; r < s->n; r++) {
+        int t = rows[r].ma && !rows[r].mb ? rows[r].la : !rows[r].ma && rows[r].mb ? rows[r].lb : -1;
+        if (t >= 0 && part[t] == -2) {
+            part[t] = -3;     /* queued */
+            order[tail++] = t;
+        }
+    }
+    for (int first = 0; head < nmov; head++) {
+        if (head == tail) {
+            while (part[slot[first]] != -2)
+                first++;
+            part[slot[first]] = -3;
+            order[tail++] = slot[first];
+        }
+        int t = order[head], c = s->var[t];
+        for (int j = 0; j < s->deg[t]; j++) {
+            int u = slot[s->ki[s->kp[c] + 6 * j] / 6];
+            if (part[u] == -2) {
+                part[u] = -3;
+                order[tail++] = u;
+            }
+        }
+    }
+    for (int k = 0; k < nmov; k++)
+        part[order[k]] = (int)((long)k * np / nmov);
+    for (int k = 0; k < nmov; k++) {
+        int t = slot[k], c = s->var[t], own = part[t];
+        for (int j = 0; j < s->deg[t]; j++)
+            own = part[slot[s->ki[s->kp[c] + 6 * j] / 6]] < part[t] ? -1 : own;
+        for (int i = 0; i < 6; i++)
+            pv[c + i] = own;
+    }
+    rc = sc_schur_plan(&s->sch, s->nvar, s->kp, s->ki, pv, np);
+out:
+    free(pv);
+    free(part);
+    free(order);
+    free(slot);
+    return rc;
+}
+
 static void as_free(as_ctx *s)
 {
+    sc_schur_free(s->sch);
     if (s->num)
         klu_free_numeric(&s->num, &s->kc);
     if (s->sym)
@@ -553,6 +640,8 @@ static void as_free(as_ctx *s)
 static int as_factor(as_ctx *s, const unsigned char *ef)
 {
     as_matrix(s, ef);
+    if (s->sch)
+        return sc_schur_factor(s->sch, s->kx, s->runner, s->arena);
     if (!s->sym) {
         klu_defaults(&s->kc);
         s->sym = klu_analyze(s->nvar, s->kp, s->ki, &s->kc);
@@ -571,10 +660,11 @@ static int as_factor(as_ctx *s, const unsigned char *ef)
 }
 
 int sc_island_active_set(const gs_problem *pb, const sc_body *bodies, const int *slot_body,
-                         int nslots, double *z, double *u, sc_solve_info *info)
+                         int nslots, int subdomains, const sc_task_runner *runner,
+                         sc_arena *arena, double *z, double *u, sc_solve_info *info)
 {
     int n = pb->nrows;
-    as_ctx s = { .pb = pb, .n = n, .nslots = nslots };
+    as_ctx s = { .pb = pb, .n = n, .nslots = nslots, .runner = runner, .arena = arena };
     int rc = as_pattern(&s, bodies, slot_body);
     size_t nn = (size_t)n, nv = (size_t)(s.nvar > 0 ? s.nvar : 1);
     double *rbuf = rc == SC_OK ? malloc(4 * nn * sizeof *rbuf) : NULL;
@@ -588,6 +678,8 @@ int sc_island_active_set(const gs_problem *pb, const sc_body *bodies, const int 
         rc = SC_ENOMEM;
     if (rc == SC_OK && s.nvar == 0)
         rc = SC_ENUMERIC;     /* nothing movable: not an island to solve */
+    if (rc == SC_OK && subdomains)
+        rc = as_parts(&s);
     if (rc != SC_OK) {
         as_free(&s);
         free(st);
@@ -651,10 +743,20 @@ int sc_island_active_set(const gs_problem *pb, const sc_body *bodies, const int 
     }
     info->as_iterations += iter;
     info->as_iterations_max = iter > info->as_iterations_max ? iter : info->as_iterations_max;
-    if (s.num) {
-        long fnz = (long)s.num->lnz + s.num->unz + s.num->nzoff;
-        info->factor_nnz_max = fnz > info->factor_nnz_max ? fnz : info->factor_nnz_max;
+    long fnz = s.sch ? sc_schur_factor_nnz(s.sch)
+               : s.num ? (long)s.num->lnz + s.num->unz + s.num->nzoff
+                       : 0;
+    info->factor_nnz_max = fnz > info->factor_nnz_max ? fnz : info->factor_nnz_max;
+    int parts = 1;
+    if (s.sch) {
+        sc_schur_traffic tr = sc_schur_traffic_of(s.sch);
+        int ni = sc_schur_interface(s.sch);
+        parts = sc_schur_parts(s.sch);
+        info->as_interface_max = ni > info->as_interface_max ? ni : info->as_interface_max;
+        info->as_exchanges += tr.exchanges;
+        info->as_exchange_bytes += tr.bytes;
     }
+    info->as_parts_max = parts > info->as_parts_max ? parts : info->as_parts_max;
     if (rc == SC_OK && !done)
         rc = SC_ENUMERIC;
     if (rc == SC_OK) {

@@ -53,12 +53,14 @@
  *             v0, w0 and iw are a substep's (set before they are read,
  *             integrate.c) and stay home both ways
  *   result:   count u32 (pairs, island members or group members), rc i32,
- *             messages i64, pivots, as_iterations, factor_nnz_max i64,
+ *             messages i64, pivots, as_iterations, factor_nnz_max,
+ *             as_exchanges, as_exchange_bytes i64,
  *             failures, regularised, lemke,
  *             collisions, split, split_fallbacks, blocks, block_fallbacks,
  *             nan_islands, sweeps_max, unconverged, solves, diverged,
  *             cold_starts, inelastic, energy_refused, restitution_scaled,
- *             guessed, as_solves, as_fallbacks, as_iterations_max i32,
+ *             guessed, as_solves, as_fallbacks, as_iterations_max,
+ *             as_parts_max, as_interface_max i32,
  *             residual_exact, residual_split f64,
  *             then per pair: n u8 and n contacts (COLLIDE), toi f64 (TOI);
  *             (ISLAND) contacts u32, per member: x f64[3], q f64[4], v, w,
@@ -96,7 +98,7 @@
  * phase would have. Outputs of a unit that failed (rc < 0) are as undefined as after a
  * local failure. */
 
-#define WIRE_VERSION 14      /* 6: island units carry impact_first, results inelastic, v0, w0;
+#define WIRE_VERSION 15      /* 6: island units carry impact_first, results inelastic, v0, w0;
                                 7: results carry energy_refused, restitution_scaled;
                                 8: and np_pairs, np_reused; 9: and lcp_kept;
                                 10: island units carry gravity (the push-out's lift);
@@ -105,7 +107,9 @@
                                 13: group units of several groups, members
                                 by state and profile (docs/DESIGN.md 7.4);
                                 14: island_method in island and group units,
-                                active-set figures in results and stats */
+                                active-set figures in results and stats;
+                                15: island_method SC_ISLAND_SUBDOMAINS,
+                                subdomain figures in results and stats */
 #define MAGIC_UNIT 0x55574353u        /* "SCWU" */
 #define MAGIC_RESULT 0x52574353u      /* "SCWR" */
 #define MAX_PAIRS (1 << 16)
@@ -448,7 +452,8 @@ static int params_ok(const sc_contact_params *p)
            p->block_contacts <= MAX_CONTACTS && p->max_sweeps >= 1 &&
            p->max_sweeps <= MAX_SWEEPS && (p->cold == 0 || p->cold == 1) &&
            (p->impact_first == 0 || p->impact_first == 1) &&
-           (p->island_method == SC_ISLAND_ACTIVE_SET || p->island_method == SC_ISLAND_BLOCK_GS) &&
+           (p->island_method == SC_ISLAND_ACTIVE_SET || p->island_method == SC_ISLAND_BLOCK_GS ||
+            p->island_method == SC_ISLAND_SUBDOMAINS) &&
            p->inject == 0;
 }
 
@@ -571,7 +576,8 @@ static int frame_cfg_ok(const sc_frame_config *c, double dt)
     return sc_finite3(c->gravity) && isfinite(c->contact_tol_m) && c->contact_tol_m > 0 &&
            c->broadphase >= SC_BROADPHASE_AUTO && c->broadphase <= SC_BROADPHASE_SAP &&
            c->island_split >= 0 &&
-           (c->island_method == SC_ISLAND_ACTIVE_SET || c->island_method == SC_ISLAND_BLOCK_GS) &&
+           (c->island_method == SC_ISLAND_ACTIVE_SET || c->island_method == SC_ISLAND_BLOCK_GS ||
+            c->island_method == SC_ISLAND_SUBDOMAINS) &&
            (c->toi_mode == SC_TOI_LOCAL || c->toi_mode == SC_TOI_WORLD) && isfinite(dt) &&
            dt > 0;
 }
@@ -1225,7 +1231,7 @@ void sc_wire_unit_free(sc_wire_unit *wu)
  * field added there must be added here; test_unit_wire compares whole
  * infos of a local and a remote run), and pivots. blocks_shared stays
  * home: a daemon's island shares no blocks. */
-#define INFO_INTS 21
+#define INFO_INTS 23
 
 static void info_ints(sc_solve_info *info, int *f[INFO_INTS])
 {
@@ -1237,7 +1243,8 @@ static void info_ints(sc_solve_info *info, int *f[INFO_INTS])
                           &info->inelastic,       &info->energy_refused,
                           &info->restitution_scaled, &info->guessed,
                           &info->as_solves,       &info->as_fallbacks,
-                          &info->as_iterations_max };
+                          &info->as_iterations_max, &info->as_parts_max,
+                          &info->as_interface_max };
     memcpy(f, p, sizeof p);
 }
 
@@ -1248,6 +1255,8 @@ static void put_info(wbuf *w, sc_solve_info info)
     put(w, (uint64_t)info.pivots, 8);
     put(w, (uint64_t)info.as_iterations, 8);
     put(w, (uint64_t)info.factor_nnz_max, 8);
+    put(w, (uint64_t)info.as_exchanges, 8);
+    put(w, (uint64_t)info.as_exchange_bytes, 8);
     for (int k = 0; k < INFO_INTS; k++)
         put_i32(w, *f[k]);
     put_f64s(w, &info.residual_exact, 1);
@@ -1264,11 +1273,13 @@ static void get_info(rbuf *r, sc_solve_info *info)
     if (pivots < 0 || pivots > LONG_MAX)
         r->bad = 1;
     info->pivots = (long)pivots;
-    for (int k = 0; k < 2; k++) {
+    long *l[] = { &info->as_iterations, &info->factor_nnz_max, &info->as_exchanges,
+                  &info->as_exchange_bytes };
+    for (size_t k = 0; k < sizeof l / sizeof l[0]; k++) {
         int64_t v = get_signed(r, 8);
         if (v < 0 || v > LONG_MAX)
             r->bad = 1;
-        *(k == 0 ? &info->as_iterations : &info->factor_nnz_max) = (long)v;
+        *l[k] = (long)v;
     }
     for (int k = 0; k < INFO_INTS; k++)
         if ((*f[k] = get_i32(r)) < 0)
@@ -1281,9 +1292,9 @@ static void get_info(rbuf *r, sc_solve_info *info)
  * sc_stats_add_solver() (clock.c) read, field by field: a field they
  * start to read must be added here (test_unit_wire compares them). */
 #define STAT_F64 (SC_STAGE_COUNT + 6)
-#define STAT_LONGS 10
+#define STAT_LONGS 12
 #define STAT_SIZES 2
-#define STAT_INTS 26
+#define STAT_INTS 28
 
 typedef struct stat_ptrs {
     double *d[STAT_F64];
@@ -1303,7 +1314,8 @@ static void stat_fields(sc_stats *s, stat_ptrs *p)
                            &s->frame.lcp.block_fallbacks, &s->frame.detect.collider_warnings,
                            &s->frame.sched.units,         &s->total.initial_overlaps,
                            &s->frame.detect.np_pairs,     &s->frame.detect.np_reused,
-                           &s->frame.lcp.as_iterations,   &s->frame.lcp.factor_nnz_max};
+                           &s->frame.lcp.as_iterations,   &s->frame.lcp.factor_nnz_max,
+                           &s->frame.lcp.as_exchanges,    &s->frame.lcp.as_exchange_bytes};
     size_t *z[STAT_SIZES] = { &s->total.arena_bytes, &s->total.unit_arena_bytes };
     int *i[STAT_INTS] = {
         &s->frame.detect.pairs,       &s->frame.detect.islands,     &s->frame.lcp.solves,
@@ -1314,7 +1326,8 @@ static void stat_fields(sc_stats *s, stat_ptrs *p)
         &s->frame.toi.backup_bodies,  &s->frame.toi.spec_contacts,  &s->frame.toi.spec_rounds,
         &s->frame.lcp.inelastic,      &s->frame.lcp.energy_refused,
         &s->frame.lcp.restitution_scaled, &s->frame.lcp.kept,       &s->frame.lcp.guessed,
-        &s->frame.lcp.as_solves,      &s->frame.lcp.as_fallbacks,   &s->frame.lcp.as_iterations_max };
+        &s->frame.lcp.as_solves,      &s->frame.lcp.as_fallbacks,   &s->frame.lcp.as_iterations_max,
+        &s->frame.lcp.as_parts_max,   &s->frame.lcp.as_interface_max };
     _Static_assert(sizeof d / sizeof d[0] == STAT_F64 - SC_STAGE_COUNT, "stat doubles");
     memcpy(&p->d[SC_STAGE_COUNT], d, sizeof d);
     memcpy(p->l, l, sizeof l);
