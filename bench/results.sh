@@ -21,7 +21,8 @@
 #       ODE's two steppers)
 #   (k) structures standing 10 s: bench_canon -s (stacks, a pyramid, a
 #       wall; ODE's two steppers beside), and island size against each
-#       island method's solve time on them and on bins (bench_islands -m)
+#       island method's solve time on them and on bins (bench_islands -m:
+#       active set, subdomains, block Gauss-Seidel)
 #   (l) big bins: bench_drop -S bin, 1000 parts (1 and every thread) and
 #       4000 (every thread), 2 s simulated, ODE QuickStep beside
 # Each section has the exact command, its output and, where docs/DESIGN.md section 10 sets a
@@ -597,7 +598,9 @@ w ""
 w "Island method against island size (bench/bench_islands.c -m): every island of"
 w "more than 64 contacts of a snapshot, solved as the frame would (split), warm"
 w "(last frame's impulses) and cold (from 0), whole by the active set (factors: its"
-w "factorisations; fallback: it did not settle and block Gauss-Seidel took it) and"
+w "factorisations; fallback: it did not settle and block Gauss-Seidel took it), by"
+w "the active set on subdomains of 32 bodies (one thread here; parts, interface"
+w "unknowns, and the rounds and bytes the parts would exchange with a master) and"
 w "by block Gauss-Seidel (sweeps: the most of one pass, 50 at most; uncv: passes"
 w "that stopped there; residual: the largest, m/s). The structures one frame after"
 w "they are placed; the bins as they pile up."
