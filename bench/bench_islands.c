@@ -166,6 +166,34 @@ static double solve_once(bench *b, const snap *sn, int m, const int *ci, int nc,
     return t;
 }
 
+/* Up to reps timed solves of island (ci, nc) of sn in mode m into t: a
+ * solve during which the arena grew is a warm-up and is repeated (3 at
+ * most); at least one, none more once now_s() passes until. The first
+ * solve's figures in *first. Returns how many were timed, or a failed
+ * solve's code (negative). */
+static int timed_solves(bench *b, const snap *sn, int m, const int *ci, int nc, int reps,
+                        double until, double *t, sc_solve_info *first)
+{
+    int got = 0, warmups = 0, have_first = 0;
+    while (got < reps) {
+        sc_solve_info info;
+        int rc, grew;
+        double s = solve_once(b, sn, m, ci, nc, &info, &rc, &grew);
+        if (rc != SC_OK)
+            return rc;
+        if (!have_first) {
+            *first = info;
+            have_first = 1;
+        }
+        if (grew && warmups++ < 3)
+            continue;
+        t[got++] = s;
+        if (now_s() > until)
+            break;
+    }
+    return got;
+}
+
 /* The world's current state as the next substep's start (see the top). */
 static int snap_take(snap *sn, const sc_world *w)
 {
@@ -256,21 +284,9 @@ static int methods_table(bench *b, const snap *sn, int nsnap, int reps)
                 const char *start_name = start == MODE_COLD ? "cold" : "warm";
                 b->island_method = method[m];
                 double t[MAX_REPS];
-                int got = 0, rc = SC_OK, warmups = 0, have_first = 0;
-                sc_solve_info info, first = { 0 };
-                while (got < reps) {
-                    int grew;
-                    double s = solve_once(b, &sn[k], start, ci, nc, &info, &rc, &grew);
-                    if (rc != SC_OK)
-                        break;
-                    if (!have_first) {
-                        first = info;
-                        have_first = 1;
-                    }
-                    if (grew && warmups++ < 3)
-                        continue;
-                    t[got++] = s;
-                }
+                sc_solve_info first = { 0 };
+                int got = timed_solves(b, &sn[k], start, ci, nc, reps, INFINITY, t, &first);
+                int rc = got < 0 ? got : SC_OK;
                 if (rc != SC_OK) {
                     printf("%4d %6d %8d %6d  %-10s %-5s error: %s\n", k, i, nc,
                            island_rows(&sn[k], ci, nc), method_name[m], start_name,
@@ -452,25 +468,12 @@ int main(int argc, char **argv)
             over_rows += rows > SC_MAX_ISLAND_ROWS;
             for (int m = 0; m < NMODE; m++) {
                 double t[MAX_REPS];
-                int got = 0;
-                sc_solve_info info, first = { 0 };
-                int have_first = 0, src = SC_OK, warmups = 0;
-                while (got < reps) {
-                    int grew;
-                    double s = solve_once(&b, S, m, ci, nc, &info, &src, &grew);
-                    if (src != SC_OK)
-                        break;
-                    if (!have_first) {
-                        first = info;
-                        have_first = 1;
-                    }
-                    if (grew && warmups++ < 3)
-                        continue;      /* a warm-up: the arena grew during it */
-                    t[got++] = s;
-                    ms[m].solves++;
-                    if (now_s() - bt0 > budget_s)
-                        break;         /* at least one, fewer once the budget is gone */
-                }
+                sc_solve_info first = { 0 };
+                /* at least one solve, fewer once the budget is gone */
+                int got = timed_solves(&b, S, m, ci, nc, reps, bt0 + budget_s, t, &first);
+                int src = got < 0 ? got : SC_OK;
+                if (src == SC_OK)
+                    ms[m].solves += got;
                 if (src != SC_OK) {
                     ms[m].errors++;
                     ms[m].last_rc = src;
