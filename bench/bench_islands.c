@@ -234,6 +234,17 @@ static void snap_free(snap *sn)
     free(sn->bodies);
 }
 
+/* Frees the bench, the snapshots and the world. */
+static void bench_end(bench *b, snap *sn, int nsnap, sc_world *w)
+{
+    sc_arena_destroy(&b->arena);
+    for (int k = 0; k < nsnap; k++)
+        snap_free(&sn[k]);
+    free(b->wc);
+    free(b->wb);
+    sc_world_destroy(w);
+}
+
 static double median(double *x, int n)
 {
     qsort(x, (size_t)n, sizeof *x, cmp_double);
@@ -407,12 +418,7 @@ int main(int argc, char **argv)
                "repeats an island, median\n\n",
                with_contacts, DT, b.island_split, reps);
         int failed = methods_table(&b, sn, nsnap, reps);
-        sc_arena_destroy(&b.arena);
-        for (int k = 0; k < nsnap; k++)
-            snap_free(&sn[k]);
-        free(b.wc);
-        free(b.wb);
-        sc_world_destroy(w);
+        bench_end(&b, sn, nsnap, w);
         return failed;
     }
     printf("%d islands with contacts in all; h = %.2f s; split mode at island_split = %d; %d "
@@ -534,11 +540,6 @@ int main(int argc, char **argv)
     }
     printf("\nmean_c: mean contacts of the bucket's islands; mean_c*: of those timed; "
            "vs_cold: cold median / this median (> 1: faster than cold)\n");
-    sc_arena_destroy(&b.arena);
-    for (int k = 0; k < nsnap; k++)
-        snap_free(&sn[k]);
-    free(b.wc);
-    free(b.wb);
-    sc_world_destroy(w);
+    bench_end(&b, sn, nsnap, w);
     return failed;
 }
