@@ -548,10 +548,10 @@ static void as_begin(as_ctx *s, const double *u, const double *z, double *uv)
 
 /* The subdomains (see AS_PART_BODIES): the movable slots in breadth-first
  * order over the rows that join two of them, from the slots resting on an
- * immovable body (then from the first slot not reached), cut into equal
- * runs; a slot with a row to a slot of an earlier part joins the
- * interface, so no row joins the interiors of two parts. SC_OK with no
- * plan for a small island. */
+ * immovable body (then from the first slot not reached), cut into runs at
+ * the level boundaries nearest equal runs; a slot with a row to a slot of
+ * an earlier part joins the interface, so no row joins the interiors of
+ * two parts. SC_OK with no plan for a small island (or one level). */
 static int as_parts(as_ctx *s)
 {
     int ns = s->nslots, nmov = s->nvar / 6;
@@ -562,10 +562,11 @@ static int as_parts(as_ctx *s)
     const row *rows = s->pb->rows;
     int *slot = malloc((size_t)nmov * sizeof *slot);     /* movable -> slot */
     int *order = malloc((size_t)nmov * sizeof *order);
+    int *lev = malloc((size_t)nmov * sizeof *lev);     /* by order position */
     int *part = malloc((size_t)ns * sizeof *part);
     int *pv = malloc((size_t)s->nvar * sizeof *pv);
     int rc = SC_ENOMEM;
-    if (!slot || !order || !part || !pv)
+    if (!slot || !order || !lev || !part || !pv)
         goto out;
     for (int t = 0; t < ns; t++) {
         part[t] = -2;         /* not reached */
@@ -577,6 +578,7 @@ static int as_parts(as_ctx *s)
         int t = rows[r].ma && !rows[r].mb ? rows[r].la : !rows[r].ma && rows[r].mb ? rows[r].lb : -1;
         if (t >= 0 && part[t] == -2) {
             part[t] = -3;     /* queued */
+            lev[tail] = 0;
             order[tail++] = t;
         }
     }
@@ -585,6 +587,7 @@ static int as_parts(as_ctx *s)
             while (part[slot[first]] != -2)
                 first++;
             part[slot[first]] = -3;
+            lev[tail] = lev[tail - 1] + 1;
             order[tail++] = slot[first];
         }
         int t = order[head], c = s->var[t];
@@ -592,12 +595,36 @@ static int as_parts(as_ctx *s)
             int u = slot[s->ki[s->kp[c] + 6 * j] / 6];
             if (part[u] == -2) {
                 part[u] = -3;
+                lev[tail] = lev[head] + 1;
                 order[tail++] = u;
             }
         }
     }
-    for (int k = 0; k < nmov; k++)
-        part[order[k]] = (int)((long)k * np / nmov);
+    /* cuts at the level boundaries nearest the equal runs: the interface
+     * is then one level (a row of a pyramid), not a level and a half */
+    int cut[AS_MAX_PARTS + 1], nc = 0;
+    cut[nc++] = 0;
+    for (int k = 1; k < np; k++) {
+        int want = (int)((long)k * nmov / np), best = -1;
+        for (int d = 0; d < nmov && best < 0; d++)
+            for (int sg = -1; sg <= 1 && best < 0; sg += 2) {
+                int q = want + sg * d;
+                if (q > cut[nc - 1] && q < nmov && lev[q] != lev[q - 1])
+                    best = q;
+            }
+        if (best > cut[nc - 1])
+            cut[nc++] = best;
+    }
+    np = nc;
+    if (np < 2) {
+        rc = SC_OK;
+        goto out;
+    }
+    for (int k = 0, p = 0; k < nmov; k++) {
+        while (p + 1 < np && k >= cut[p + 1])
+            p++;
+        part[order[k]] = p;
+    }
     for (int k = 0; k < nmov; k++) {
         int t = slot[k], c = s->var[t], own = part[t];
         for (int j = 0; j < s->deg[t]; j++)
@@ -609,6 +636,7 @@ static int as_parts(as_ctx *s)
 out:
     free(pv);
     free(part);
+    free(lev);
     free(order);
     free(slot);
     return rc;
