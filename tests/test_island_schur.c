@@ -2,7 +2,8 @@
  * (lib/core/island_schur.c; docs/DESIGN.md 11): the same answer as one
  * dense solve on a chain of 6 x 6 blocks cut into parts, also when the
  * parts run on two threads (the same bits), unsymmetric blocks included;
- * a plan that joins two interiors is refused; traffic is counted. */
+ * a plan that joins two interiors is refused; traffic is counted; an
+ * island that rests on nothing static is cut into parts too. */
 #include <math.h>
 #include <pthread.h>
 #include <setjmp.h>
@@ -15,6 +16,7 @@
 #include <cmocka.h>
 
 #include "island_schur.h"
+#include "simcluster.h"
 
 /* A chain of nb bodies, 6 unknowns each, body k coupled to k + 1: K =
  * diag(mass) + stiff (k, k + 1) blocks, unsymmetric by a skew part. */
@@ -236,6 +238,39 @@ static void a_singular_interior_is_reported(void **state)
     sc_schur_free(s);
 }
 
+/* A column of 70 cubes, each sunk 0.2 mm into the next, floating without
+ * gravity or floor: no body rests on a static one, so the parts' breadth-
+ * first order starts from the first body (island_sparse.c as_parts()). */
+static void an_island_on_nothing_static_is_cut_too(void **state)
+{
+    (void)state;
+    sc_world_config cfg = sc_world_config_default();
+    cfg.gravity[2] = 0;
+    cfg.workers = 1;
+    cfg.island_method = SC_ISLAND_SUBDOMAINS;
+    sc_world *w = sc_world_create(&cfg);
+    assert_non_null(w);
+    sc_shape *cube = sc_shape_box(0.1, 0.1, 0.1);
+    assert_non_null(cube);
+    for (int k = 0; k < 70; k++) {
+        sc_body_desc d = sc_body_desc_default();
+        d.shape = cube;
+        d.mass = 1;
+        d.pos[2] = k * 0.1998;
+        assert_true(sc_body_add(w, &d) >= 0);
+    }
+    sc_shape_release(cube);
+    int parts = 0;
+    for (int f = 0; f < 3; f++) {
+        assert_int_equal(sc_world_step(w, 0.01), SC_OK);
+        sc_stats st;
+        sc_world_stats(w, &st);
+        parts = st.frame.lcp.as_parts_max > parts ? st.frame.lcp.as_parts_max : parts;
+    }
+    assert_true(parts >= 2);
+    sc_world_destroy(w);
+}
+
 int main(void)
 {
     const struct CMUnitTest tests[] = {
@@ -243,6 +278,7 @@ int main(void)
         cmocka_unit_test(parts_on_two_threads_give_the_same_bits),
         cmocka_unit_test(joined_interiors_are_refused),
         cmocka_unit_test(a_singular_interior_is_reported),
+        cmocka_unit_test(an_island_on_nothing_static_is_cut_too),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
 }

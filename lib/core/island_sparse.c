@@ -587,7 +587,7 @@ static int as_parts(as_ctx *s)
             while (part[slot[first]] != -2)
                 first++;
             part[slot[first]] = -3;
-            lev[tail] = lev[tail - 1] + 1;
+            lev[tail] = tail > 0 ? lev[tail - 1] + 1 : 0;
             order[tail++] = slot[first];
         }
         int t = order[head], c = s->var[t];
