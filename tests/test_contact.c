@@ -340,6 +340,43 @@ static void test_blocks_of_a_colour_give_the_same_bits_in_any_order_or_thread(vo
     stack_free(&s);
 }
 
+/* Anderson's acceleration of block Gauss-Seidel (docs/DESIGN.md 11): on
+ * every contact of a 60-part bin, from 0, it reaches the tolerance in fewer
+ * block solves than the plain sweeps, and both answers are the same
+ * velocities within what the tolerance allows. */
+static void test_anderson_reaches_the_tolerance_in_fewer_blocks(void **state)
+{
+    (void)state;
+    stack s;
+    pile_make(&s);
+    sc_body *b0 = s.out[0], *b1 = s.out[1];
+    sc_contact *c0 = s.cout[0], *c1 = s.cout[1];
+    sc_contact_params p = sc_frame_contact_params(&s.w->fcfg);
+    p.island_method = SC_ISLAND_BLOCK_GS;
+    p.cold = 1;
+    p.max_sweeps = 400;
+    sc_solve_info plain, aa;
+    p.anderson = 0;
+    solve_copy(&s, &p, &plain, b0, c0);
+    p.anderson = 3;
+    solve_copy(&s, &p, &aa, b1, c1);
+    print_message("%d contacts from 0: plain %d sweeps, %d block solves, residual %.2g m/s; "
+                  "Anderson (3) %d sweeps, %d block solves, residual %.2g m/s\n",
+                  s.nc, plain.sweeps_max, plain.blocks, plain.residual_split, aa.sweeps_max,
+                  aa.blocks, aa.residual_split);
+    assert_int_equal(plain.unconverged + plain.diverged, 0);
+    assert_int_equal(aa.unconverged + aa.diverged, 0);
+    assert_true(plain.residual_split <= p.tol && aa.residual_split <= p.tol);
+    assert_true(aa.blocks < plain.blocks);
+    double dv = 0;
+    for (int i = 0; i < s.nb; i++)
+        for (int k = 0; k < 3; k++)
+            dv = fmax(dv, fabs(b0[i].v[k] - b1[i].v[k]));
+    print_message("largest velocity difference %.2g m/s\n", dv);
+    assert_true(dv < 5 * p.tol);
+    stack_free(&s);
+}
+
 /* Contacts persist from frame to frame with their impulses (the warm
  * start): a resting stack's floor contacts carry its weight, and a warm
  * exact solve takes fewer pivots than a cold one on the same island. */
@@ -498,6 +535,7 @@ int main(void)
         cmocka_unit_test(test_each_fallback_is_taken_counted_and_physical),
         cmocka_unit_test(test_split_island_agrees_with_the_exact_one),
         cmocka_unit_test(test_blocks_of_a_colour_give_the_same_bits_in_any_order_or_thread),
+        cmocka_unit_test(test_anderson_reaches_the_tolerance_in_fewer_blocks),
         cmocka_unit_test(test_resting_contacts_keep_their_impulses),
         cmocka_unit_test(test_a_pinched_elastic_body_is_not_thrown),
         cmocka_unit_test(test_a_pinched_body_is_not_turned_by_the_push_out),

@@ -1159,9 +1159,9 @@ static void test_bad_fields_are_format_errors(void **state)
     /* island header: magic, version, kind 8; bodies, members, contacts,
      * islands 16; h, bounce_speed, slop, baumgarte, tol 40; gravity 24;
      * split_contacts, block_contacts, max_sweeps, cold, impact_first,
-     * island_method 24;
+     * island_method, anderson 28;
      * per island 8 */
-    const size_t tol = 8 + 16 + 32, grav = tol + 8, ints = grav + 24, isl0 = ints + 24;
+    const size_t tol = 8 + 16 + 32, grav = tol + 8, ints = grav + 24, isl0 = ints + 28;
     size_t ilen = sm.len[SC_UNIT_ISLAND];
     print_message("island sample: %d islands, %d members, %d bodies\n", nisl, nm, m);
     /* the offsets are right: other valid values there decode as such */
@@ -1169,8 +1169,9 @@ static void test_bad_fields_are_format_errors(void **state)
         { tol, bits(0.25), 8 }, { ints, 5, 4 }, { ints + 4, 1u << 16, 4 },
         { ints + 8, 10000, 4 }, { ints + 12, 1, 4 }, { ints + 16, 1, 4 },
         { grav + 16, bits(-1.62), 8 }, { ints + 20, SC_ISLAND_SUBDOMAINS, 4 },
+        { ints + 24, SC_ANDERSON_MAX, 4 },
     };
-    for (int k = 0; k < 8; k++) {
+    for (int k = 0; k < 9; k++) {
         unsigned char keep8[8];
         memcpy(keep8, ib + good[k].at, (size_t)good[k].n);
         for (int i = 0; i < good[k].n; i++)
@@ -1184,7 +1185,8 @@ static void test_bad_fields_are_format_errors(void **state)
                : k == 4 ? q->cold == 1
                : k == 5 ? q->impact_first == 1
                : k == 6 ? q->gravity[2] == -1.62
-                        : q->island_method == SC_ISLAND_SUBDOMAINS;
+               : k == 7 ? q->island_method == SC_ISLAND_SUBDOMAINS
+                        : q->anderson == SC_ANDERSON_MAX;
         assert_true(ok);
         assert_int_equal(q->inject, 0);
         sc_wire_unit_free(&wu);
@@ -1209,6 +1211,8 @@ static void test_bad_fields_are_format_errors(void **state)
     bad_at(ib, ilen, ints + 16, (uint32_t)-1, 4);
     bad_at(ib, ilen, ints + 20, 3, 4);                       /* island_method */
     bad_at(ib, ilen, ints + 20, (uint32_t)-1, 4);
+    bad_at(ib, ilen, ints + 24, SC_ANDERSON_MAX + 1, 4);    /* anderson */
+    bad_at(ib, ilen, ints + 24, (uint32_t)-1, 4);
     /* a NaN or infinite warm-start impulse (contact 0's, after its ids,
      * pos, normal and depth) */
     size_t imp0 = isl0 + 8 * (size_t)nisl + (size_t)m * (31 * 8 + 8) + 8 + 7 * 8;
@@ -1278,7 +1282,7 @@ static void test_island_settings_and_impulses_travel(void **state)
     sc_contact_params p = { .bounce_speed = 0.25, .slop = 1e-4, .baumgarte = 0.3,
                             .split_contacts = 3, .block_contacts = 2, .tol = 0.125,
                             .max_sweeps = 7, .cold = 1, .impact_first = 1,
-                            .island_method = SC_ISLAND_SUBDOMAINS };
+                            .island_method = SC_ISLAND_SUBDOMAINS, .anderson = 2 };
     islands_job ij;
     islands_job_init_p(&ij, s->w, &p);
     /* warm starts of every sign and size, on every contact */
@@ -1298,7 +1302,8 @@ static void test_island_settings_and_impulses_travel(void **state)
                     wu.params.block_contacts == p.block_contacts &&
                     wu.params.max_sweeps == p.max_sweeps && wu.params.cold == p.cold &&
                     wu.params.impact_first == p.impact_first &&
-                    wu.params.island_method == p.island_method && wu.params.inject == 0);
+                    wu.params.island_method == p.island_method &&
+                    wu.params.anderson == p.anderson && wu.params.inject == 0);
         assert_int_equal(wu.unit.count, u.count);
         const int *ci = &ij.is.contacts[ij.is.contact_start[i]];
         for (int k = 0; k < u.count; k++) {

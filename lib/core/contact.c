@@ -673,28 +673,109 @@ static int colour_solve(sc_arena *a, const gs_problem *pb, const blocks *bl, int
  * ends on the best (counted: sc_solve_info.diverged). */
 #define DIVERGE 100.0
 
+/* Anderson acceleration (sc_contact_params.anderson, at most AA_DEPTH): the
+ * map is a symmetric sweep, g = G(x) on x = (z, u), a forward and a backward
+ * sweep; with the differences of the last sweeps' moves f = (g_z - x_z)
+ * A_rr (m/s) and of their results, the next x is g - dG gamma, gamma the
+ * least squares of f - dF gamma. u is affine in z, so the combination keeps
+ * them consistent; a sweep takes any x, and its blocks' exact answers put z
+ * back in its bounds. A sweep whose residual does not fall starts the
+ * history again (docs/DESIGN.md 11). */
+#define AA_DEPTH SC_ANDERSON_MAX
+
+/* The least squares gamma (k unknowns) of f - dF gamma over n rows, by the
+ * normal equations with a little Tikhonov; 0 if they are singular. */
+static int aa_gamma(const double *dF, int k, int n, const double *f, double *gamma)
+{
+    double H[AA_DEPTH * AA_DEPTH], b[AA_DEPTH];
+    double tr = 0;
+    for (int i = 0; i < k; i++) {
+        for (int j = 0; j <= i; j++) {
+            double s = 0;
+            for (int r = 0; r < n; r++)
+                s += dF[(size_t)i * n + r] * dF[(size_t)j * n + r];
+            H[i * k + j] = H[j * k + i] = s;
+        }
+        double s = 0;
+        for (int r = 0; r < n; r++)
+            s += dF[(size_t)i * n + r] * f[r];
+        b[i] = s;
+        tr += H[i * k + i];
+    }
+    if (!(tr > 0))
+        return 0;
+    for (int i = 0; i < k; i++)
+        H[i * k + i] += 1e-10 * tr;
+    /* Cholesky */
+    for (int j = 0; j < k; j++) {
+        double d = H[j * k + j];
+        for (int l = 0; l < j; l++)
+            d -= H[j * k + l] * H[j * k + l];
+        if (!(d > 0))
+            return 0;
+        d = sqrt(d);
+        H[j * k + j] = d;
+        for (int i = j + 1; i < k; i++) {
+            double s = H[i * k + j];
+            for (int l = 0; l < j; l++)
+                s -= H[i * k + l] * H[j * k + l];
+            H[i * k + j] = s / d;
+        }
+    }
+    for (int i = 0; i < k; i++) {
+        double s = b[i];
+        for (int l = 0; l < i; l++)
+            s -= H[i * k + l] * gamma[l];
+        gamma[i] = s / H[i * k + i];
+    }
+    for (int i = k - 1; i >= 0; i--) {
+        double s = gamma[i];
+        for (int l = i + 1; l < k; l++)
+            s -= H[l * k + i] * gamma[l];
+        gamma[i] = s / H[i * k + i];
+    }
+    for (int i = 0; i < k; i++)
+        if (!isfinite(gamma[i]))
+            return 0;
+    return 1;
+}
+
 static int block_gs(sc_arena *a, const gs_problem *pb, const blocks *bl, double *z, double *u,
                     int nu, const sc_contact_params *p, double tol, sc_solve_info *info)
 {
-    size_t nz = (size_t)pb->nrows * sizeof *z, nub = (size_t)nu * sizeof *u;
+    int nr = pb->nrows;
+    size_t nz = (size_t)nr * sizeof *z, nub = (size_t)nu * sizeof *u;
+    size_t nx = (size_t)nr + (size_t)nu;
     size_t nbl = (size_t)bl->count;
     const sc_task_runner *runner = p->runner;
+    int aa = p->anderson < AA_DEPTH ? p->anderson : AA_DEPTH;
     double *zb = sc_arena_alloc(a, nz), *ub = zb ? sc_arena_alloc(a, nub) : NULL;
     sc_solve_info *binfo = ub ? sc_arena_alloc(a, nbl * sizeof *binfo) : NULL;
     int *brc = binfo ? sc_arena_alloc(a, nbl * sizeof *brc) : NULL;
-    if (!brc) {
-        sc_arena_free(a, brc);
-        sc_arena_free(a, binfo);
-        sc_arena_free(a, ub);
-        sc_arena_free(a, zb);
-        return SC_ENOMEM;
+    /* Anderson: z before the symmetric sweep, the last sweep's result
+     * (z, u) and move f, the histories of their differences */
+    double *xz = NULL, *gp = NULL, *fp = NULL, *f = NULL, *dG = NULL, *dF = NULL;
+    if (brc && aa > 0) {
+        xz = sc_arena_alloc(a, nz);
+        gp = xz ? sc_arena_alloc(a, nx * sizeof *gp) : NULL;
+        fp = gp ? sc_arena_alloc(a, nz) : NULL;
+        f = fp ? sc_arena_alloc(a, nz) : NULL;
+        dG = f ? sc_arena_alloc(a, (size_t)aa * nx * sizeof *dG) : NULL;
+        dF = dG ? sc_arena_alloc(a, (size_t)aa * nz) : NULL;
     }
-    int sweeps = 0, rc = SC_OK, diverged = 0;
-    double res = residual(pb, bl, z, u), best = res;
-    memcpy(zb, z, nz);
-    memcpy(ub, u, nub);
+    int rc = brc && (aa == 0 || dF) ? SC_OK : SC_ENOMEM;
+    int sweeps = 0, diverged = 0;
+    double res = rc == SC_OK ? residual(pb, bl, z, u) : INFINITY, best = res;
+    if (rc == SC_OK) {
+        memcpy(zb, z, nz);
+        memcpy(ub, u, nub);
+    }
     int fail = (p->inject & SC_INJECT_BLOCK) != 0;
-    while (res > tol && sweeps < p->max_sweeps && rc == SC_OK) {
+    int nh = 0, next = 0, have_prev = 0;
+    double res_prev = INFINITY;
+    while (rc == SC_OK && res > tol && sweeps < p->max_sweeps) {
+        if (aa > 0 && sweeps % 2 == 0)
+            memcpy(xz, z, nz);
         for (int i = 0; i < bl->ncolours && rc == SC_OK; i++) {
             int c = sweeps % 2 == 0 ? i : bl->ncolours - 1 - i;
             rc = colour_solve(a, pb, bl, c, z, u, fail, SKIP_SHARE * tol, runner, binfo, brc,
@@ -710,12 +791,58 @@ static int block_gs(sc_arena *a, const gs_problem *pb, const blocks *bl, double 
             diverged = 1;
             break;
         }
+        if (aa == 0 || sweeps % 2 != 0 || res <= tol || rc != SC_OK)
+            continue;
+        for (int r = 0; r < nr; r++)
+            f[r] = (z[r] - xz[r]) * bl->diag[r];
+        if (!(res < res_prev)) {
+            nh = 0;
+            next = 0;
+        }
+        if (have_prev) {
+            double *cg = dG + (size_t)next * nx, *cf = dF + (size_t)next * nr;
+            for (int r = 0; r < nr; r++) {
+                cf[r] = f[r] - fp[r];
+                cg[r] = z[r] - gp[r];
+            }
+            for (int j = 0; j < nu; j++)
+                cg[nr + j] = u[j] - gp[nr + j];
+            next = (next + 1) % aa;
+            nh += nh < aa;
+        }
+        memcpy(fp, f, nz);
+        memcpy(gp, z, nz);
+        memcpy(gp + nr, u, nub);
+        have_prev = 1;
+        res_prev = res;
+        /* the columns are slots [0, nh): their order does not matter */
+        double gamma[AA_DEPTH];
+        if (nh == 0)
+            continue;
+        if (!aa_gamma(dF, nh, nr, f, gamma)) {
+            nh = 0;
+            next = 0;
+            continue;
+        }
+        for (int i = 0; i < nh; i++) {
+            const double *col = dG + (size_t)i * nx;
+            for (int r = 0; r < nr; r++)
+                z[r] -= gamma[i] * col[r];
+            for (int j = 0; j < nu; j++)
+                u[j] -= gamma[i] * col[nr + j];
+        }
     }
     if (rc == SC_OK && !(res <= best)) {
         memcpy(z, zb, nz);
         memcpy(u, ub, nub);
         res = best;
     }
+    sc_arena_free(a, dF);
+    sc_arena_free(a, dG);
+    sc_arena_free(a, f);
+    sc_arena_free(a, fp);
+    sc_arena_free(a, gp);
+    sc_arena_free(a, xz);
     sc_arena_free(a, brc);
     sc_arena_free(a, binfo);
     sc_arena_free(a, ub);

@@ -198,6 +198,9 @@ typedef struct sc_block_batch sc_block_batch;
  * (counted). An sc_task_fn. */
 void sc_block_run(void *batch, int i, sc_arena *a, int helper);
 
+/* The most sweeps block Gauss-Seidel's Anderson acceleration remembers. */
+#define SC_ANDERSON_MAX 8
+
 /* Contact model constants (Baraff's velocity-level LCP, the paper's states)
  * and the solver's settings (docs/DESIGN.md section 11). */
 typedef struct sc_contact_params {
@@ -210,6 +213,9 @@ typedef struct sc_contact_params {
     int block_contacts;             /* contacts per block (whole pairs) */
     double tol;                     /* outer residual to reach, m/s */
     int max_sweeps;                 /* outer sweeps at most */
+    int anderson;                   /* block Gauss-Seidel's Anderson
+                                       acceleration: sweeps remembered, 0
+                                       (plain) to SC_ANDERSON_MAX */
     int island_method;              /* SC_ISLAND_*: how a split island is solved */
     int cold;                       /* benchmarks: no warm starts (every solve
                                        from z = 0) */

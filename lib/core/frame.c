@@ -22,6 +22,9 @@
 #define MAX_BACKUPS_LOCAL 31
 /* split islands: contacts per block (whole pairs: a pair has at most 4) */
 #define SPLIT_BLOCK_CONTACTS 4
+/* split islands: symmetric sweeps Anderson's acceleration remembers (3 and
+ * 5 gave a bin of 1000 the same time; docs/DESIGN.md 11) */
+#define SPLIT_ANDERSON 3
 
 sc_contact_params sc_frame_contact_params(const sc_frame_config *cfg)
 {
@@ -33,6 +36,7 @@ sc_contact_params sc_frame_contact_params(const sc_frame_config *cfg)
         .block_contacts = SPLIT_BLOCK_CONTACTS,
         .tol = SC_SPLIT_TOL,
         .max_sweeps = SC_SPLIT_MAX_SWEEPS,
+        .anderson = SPLIT_ANDERSON,
         .island_method = cfg->island_method,
         .impact_first = cfg->toi_mode == SC_TOI_LOCAL,
         .gravity = { cfg->gravity[0], cfg->gravity[1], cfg->gravity[2] },

@@ -31,7 +31,8 @@
  *   ISLAND unit (consecutive islands, each solved on its own): bodies u32,
  *             members u32, contacts u32, islands u32, h, bounce_speed, slop,
  *             baumgarte, tol f64, gravity f64[3], split_contacts, block_contacts, max_sweeps,
- *             cold i32, impact_first i32, island_method i32, per island: members u32, contacts
+ *             cold i32, impact_first i32, island_method i32, anderson i32, per island:
+ *             members u32, contacts
  *             u32; per body: see
  *             put_body(), per contact: a contact (local body indices) and its
  *             impulse f64[3] (the warm start)
@@ -98,7 +99,7 @@
  * phase would have. Outputs of a unit that failed (rc < 0) are as undefined as after a
  * local failure. */
 
-#define WIRE_VERSION 15      /* 6: island units carry impact_first, results inelastic, v0, w0;
+#define WIRE_VERSION 16      /* 6: island units carry impact_first, results inelastic, v0, w0;
                                 7: results carry energy_refused, restitution_scaled;
                                 8: and np_pairs, np_reused; 9: and lcp_kept;
                                 10: island units carry gravity (the push-out's lift);
@@ -109,7 +110,8 @@
                                 14: island_method in island and group units,
                                 active-set figures in results and stats;
                                 15: island_method SC_ISLAND_SUBDOMAINS,
-                                subdomain figures in results and stats */
+                                subdomain figures in results and stats;
+                                16: island units carry anderson */
 #define MAGIC_UNIT 0x55574353u        /* "SCWU" */
 #define MAGIC_RESULT 0x52574353u      /* "SCWR" */
 #define MAX_PAIRS (1 << 16)
@@ -454,7 +456,7 @@ static int params_ok(const sc_contact_params *p)
            (p->impact_first == 0 || p->impact_first == 1) &&
            (p->island_method == SC_ISLAND_ACTIVE_SET || p->island_method == SC_ISLAND_BLOCK_GS ||
             p->island_method == SC_ISLAND_SUBDOMAINS) &&
-           p->inject == 0;
+           p->anderson >= 0 && p->anderson <= SC_ANDERSON_MAX && p->inject == 0;
 }
 
 static void write_island(wbuf *w, const void *job_, const void *im_)
@@ -476,6 +478,7 @@ static void write_island(wbuf *w, const void *job_, const void *im_)
     put_i32(w, p->cold);
     put_i32(w, p->impact_first);
     put_i32(w, p->island_method);
+    put_i32(w, p->anderson);
     const sc_islands *is = job->islands;
     for (int i = im->first; i < im->first + im->nisl; i++) {
         put(w, (uint64_t)(is->body_start[i + 1] - is->body_start[i]), 4);
@@ -891,6 +894,7 @@ static int decode_island(rbuf *r, sc_wire_unit *wu)
     p.cold = get_i32(r);
     p.impact_first = get_i32(r);
     p.island_method = get_i32(r);
+    p.anderson = get_i32(r);
     if (r->bad || nm < 1 || nm > m || m > MAX_BODIES || nc > MAX_CONTACTS || nisl < 1 ||
         nisl > nm || !(head[0] > 0) || !params_ok(&p) ||
         r->len - r->n != (size_t)nisl * 8 + (size_t)m * BODY_BYTES +
