@@ -137,6 +137,17 @@ static int same_contact(const sc_contact *x, const sc_contact *y)
            !memcmp(&x->depth, &y->depth, sizeof x->depth);
 }
 
+/* The place of contact c in old[0 .. nold) (sorted by pair): the same
+ * contact, whose impulse that solve found; -1 if none. */
+static int find_same(const sc_contact *old, int nold, const sc_contact *c)
+{
+    int o = sc_contacts_pair_start(old, nold, c->body_a, c->body_b);
+    while (o < nold && old[o].body_a == c->body_a && old[o].body_b == c->body_b &&
+           !same_contact(&old[o], c))
+        o++;
+    return o < nold && same_contact(&old[o], c) ? o : -1;
+}
+
 /* For each contact of an island kept (not in mask), its place in the last
  * solve's contacts (from[k]; -1 for the others): the same contact, whose
  * impulse that solve found. 0 if one is missing (then all are solved). */
@@ -150,12 +161,8 @@ static int kept_impulses(const sc_frame_state *st, const sc_islands *is,
             continue;
         for (int j = is->contact_start[i]; j < is->contact_start[i + 1]; j++) {
             int k = is->contacts[j];
-            const sc_contact *c = &st->contacts[k];
-            int o = sc_contacts_pair_start(rd->old, rd->nold, c->body_a, c->body_b);
-            while (o < rd->nold && rd->old[o].body_a == c->body_a &&
-                   rd->old[o].body_b == c->body_b && !same_contact(&rd->old[o], c))
-                o++;
-            if (o == rd->nold || !same_contact(&rd->old[o], c))
+            int o = find_same(rd->old, rd->nold, &st->contacts[k]);
+            if (o < 0)
                 return 0;
             from[k] = o;
         }
@@ -348,6 +355,23 @@ static int keep_solved(const sc_frame_state *st, sc_spec_list *keep)
     return SC_OK;
 }
 
+/* A substep backed up is solved again, shorter, on the contacts it
+ * started with and its speculative ones (c[0 .. n)): each takes the
+ * impulse the last solve found for it (old) as its warm start, where it
+ * had only its detection's match. A back-up for one part's impact leaves
+ * the rest of a pile's impulses nearly as they were, so its islands start
+ * near their answers (fewer pivots and sweeps); the answers are verified
+ * as any other (docs/DESIGN.md 11, warm starts). Every later solve of the
+ * substep starts from them, kept islands or not (the same bits). */
+static void warm_from_solved(sc_contact *c, int n, const sc_spec_list *old)
+{
+    for (int k = 0; k < n; k++) {
+        int o = find_same(old->c, old->n, &c[k]);
+        if (o >= 0)
+            v3_copy(c[k].impulse, old->c[o].impulse);
+    }
+}
+
 /* The substeps of a frame, with the frame's arrays in place. */
 /* A frame's first detection after bodies were added: pairs already deep in
  * each other are counted (the push-out separates them, but not as physics
@@ -372,7 +396,7 @@ static int detect_initial(sc_frame *f)
  * bodies and contacts, kept before it was solved) and its length. */
 typedef struct sub_state {
     sc_body *saved;           /* the bodies at the substep's start */
-    const sc_contact *c0;     /* its contacts */
+    sc_contact *c0;           /* its contacts (their impulses: warm starts) */
     int n0;
     double h;                 /* its length, shortened by back-ups */
     double dt;                /* the frame's */
@@ -457,6 +481,10 @@ static int local_rounds(sc_frame *f, sub_state *u)
             u->backups++;
             sub_backups++;
             u->h = max_d(frac * u->h, 1e-6 * u->dt);
+        }
+        if (back) {
+            warm_from_solved(u->c0, u->n0, u->solved);
+            warm_from_solved(u->spec->c, u->spec->n, u->solved);
         }
         rc = sc_spec_merge(st, u->c0, u->n0, u->spec);
         solved_spec = u->spec->n;
