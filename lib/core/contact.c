@@ -748,7 +748,7 @@ static int block_gs(sc_arena *a, const gs_problem *pb, const blocks *bl, double 
     size_t nx = (size_t)nr + (size_t)nu;
     size_t nbl = (size_t)bl->count;
     const sc_task_runner *runner = p->runner;
-    int aa = p->anderson < AA_DEPTH ? p->anderson : AA_DEPTH;
+    int aa = p->anderson <= 0 ? 0 : p->anderson < AA_DEPTH ? p->anderson : AA_DEPTH;
     double *zb = sc_arena_alloc(a, nz), *ub = zb ? sc_arena_alloc(a, nub) : NULL;
     sc_solve_info *binfo = ub ? sc_arena_alloc(a, nbl * sizeof *binfo) : NULL;
     int *brc = binfo ? sc_arena_alloc(a, nbl * sizeof *brc) : NULL;

@@ -22,8 +22,8 @@
 #define MAX_BACKUPS_LOCAL 31
 /* split islands: contacts per block (whole pairs: a pair has at most 4) */
 #define SPLIT_BLOCK_CONTACTS 4
-/* split islands: symmetric sweeps Anderson's acceleration remembers (3 and
- * 5 gave a bin of 1000 the same time; docs/DESIGN.md 11) */
+/* split islands: the symmetric sweeps Anderson's acceleration remembers
+ * (docs/DESIGN.md 11) */
 #define SPLIT_ANDERSON 3
 
 sc_contact_params sc_frame_contact_params(const sc_frame_config *cfg)

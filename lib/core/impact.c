@@ -254,8 +254,8 @@ static double normal_speed(const sc_frame *f, const sc_body *saved, const sc_con
  * restitution on simultaneous contacts can add energy. A perfectly
  * elastic one is backed up to instead, which orders them; an inelastic
  * one is held (its row rests in the LCP and bounces at the substep's end,
- * contact.c rebound()): in a pile nearly every part is pushed by its
- * neighbours, and backing the pile up for each cost a third of its time. */
+ * contact.c rebound()): in a pile nearly every part is pushed in by its
+ * neighbours, and backing the whole pile up for each made piles slow. */
 static int pushed_in(const sc_frame *f, const sc_body *saved, const sc_contact *c, double h)
 {
     double reach = 0;
