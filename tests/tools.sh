@@ -28,7 +28,7 @@ check "--seed for stack" 2 "$tool" run stack --seed 3 --frames 1
 one_line "--seed for stack" "a structure has no randomness"
 # a stack of 30 cubes: one island solved whole by the active set, exactly,
 # in one factorisation a solve, standing still; block Gauss-Seidel on the
-# same stack stops at its sweep limit
+# same stack iterates, tens of sweeps a solve, only to its tolerance
 check "run stack" 0 "$tool" run stack --bodies 30 --frames 100 --json
 python3 - "$dir/out" <<'PY' || { echo "FAIL: run stack: not solved whole"; cat "$dir/out"; fail=1; }
 import json, sys
@@ -38,7 +38,7 @@ sys.exit(not (d["bodies"] == 31 and r["island_method"] == "active-set" and a["so
               and r["max_residual"] < 1e-9 and d["max_penetration_m"] < 1e-3))
 PY
 check "run stack --island-method block-gs" 0 "$tool" run stack --bodies 30 --frames 100 --json --island-method block-gs
-python3 -c 'import json,sys; r=json.load(open(sys.argv[1]))["solver"]; sys.exit(not (r["island_method"] == "block-gs" and r["active_set"]["solves"] == 0 and r["unconverged"] > 0))' "$dir/out" ||
+python3 -c 'import json,sys; r=json.load(open(sys.argv[1]))["solver"]; sys.exit(not (r["island_method"] == "block-gs" and r["active_set"]["solves"] == 0 and r["max_sweeps"] > 10 and r["max_outer_residual"] > 1e-6))' "$dir/out" ||
     { echo "FAIL: run stack --island-method block-gs"; cat "$dir/out"; fail=1; }
 # a stack of 100 cubes by subdomains: one island of several parts, their
 # exchanges counted
