@@ -18,6 +18,7 @@
 
 #include "core.h"
 #include "island_schur.h"
+#include "lcp.h"
 
 typedef struct part {
     int n;                    /* interior unknowns */
@@ -248,49 +249,17 @@ out:
     return rc;
 }
 
-/* In-place LU of the dense m x m a (row-major) with partial pivoting. */
-static int lu_factor(int m, double *a, int *piv)
+/* out = K_GI v (na entries) for v of the part's n interior unknowns. */
+static void kgi_times(const part *q, const double *v, double *out)
 {
-    for (int k = 0; k < m; k++) {
-        int r = k;
-        for (int i = k + 1; i < m; i++)
-            if (fabs(a[i * m + k]) > fabs(a[r * m + k]))
-                r = i;
-        piv[k] = r;
-        if (!(fabs(a[r * m + k]) > 0) || !isfinite(a[r * m + k]))
-            return SC_ENUMERIC;
-        if (r != k)
-            for (int j = 0; j < m; j++) {
-                double t = a[k * m + j];
-                a[k * m + j] = a[r * m + j];
-                a[r * m + j] = t;
-            }
-        double inv = 1 / a[k * m + k];
-        for (int i = k + 1; i < m; i++) {
-            double f = a[i * m + k] * inv;
-            a[i * m + k] = f;
-            if (f != 0)
-                for (int j = k + 1; j < m; j++)
-                    a[i * m + j] -= f * a[k * m + j];
-        }
-    }
-    return SC_OK;
-}
-
-static void lu_solve(int m, const double *a, const int *piv, double *b)
-{
-    for (int k = 0; k < m; k++) {
-        double t = b[piv[k]];
-        b[piv[k]] = b[k];
-        b[k] = t;
-        for (int i = k + 1; i < m; i++)
-            b[i] -= a[i * m + k] * b[k];
-    }
-    for (int k = m - 1; k >= 0; k--) {
-        double v = b[k];
-        for (int j = k + 1; j < m; j++)
-            v -= a[k * m + j] * b[j];
-        b[k] = v / a[k * m + k];
+    memset(out, 0, (size_t)q->na * sizeof *out);
+    for (int k = 0; k < q->n; k++) {
+        double vk = v[k];
+        if (vk == 0)
+            continue;
+        const double *gk = q->kgi + (size_t)k * q->na;
+        for (int r = 0; r < q->na; r++)
+            out[r] += gk[r] * vk;
     }
 }
 
@@ -322,19 +291,8 @@ static void factor_part(void *arg, int i, sc_arena *a, int helper)
         q->rc = SC_ENUMERIC;
         return;
     }
-    memset(q->t, 0, (size_t)q->na * (size_t)q->na * sizeof *q->t);
-    for (int c = 0; c < q->na; c++) {
-        double *tc = q->t + (size_t)c * q->na;
-        const double *xc = q->x + (size_t)c * q->n;
-        for (int k = 0; k < q->n; k++) {
-            double xv = xc[k];
-            if (xv == 0)
-                continue;
-            const double *gk = q->kgi + (size_t)k * q->na;
-            for (int r = 0; r < q->na; r++)
-                tc[r] += gk[r] * xv;
-        }
-    }
+    for (int c = 0; c < q->na; c++)
+        kgi_times(q, q->x + (size_t)c * q->n, q->t + (size_t)c * q->na);
 }
 
 int sc_schur_factor(sc_schur *s, const double *kx, const sc_task_runner *runner, sc_arena *a)
@@ -372,7 +330,7 @@ int sc_schur_factor(sc_schur *s, const double *kx, const sc_task_runner *runner,
     }
     s->tr.exchanges++;
     s->tr.bytes += bytes;
-    return lu_factor(s->ng, s->S, s->piv);
+    return sc_lu_factor(s->ng, s->S, s->piv);
 }
 
 /* Part i's solve before the interface: y = K_II^-1 b_I, gp = K_GI y. */
@@ -391,12 +349,7 @@ static void solve_part(void *arg, int i, sc_arena *a, int helper)
         q->rc = SC_ENUMERIC;
         return;
     }
-    memset(q->gp, 0, (size_t)q->na * sizeof *q->gp);
-    for (int k = 0; k < q->n; k++) {
-        const double *gk = q->kgi + (size_t)k * q->na;
-        for (int r = 0; r < q->na; r++)
-            q->gp[r] += gk[r] * q->y[k];
-    }
+    kgi_times(q, q->y, q->gp);
 }
 
 /* Part i's solve after the interface: u_I = y - X u_G. */
@@ -429,7 +382,7 @@ int sc_schur_solve(sc_schur *s, double *x, const sc_task_runner *runner, sc_aren
             s->g[q->adj[r]] -= q->gp[r];
         bytes += 16L * q->na;
     }
-    lu_solve(s->ng, s->S, s->piv, s->g);
+    sc_lu_solve_factored(s->ng, s->S, s->piv, s->g);
     for (int g = 0; g < s->ng; g++)
         x[s->gi[g]] = s->g[g];
     sc_tasks_run(runner, finish_part, s, s->nparts, a);

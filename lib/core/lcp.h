@@ -97,6 +97,11 @@ void sc_ldu_solve(const sc_ldu *f, double *v);
 int sc_ldu_remove(sc_ldu *f, int k);
 /* Dense m x m solve a v = b in place, partial pivoting; SC_OK or SC_ENUMERIC. */
 int sc_lu_solve(int m, double *a, double *b);
+/* The same elimination kept for many right-hand sides: a (row-major) into
+ * its LU factors in place, piv[m] its row swaps; SC_OK or SC_ENUMERIC. */
+int sc_lu_factor(int m, double *a, int *piv);
+/* b = a^-1 b in place, from sc_lu_factor()'s a and piv. */
+void sc_lu_solve_factored(int m, const double *a, const int *piv, double *b);
 /* Lemke's method (lcp_lemke.c), the fallback of sc_lcp_dantzig when a
  * principal block is singular: z of the final basis (not yet verified),
  * SC_OK, SC_ENOSOLUTION (secondary ray), SC_EMAXITER (*pivots reached

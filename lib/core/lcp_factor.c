@@ -201,43 +201,86 @@ int sc_ldu_remove(sc_ldu *f, int k)
     return SC_OK;
 }
 
-/* Solve the dense m x m system a v = b in place (a row-major with stride
- * m, overwritten by its LU factors) by Gaussian elimination with partial
- * pivoting. SC_ENUMERIC if a pivot is zero or not finite. */
-int sc_lu_solve(int m, double *a, double *b)
+/* Gaussian elimination with partial pivoting of the dense m x m a
+ * (row-major, stride m) in place: U above and on the diagonal, the
+ * multipliers below it; piv[k] (when given) the row swapped with k at step
+ * k; b (when given) eliminated along, swaps and all. SC_ENUMERIC if a
+ * pivot is zero or not finite. */
+static int lu_eliminate(int m, double *a, int *piv, double *b)
 {
     for (int k = 0; k < m; k++) {
         int p = k;
         for (int r = k + 1; r < m; r++)
             if (fabs(a[(size_t)r * m + k]) > fabs(a[(size_t)p * m + k]))
                 p = r;
-        double piv = a[(size_t)p * m + k];
-        if (piv == 0.0 || !isfinite(piv))
+        double pv = a[(size_t)p * m + k];
+        if (pv == 0.0 || !isfinite(pv))
             return SC_ENUMERIC;
+        if (piv)
+            piv[k] = p;
         if (p != k) {
             for (int c = 0; c < m; c++) {
                 double t = a[(size_t)k * m + c];
                 a[(size_t)k * m + c] = a[(size_t)p * m + c];
                 a[(size_t)p * m + c] = t;
             }
-            double t = b[k];
-            b[k] = b[p];
-            b[p] = t;
+            if (b) {
+                double t = b[k];
+                b[k] = b[p];
+                b[p] = t;
+            }
         }
         for (int r = k + 1; r < m; r++) {
-            double g = a[(size_t)r * m + k] / piv;
+            double g = a[(size_t)r * m + k] / pv;
+            a[(size_t)r * m + k] = g;
             if (g == 0.0)
                 continue;
             for (int c = k + 1; c < m; c++)
                 a[(size_t)r * m + c] -= g * a[(size_t)k * m + c];
-            b[r] -= g * b[k];
+            if (b)
+                b[r] -= g * b[k];
         }
     }
+    return SC_OK;
+}
+
+/* b = U^-1 b, U the upper triangle of a. */
+static void lu_back(int m, const double *a, double *b)
+{
     for (int r = m - 1; r >= 0; r--) {
         double s = b[r];
         for (int c = r + 1; c < m; c++)
             s -= a[(size_t)r * m + c] * b[c];
         b[r] = s / a[(size_t)r * m + r];
     }
-    return SC_OK;
+}
+
+int sc_lu_solve(int m, double *a, double *b)
+{
+    int rc = lu_eliminate(m, a, NULL, b);
+    if (rc == SC_OK)
+        lu_back(m, a, b);
+    return rc;
+}
+
+int sc_lu_factor(int m, double *a, int *piv)
+{
+    return lu_eliminate(m, a, piv, NULL);
+}
+
+void sc_lu_solve_factored(int m, const double *a, const int *piv, double *b)
+{
+    for (int k = 0; k < m; k++) {
+        if (piv[k] != k) {
+            double t = b[k];
+            b[k] = b[piv[k]];
+            b[piv[k]] = t;
+        }
+        for (int r = k + 1; r < m; r++) {
+            double g = a[(size_t)r * m + k];
+            if (g != 0.0)
+                b[r] -= g * b[k];
+        }
+    }
+    lu_back(m, a, b);
 }
