@@ -25,16 +25,53 @@ count() { # $1 = label, $2 = exit status; counts cmocka's summary lines
     fi
 }
 
+# The cmocka binaries of every build run first, as many at once as there
+# are CPUs (make check's longest part; the sanitized ones are the slowest, so
+# they go first); test_cluster* run alone afterwards: their daemons answer
+# within deadlines. Their results print below in build order.
+runs=$(mktemp -d)
+trap 'rm -f "$log"; rm -rf "$runs"' EXIT
+one() { # $1 = test binary; its output, exit status and seconds into $runs
+    key=$(printf '%s' "$1" | tr / _)
+    start=$(date +%s)
+    "$1" >"$runs/$key.log" 2>&1
+    echo $? >"$runs/$key.rc"
+    echo $(( $(date +%s) - start )) >"$runs/$key.s"
+}
+list() { # the test binaries, the last build's first; $1 = cluster: only test_cluster*
+    i=$#
+    while [ "$i" -gt 1 ]; do
+        eval "b=\${$i}"
+        for t in "$b"/tests/test_*; do
+            [ -x "$t" ] || continue
+            case $(basename "$t") in
+                test_cluster*) [ "$1" = cluster ] && echo "$t" ;;
+                *) [ "$1" = cluster ] || echo "$t" ;;
+            esac
+        done
+        i=$((i - 1))
+    done
+}
+ncpu=$(nproc 2>/dev/null || echo 1)
+for t in $(list pool "$@"); do
+    while [ "$(find "$runs" -name '*.run' | wc -l)" -ge "$ncpu" ]; do sleep 0.1; done
+    key=$(printf '%s' "$t" | tr / _)
+    touch "$runs/$key.run"
+    (one "$t"; rm -f "$runs/$key.run") &
+done
+wait
+for t in $(list cluster "$@"); do one "$t"; done
+
 for build in "$@"; do
     echo "== tests in $build"
     for t in "$build"/tests/test_*; do
         [ -x "$t" ] || continue
-        start=$(date +%s)
-        "$t" >"$log" 2>&1
-        rc=$?
+        key=$(printf '%s' "$t" | tr / _)
+        cp "$runs/$key.log" "$log"
+        rc=$(cat "$runs/$key.rc")
         grep -E '^\[  (PASSED|FAILED)  \]' "$log" | sed "s|^|  $(basename "$t"): |"
-        count "$t" $rc
-        echo "  $(basename "$t"): $(( $(date +%s) - start )) s"
+        count "$t" "$rc"
+        echo "  $(basename "$t"): $(cat "$runs/$key.s") s"
     done
     for r in "$build"/tests/fuzz/fuzz_*_replay; do
         [ -x "$r" ] || continue
