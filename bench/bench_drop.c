@@ -80,7 +80,8 @@
  * For simcluster a second line under its row gives the contact solver's
  * figures over the run (sc_stats, per frame, summed or maxed over every
  * frame stepped without error): island solves, of them split (block
- * Gauss-Seidel) and unconverged (stopped at the sweep limit), the most
+ * Gauss-Seidel), those of them short of the tolerance tried as one exact
+ * LCP and solved so, and unconverged (stopped at the sweep limit), the most
  * sweeps, the largest outer residual of a split solve and of an exact one,
  * the fallbacks (coupled friction LCP failed: staggered; staggered failed:
  * blocks; block failed: projected Gauss-Seidel; non-finite islands;
@@ -171,6 +172,7 @@ typedef struct result {
     /* simcluster's contact solver over the run (sc_stats, every frame) */
     long frames;                 /* frames stepped without error */
     long solves, split, blocks, shared, unconverged, substeps, backups, spec, refused, rscaled;
+    long whole_tries, whole_solved;
     long fallbacks, split_fallbacks, block_fallbacks, nan_islands, regularised;
     int sweeps_max;
     double outer_res, exact_res; /* largest of any frame, m/s */
@@ -598,6 +600,8 @@ static void solver_add(result *r, const sc_stats *st)
     r->blocks += st->frame.lcp.blocks;
     r->shared += st->frame.lcp.blocks_shared;
     r->unconverged += st->frame.lcp.unconverged;
+    r->whole_tries += st->frame.lcp.whole_tries;
+    r->whole_solved += st->frame.lcp.whole_solved;
     r->substeps += st->frame.toi.substeps;
     r->backups += st->frame.toi.backups;
     r->spec += st->frame.toi.spec_contacts;
@@ -785,14 +789,15 @@ static void print_solver(int eng, const result *r)
         return;
     }
     printf("        %s solver: %ld frames, %ld island solves, %ld split (%.1f %%), "
-           "%ld block solves (%ld by helping threads), %ld unconverged, sweeps max %d, "
+           "%ld block solves (%ld by helping threads), solved whole %ld of %ld tried, "
+           "%ld unconverged, sweeps max %d, "
            "outer residual max %.3g m/s, exact residual max %.3g m/s; fallbacks: staggered "
            "%ld (%ld refused for adding energy), blocks %ld, block PGS %ld, NaN islands %ld, "
            "regularised %ld, restitution scaled down %ld; substeps %.3f a frame, back-ups "
            "%.3f a frame (summed over motion groups), speculative contacts %ld\n",
            eng_name[eng], r->frames, r->solves, r->split,
            r->solves ? 100.0 * (double)r->split / (double)r->solves : 0.0, r->blocks, r->shared,
-           r->unconverged,
+           r->whole_solved, r->whole_tries, r->unconverged,
            r->sweeps_max, r->outer_res, r->exact_res, r->fallbacks, r->refused, r->split_fallbacks,
            r->block_fallbacks, r->nan_islands, r->regularised, r->rscaled,
            (double)r->substeps / (double)r->frames, (double)r->backups / (double)r->frames,

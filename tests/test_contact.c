@@ -408,6 +408,58 @@ static void test_anderson_reaches_the_tolerance_in_fewer_sweeps(void **state)
     stack_free(&s);
 }
 
+/* A small island that block Gauss-Seidel leaves short of the tolerance is
+ * solved whole (docs/DESIGN.md 11): the stack of 16 from 0 without the
+ * acceleration (hundreds of sweeps to the tolerance) stops sweeping at 60
+ * (its 192 rows), and the one exact LCP from there gives the answer of
+ * the island solved whole from the start. Block Gauss-Seidel alone
+ * (SC_ISLAND_BLOCK_GS) does not. */
+static void test_a_small_island_short_of_the_tolerance_is_solved_whole(void **state)
+{
+    (void)state;
+    stack s;
+    tall_make(&s, 16);
+    sc_body *b0 = s.out[0], *b1 = s.out[1];
+    sc_contact *c0 = s.cout[0], *c1 = s.cout[1];
+    sc_contact_params p = sc_frame_contact_params(&s.w->fcfg);
+    p.cold = 1;
+    p.anderson = 0;
+    sc_solve_info wi, gi, ie;
+    solve_copy(&s, &p, &wi, b0, c0);
+    p.island_method = SC_ISLAND_BLOCK_GS;
+    solve_copy(&s, &p, &gi, b1, c1);
+    print_message("stack of 16, %d contacts from 0: %d sweeps then whole (%d of %d settled), "
+                  "residual %.2g m/s; block Gauss-Seidel alone %d sweeps, %d unconverged, "
+                  "residual %.2g m/s\n",
+                  s.nc, wi.sweeps_max, wi.whole_solved, wi.whole_tries, wi.residual_split,
+                  gi.sweeps_max, gi.unconverged, gi.residual_split);
+    assert_int_equal(wi.split, 1);
+    assert_int_equal(wi.whole_tries, 1);
+    assert_int_equal(wi.whole_solved, 1);
+    assert_int_equal(wi.unconverged, 0);
+    assert_int_equal(wi.sweeps_max, 60);
+    assert_int_equal(gi.whole_tries, 0);
+    assert_true(gi.sweeps_max > 60);
+    sc_body *ex = malloc((size_t)s.nb * sizeof *ex);
+    sc_contact *cex = malloc((size_t)s.nc * sizeof *cex);
+    assert_true(ex && cex);
+    p.split_contacts = 0;
+    solve_copy(&s, &p, &ie, ex, cex);
+    assert_int_equal(ie.split, 0);
+    double d = 0;
+    for (int i = 0; i < s.nb; i++)
+        for (int k = 0; k < 3; k++)
+            d = fmax(d, fmax(fabs(b0[i].v[k] - ex[i].v[k]), fabs(b0[i].w[k] - ex[i].w[k])));
+    print_message("largest velocity off the island solved whole from the start: %.2g m/s\n", d);
+    /* the compliance (1e-6 of A's largest diagonal entry) softens the
+     * island's exact LCP and pulls the whole solve towards its iterate:
+     * both far below the tolerance, which the sweeps alone miss by 15 */
+    assert_true(d < 1e-4 && d < 0.1 * p.tol);
+    free(cex);
+    free(ex);
+    stack_free(&s);
+}
+
 /* Contacts persist from frame to frame with their impulses (the warm
  * start): a resting stack's floor contacts carry its weight, and a warm
  * exact solve takes fewer pivots than a cold one on the same island. */
@@ -567,6 +619,7 @@ int main(void)
         cmocka_unit_test(test_split_island_agrees_with_the_exact_one),
         cmocka_unit_test(test_blocks_of_a_colour_give_the_same_bits_in_any_order_or_thread),
         cmocka_unit_test(test_anderson_reaches_the_tolerance_in_fewer_sweeps),
+        cmocka_unit_test(test_a_small_island_short_of_the_tolerance_is_solved_whole),
         cmocka_unit_test(test_resting_contacts_keep_their_impulses),
         cmocka_unit_test(test_a_pinched_elastic_body_is_not_thrown),
         cmocka_unit_test(test_a_pinched_body_is_not_turned_by_the_push_out),

@@ -458,9 +458,10 @@ static sc_unit island_unit(const sc_islands *is, int i, int n)
 
 /* The solver settings the island units are solved with: frame.c's; every
  * island of more than two contacts split into blocks (sweeps from the warm
- * start); the same without warm starts; one sweep at most (unconverged);
- * the local mode's impacts first (which writes v0, w0: they come back). */
-#define NSETTINGS 5
+ * start); the same without warm starts; one sweep at most (then solved
+ * whole); the local mode's impacts first (which writes v0, w0: they come
+ * back); one sweep of block Gauss-Seidel alone (unconverged). */
+#define NSETTINGS 6
 static sc_contact_params setting(int k)
 {
     sc_contact_params p = params;
@@ -478,11 +479,15 @@ static sc_contact_params setting(int k)
     }
     if (k == 4)
         p.impact_first = 1;
+    if (k == 5) {
+        p = setting(3);
+        p.island_method = SC_ISLAND_BLOCK_GS;
+    }
     return p;
 }
 
 typedef struct island_counts {
-    int islands, collisions, deep, warm, changed, split, blocks, unconverged;
+    int islands, collisions, deep, warm, changed, split, blocks, unconverged, whole;
 } island_counts;
 
 /* Every island of the world's islands solved here and through the wire
@@ -504,6 +509,7 @@ static void check_islands(const sc_world *w, sc_np_ctx *local, sc_np_ctx *remote
         n->split += ul.info.split;
         n->blocks += ul.info.blocks;
         n->unconverged += ul.info.unconverged;
+        n->whole += ul.info.whole_solved;
         n->islands += g;
     }
     for (int k = 0; k < ij.nc; k++) {
@@ -541,9 +547,9 @@ static void test_island_units_through_wire_are_bit_identical(void **state)
     for (int k = 0; k < NSETTINGS; k++) {
         print_message("island setting %d: %d islands, %d collisions, %d deep contacts, "
                       "%d with a warm start, %d impulses changed, %d split, %d block solves, "
-                      "%d unconverged\n",
+                      "%d unconverged, %d solved whole\n",
                       k, n[k].islands, n[k].collisions, n[k].deep, n[k].warm, n[k].changed,
-                      n[k].split, n[k].blocks, n[k].unconverged);
+                      n[k].split, n[k].blocks, n[k].unconverged, n[k].whole);
         assert_true(n[k].islands > 0);
         assert_true(n[k].collisions > 0);
         assert_true(n[k].deep > 0);
@@ -553,7 +559,8 @@ static void test_island_units_through_wire_are_bit_identical(void **state)
     /* the settings took effect, and travelled */
     assert_true(n[1].split > n[0].split && n[1].blocks > 0);
     assert_int_equal(n[2].split, n[1].split);
-    assert_true(n[3].unconverged > 0);
+    assert_true(n[3].whole > 0);           /* one sweep, then whole */
+    assert_true(n[5].unconverged > 0);     /* block Gauss-Seidel alone */
     sc_np_destroy(local);
     sc_np_destroy(remote);
     sc_world_destroy(w);
@@ -1404,7 +1411,7 @@ static void test_result_for_another_unit_is_a_format_error(void **state)
     /* an island result whose contact count or counters are wrong changes
      * nothing (layout: header 8, members 4, rc 4, messages 8, pivots,
      * as_iterations, factor_nnz_max, as_exchanges, as_exchange_bytes 5 x 8,
-     * failures ... as_interface_max 23 x 4, residuals 16, contacts 4) */
+     * failures ... whole_solved 25 x 4, residuals 16, contacts 4) */
     int big = 0;
     for (int i = 1; i < ij.is.count; i++)
         if (island_unit(&ij.is, i, 1).count > island_unit(&ij.is, big, 1).count)
@@ -1415,7 +1422,7 @@ static void test_result_for_another_unit_is_a_format_error(void **state)
     free(res);
     buf = pack_unit(&ij.jr, &ui, &len);
     res = remote_run(np, buf, len, &cc, &rlen);
-    const size_t pivots = 24, counters = pivots + 40, ncont = counters + 92 + 16;
+    const size_t pivots = 24, counters = pivots + 40, ncont = counters + 100 + 16;
     assert_int_equal(rlen, ncont + 4 +
                                (size_t)(ij.is.body_start[big + 1] - ij.is.body_start[big]) *
                                    (19 * 8 + 4) +
@@ -1432,7 +1439,7 @@ static void test_result_for_another_unit_is_a_format_error(void **state)
         { pivots + 16, 8, (uint64_t)-1 }, { pivots + 24, 8, (uint64_t)-1 },
         { pivots + 32, 8, (uint64_t)-1 },
     };
-    for (int k = 0; k < 7 + 23; k++) {
+    for (int k = 0; k < 7 + 25; k++) {
         size_t at = k < 7 ? wrong[k].at : counters + 4 * (size_t)(k - 7);
         int nbytes = k < 7 ? wrong[k].n : 4;
         uint64_t v = k < 7 ? wrong[k].v : (uint32_t)-1;   /* a negative counter */
@@ -1449,7 +1456,7 @@ static void test_result_for_another_unit_is_a_format_error(void **state)
     assert_memory_equal(contacts_before, ij.cr, ncb);
     /* the residuals are carried as they are */
     double odd = NAN;
-    memcpy(res + counters + 92, &odd, sizeof odd);
+    memcpy(res + counters + 100, &odd, sizeof odd);
     ui.info.residual_exact = 0;
     assert_int_equal(sc_wire_result_apply(&ij.jr, &ui, res, rlen), SC_OK);
     assert_true(isnan(ui.info.residual_exact));
@@ -1701,12 +1708,12 @@ static void test_bad_group_fields_are_format_errors(void **state)
 }
 
 /* A group result at its layout (header 8, members 4, rc 4, messages 8,
- * info 148), then per group: rc 4, its figures (a mask u64 and the fields
- * it names: 26 of 8 bytes, then 28 of 4), per member 122 bytes (flags,
+ * info 156), then per group: rc 4, its figures (a mask u64 and the fields
+ * it names: 26 of 8 bytes, then 30 of 4), per member 122 bytes (flags,
  * 14 doubles, dev, points u8) and 32 a point, then contacts 4 and 88
  * each. */
 #define GR_RC 12
-#define GR_GROUPS 172
+#define GR_GROUPS 180
 
 /* Where group j of a result for u (of job) is. */
 typedef struct gr_at {

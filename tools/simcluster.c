@@ -634,7 +634,7 @@ typedef struct totals {
     long duplicates;            /* duplicate daemon ids reported so far */
     /* the contact solver, summed (or the largest) over the frames */
     long solves, split, blocks, shared, pivots, staggered, refused, split_fb, block_fb, nan;
-    long inelastic, rscaled, unconverged, kept, guessed, regularised;
+    long inelastic, rscaled, unconverged, kept, guessed, regularised, whole_tries, whole_solved;
     long substeps, max_pivots, backups, spec, groups, retried;
     int max_sweeps, max_substeps, max_backups;
     double residual, outer_residual;
@@ -737,6 +737,8 @@ static int simulate(const options *o, sc_world *w, totals *t, int progress, reco
         t->nan += st.frame.lcp.nan_islands;
         t->inelastic += st.frame.lcp.inelastic;
         t->unconverged += st.frame.lcp.unconverged;
+        t->whole_tries += st.frame.lcp.whole_tries;
+        t->whole_solved += st.frame.lcp.whole_solved;
         t->as_solves += st.frame.lcp.as_solves;
         t->as_fallbacks += st.frame.lcp.as_fallbacks;
         t->as_iterations += st.frame.lcp.as_iterations;
@@ -891,7 +893,7 @@ static void report_json(const options *o, const sc_world *w, const sc_stats *stp
            "\"staggered_fallbacks\": %ld, \"energy_refused\": %ld, \"split_fallbacks\": %ld, "
            "\"block_fallbacks\": %ld, \"nan_islands\": %ld, \"inelastic_islands\": %ld, "
            "\"restitution_scaled\": %ld, \"guessed\": %ld, \"regularised\": %ld, "
-           "\"unconverged\": %ld, "
+           "\"unconverged\": %ld, \"whole_tries\": %ld, \"whole_solved\": %ld, "
            "\"max_sweeps\": %d, \"max_residual\": %.3g, \"max_outer_residual\": %.3g, "
            "\"substeps\": %ld, \"max_substeps\": %d, \"island_method\": \"%s\", "
            "\"active_set\": {\"solves\": %ld, \"fallbacks\": %ld, \"iterations_mean\": %.2f, "
@@ -912,7 +914,7 @@ static void report_json(const options *o, const sc_world *w, const sc_stats *stp
            t.overlaps,
            island_split, t.solves, t.kept, t.split, t.blocks, t.shared, t.pivots, t.max_pivots, t.staggered,
            t.refused, t.split_fb, t.block_fb, t.nan, t.inelastic, t.rscaled, t.guessed,
-           t.regularised, t.unconverged,
+           t.regularised, t.unconverged, t.whole_tries, t.whole_solved,
            t.max_sweeps, t.residual,
            t.outer_residual, t.substeps, t.max_substeps,
            island_method_name(o->island_method), t.as_solves,
@@ -958,6 +960,9 @@ static void report_text(const options *o, const sc_world *w, const sc_stats *stp
     printf("  LCP residual at most %.3g m/s (exact), %.3g m/s (split, tolerance %.0e; "
            "%ld stopped at %d sweeps)\n",
            t.residual, t.outer_residual, SC_SPLIT_TOL, t.unconverged, SC_SPLIT_MAX_SWEEPS);
+    if (t.whole_tries)
+        printf("  split solves short of the tolerance solved whole: %ld of %ld tried\n",
+               t.whole_solved, t.whole_tries);
     if (t.as_solves)
         printf("  active set: %ld split solves, %.2f guesses a solve (most %d), factor of "
                "%ld entries at most, %ld left to block Gauss-Seidel\n",

@@ -96,6 +96,8 @@ void sc_stats_add_solve(sc_stats *st, const sc_solve_info *info)
         st->frame.lcp.sweeps_max = info->sweeps_max;
     st->frame.lcp.unconverged += info->unconverged;
     st->frame.lcp.diverged += info->diverged;
+    st->frame.lcp.whole_tries += info->whole_tries;
+    st->frame.lcp.whole_solved += info->whole_solved;
     st->frame.lcp.cold_starts += info->cold_starts;
     st->frame.lcp.regularised += info->regularised;
     st->frame.lcp.split_fallbacks += info->split_fallbacks;
@@ -135,6 +137,8 @@ static void add_lcp(sc_stats_lcp *s, const sc_stats_lcp *g)
         s->sweeps_max = g->sweeps_max;
     s->unconverged += g->unconverged;
     s->diverged += g->diverged;
+    s->whole_tries += g->whole_tries;
+    s->whole_solved += g->whole_solved;
     s->cold_starts += g->cold_starts;
     s->regularised += g->regularised;
     s->split_fallbacks += g->split_fallbacks;

@@ -740,8 +740,17 @@ static int aa_gamma(const double *dF, int k, int n, const double *f, double *gam
     return 1;
 }
 
+/* How block_gs() ended: the residual of its iterate, its sweeps (added
+ * to), whether it stopped on a diverging sweep. */
+typedef struct gs_end {
+    double res;
+    int sweeps;
+    int diverged;
+} gs_end;
+
 static int block_gs(sc_arena *a, const gs_problem *pb, const blocks *bl, double *z, double *u,
-                    int nu, const sc_contact_params *p, double tol, sc_solve_info *info)
+                    int nu, const sc_contact_params *p, int max_sweeps, double tol,
+                    sc_solve_info *info, gs_end *end)
 {
     int nr = pb->nrows;
     size_t nz = (size_t)nr * sizeof *z, nub = (size_t)nu * sizeof *u;
@@ -773,7 +782,7 @@ static int block_gs(sc_arena *a, const gs_problem *pb, const blocks *bl, double 
     int fail = (p->inject & SC_INJECT_BLOCK) != 0;
     int nh = 0, next = 0, have_prev = 0;
     double res_prev = INFINITY;
-    while (rc == SC_OK && res > tol && sweeps < p->max_sweeps) {
+    while (rc == SC_OK && res > tol && sweeps < max_sweeps) {
         if (aa > 0 && sweeps % 2 == 0)
             memcpy(xz, z, nz);
         for (int i = 0; i < bl->ncolours && rc == SC_OK; i++) {
@@ -852,12 +861,87 @@ static int block_gs(sc_arena *a, const gs_problem *pb, const blocks *bl, double 
     if (!isfinite(res))
         res = INFINITY;
     info->diverged += diverged;
-    if (pb->pseudo)
-        return SC_OK;
-    info->sweeps_max = sweeps > info->sweeps_max ? sweeps : info->sweeps_max;
-    info->unconverged += res > tol && !diverged;
-    info->residual_split = max_d(info->residual_split, res);
+    end->res = res;
+    end->sweeps += sweeps;
+    end->diverged |= diverged;
     return SC_OK;
+}
+
+/* Split islands of at most this many rows whose block Gauss-Seidel stops
+ * short of tol are solved whole: one dense exact LCP from the iterate,
+ * friction by the fixed point's rounds alone (sc_lcp_boxed_rounds_in()),
+ * after WHOLE_SWEEPS sweeps up to WHOLE_SMALL rows and WHOLE_SWEEPS_BIG
+ * past them. Its factor grows as rows squared and its pivots as rows
+ * cubed, so that a larger island's sweeps go on longer first; where the
+ * rounds do not settle, the sweeps go on from the iterate to max_sweeps
+ * (Lemke's method on the whole friction LCP costs more than all the
+ * sweeps; docs/DESIGN.md 11). Bigger islands are the active set's;
+ * SC_ISLAND_BLOCK_GS is block Gauss-Seidel alone. */
+#define WHOLE_MAX_ROWS 192
+#define WHOLE_SMALL 96
+#define WHOLE_SWEEPS 30
+#define WHOLE_SWEEPS_BIG 60
+
+/* The whole problem pb as one exact LCP from the iterate (z, u), whose
+ * answer replaces it if solved and adding no kinetic energy of its own
+ * (adds_energy()): SC_OK, SC_ENUMERIC where it is not taken (z, u as
+ * they were), SC_ENOMEM. */
+static int whole_solve(sc_arena *a, const gs_problem *pb, double *z, double *u,
+                       sc_solve_info *info)
+{
+    int m = pb->nrows;
+    size_t mm = (size_t)m;
+    double *A = sc_arena_alloc(a, mm * mm * sizeof *A);
+    double *buf = A ? sc_arena_alloc(a, 6 * mm * sizeof *buf) : NULL;
+    int *fx = buf ? sc_arena_alloc(a, mm * sizeof *fx) : NULL;
+    if (!fx) {
+        sc_arena_free(a, buf);
+        sc_arena_free(a, A);
+        return SC_ENOMEM;
+    }
+    double *q = buf, *lo = buf + m, *hi = buf + 2 * m, *mu = buf + 3 * m, *zw = buf + 4 * m,
+           *w = buf + 5 * m;
+    build_a(pb->rows, NULL, m, A);
+    /* w = A (zw - z) + J u + off, as a block's (block_solve()): at zw = z
+     * it is the speed the iterate leaves, so the compliance c that
+     * build_a() added pulls the answer towards the iterate instead of
+     * softening it: w = (A - cI) zw + J u0 + off + c (zw - z), the
+     * stiff LCP that block Gauss-Seidel converges to, off by c |zw - z|
+     * (far below tol). The fixed point's rounds settle more often so
+     * than on the exact island's softened LCP (a proximal step). */
+    int friction = 0, finite = 1;
+    for (int i = 0; i < m; i++) {
+        double s = local_speed(&pb->rows[i], u) + pb->off[i];
+        const double *Ai = A + i * mm;
+        for (int j = 0; j < m; j++)
+            s -= Ai[j] * z[j];
+        q[i] = s;
+        finite &= isfinite(s);
+        fx[i] = pb->findex ? pb->findex[i] : -1;
+        friction |= fx[i] >= 0;
+        mu[i] = fx[i] >= 0 ? pb->mu[i] : 0;
+        lo[i] = fx[i] >= 0 ? -INFINITY : pb->lo[i];
+        hi[i] = fx[i] >= 0 ? INFINITY : pb->hi[i];
+        zw[i] = z[i];
+    }
+    int rc = SC_ENUMERIC;
+    if (finite) {
+        sc_lcp_info li = { 0 };
+        rc = friction ? sc_lcp_boxed_rounds_in(a, m, A, q, lo, hi, fx, mu, zw, w, &li)
+                      : sc_lcp_boxed_warm_in(a, m, A, q, lo, hi, NULL, NULL, zw, w, &li);
+        lcp_info_add(info, &li, rc);
+        if (rc == SC_OK && adds_energy(A, m, q, pb->off, NULL, zw) == ENERGY_OWN)
+            rc = SC_ENUMERIC;
+    }
+    if (rc == SC_OK)
+        for (int i = 0; i < m; i++) {
+            local_apply(&pb->rows[i], zw[i] - z[i], u);
+            z[i] = zw[i];
+        }
+    sc_arena_free(a, fx);
+    sc_arena_free(a, buf);
+    sc_arena_free(a, A);
+    return rc == SC_OK || rc == SC_ENOMEM || rc == SC_EINVAL ? rc : SC_ENUMERIC;
 }
 
 static int cmp_int(const void *x, const void *y)
@@ -966,8 +1050,29 @@ static int solve_split(sc_arena *a, row *rows, int nrows, const int *cstart, int
                 goto done;
             rc = rc == SC_ENUMERIC ? SC_OK : rc;
         }
+        /* an unconverged iterate of a small island: solved whole (counted) */
+        gs_end end = { 0 };
+        int whole = !pseudo && nrows <= WHOLE_MAX_ROWS && p->island_method != SC_ISLAND_BLOCK_GS;
+        int first = whole ? (nrows <= WHOLE_SMALL ? WHOLE_SWEEPS : WHOLE_SWEEPS_BIG) : 0;
+        first = whole && first < p->max_sweeps ? first : p->max_sweeps;
         if (rc == SC_OK)
-            rc = block_gs(a, &pb, &bl, z, u, 6 * m, p, tol, info);
+            rc = block_gs(a, &pb, &bl, z, u, 6 * m, p, first, tol, info, &end);
+        if (rc == SC_OK && whole && end.res > tol) {
+            info->whole_tries++;
+            rc = whole_solve(a, &pb, z, u, info);
+            if (rc == SC_OK) {
+                info->whole_solved++;
+                end.res = 0;
+            } else if (rc == SC_ENUMERIC) {
+                rc = block_gs(a, &pb, &bl, z, u, 6 * m, p, p->max_sweeps - end.sweeps, tol, info,
+                              &end);
+            }
+        }
+        if (rc == SC_OK && !pseudo) {
+            info->sweeps_max = end.sweeps > info->sweeps_max ? end.sweeps : info->sweeps_max;
+            info->unconverged += end.res > tol && !end.diverged;
+            info->residual_split = max_d(info->residual_split, end.res);
+        }
         info->as_fallbacks += as;
     }
 done:

@@ -275,6 +275,9 @@ typedef struct sc_solve_info {
     int unconverged;                /* split islands that stopped at max_sweeps */
     int diverged;                   /* split islands whose sweeps diverged (ended
                                        on the best iterate) */
+    int whole_tries;                /* small split islands that block Gauss-Seidel
+                                       left short of tol, solved whole */
+    int whole_solved;               /* of them, those the whole solve settled */
     int cold_starts;                /* split solves that started from 0: the
                                        warm start was further from the answer */
     int as_solves;                  /* split islands solved whole by the active

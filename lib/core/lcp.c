@@ -1354,8 +1354,14 @@ static int friction_guess(work *wk, const double *q, const double *lo, const dou
     return rc;
 }
 
+/* What boxed() tries where friction's fixed point does not settle. */
+enum {
+    MORE_LEMKE = 1,           /* Lemke's method (friction_lemke()) */
+    MORE_GUESS = 2            /* then the rounds from a guess (friction_guess()) */
+};
+
 static int boxed(sc_arena *arena, int n, const double *M, const double *q, const double *lo,
-                 const double *hi, const int *findex, const double *mu, int start, int guess,
+                 const double *hi, const int *findex, const double *mu, int start, int more,
                  double *z, double *w, sc_lcp_info *info)
 {
     if (info) {
@@ -1380,13 +1386,13 @@ static int boxed(sc_arena *arena, int n, const double *M, const double *q, const
     int lemke = 0, guessed = 0;
     if (friction) {
         rc = solve_friction(&wk, q, lo, hi, findex, mu, start, z, w, &residual);
-        if (rc == SC_EMAXITER || rc == SC_ENUMERIC || rc == SC_ENOSOLUTION) {
+        if ((more & MORE_LEMKE) && (rc == SC_EMAXITER || rc == SC_ENUMERIC || rc == SC_ENOSOLUTION)) {
             int lr = friction_lemke(&wk, q, lo, hi, findex, mu, z, w, &residual);
             if (lr != SC_EINVAL) {
                 rc = lr;
                 lemke = 1;
             }
-            if (guess && (rc == SC_EMAXITER || rc == SC_ENUMERIC || rc == SC_ENOSOLUTION)) {
+            if ((more & MORE_GUESS) && (rc == SC_EMAXITER || rc == SC_ENUMERIC || rc == SC_ENOSOLUTION)) {
                 int gr = friction_guess(&wk, q, lo, hi, findex, mu, z, w, &residual);
                 guessed = gr == SC_OK;
                 if (guessed || gr == SC_ENOMEM)
@@ -1409,14 +1415,21 @@ int sc_lcp_boxed_in(sc_arena *arena, int n, const double *M, const double *q,
                     const double *lo, const double *hi, const int *findex, const double *mu,
                     double *z, double *w, sc_lcp_info *info)
 {
-    return boxed(arena, n, M, q, lo, hi, findex, mu, START_COLD, 1, z, w, info);
+    return boxed(arena, n, M, q, lo, hi, findex, mu, START_COLD, MORE_LEMKE | MORE_GUESS, z, w, info);
 }
 
 int sc_lcp_boxed_warm_in(sc_arena *arena, int n, const double *M, const double *q,
                          const double *lo, const double *hi, const int *findex,
                          const double *mu, double *z, double *w, sc_lcp_info *info)
 {
-    return boxed(arena, n, M, q, lo, hi, findex, mu, START_GUESS, 1, z, w, info);
+    return boxed(arena, n, M, q, lo, hi, findex, mu, START_GUESS, MORE_LEMKE | MORE_GUESS, z, w, info);
+}
+
+int sc_lcp_boxed_rounds_in(sc_arena *arena, int n, const double *M, const double *q,
+                           const double *lo, const double *hi, const int *findex,
+                           const double *mu, double *z, double *w, sc_lcp_info *info)
+{
+    return boxed(arena, n, M, q, lo, hi, findex, mu, START_GUESS, 0, z, w, info);
 }
 
 /* The retries of sc_lcp_raised_in(): shares of the largest diagonal
@@ -1449,7 +1462,8 @@ int sc_lcp_raised_in(sc_arena *arena, int n, double *M, const double *q, const d
         for (int i = 0; M && add > 0 && i < n; i++)
             M[(size_t)i * n + i] += add;
         raised = RAISE[k].share;
-        rc = lo ? boxed(arena, n, M, q, lo, hi, findex, mu, START_COLD, !quick, z, w, &li)
+        rc = lo ? boxed(arena, n, M, q, lo, hi, findex, mu, START_COLD,
+                          MORE_LEMKE | (quick ? 0 : MORE_GUESS), z, w, &li)
                 : dantzig(arena, n, M, q, START_COLD, z, w, &li);
         sum.pivots += li.pivots;
         sum.lemke += li.lemke;

@@ -66,6 +66,12 @@ int sc_lcp_dantzig_warm_in(sc_arena *a, int n, const double *M, const double *q,
 int sc_lcp_boxed_warm_in(sc_arena *a, int n, const double *M, const double *q,
                          const double *lo, const double *hi, const int *findex,
                          const double *mu, double *z, double *w, sc_lcp_info *info);
+/* The same with friction's fixed-point rounds only: where they do not
+ * settle, SC_EMAXITER (or the rounds' error) without Lemke's method or
+ * the guess after them (a caller that has an answer to keep). */
+int sc_lcp_boxed_rounds_in(sc_arena *a, int n, const double *M, const double *q,
+                           const double *lo, const double *hi, const int *findex,
+                           const double *mu, double *z, double *w, sc_lcp_info *info);
 
 /* L D U factorisation of the clamped block M_CC of an n x n row-major M,
  * updated as indices enter (sc_ldu_border + sc_ldu_commit) and leave

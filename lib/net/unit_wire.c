@@ -61,7 +61,7 @@
  *             nan_islands, sweeps_max, unconverged, solves, diverged,
  *             cold_starts, inelastic, energy_refused, restitution_scaled,
  *             guessed, as_solves, as_fallbacks, as_iterations_max,
- *             as_parts_max, as_interface_max i32,
+ *             as_parts_max, as_interface_max, whole_tries, whole_solved i32,
  *             residual_exact, residual_split f64,
  *             then per pair: n u8 and n contacts (COLLIDE), toi f64 (TOI);
  *             (ISLAND) contacts u32, per member: x f64[3], q f64[4], v, w,
@@ -99,7 +99,7 @@
  * phase would have. Outputs of a unit that failed (rc < 0) are as undefined as after a
  * local failure. */
 
-#define WIRE_VERSION 16      /* 6: island units carry impact_first, results inelastic, v0, w0;
+#define WIRE_VERSION 17      /* 6: island units carry impact_first, results inelastic, v0, w0;
                                 7: results carry energy_refused, restitution_scaled;
                                 8: and np_pairs, np_reused; 9: and lcp_kept;
                                 10: island units carry gravity (the push-out's lift);
@@ -111,13 +111,15 @@
                                 active-set figures in results and stats;
                                 15: island_method SC_ISLAND_SUBDOMAINS,
                                 subdomain figures in results and stats;
-                                16: island units carry anderson */
+                                16: island units carry anderson;
+                                17: results and stats carry whole_tries,
+                                whole_solved */
 #define MAGIC_UNIT 0x55574353u        /* "SCWU" */
 #define MAGIC_RESULT 0x52574353u      /* "SCWR" */
 #define MAX_PAIRS (1 << 16)
 #define MAX_CONTACTS (1 << 16)
 #define MAX_BODIES (1 << 17)
-#define MAX_SWEEPS 10000      /* sc_contact_params.max_sweeps (frame.c: 50) */
+#define MAX_SWEEPS 10000      /* sc_contact_params.max_sweeps (frame.c: 100) */
 
 #define POSE_BYTES (7 * 8)
 #define PAIR_BYTES(nposes) (8 + 8 + 4 + 4 + 1 + (size_t)(nposes) * POSE_BYTES)
@@ -1235,7 +1237,7 @@ void sc_wire_unit_free(sc_wire_unit *wu)
  * field added there must be added here; test_unit_wire compares whole
  * infos of a local and a remote run), and pivots. blocks_shared stays
  * home: a daemon's island shares no blocks. */
-#define INFO_INTS 23
+#define INFO_INTS 25
 
 static void info_ints(sc_solve_info *info, int *f[INFO_INTS])
 {
@@ -1248,7 +1250,8 @@ static void info_ints(sc_solve_info *info, int *f[INFO_INTS])
                           &info->restitution_scaled, &info->guessed,
                           &info->as_solves,       &info->as_fallbacks,
                           &info->as_iterations_max, &info->as_parts_max,
-                          &info->as_interface_max };
+                          &info->as_interface_max, &info->whole_tries,
+                          &info->whole_solved };
     memcpy(f, p, sizeof p);
 }
 
@@ -1298,7 +1301,7 @@ static void get_info(rbuf *r, sc_solve_info *info)
 #define STAT_F64 (SC_STAGE_COUNT + 6)
 #define STAT_LONGS 12
 #define STAT_SIZES 2
-#define STAT_INTS 28
+#define STAT_INTS 30
 
 typedef struct stat_ptrs {
     double *d[STAT_F64];
@@ -1331,7 +1334,8 @@ static void stat_fields(sc_stats *s, stat_ptrs *p)
         &s->frame.lcp.inelastic,      &s->frame.lcp.energy_refused,
         &s->frame.lcp.restitution_scaled, &s->frame.lcp.kept,       &s->frame.lcp.guessed,
         &s->frame.lcp.as_solves,      &s->frame.lcp.as_fallbacks,   &s->frame.lcp.as_iterations_max,
-        &s->frame.lcp.as_parts_max,   &s->frame.lcp.as_interface_max };
+        &s->frame.lcp.as_parts_max,   &s->frame.lcp.as_interface_max,
+        &s->frame.lcp.whole_tries,    &s->frame.lcp.whole_solved };
     _Static_assert(sizeof d / sizeof d[0] == STAT_F64 - SC_STAGE_COUNT, "stat doubles");
     memcpy(&p->d[SC_STAGE_COUNT], d, sizeof d);
     memcpy(p->l, l, sizeof l);
