@@ -885,7 +885,7 @@ static int block_gs(sc_arena *a, const gs_problem *pb, const blocks *bl, double 
 /* The whole problem pb as one exact LCP from the iterate (z, u), whose
  * answer replaces it if solved and adding no kinetic energy of its own
  * (adds_energy()): SC_OK, SC_ENUMERIC where it is not taken (z, u as
- * they were), SC_ENOMEM. */
+ * they were: the sweeps' answer stands), SC_ENOMEM. */
 static int whole_solve(sc_arena *a, const gs_problem *pb, double *z, double *u,
                        sc_solve_info *info)
 {
@@ -941,7 +941,7 @@ static int whole_solve(sc_arena *a, const gs_problem *pb, double *z, double *u,
     sc_arena_free(a, fx);
     sc_arena_free(a, buf);
     sc_arena_free(a, A);
-    return rc == SC_OK || rc == SC_ENOMEM || rc == SC_EINVAL ? rc : SC_ENUMERIC;
+    return rc == SC_OK || rc == SC_ENOMEM ? rc : SC_ENUMERIC;
 }
 
 static int cmp_int(const void *x, const void *y)
