@@ -353,6 +353,37 @@ static void tall_make(stack *s, int n)
     assert_true(s->nc >= 4 * n);
 }
 
+/* The same with the frame's contact parameters, every solve from 0. */
+static sc_contact_params tall_cold(stack *s, int n)
+{
+    tall_make(s, n);
+    sc_contact_params p = sc_frame_contact_params(&s->w->fcfg);
+    p.cold = 1;
+    return p;
+}
+
+/* The largest speed (linear velocity, m/s) by which each of the n answers
+ * b[k] of the stack differs from the island solved whole from the start,
+ * one exact LCP, under p otherwise, into d[k]. */
+static void off_whole(stack *s, sc_contact_params p, sc_body *const *b, int n, double *d)
+{
+    sc_body *ex = malloc((size_t)s->nb * sizeof *ex);
+    sc_contact *cex = malloc((size_t)s->nc * sizeof *cex);
+    assert_true(ex && cex);
+    sc_solve_info ie;
+    p.split_contacts = 0;
+    solve_copy(s, &p, &ie, ex, cex);
+    assert_int_equal(ie.split, 0);
+    for (int k = 0; k < n; k++) {
+        d[k] = 0;
+        for (int i = 0; i < s->nb; i++)
+            for (int j = 0; j < 3; j++)
+                d[k] = fmax(d[k], fabs(b[k][i].v[j] - ex[i].v[j]));
+    }
+    free(cex);
+    free(ex);
+}
+
 /* Anderson's acceleration of block Gauss-Seidel (docs/DESIGN.md 11). Plain
  * sweeps carry a load one block a sweep: on a stack of 16 boxes solved from
  * 0, a box's weight reaches the floor only after many sweeps, and the
@@ -364,12 +395,10 @@ static void test_anderson_reaches_the_tolerance_in_fewer_sweeps(void **state)
 {
     (void)state;
     stack s;
-    tall_make(&s, 16);
+    sc_contact_params p = tall_cold(&s, 16);
     sc_body *b0 = s.out[0], *b1 = s.out[1];
     sc_contact *c0 = s.cout[0], *c1 = s.cout[1];
-    sc_contact_params p = sc_frame_contact_params(&s.w->fcfg);
     p.island_method = SC_ISLAND_BLOCK_GS;
-    p.cold = 1;
     p.max_sweeps = 2000;
     sc_solve_info plain, aa;
     p.anderson = 0;
@@ -387,24 +416,11 @@ static void test_anderson_reaches_the_tolerance_in_fewer_sweeps(void **state)
     assert_true(2 * aa.sweeps_max < plain.sweeps_max);
     /* against the exact answer (the island as one LCP): a row within tol
      * of its own answer leaves a chain of n boxes within n tol */
-    sc_body *ex = malloc((size_t)s.nb * sizeof *ex);
-    sc_contact *cex = malloc((size_t)s.nc * sizeof *cex);
-    assert_true(ex && cex);
-    sc_solve_info ie;
-    p.split_contacts = 0;
-    solve_copy(&s, &p, &ie, ex, cex);
-    assert_int_equal(ie.split, 0);
-    double d0 = 0, d1 = 0;
-    for (int i = 0; i < s.nb; i++)
-        for (int k = 0; k < 3; k++) {
-            d0 = fmax(d0, fabs(b0[i].v[k] - ex[i].v[k]));
-            d1 = fmax(d1, fabs(b1[i].v[k] - ex[i].v[k]));
-        }
+    double d[2];
+    off_whole(&s, p, (sc_body *const[]){ b0, b1 }, 2, d);
     print_message("largest velocity off the exact answer: plain %.2g m/s, Anderson %.2g m/s\n",
-                  d0, d1);
-    assert_true(d0 < 16 * p.tol && d1 < 16 * p.tol);
-    free(cex);
-    free(ex);
+                  d[0], d[1]);
+    assert_true(d[0] < 16 * p.tol && d[1] < 16 * p.tol);
     stack_free(&s);
 }
 
@@ -418,16 +434,13 @@ static void test_a_small_island_short_of_the_tolerance_is_solved_whole(void **st
 {
     (void)state;
     stack s;
-    tall_make(&s, 16);
-    sc_body *b0 = s.out[0], *b1 = s.out[1];
-    sc_contact *c0 = s.cout[0], *c1 = s.cout[1];
-    sc_contact_params p = sc_frame_contact_params(&s.w->fcfg);
-    p.cold = 1;
+    sc_contact_params p = tall_cold(&s, 16);
+    sc_body *b0 = s.out[0];
     p.anderson = 0;
-    sc_solve_info wi, gi, ie;
-    solve_copy(&s, &p, &wi, b0, c0);
+    sc_solve_info wi, gi;
+    solve_copy(&s, &p, &wi, b0, s.cout[0]);
     p.island_method = SC_ISLAND_BLOCK_GS;
-    solve_copy(&s, &p, &gi, b1, c1);
+    solve_copy(&s, &p, &gi, s.out[1], s.cout[1]);
     print_message("stack of 16, %d contacts from 0: %d sweeps then whole (%d of %d settled), "
                   "residual %.2g m/s; block Gauss-Seidel alone %d sweeps, %d unconverged, "
                   "residual %.2g m/s\n",
@@ -440,23 +453,13 @@ static void test_a_small_island_short_of_the_tolerance_is_solved_whole(void **st
     assert_int_equal(wi.sweeps_max, 60);
     assert_int_equal(gi.whole_tries, 0);
     assert_true(gi.sweeps_max > 60);
-    sc_body *ex = malloc((size_t)s.nb * sizeof *ex);
-    sc_contact *cex = malloc((size_t)s.nc * sizeof *cex);
-    assert_true(ex && cex);
-    p.split_contacts = 0;
-    solve_copy(&s, &p, &ie, ex, cex);
-    assert_int_equal(ie.split, 0);
-    double d = 0;
-    for (int i = 0; i < s.nb; i++)
-        for (int k = 0; k < 3; k++)
-            d = fmax(d, fmax(fabs(b0[i].v[k] - ex[i].v[k]), fabs(b0[i].w[k] - ex[i].w[k])));
+    double d;
+    off_whole(&s, p, &b0, 1, &d);
     print_message("largest velocity off the island solved whole from the start: %.2g m/s\n", d);
     /* the compliance (1e-6 of A's largest diagonal entry) softens the
      * island's exact LCP and pulls the whole solve towards its iterate:
      * both far below the tolerance, which the sweeps alone miss by 15 */
     assert_true(d < 1e-4 && d < 0.1 * p.tol);
-    free(cex);
-    free(ex);
     stack_free(&s);
 }
 

@@ -508,67 +508,108 @@ static void block_pgs(const gs_problem *pb, const blocks *bl, int k, double *z, 
         }
 }
 
+/* Rows [r0, r0 + m) of pb as an LCP of their own, the other rows held at
+ * z: w = A (zs - z_r) + J_r u + off_r, started from zs = z_r. sub_alloc()
+ * takes its data from the arena, the caller fills A (the rows' matrix,
+ * compliance included), sub_fill() the rest. */
+typedef struct sub_lcp {
+    double *A, *buf, *q, *lo, *hi, *mu, *z, *w;
+    int *fx;
+    int friction, finite;
+} sub_lcp;
+
+static int sub_alloc(sc_arena *a, int m, sub_lcp *s)
+{
+    size_t mm = (size_t)m;
+    memset(s, 0, sizeof *s);
+    s->A = sc_arena_alloc(a, mm * mm * sizeof *s->A);
+    s->buf = s->A ? sc_arena_alloc(a, 6 * mm * sizeof *s->buf) : NULL;
+    s->fx = s->buf ? sc_arena_alloc(a, mm * sizeof *s->fx) : NULL;
+    if (!s->fx) {
+        sc_arena_free(a, s->buf);
+        sc_arena_free(a, s->A);
+        return SC_ENOMEM;
+    }
+    s->q = s->buf;
+    s->lo = s->buf + m;
+    s->hi = s->buf + 2 * m;
+    s->mu = s->buf + 3 * m;
+    s->z = s->buf + 4 * m;
+    s->w = s->buf + 5 * m;
+    return SC_OK;
+}
+
+static void sub_free(sc_arena *a, sub_lcp *s)
+{
+    sc_arena_free(a, s->fx);
+    sc_arena_free(a, s->buf);
+    sc_arena_free(a, s->A);
+}
+
+static void sub_fill(const gs_problem *pb, int r0, int m, const double *z, const double *u,
+                     sub_lcp *s)
+{
+    s->friction = 0;
+    s->finite = 1;
+    for (int i = 0; i < m; i++) {
+        int r = r0 + i;
+        double v = local_speed(&pb->rows[r], u) + pb->off[r];
+        const double *Ai = s->A + (size_t)i * (size_t)m;
+        for (int j = 0; j < m; j++)
+            v -= Ai[j] * z[r0 + j];
+        s->q[i] = v;
+        s->finite &= isfinite(v);
+        s->fx[i] = pb->findex && pb->findex[r] >= 0 ? pb->findex[r] - r0 : -1;
+        s->friction |= s->fx[i] >= 0;
+        s->mu[i] = s->fx[i] >= 0 ? pb->mu[r] : 0;
+        s->lo[i] = s->fx[i] >= 0 ? -INFINITY : pb->lo[r];
+        s->hi[i] = s->fx[i] >= 0 ? INFINITY : pb->hi[r];
+        s->z[i] = z[r];
+    }
+}
+
+/* The sub-LCP's answer into z and u. */
+static void sub_take(const gs_problem *pb, int r0, int m, const sub_lcp *s, double *z, double *u)
+{
+    for (int i = 0; i < m; i++) {
+        local_apply(&pb->rows[r0 + i], s->z[i] - z[r0 + i], u);
+        z[r0 + i] = s->z[i];
+    }
+}
+
 /* One block solved exactly with the others held: its LCP is
- * w_b = A_bb z_b + (J_b u + off_b - A_bb z_b_old). */
+ * w_b = A_bb z_b + (J_b u + off_b - A_bb z_b_old), from z_b_old (the
+ * last iterate: a warm start). */
 static int block_solve(sc_arena *a, const gs_problem *pb, const blocks *bl, int k, double *z,
                        double *u, sc_solve_info *info, int fail)
 {
     int r0 = bl->bstart[k], m = bl->bstart[k + 1] - r0;
-    size_t mm = (size_t)m;
-    double *A = sc_arena_alloc(a, mm * mm * sizeof *A);
-    double *buf = A ? sc_arena_alloc(a, 6 * mm * sizeof *buf) : NULL;
-    int *fx = buf ? sc_arena_alloc(a, mm * sizeof *fx) : NULL;
-    if (!fx) {
-        sc_arena_free(a, buf);
-        sc_arena_free(a, A);
+    sub_lcp s;
+    if (sub_alloc(a, m, &s) != SC_OK)
         return SC_ENOMEM;
-    }
-    double *q = buf, *lo = buf + m, *hi = buf + 2 * m, *mu = buf + 3 * m, *zb = buf + 4 * m,
-           *w = buf + 5 * m;
-    const double *Ab = bl->amat + bl->aoff[k];
-    memcpy(A, Ab, mm * mm * sizeof *A);
-    int friction = 0, finite = 1;
-    for (int i = 0; i < m; i++) {
-        int r = r0 + i;
-        double s = local_speed(&pb->rows[r], u) + pb->off[r];
-        for (int j = 0; j < m; j++)
-            s -= Ab[i * m + j] * z[r0 + j];
-        q[i] = s;
-        finite &= isfinite(s);
-        fx[i] = pb->findex && pb->findex[r] >= 0 ? pb->findex[r] - r0 : -1;
-        friction |= fx[i] >= 0;
-        mu[i] = fx[i] >= 0 ? pb->mu[r] : 0;
-        lo[i] = fx[i] >= 0 ? -INFINITY : pb->lo[r];
-        hi[i] = fx[i] >= 0 ? INFINITY : pb->hi[r];
-    }
+    memcpy(s.A, bl->amat + bl->aoff[k], (size_t)m * (size_t)m * sizeof *s.A);
+    sub_fill(pb, r0, m, z, u, &s);
     int rc = SC_OK;
-    if (!finite) {
+    if (!s.finite) {
         info->nan_islands++;      /* leave the block as it was */
     } else {
         info->blocks++;
         sc_solve_info bi = { 0 };
-        for (int i = 0; i < m; i++)
-            zb[i] = z[r0 + i];    /* the last iterate: a warm start */
-        rc = solve(a, m, A, q, lo, hi, friction ? fx : NULL, mu, zb, w, &bi,
+        rc = solve(a, m, s.A, s.q, s.lo, s.hi, s.friction ? s.fx : NULL, s.mu, s.z, s.w, &bi,
                    (pb->cold ? 0 : SOLVE_WARM) | (fail ? SOLVE_FAIL : 0));
         info->pivots += bi.pivots;
         info->lemke += bi.lemke;
         info->guessed += bi.guessed;
         info->regularised += bi.regularised;
         if (rc == SC_OK) {
-            for (int i = 0; i < m; i++) {
-                local_apply(&pb->rows[r0 + i], zb[i] - z[r0 + i], u);
-                z[r0 + i] = zb[i];
-            }
+            sub_take(pb, r0, m, &s, z, u);
         } else if (rc != SC_ENOMEM && rc != SC_EINVAL) {
             info->block_fallbacks++;
             block_pgs(pb, bl, k, z, u);
             rc = SC_OK;
         }
     }
-    sc_arena_free(a, fx);
-    sc_arena_free(a, buf);
-    sc_arena_free(a, A);
+    sub_free(a, &s);
     return rc;
 }
 
@@ -890,18 +931,10 @@ static int whole_solve(sc_arena *a, const gs_problem *pb, double *z, double *u,
                        sc_solve_info *info)
 {
     int m = pb->nrows;
-    size_t mm = (size_t)m;
-    double *A = sc_arena_alloc(a, mm * mm * sizeof *A);
-    double *buf = A ? sc_arena_alloc(a, 6 * mm * sizeof *buf) : NULL;
-    int *fx = buf ? sc_arena_alloc(a, mm * sizeof *fx) : NULL;
-    if (!fx) {
-        sc_arena_free(a, buf);
-        sc_arena_free(a, A);
+    sub_lcp s;
+    if (sub_alloc(a, m, &s) != SC_OK)
         return SC_ENOMEM;
-    }
-    double *q = buf, *lo = buf + m, *hi = buf + 2 * m, *mu = buf + 3 * m, *zw = buf + 4 * m,
-           *w = buf + 5 * m;
-    build_a(pb->rows, NULL, m, A);
+    build_a(pb->rows, NULL, m, s.A);
     /* w = A (zw - z) + J u + off, as a block's (block_solve()): at zw = z
      * it is the speed the iterate leaves, so the compliance c that
      * build_a() added pulls the answer towards the iterate instead of
@@ -909,38 +942,21 @@ static int whole_solve(sc_arena *a, const gs_problem *pb, double *z, double *u,
      * stiff LCP that block Gauss-Seidel converges to, off by c |zw - z|
      * (far below tol). The fixed point's rounds settle more often so
      * than on the exact island's softened LCP (a proximal step). */
-    int friction = 0, finite = 1;
-    for (int i = 0; i < m; i++) {
-        double s = local_speed(&pb->rows[i], u) + pb->off[i];
-        const double *Ai = A + i * mm;
-        for (int j = 0; j < m; j++)
-            s -= Ai[j] * z[j];
-        q[i] = s;
-        finite &= isfinite(s);
-        fx[i] = pb->findex ? pb->findex[i] : -1;
-        friction |= fx[i] >= 0;
-        mu[i] = fx[i] >= 0 ? pb->mu[i] : 0;
-        lo[i] = fx[i] >= 0 ? -INFINITY : pb->lo[i];
-        hi[i] = fx[i] >= 0 ? INFINITY : pb->hi[i];
-        zw[i] = z[i];
-    }
+    sub_fill(pb, 0, m, z, u, &s);
     int rc = SC_ENUMERIC;
-    if (finite) {
+    if (s.finite) {
         sc_lcp_info li = { 0 };
-        rc = friction ? sc_lcp_boxed_rounds_in(a, m, A, q, lo, hi, fx, mu, zw, w, &li)
-                      : sc_lcp_boxed_warm_in(a, m, A, q, lo, hi, NULL, NULL, zw, w, &li);
+        rc = s.friction ? sc_lcp_boxed_rounds_in(a, m, s.A, s.q, s.lo, s.hi, s.fx, s.mu, s.z,
+                                                 s.w, &li)
+                        : sc_lcp_boxed_warm_in(a, m, s.A, s.q, s.lo, s.hi, NULL, NULL, s.z, s.w,
+                                               &li);
         lcp_info_add(info, &li, rc);
-        if (rc == SC_OK && adds_energy(A, m, q, pb->off, NULL, zw) == ENERGY_OWN)
+        if (rc == SC_OK && adds_energy(s.A, m, s.q, pb->off, NULL, s.z) == ENERGY_OWN)
             rc = SC_ENUMERIC;
     }
     if (rc == SC_OK)
-        for (int i = 0; i < m; i++) {
-            local_apply(&pb->rows[i], zw[i] - z[i], u);
-            z[i] = zw[i];
-        }
-    sc_arena_free(a, fx);
-    sc_arena_free(a, buf);
-    sc_arena_free(a, A);
+        sub_take(pb, 0, m, &s, z, u);
+    sub_free(a, &s);
     return rc == SC_OK || rc == SC_ENOMEM ? rc : SC_ENUMERIC;
 }
 
