@@ -1490,19 +1490,51 @@ static void solve_pile_file(const char *path, sc_lcp_info *li)
 }
 
 /* Real pile islands on which the fixed point on the friction bounds
- * cycles (tests/data/friction/): solved exactly (by Lemke's method on the
+ * cycles. */
+static const char *const cycling[] = { "tests/data/friction/pile_4contacts.txt",
+                                       "tests/data/friction/pile_4contacts_b.txt",
+                                       "tests/data/friction/pile_8contacts.txt" };
+
+/* Those (tests/data/friction/): solved exactly (by Lemke's method on the
  * friction LCP), checked here against Coulomb's conditions. */
 static void test_pile_friction_that_cycles_is_solved_exactly(void **state)
 {
     (void)state;
-    const char *files[] = { "tests/data/friction/pile_4contacts.txt",
-                            "tests/data/friction/pile_4contacts_b.txt",
-                            "tests/data/friction/pile_8contacts.txt" };
-    for (size_t f = 0; f < sizeof files / sizeof *files; f++) {
+    for (size_t f = 0; f < sizeof cycling / sizeof *cycling; f++) {
         sc_lcp_info li;
-        solve_pile_file(files[f], &li);
+        solve_pile_file(cycling[f], &li);
         assert_int_equal(li.lemke, 1);     /* the fixed point did cycle */
         assert_int_equal(li.guessed, 0);
+    }
+}
+
+/* The fixed point's rounds alone (sc_lcp_boxed_rounds_in(), for a
+ * caller that keeps an answer of its own): on the piles where they cycle,
+ * a failure without Lemke's method or a guess; started from the full
+ * solve's answer they settle, on an answer that meets Coulomb's
+ * conditions. */
+static void test_friction_rounds_alone_fail_where_they_cycle(void **state)
+{
+    (void)state;
+    for (size_t f = 0; f < sizeof cycling / sizeof *cycling; f++) {
+        pile_lcp p;
+        load_pile_file(cycling[f], &p);
+        double *z = calloc(p.n, sizeof *z), *w = malloc(p.n * sizeof *w);
+        double *z2 = malloc(p.n * sizeof *z2), *w2 = malloc(p.n * sizeof *w2);
+        sc_lcp_info li;
+        int rc = sc_lcp_boxed_rounds_in(NULL, p.n, p.M, p.q, p.lo, p.hi, p.fx, p.mu, z, w, &li);
+        assert_int_not_equal(rc, SC_OK);
+        assert_int_equal(li.lemke, 0);
+        assert_int_equal(li.guessed, 0);
+        memset(z, 0, p.n * sizeof *z);
+        assert_int_equal(sc_lcp_boxed(p.n, p.M, p.q, p.lo, p.hi, p.fx, p.mu, z, w, &li), SC_OK);
+        memcpy(z2, z, p.n * sizeof *z2);
+        assert_int_equal(sc_lcp_boxed_rounds_in(NULL, p.n, p.M, p.q, p.lo, p.hi, p.fx, p.mu, z2,
+                                                w2, &li),
+                         SC_OK);
+        check_coulomb(&p, p.M, z2, 0);
+        free(z), free(w), free(z2), free(w2);
+        free_pile(&p);
     }
 }
 
@@ -1634,6 +1666,7 @@ int main(void)
         cmocka_unit_test(test_friction_sticks_below_and_slides_above_the_coulomb_limit),
         cmocka_unit_test(test_friction_of_a_separating_contact_is_zero),
         cmocka_unit_test(test_pile_friction_that_cycles_is_solved_exactly),
+        cmocka_unit_test(test_friction_rounds_alone_fail_where_they_cycle),
         cmocka_unit_test(test_pile_friction_that_lemke_misses_is_solved_on_another_cover),
         cmocka_unit_test(test_pile_friction_that_lemke_misses_is_solved_from_a_guess),
         cmocka_unit_test(test_pile_friction_that_fails_is_solved_with_a_raised_diagonal),

@@ -912,8 +912,8 @@ static int block_gs(sc_arena *a, const gs_problem *pb, const blocks *bl, double 
  * short of tol are solved whole: one dense exact LCP from the iterate,
  * friction by the fixed point's rounds alone (sc_lcp_boxed_rounds_in()),
  * after WHOLE_SWEEPS sweeps up to WHOLE_SMALL rows and WHOLE_SWEEPS_BIG
- * past them. Its factor grows as rows squared and its pivots as rows
- * cubed, so that a larger island's sweeps go on longer first; where the
+ * past them. Its matrix grows as the rows squared and its pivots' work
+ * as their cube, so a larger island sweeps on longer first; where the
  * rounds do not settle, the sweeps go on from the iterate to max_sweeps
  * (Lemke's method on the whole friction LCP costs more than all the
  * sweeps; docs/DESIGN.md 11). Bigger islands are the active set's;
@@ -946,10 +946,8 @@ static int whole_solve(sc_arena *a, const gs_problem *pb, double *z, double *u,
     int rc = SC_ENUMERIC;
     if (s.finite) {
         sc_lcp_info li = { 0 };
-        rc = s.friction ? sc_lcp_boxed_rounds_in(a, m, s.A, s.q, s.lo, s.hi, s.fx, s.mu, s.z,
-                                                 s.w, &li)
-                        : sc_lcp_boxed_warm_in(a, m, s.A, s.q, s.lo, s.hi, NULL, NULL, s.z, s.w,
-                                               &li);
+        rc = sc_lcp_boxed_rounds_in(a, m, s.A, s.q, s.lo, s.hi, s.friction ? s.fx : NULL, s.mu,
+                                    s.z, s.w, &li);
         lcp_info_add(info, &li, rc);
         if (rc == SC_OK && adds_energy(s.A, m, s.q, pb->off, NULL, s.z) == ENERGY_OWN)
             rc = SC_ENUMERIC;

@@ -1386,13 +1386,15 @@ static int boxed(sc_arena *arena, int n, const double *M, const double *q, const
     int lemke = 0, guessed = 0;
     if (friction) {
         rc = solve_friction(&wk, q, lo, hi, findex, mu, start, z, w, &residual);
-        if ((more & MORE_LEMKE) && (rc == SC_EMAXITER || rc == SC_ENUMERIC || rc == SC_ENOSOLUTION)) {
+        int failed = rc == SC_EMAXITER || rc == SC_ENUMERIC || rc == SC_ENOSOLUTION;
+        if ((more & MORE_LEMKE) && failed) {
             int lr = friction_lemke(&wk, q, lo, hi, findex, mu, z, w, &residual);
             if (lr != SC_EINVAL) {
                 rc = lr;
                 lemke = 1;
             }
-            if ((more & MORE_GUESS) && (rc == SC_EMAXITER || rc == SC_ENUMERIC || rc == SC_ENOSOLUTION)) {
+            failed = rc == SC_EMAXITER || rc == SC_ENUMERIC || rc == SC_ENOSOLUTION;
+            if ((more & MORE_GUESS) && failed) {
                 int gr = friction_guess(&wk, q, lo, hi, findex, mu, z, w, &residual);
                 guessed = gr == SC_OK;
                 if (guessed || gr == SC_ENOMEM)
