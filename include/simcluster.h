@@ -78,7 +78,7 @@ enum {
  * SC_SPLIT_TOL (m/s) from its own answer given the others, or after
  * SC_SPLIT_MAX_SWEEPS sweeps (then counted in sc_stats_lcp.unconverged). */
 #define SC_SPLIT_TOL 1e-3
-#define SC_SPLIT_MAX_SWEEPS 100
+#define SC_SPLIT_MAX_SWEEPS 500
 
 /* A sentence describing the error code err (never NULL). */
 SC_API const char *sc_strerror(int err);

@@ -119,7 +119,7 @@
 #define MAX_PAIRS (1 << 16)
 #define MAX_CONTACTS (1 << 16)
 #define MAX_BODIES (1 << 17)
-#define MAX_SWEEPS 10000      /* sc_contact_params.max_sweeps (frame.c: 100) */
+#define MAX_SWEEPS 10000      /* sc_contact_params.max_sweeps (frame.c: 500) */
 
 #define POSE_BYTES (7 * 8)
 #define PAIR_BYTES(nposes) (8 + 8 + 4 + 4 + 1 + (size_t)(nposes) * POSE_BYTES)
