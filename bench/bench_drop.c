@@ -81,7 +81,8 @@
  * figures over the run (sc_stats, per frame, summed or maxed over every
  * frame stepped without error): island solves, of them split (block
  * Gauss-Seidel), those of them short of the tolerance tried as one exact
- * LCP and solved so, and unconverged (stopped at the sweep limit), the most
+ * LCP and solved so, unconverged (stopped at the sweep limit) and diverged
+ * (stopped on a sweep that left the residual far above its best), the most
  * sweeps, the largest outer residual of a split solve and of an exact one,
  * the fallbacks (coupled friction LCP failed: staggered; staggered failed:
  * blocks; block failed: projected Gauss-Seidel; non-finite islands;
@@ -172,7 +173,7 @@ typedef struct result {
     /* simcluster's contact solver over the run (sc_stats, every frame) */
     long frames;                 /* frames stepped without error */
     long solves, split, blocks, shared, unconverged, substeps, backups, spec, refused, rscaled;
-    long whole_tries, whole_solved;
+    long whole_tries, whole_solved, diverged;
     long fallbacks, split_fallbacks, block_fallbacks, nan_islands, regularised;
     int sweeps_max;
     double outer_res, exact_res; /* largest of any frame, m/s */
@@ -602,6 +603,7 @@ static void solver_add(result *r, const sc_stats *st)
     r->unconverged += st->frame.lcp.unconverged;
     r->whole_tries += st->frame.lcp.whole_tries;
     r->whole_solved += st->frame.lcp.whole_solved;
+    r->diverged += st->frame.lcp.diverged;
     r->substeps += st->frame.toi.substeps;
     r->backups += st->frame.toi.backups;
     r->spec += st->frame.toi.spec_contacts;
@@ -790,14 +792,14 @@ static void print_solver(int eng, const result *r)
     }
     printf("        %s solver: %ld frames, %ld island solves, %ld split (%.1f %%), "
            "%ld block solves (%ld by helping threads), solved whole %ld of %ld tried, "
-           "%ld unconverged, sweeps max %d, "
+           "%ld unconverged, %ld diverged, sweeps max %d, "
            "outer residual max %.3g m/s, exact residual max %.3g m/s; fallbacks: staggered "
            "%ld (%ld refused for adding energy), blocks %ld, block PGS %ld, NaN islands %ld, "
            "regularised %ld, restitution scaled down %ld; substeps %.3f a frame, back-ups "
            "%.3f a frame (summed over motion groups), speculative contacts %ld\n",
            eng_name[eng], r->frames, r->solves, r->split,
            r->solves ? 100.0 * (double)r->split / (double)r->solves : 0.0, r->blocks, r->shared,
-           r->whole_solved, r->whole_tries, r->unconverged,
+           r->whole_solved, r->whole_tries, r->unconverged, r->diverged,
            r->sweeps_max, r->outer_res, r->exact_res, r->fallbacks, r->refused, r->split_fallbacks,
            r->block_fallbacks, r->nan_islands, r->regularised, r->rscaled,
            (double)r->substeps / (double)r->frames, (double)r->backups / (double)r->frames,

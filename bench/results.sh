@@ -657,7 +657,12 @@ fi
 # shellcheck disable=SC2016,SC2086 # an awk program; the files are words
 v=$(awk 'FNR == 1 { span = FILENAME ~ /_10$/ ? "10 s " : "2 s " }
     $1 == 1000 && ($2 == "sl1" || $2 == "slN") { p = $9 > p ? $9 : p; n++ }
-    / solver: / && /unconverged/ { for (i = 1; i < NF; i++) if ($(i + 1) ~ /^unconverged/) { u = $i > u ? $i : u; us = us (us == "" ? "" : ", ") span $1 " " $i } }
+    / solver: / && /unconverged/ { k = 0; d = 0
+        for (i = 1; i < NF; i++) {
+            if ($(i + 1) ~ /^unconverged/) k = $i
+            if ($(i + 1) ~ /^diverged/) d = $i
+        }
+        u = k + d > u ? k + d : u; us = us (us == "" ? "" : ", ") span $1 " " k (d ? " (+" d " diverged)" : "") }
     END { if (!n) print "not measured"; else printf "%s: max penetration %.3f mm; unconverged split solves %s", (p <= 0.001 && u == 0) ? "met" : "missed", 1000 * p, us }' $big_files)
 target "(l) bin of 1000: max penetration <= 1 mm, no unconverged solve" "$v"
 if [ -n "$huge_args" ]; then

@@ -634,7 +634,8 @@ typedef struct totals {
     long duplicates;            /* duplicate daemon ids reported so far */
     /* the contact solver, summed (or the largest) over the frames */
     long solves, split, blocks, shared, pivots, staggered, refused, split_fb, block_fb, nan;
-    long inelastic, rscaled, unconverged, kept, guessed, regularised, whole_tries, whole_solved;
+    long inelastic, rscaled, unconverged, diverged, kept, guessed, regularised, whole_tries;
+    long whole_solved;
     long substeps, max_pivots, backups, spec, groups, retried;
     int max_sweeps, max_substeps, max_backups;
     double residual, outer_residual;
@@ -737,6 +738,7 @@ static int simulate(const options *o, sc_world *w, totals *t, int progress, reco
         t->nan += st.frame.lcp.nan_islands;
         t->inelastic += st.frame.lcp.inelastic;
         t->unconverged += st.frame.lcp.unconverged;
+        t->diverged += st.frame.lcp.diverged;
         t->whole_tries += st.frame.lcp.whole_tries;
         t->whole_solved += st.frame.lcp.whole_solved;
         t->as_solves += st.frame.lcp.as_solves;
@@ -893,7 +895,8 @@ static void report_json(const options *o, const sc_world *w, const sc_stats *stp
            "\"staggered_fallbacks\": %ld, \"energy_refused\": %ld, \"split_fallbacks\": %ld, "
            "\"block_fallbacks\": %ld, \"nan_islands\": %ld, \"inelastic_islands\": %ld, "
            "\"restitution_scaled\": %ld, \"guessed\": %ld, \"regularised\": %ld, "
-           "\"unconverged\": %ld, \"whole_tries\": %ld, \"whole_solved\": %ld, "
+           "\"unconverged\": %ld, \"diverged\": %ld, \"whole_tries\": %ld, "
+           "\"whole_solved\": %ld, "
            "\"max_sweeps\": %d, \"max_residual\": %.3g, \"max_outer_residual\": %.3g, "
            "\"substeps\": %ld, \"max_substeps\": %d, \"island_method\": \"%s\", "
            "\"active_set\": {\"solves\": %ld, \"fallbacks\": %ld, \"iterations_mean\": %.2f, "
@@ -914,7 +917,7 @@ static void report_json(const options *o, const sc_world *w, const sc_stats *stp
            t.overlaps,
            island_split, t.solves, t.kept, t.split, t.blocks, t.shared, t.pivots, t.max_pivots, t.staggered,
            t.refused, t.split_fb, t.block_fb, t.nan, t.inelastic, t.rscaled, t.guessed,
-           t.regularised, t.unconverged, t.whole_tries, t.whole_solved,
+           t.regularised, t.unconverged, t.diverged, t.whole_tries, t.whole_solved,
            t.max_sweeps, t.residual,
            t.outer_residual, t.substeps, t.max_substeps,
            island_method_name(o->island_method), t.as_solves,
@@ -958,8 +961,9 @@ static void report_text(const options *o, const sc_world *w, const sc_stats *stp
            t.solves, t.split, t.blocks, t.shared, t.kept, t.pivots, t.max_pivots,
            t.frames ? (double)t.substeps / (double)t.frames : 0.0, t.max_substeps);
     printf("  LCP residual at most %.3g m/s (exact), %.3g m/s (split, tolerance %.0e; "
-           "%ld stopped at %d sweeps)\n",
-           t.residual, t.outer_residual, SC_SPLIT_TOL, t.unconverged, SC_SPLIT_MAX_SWEEPS);
+           "%ld stopped at %d sweeps, %ld on a diverging sweep)\n",
+           t.residual, t.outer_residual, SC_SPLIT_TOL, t.unconverged, SC_SPLIT_MAX_SWEEPS,
+           t.diverged);
     if (t.whole_tries)
         printf("  split solves short of the tolerance solved whole: %ld of %ld tried\n",
                t.whole_solved, t.whole_tries);
