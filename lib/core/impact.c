@@ -266,10 +266,16 @@ static int pushed_in(const sc_frame *f, const sc_body *saved, const sc_contact *
     return -c->depth >= reach;
 }
 
+/* Whether a pair with contact c has restitution 1 (a pair's is the
+ * larger of its bodies', as contact.c takes it). */
+static int perfectly_elastic(const sc_body *saved, const sc_contact *c)
+{
+    return max_d(saved[c->body_a].restitution, saved[c->body_b].restitution) >= 1;
+}
+
 /* Whether a pair whose deepest contact at the substep's start is c, a
- * gap, is a perfectly elastic collision: restitution 1 (a pair's is the
- * larger of its bodies', as contact.c takes it) and c closing faster than
- * the bounce speed. Such a pair is not held: it backs up to its touch, as
+ * gap, is a perfectly elastic collision: restitution 1 (perfectly_elastic())
+ * and c closing faster than the bounce speed. Such a pair is not held: it backs up to its touch, as
  * in the world-wide mode, so that its collisions come one at a time in
  * their order. Held, several touches of one substep would be solved at
  * once (a faceted sphere's vertices, or a floor touch that a hit on the
@@ -279,8 +285,7 @@ static int pushed_in(const sc_frame *f, const sc_body *saved, const sc_contact *
  * lose energy anyway, and piles need it. */
 static int elastic_collision(const sc_body *saved, const sc_contact *c)
 {
-    return max_d(saved[c->body_a].restitution, saved[c->body_b].restitution) >= 1 &&
-           normal_speed(NULL, saved, c, 0) < -SC_BOUNCE_SPEED;
+    return perfectly_elastic(saved, c) && normal_speed(NULL, saved, c, 0) < -SC_BOUNCE_SPEED;
 }
 
 /* Whether a pair with contacts s[0 .. n) at the substep's start backs up
@@ -289,10 +294,8 @@ static int elastic_collision(const sc_body *saved, const sc_contact *c)
 static int backs_up(const sc_frame *f, const sc_body *saved, const sc_contact *s, int n, double h)
 {
     int k = deepest_gap(s, n);
-    if (k < 0)
-        return 0;
-    int elastic = max_d(saved[s[k].body_a].restitution, saved[s[k].body_b].restitution) >= 1;
-    return (elastic && pushed_in(f, saved, &s[k], h)) || elastic_collision(saved, &s[k]);
+    return k >= 0 && ((perfectly_elastic(saved, &s[k]) && pushed_in(f, saved, &s[k], h)) ||
+                      elastic_collision(saved, &s[k]));
 }
 
 /* The contacts of the detection's pair run st->contacts[k0 .. k1) moved
