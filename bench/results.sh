@@ -604,7 +604,9 @@ w "(last frame's impulses) and cold (from 0), whole by the active set (factors: 
 w "factorisations; fallback: it did not settle and block Gauss-Seidel took it), by"
 w "the active set on subdomains of 32 bodies (one thread here; parts, interface"
 w "unknowns, and the rounds and bytes the parts would exchange with a master) and"
-w "by block Gauss-Seidel (sweeps: the most of one pass, 100 at most; uncv: passes"
+# the sweep limit as the library has it (the frame's, which bench_islands uses)
+max_sweeps=$(sed -n 's/^#define SC_SPLIT_MAX_SWEEPS \([0-9]*\).*/\1/p' include/simcluster.h)
+w "by block Gauss-Seidel (sweeps: the most of one pass, ${max_sweeps:-?} at most; uncv: passes"
 w "that stopped there; residual: the largest, m/s). The structures one frame after"
 w "they are placed; the bins as they pile up."
 if [ $quick -eq 1 ]; then
