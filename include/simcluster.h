@@ -339,13 +339,15 @@ typedef struct sc_stats_lcp {
                                  11; timing decides it, not the result) */
     int sweeps_max;           /* most outer sweeps of one split solve */
     int unconverged;          /* split solves that stopped at the sweep limit */
-    int diverged;             /* split solves whose sweeps diverged, ended on the best
-                                 iterate */
-    int whole_tries;          /* split solves of at most 192 rows that block Gauss-Seidel
-                                 left short of SC_SPLIT_TOL after 30 or 60 sweeps, tried
-                                 as one exact LCP (friction by fixed-point rounds) */
-    int whole_solved;         /* of them, those it settled (exact); the others go on
-                                 sweeping to the limit */
+    int diverged;             /* split solves that ended short of the tolerance on a
+                                 diverging sweep (on their best iterate) */
+    int whole_tries;          /* tries of split solves of at most 192 rows that block
+                                 Gauss-Seidel left short of SC_SPLIT_TOL after 30 or 60
+                                 sweeps as one exact LCP (friction by fixed-point rounds),
+                                 and of those still short at the limit or diverged, with
+                                 Lemke's method too (an island can count twice) */
+    int whole_solved;         /* of them, those it settled (exact); after the first
+                                 try's failure the sweeps go on to the limit */
     int cold_starts;          /* split solves started from 0 because last frame's impulses
                                  were a worse start */
     int regularised;          /* solves that needed a diagonal raised by 1e-9 to 1e-4 of

@@ -463,6 +463,44 @@ static void test_a_small_island_short_of_the_tolerance_is_solved_whole(void **st
     stack_free(&s);
 }
 
+/* Where the whole solve's rounds do not settle, the sweeps go on to the
+ * cap, and a small island still short of the tolerance there is solved
+ * whole once more with Lemke's method too (docs/DESIGN.md 11): the stack
+ * of 16 without the acceleration, its rounds made to fail, ends on the
+ * answer of the island solved whole from the start, not unconverged. */
+static void test_a_small_island_left_at_the_cap_is_solved_with_lemke(void **state)
+{
+    (void)state;
+    stack s;
+    sc_contact_params p = tall_cold(&s, 16);
+    sc_body *b0 = s.out[0];
+    p.anderson = 0;
+    p.max_sweeps = 100;
+    p.inject = SC_INJECT_ROUNDS;
+    sc_solve_info wi, gi;
+    solve_copy(&s, &p, &wi, b0, s.cout[0]);
+    p.island_method = SC_ISLAND_BLOCK_GS;
+    solve_copy(&s, &p, &gi, s.out[1], s.cout[1]);
+    print_message("stack of 16, rounds failing: %d sweeps, then %d of %d whole tries settled, "
+                  "%d unconverged, residual %.2g m/s; block Gauss-Seidel alone %d unconverged, "
+                  "residual %.2g m/s\n",
+                  wi.sweeps_max, wi.whole_solved, wi.whole_tries, wi.unconverged,
+                  wi.residual_split, gi.unconverged, gi.residual_split);
+    assert_int_equal(wi.split, 1);
+    assert_int_equal(wi.sweeps_max, 100);
+    assert_int_equal(wi.whole_tries, 2);
+    assert_int_equal(wi.whole_solved, 1);
+    assert_int_equal(wi.unconverged + wi.diverged, 0);
+    assert_int_equal(gi.whole_tries, 0);
+    assert_int_equal(gi.unconverged, 1);
+    assert_true(gi.residual_split > p.tol);
+    double d;
+    off_whole(&s, p, &b0, 1, &d);
+    print_message("largest velocity off the island solved whole from the start: %.2g m/s\n", d);
+    assert_true(d < 0.1 * p.tol);
+    stack_free(&s);
+}
+
 /* Contacts persist from frame to frame with their impulses (the warm
  * start): a resting stack's floor contacts carry its weight, and a warm
  * exact solve takes fewer pivots than a cold one on the same island. */
@@ -623,6 +661,7 @@ int main(void)
         cmocka_unit_test(test_blocks_of_a_colour_give_the_same_bits_in_any_order_or_thread),
         cmocka_unit_test(test_anderson_reaches_the_tolerance_in_fewer_sweeps),
         cmocka_unit_test(test_a_small_island_short_of_the_tolerance_is_solved_whole),
+        cmocka_unit_test(test_a_small_island_left_at_the_cap_is_solved_with_lemke),
         cmocka_unit_test(test_resting_contacts_keep_their_impulses),
         cmocka_unit_test(test_a_pinched_elastic_body_is_not_thrown),
         cmocka_unit_test(test_a_pinched_body_is_not_turned_by_the_push_out),

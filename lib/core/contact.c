@@ -901,7 +901,6 @@ static int block_gs(sc_arena *a, const gs_problem *pb, const blocks *bl, double 
         return rc;
     if (!isfinite(res))
         res = INFINITY;
-    info->diverged += diverged;
     end->res = res;
     end->sweeps += sweeps;
     end->diverged |= diverged;
@@ -916,8 +915,11 @@ static int block_gs(sc_arena *a, const gs_problem *pb, const blocks *bl, double 
  * as their cube, so a larger island sweeps on longer first; where the
  * rounds do not settle, the sweeps go on from the iterate to max_sweeps
  * (Lemke's method on the whole friction LCP costs more than all the
- * sweeps; docs/DESIGN.md 11). Bigger islands are the active set's;
- * SC_ISLAND_BLOCK_GS is block Gauss-Seidel alone. */
+ * sweeps). Those that end there short of tol (at the cap, or diverged:
+ * a few an arrival of 1000 parts) are solved whole once more with the
+ * full exact solve, Lemke's method included (docs/DESIGN.md 11). Bigger
+ * islands are the active set's; SC_ISLAND_BLOCK_GS is block
+ * Gauss-Seidel alone. */
 #define WHOLE_MAX_ROWS 192
 #define WHOLE_SMALL 96
 #define WHOLE_SWEEPS 30
@@ -926,9 +928,12 @@ static int block_gs(sc_arena *a, const gs_problem *pb, const blocks *bl, double 
 /* The whole problem pb as one exact LCP from the iterate (z, u), whose
  * answer replaces it if solved and adding no kinetic energy of its own
  * (adds_energy()): SC_OK, SC_ENUMERIC where it is not taken (z, u as
- * they were: the sweeps' answer stands), SC_ENOMEM. */
+ * they were: the sweeps' answer stands), SC_ENOMEM. Friction by the
+ * fixed point's rounds alone, or with full set every way solve() has
+ * (Lemke's method, the guess, the raised diagonal). inject: SC_INJECT_*
+ * (tests). */
 static int whole_solve(sc_arena *a, const gs_problem *pb, double *z, double *u,
-                       sc_solve_info *info)
+                       sc_solve_info *info, int full, int inject)
 {
     int m = pb->nrows;
     sub_lcp s;
@@ -946,9 +951,14 @@ static int whole_solve(sc_arena *a, const gs_problem *pb, double *z, double *u,
     int rc = SC_ENUMERIC;
     if (s.finite) {
         sc_lcp_info li = { 0 };
-        rc = sc_lcp_boxed_rounds_in(a, m, s.A, s.q, s.lo, s.hi, s.friction ? s.fx : NULL, s.mu,
-                                    s.z, s.w, &li);
-        lcp_info_add(info, &li, rc);
+        if (full) {
+            rc = solve(a, m, s.A, s.q, s.lo, s.hi, s.friction ? s.fx : NULL, s.mu, s.z, s.w,
+                       info, SOLVE_WARM);
+        } else if (!(inject & SC_INJECT_ROUNDS)) {
+            rc = sc_lcp_boxed_rounds_in(a, m, s.A, s.q, s.lo, s.hi, s.friction ? s.fx : NULL,
+                                        s.mu, s.z, s.w, &li);
+            lcp_info_add(info, &li, rc);
+        }
         if (rc == SC_OK && adds_energy(s.A, m, s.q, pb->off, NULL, s.z) == ENERGY_OWN)
             rc = SC_ENUMERIC;
     }
@@ -1073,7 +1083,7 @@ static int solve_split(sc_arena *a, row *rows, int nrows, const int *cstart, int
             rc = block_gs(a, &pb, &bl, z, u, 6 * m, p, first, tol, info, &end);
         if (rc == SC_OK && whole && end.res > tol) {
             info->whole_tries++;
-            rc = whole_solve(a, &pb, z, u, info);
+            rc = whole_solve(a, &pb, z, u, info, 0, p->inject);
             if (rc == SC_OK) {
                 info->whole_solved++;
                 end.res = 0;
@@ -1081,10 +1091,22 @@ static int solve_split(sc_arena *a, row *rows, int nrows, const int *cstart, int
                 rc = block_gs(a, &pb, &bl, z, u, 6 * m, p, p->max_sweeps - end.sweeps, tol, info,
                               &end);
             }
+            /* the last resort: Lemke's method too */
+            if (rc == SC_OK && end.res > tol) {
+                info->whole_tries++;
+                rc = whole_solve(a, &pb, z, u, info, 1, p->inject);
+                if (rc == SC_OK) {
+                    info->whole_solved++;
+                    end.res = 0;
+                    end.diverged = 0;
+                }
+                rc = rc == SC_ENUMERIC ? SC_OK : rc;
+            }
         }
         if (rc == SC_OK && !pseudo) {
             info->sweeps_max = end.sweeps > info->sweeps_max ? end.sweeps : info->sweeps_max;
             info->unconverged += end.res > tol && !end.diverged;
+            info->diverged += end.res > tol && end.diverged;
             info->residual_split = max_d(info->residual_split, end.res);
         }
         info->as_fallbacks += as;

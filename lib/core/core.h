@@ -240,6 +240,7 @@ enum {
     SC_INJECT_STAGGERED = 2,        /* the staggered solve fails too */
     SC_INJECT_BLOCK = 4,            /* every block's Dantzig solve fails */
     SC_INJECT_NAN = 8,              /* a NaN appears in the island's data */
+    SC_INJECT_ROUNDS = 16,          /* a whole solve's fixed-point rounds fail */
 };
 
 typedef struct sc_solve_info {
@@ -273,10 +274,12 @@ typedef struct sc_solve_info {
                                        solved again with them scaled down */
     int sweeps_max;                 /* most outer sweeps of one split island */
     int unconverged;                /* split islands that stopped at max_sweeps */
-    int diverged;                   /* split islands whose sweeps diverged (ended
-                                       on the best iterate) */
-    int whole_tries;                /* small split islands that block Gauss-Seidel
-                                       left short of tol, solved whole */
+    int diverged;                   /* split islands that ended short of tol on a
+                                       diverging sweep (on the best iterate) */
+    int whole_tries;                /* tries of small split islands that block
+                                       Gauss-Seidel left short of tol, solved
+                                       whole (a second, with Lemke's method,
+                                       for those still short at the cap) */
     int whole_solved;               /* of them, those the whole solve settled */
     int cold_starts;                /* split solves that started from 0: the
                                        warm start was further from the answer */
