@@ -174,6 +174,8 @@ typedef struct sc_contact {
     double depth;          /* penetration, m (>= 0) */
     double impulse[3];     /* impulse on b here in the last contact solve, N s,
                               world frame (0 from sc_collide) */
+    double impulse_dt;     /* the length of the substep whose solve gave impulse, s
+                              (0: none); impulse / impulse_dt is its mean force */
 } sc_contact;
 
 /* Most contact points kept per pair after reduction. */

@@ -501,6 +501,72 @@ static void test_a_small_island_left_at_the_cap_is_solved_with_lemke(void **stat
     stack_free(&s);
 }
 
+/* The stack's island solved over h from contacts c0 (each copied), u*
+ * made for h from the world's bodies as a substep makes it; into b, c. */
+static void solve_over(const stack *s, const sc_contact_params *p, double h,
+                       const sc_contact *c0, sc_solve_info *info, sc_body *b, sc_contact *c)
+{
+    sc_frame_state *st = &s->w->st;
+    sc_body *keep = malloc((size_t)s->nb * sizeof *keep);
+    assert_non_null(keep);
+    memcpy(keep, st->bodies, (size_t)s->nb * sizeof *keep);
+    sc_frame f = { .cfg = &s->w->fcfg, .st = st };
+    sc_apply_forces(&f, h, NULL);
+    memcpy(b, st->bodies, (size_t)s->nb * sizeof *b);
+    memcpy(st->bodies, keep, (size_t)s->nb * sizeof *keep);
+    free(keep);
+    memcpy(c, c0, (size_t)s->nc * sizeof *c);
+    sc_arena a;
+    sc_arena_init(&a);
+    memset(info, 0, sizeof *info);
+    assert_int_equal(sc_island_solve(&a, b, c, s->ci, s->nc, h, p, info), SC_OK);
+    sc_arena_destroy(&a);
+}
+
+/* A resting contact carries a force, and its impulse the substep it acted
+ * over (impulse_dt): the next solve's warm start is scaled to its own
+ * substep (docs/DESIGN.md 11). The stack of 16 solved over H, then over
+ * H/4 (a back-up's) from those impulses: the floor carries a quarter of
+ * the impulse, and the sweeps are fewer than from the same impulses taken
+ * as they were (impulse_dt 0: four times too heavy a start). */
+static void test_warm_starts_keep_the_force_over_a_shorter_substep(void **state)
+{
+    (void)state;
+    stack s;
+    tall_make(&s, 16);
+    sc_contact_params p = sc_frame_contact_params(&s.w->fcfg);
+    p.island_method = SC_ISLAND_BLOCK_GS;
+    sc_body *b = s.out[0];
+    sc_contact *c = s.cout[0], *c1 = malloc((size_t)s.nc * sizeof *c1),
+               *c2 = malloc((size_t)s.nc * sizeof *c2);
+    assert_true(c1 && c2);
+    sc_solve_info full, scaled, plain;
+    solve_over(&s, &p, H, s.c, &full, b, c);
+    for (int k = 0; k < s.nc; k++)
+        assert_true(c[k].impulse_dt == H);
+    double w_full = floor_impulse(c, s.nc);
+    solve_over(&s, &p, H / 4, c, &scaled, b, c1);
+    for (int k = 0; k < s.nc; k++)
+        assert_true(c1[k].impulse_dt == H / 4);
+    double w_scaled = floor_impulse(c1, s.nc);
+    for (int k = 0; k < s.nc; k++)
+        c[k].impulse_dt = 0;
+    solve_over(&s, &p, H / 4, c, &plain, b, c2);
+    print_message("stack of 16 over H/4 from the impulses over H: scaled %d sweeps, %d block "
+                  "solves; as they were %d sweeps, %d block solves; floor impulse %.4g of %.4g "
+                  "N s\n",
+                  scaled.sweeps_max, scaled.blocks, plain.sweeps_max, plain.blocks, w_scaled,
+                  w_full);
+    assert_int_equal(scaled.split + plain.split, 2);
+    assert_int_equal(scaled.unconverged + plain.unconverged, 0);
+    assert_true(fabs(w_scaled - w_full / 4) < 0.01 * w_full / 4);
+    assert_true(scaled.sweeps_max < plain.sweeps_max);
+    assert_true(scaled.blocks < plain.blocks);
+    free(c2);
+    free(c1);
+    stack_free(&s);
+}
+
 /* Contacts persist from frame to frame with their impulses (the warm
  * start): a resting stack's floor contacts carry its weight, and a warm
  * exact solve takes fewer pivots than a cold one on the same island. */
@@ -662,6 +728,7 @@ int main(void)
         cmocka_unit_test(test_anderson_reaches_the_tolerance_in_fewer_sweeps),
         cmocka_unit_test(test_a_small_island_short_of_the_tolerance_is_solved_whole),
         cmocka_unit_test(test_a_small_island_left_at_the_cap_is_solved_with_lemke),
+        cmocka_unit_test(test_warm_starts_keep_the_force_over_a_shorter_substep),
         cmocka_unit_test(test_resting_contacts_keep_their_impulses),
         cmocka_unit_test(test_a_pinched_elastic_body_is_not_thrown),
         cmocka_unit_test(test_a_pinched_body_is_not_turned_by_the_push_out),

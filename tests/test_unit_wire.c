@@ -1241,7 +1241,11 @@ static void test_bad_fields_are_format_errors(void **state)
         bad_at(ib, ilen, imp0 + 8 * (size_t)k, bits(NAN), 8);
         bad_at(ib, ilen, imp0 + 8 * (size_t)k, bits(-INFINITY), 8);
     }
-    /* the last contact's impulse ends the unit */
+    /* its substep's length: finite, not negative */
+    bad_at(ib, ilen, imp0 + 24, bits(NAN), 8);
+    bad_at(ib, ilen, imp0 + 24, bits(INFINITY), 8);
+    bad_at(ib, ilen, imp0 + 24, bits(-1e-3), 8);
+    /* the last contact's impulse and its length end the unit */
     bad_at(ib, ilen, ilen - 8, bits(INFINITY), 8);
     assert_int_equal(sc_wire_unit_decode(ib, ilen, NULL, NULL, &wu), SC_OK);
     sc_wire_unit_free(&wu);
@@ -1426,7 +1430,7 @@ static void test_result_for_another_unit_is_a_format_error(void **state)
     assert_int_equal(rlen, ncont + 4 +
                                (size_t)(ij.is.body_start[big + 1] - ij.is.body_start[big]) *
                                    (19 * 8 + 4) +
-                               (size_t)ui.count * 24);
+                               (size_t)ui.count * 32);
     size_t nb = (size_t)s->w->st.nbodies, ncb = (size_t)ij.nc * sizeof *ij.cr;
     sc_body *bodies_before = malloc(nb * sizeof *bodies_before);
     sc_contact *contacts_before = malloc(ncb ? ncb : 1);
@@ -1477,7 +1481,7 @@ static void test_result_for_another_unit_is_a_format_error(void **state)
  * the profiles, 208 each (hash, 25 doubles); each group's members and
  * contacts, 8 each; the members, 121 bytes each (world id, profile,
  * flags, x, q, v, w, rest_s) and 48 more with force and torque; then the
- * contacts, 88 each, by group. */
+ * contacts, 96 each, by group. */
 #define G_NG 8
 #define G_NS 12
 #define G_NP 16
@@ -1582,7 +1586,7 @@ static void test_bad_group_fields_are_format_errors(void **state)
     print_message("group sample: %u groups, %u static bodies, %u profiles, %u members, %u "
                   "contacts, %zu bytes\n", l.ng, l.ns, l.np, l.nm, l.nc, len);
     assert_true(l.ng >= 2 && l.ns >= 1 && l.nm >= 2 && l.nc >= 2);
-    assert_int_equal(l.contacts + 88 * (size_t)l.nc, len);
+    assert_int_equal(l.contacts + 96 * (size_t)l.nc, len);
     /* without a lookup the shapes cannot be had */
     assert_int_equal(sc_wire_unit_decode(b, len, NULL, NULL, &wu), SC_EINVAL);
     /* counts: no group, more groups than members, the parts' counts off
@@ -1682,24 +1686,26 @@ static void test_bad_group_fields_are_format_errors(void **state)
         at += nc;
     }
     assert_true(best >= 1);
-    size_t c0 = l.contacts + 88 * (size_t)first, cl = c0 + 88 * (size_t)(best - 1);
+    size_t c0 = l.contacts + 96 * (size_t)first, cl = c0 + 96 * (size_t)(best - 1);
     GROUP_BAD(c0, (uint32_t)-1, 4);
     GROUP_BAD(c0 + 4, (uint64_t)mk, 4);
     GROUP_BAD(c0 + 4, b[c0], 4);                  /* body_b = body_a */
     GROUP_BAD(c0, (uint64_t)mk - 1, 4);           /* body_a > body_b */
     GROUP_BAD(c0 + 56, bits(NAN), 8);             /* depth */
     GROUP_BAD(c0 + 64 + 16, bits(INFINITY), 8);   /* impulse */
+    GROUP_BAD(c0 + 64 + 24, bits(NAN), 8);        /* impulse_dt */
+    GROUP_BAD(c0 + 64 + 24, bits(-1.0), 8);
     GROUP_BAD(cl + 64, bits(-INFINITY), 8);
     if (best >= 2 && memcmp(b + c0, b + cl, 8) != 0) {
         /* the first and last contacts swapped: out of pair order */
-        unsigned char *t = malloc(88);
+        unsigned char *t = malloc(96);
         assert_non_null(t);
-        memcpy(t, b + c0, 88);
-        memcpy(b + c0, b + cl, 88);
-        memcpy(b + cl, t, 88);
+        memcpy(t, b + c0, 96);
+        memcpy(b + c0, b + cl, 96);
+        memcpy(b + cl, t, 96);
         assert_int_equal(sc_wire_unit_decode(b, len, lookup, &cc, &wu), SC_EFORMAT);
-        memcpy(b + cl, b + c0, 88);
-        memcpy(b + c0, t, 88);
+        memcpy(b + cl, b + c0, 96);
+        memcpy(b + c0, t, 96);
         free(t);
     }
     assert_int_equal(sc_wire_unit_decode(b, len, lookup, &cc, &wu), SC_OK);
@@ -1710,7 +1716,7 @@ static void test_bad_group_fields_are_format_errors(void **state)
 /* A group result at its layout (header 8, members 4, rc 4, messages 8,
  * info 156), then per group: rc 4, its figures (a mask u64 and the fields
  * it names: 26 of 8 bytes, then 30 of 4), per member 122 bytes (flags,
- * 14 doubles, dev, points u8) and 32 a point, then contacts 4 and 88
+ * 14 doubles, dev, points u8) and 32 a point, then contacts 4 and 96
  * each. */
 #define GR_RC 12
 #define GR_GROUPS 180
@@ -1752,7 +1758,7 @@ static gr_at gr_group(const unsigned char *res, const sc_job *job, const sc_unit
         for (int q = 0; q < r.nm; q++)
             at += gr_member_len(res, at);
         r.contacts = at;
-        at += 4 + 88 * (size_t)u32_at(res + at);
+        at += 4 + 96 * (size_t)u32_at(res + at);
     }
     return r;
 }

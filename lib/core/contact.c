@@ -1954,8 +1954,12 @@ static void build_rows(island_rows *ir, sc_body *bodies, sc_contact *c, const in
         hi[r] = INFINITY;
         findex[r] = -1;
         mu[r] = 0;
-        /* warm start: last solve's impulse on this contact, projected */
-        z[r] = max_d(v3_dot(ck->impulse, ck->normal), 0.0);
+        /* warm start: last solve's impulse on this contact, projected;
+         * a resting contact's scaled to this substep (its force kept: a
+         * back-up's substep is shorter, the one after it and the next
+         * frame's longer), a collision's as it was */
+        double ws = !collide && ck->impulse_dt > 0 ? h / ck->impulse_dt : 1;
+        z[r] = ws * max_d(v3_dot(ck->impulse, ck->normal), 0.0);
         nsel[nn++] = r;
         r++;
         if (m > 0) {
@@ -1971,7 +1975,7 @@ static void build_rows(island_rows *ir, sc_body *bodies, sc_contact *c, const in
                 findex[r] = rn;
                 mu[r] = m;
                 double b = m * z[rn];
-                z[r] = min_d(max_d(v3_dot(ck->impulse, t[j]), -b), b);
+                z[r] = min_d(max_d(ws * v3_dot(ck->impulse, t[j]), -b), b);
             }
             friction = 1;
         }
@@ -2017,15 +2021,17 @@ static double *impact_speeds(const row *rows, int nrows, const int *cstart, cons
     return ds;
 }
 
-/* Each contact's impulse from its rows' z (normal, then friction), for the
- * next solve's warm start and the caller. */
+/* Each contact's impulse from its rows' z (normal, then friction), and the
+ * substep h it acted over, for the next solve's warm start and the
+ * caller. */
 static void store_impulses(const row *rows, int nrows, const int *cstart, const double *z,
-                           sc_contact *c, const int *ci, int nc)
+                           sc_contact *c, const int *ci, int nc, double h)
 {
     for (int k = 0; k < nc; k++) {
         sc_contact *ck = &c[ci[k]];
         int r0 = cstart[k], r1 = k + 1 < nc ? cstart[k + 1] : nrows;
         v3_scale(ck->impulse, ck->normal, z[r0]);
+        ck->impulse_dt = h;
         for (int j = r0 + 1; j < r1; j++)
             v3_madd(ck->impulse, ck->impulse, rows[j].jb, z[j]);
     }
@@ -2156,7 +2162,7 @@ rows_again:
         rc = rebound(arena, bodies, c, ci, nc, rows, cstart, coll, z, cap, split, h, p, info);
     }
 impulses:
-    store_impulses(rows, nrows, cstart, z, c, ci, nc);
+    store_impulses(rows, nrows, cstart, z, c, ci, nc, h);
 out:
     sc_arena_free(arena, keep);
     sc_arena_free(arena, bid);

@@ -139,6 +139,7 @@ static sc_contact to_start(const sc_contact *ck, const sc_pose *a1, const sc_pos
     v3_sub(dd, da, db);
     s.depth = ck->depth - v3_dot(dd, ck->normal);
     v3_set(s.impulse, 0, 0, 0);
+    s.impulse_dt = 0;
     return s;
 }
 

@@ -308,8 +308,10 @@ static int emit(sc_contact *c, int n, double merge, sc_contact *out, int max)
     n = sc_manifold_reduce(c, n, merge);
     if (n > max)
         n = max;
-    for (int i = 0; i < n; i++)
+    for (int i = 0; i < n; i++) {
         v3_set(c[i].impulse, 0, 0, 0);
+        c[i].impulse_dt = 0;
+    }
     if (n > 0)
         memcpy(out, c, (size_t)n * sizeof *out);
     return n;

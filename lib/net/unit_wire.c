@@ -35,7 +35,7 @@
  *             members u32, contacts
  *             u32; per body: see
  *             put_body(), per contact: a contact (local body indices) and its
- *             impulse f64[3] (the warm start)
+ *             impulse f64[3] and impulse_dt f64 (the warm start)
  *   GROUP unit (motion groups' whole frames, group.c): groups, statics,
  *             profiles, members, contacts u32, contacts_valid i32, dt,
  *             gravity f64[3], contact_tol_m f64, broadphase, island_split,
@@ -50,7 +50,8 @@
  *             f64[4], v, w f64[3], rest_s f64, (then) force, torque f64[3];
  *             per contact of the last frame, group by group (ids of the
  *             group's copy: its members and the static bodies in world
- *             order, the master's order): a contact and its impulse f64[3].
+ *             order, the master's order): a contact, its impulse f64[3] and
+ *             impulse_dt f64.
  *             v0, w0 and iw are a substep's (set before they are read,
  *             integrate.c) and stay home both ways
  *   result:   count u32 (pairs, island members or group members), rc i32,
@@ -66,7 +67,7 @@
  *             then per pair: n u8 and n contacts (COLLIDE), toi f64 (TOI);
  *             (ISLAND) contacts u32, per member: x f64[3], q f64[4], v, w,
  *             v0, w0 f64[3], collided i32, per contact in the unit's contact order:
- *             impulse f64[3] (this solve's);
+ *             impulse f64[3], impulse_dt f64 (this solve's);
  *             (GROUP) per group in the unit's order: rc i32, the figures
  *             of its frame that sc_stats_add_frame() merges (a mask u64 of
  *             the fields of stat_fields() that are not 0, then those: f64s,
@@ -99,7 +100,7 @@
  * phase would have. Outputs of a unit that failed (rc < 0) are as undefined as after a
  * local failure. */
 
-#define WIRE_VERSION 17      /* 6: island units carry impact_first, results inelastic, v0, w0;
+#define WIRE_VERSION 18      /* 6: island units carry impact_first, results inelastic, v0, w0;
                                 7: results carry energy_refused, restitution_scaled;
                                 8: and np_pairs, np_reused; 9: and lcp_kept;
                                 10: island units carry gravity (the push-out's lift);
@@ -113,7 +114,8 @@
                                 subdomain figures in results and stats;
                                 16: island units carry anderson;
                                 17: results and stats carry whole_tries,
-                                whole_solved */
+                                whole_solved;
+                                18: an impulse travels with its impulse_dt */
 #define MAGIC_UNIT 0x55574353u        /* "SCWU" */
 #define MAGIC_RESULT 0x52574353u      /* "SCWR" */
 #define MAX_PAIRS (1 << 16)
@@ -125,7 +127,7 @@
 #define PAIR_BYTES(nposes) (8 + 8 + 4 + 4 + 1 + (size_t)(nposes) * POSE_BYTES)
 #define BODY_BYTES (31 * 8 + 2 * 4)
 #define CONTACT_BYTES (2 * 4 + 7 * 8)
-#define IMPULSE_BYTES (3 * 8)
+#define IMPULSE_BYTES (4 * 8)
 #define GBODY_BYTES (8 + 60 * 8 + 2 * 4)
 #define STATIC_BYTES (4 + GBODY_BYTES)
 #define PROFILE_BYTES (8 + 25 * 8)
@@ -195,8 +197,10 @@ static void put_contact(wbuf *w, const sc_contact *c, int a, int b, int impulse)
     put_f64s(w, c->pos, 3);
     put_f64s(w, c->normal, 3);
     put_f64s(w, &c->depth, 1);
-    if (impulse)
+    if (impulse) {
         put_f64s(w, c->impulse, 3);
+        put_f64s(w, &c->impulse_dt, 1);
+    }
 }
 
 /* Bytes fn writes; written to buf too when cap is enough. */
@@ -266,10 +270,13 @@ static void get_contact(rbuf *r, sc_contact *c, int finite, int impulse)
     get_f64s(r, c->pos, 3, finite);
     get_f64s(r, c->normal, 3, finite);
     get_f64s(r, &c->depth, 1, finite);
-    if (impulse)
+    c->impulse[0] = c->impulse[1] = c->impulse[2] = c->impulse_dt = 0;
+    if (impulse) {
         get_f64s(r, c->impulse, 3, finite);
-    else
-        c->impulse[0] = c->impulse[1] = c->impulse[2] = 0;
+        get_f64s(r, &c->impulse_dt, 1, finite);
+        if (finite && !(c->impulse_dt >= 0))
+            r->bad = 1;
+    }
 }
 
 /* The header's kind, or -1 when magic, version or kind are wrong. */
@@ -1494,8 +1501,10 @@ static void write_result(wbuf *w, const void *wu_, const void *unused)
         put_body_f64(w, *b, MEMBER_F64);
         put_i32(w, b->collided);
     }
-    for (int k = 0; k < nc; k++)
+    for (int k = 0; k < nc; k++) {
         put_f64s(w, job->c[is->contacts[k]].impulse, 3);
+        put_f64s(w, &job->c[is->contacts[k]].impulse_dt, 1);
+    }
 }
 
 size_t sc_wire_result_pack(const sc_wire_unit *wu, unsigned char *buf, size_t cap)
@@ -1658,10 +1667,12 @@ static int read_result(rbuf *r, const sc_job *job, sc_unit *u, int write, group_
         b->collided = collided;
     }
     for (int k = 0; k < nc; k++) {
-        double imp[3];
-        get_f64s(r, imp, 3, 0);
-        if (write)
-            memcpy(job->c[is->contacts[c0 + k]].impulse, imp, sizeof imp);
+        double imp[4];
+        get_f64s(r, imp, 4, 0);
+        if (write) {
+            memcpy(job->c[is->contacts[c0 + k]].impulse, imp, 3 * sizeof *imp);
+            job->c[is->contacts[c0 + k]].impulse_dt = imp[3];
+        }
     }
     if (r->bad || r->n != r->len)
         return SC_EFORMAT;
