@@ -346,8 +346,9 @@ typedef struct sc_stats_lcp {
     int whole_tries;          /* tries of split solves of at most 192 rows that block
                                  Gauss-Seidel left short of SC_SPLIT_TOL after 30 or 60
                                  sweeps as one exact LCP (friction by fixed-point rounds),
-                                 and of those still short at the limit or diverged, with
-                                 Lemke's method too (an island can count twice) */
+                                 and of split solves of at most 600 rows still short at
+                                 the limit or diverged (with Lemke's method too up to 192
+                                 rows; an island can count twice) */
     int whole_solved;         /* of them, those it settled (exact); after the first
                                  try's failure the sweeps go on to the limit */
     int cold_starts;          /* split solves started from 0 because last frame's impulses

@@ -501,6 +501,44 @@ static void test_a_small_island_left_at_the_cap_is_solved_with_lemke(void **stat
     stack_free(&s);
 }
 
+/* A bigger island (over 192 rows) that neither the active set nor the
+ * sweeps settle is solved whole once more at the cap, friction by the
+ * fixed point's rounds (docs/DESIGN.md 11): the stack of 24 without the
+ * acceleration, its active set made to fail, 100 sweeps at most. */
+static void test_a_big_island_left_at_the_cap_is_solved_whole(void **state)
+{
+    (void)state;
+    stack s;
+    sc_contact_params p = tall_cold(&s, 24);
+    sc_body *b0 = s.out[0];
+    p.anderson = 0;
+    p.max_sweeps = 100;
+    p.inject = SC_INJECT_ACTIVE_SET;
+    sc_solve_info wi, gi;
+    solve_copy(&s, &p, &wi, b0, s.cout[0]);
+    p.island_method = SC_ISLAND_BLOCK_GS;
+    solve_copy(&s, &p, &gi, s.out[1], s.cout[1]);
+    print_message("stack of 24, %d contacts, active set failing: %d sweeps, then %d of %d whole "
+                  "tries settled, %d unconverged; block Gauss-Seidel alone %d unconverged, "
+                  "residual %.2g m/s\n",
+                  s.nc, wi.sweeps_max, wi.whole_solved, wi.whole_tries, wi.unconverged,
+                  gi.unconverged, gi.residual_split);
+    assert_true(3 * s.nc > 192);
+    assert_int_equal(wi.as_solves, 1);
+    assert_int_equal(wi.as_fallbacks, 1);
+    assert_int_equal(wi.sweeps_max, 100);
+    assert_int_equal(wi.whole_tries, 1);
+    assert_int_equal(wi.whole_solved, 1);
+    assert_int_equal(wi.unconverged + wi.diverged, 0);
+    assert_int_equal(gi.unconverged, 1);
+    assert_true(gi.residual_split > p.tol);
+    double d;
+    off_whole(&s, p, &b0, 1, &d);
+    print_message("largest velocity off the island solved whole from the start: %.2g m/s\n", d);
+    assert_true(d < 0.1 * p.tol);
+    stack_free(&s);
+}
+
 /* The stack's island solved over h from contacts c0 (each copied), u*
  * made for h from the world's bodies as a substep makes it; into b, c. */
 static void solve_over(const stack *s, const sc_contact_params *p, double h,
@@ -728,6 +766,7 @@ int main(void)
         cmocka_unit_test(test_anderson_reaches_the_tolerance_in_fewer_sweeps),
         cmocka_unit_test(test_a_small_island_short_of_the_tolerance_is_solved_whole),
         cmocka_unit_test(test_a_small_island_left_at_the_cap_is_solved_with_lemke),
+        cmocka_unit_test(test_a_big_island_left_at_the_cap_is_solved_whole),
         cmocka_unit_test(test_warm_starts_keep_the_force_over_a_shorter_substep),
         cmocka_unit_test(test_resting_contacts_keep_their_impulses),
         cmocka_unit_test(test_a_pinched_elastic_body_is_not_thrown),

@@ -915,15 +915,18 @@ static int block_gs(sc_arena *a, const gs_problem *pb, const blocks *bl, double 
  * as their cube, so a larger island sweeps on longer first; where the
  * rounds do not settle, the sweeps go on from the iterate to max_sweeps
  * (Lemke's method on the whole friction LCP costs more than all the
- * sweeps). Those that end there short of tol (at the cap, or diverged:
- * a few an arrival of 1000 parts) are solved whole once more with the
- * full exact solve, Lemke's method included (docs/DESIGN.md 11). Bigger
- * islands are the active set's; SC_ISLAND_BLOCK_GS is block
- * Gauss-Seidel alone. */
+ * sweeps). Bigger islands are the active set's first. Any split island
+ * of up to LAST_MAX_ROWS rows still short of tol at max_sweeps (or ended
+ * on a diverging sweep: a few an arrival of 1000 parts) is solved whole
+ * once more, with the full exact solve (Lemke's method included) up to
+ * WHOLE_MAX_ROWS rows and by the rounds alone past them, where Lemke's
+ * method on the friction LCP of 250 rows takes 0.1-0.7 s (docs/DESIGN.md
+ * 11). SC_ISLAND_BLOCK_GS is block Gauss-Seidel alone. */
 #define WHOLE_MAX_ROWS 192
 #define WHOLE_SMALL 96
 #define WHOLE_SWEEPS 30
 #define WHOLE_SWEEPS_BIG 60
+#define LAST_MAX_ROWS 600
 
 /* The whole problem pb as one exact LCP from the iterate (z, u), whose
  * answer replaces it if solved and adding no kinetic energy of its own
@@ -1067,9 +1070,11 @@ static int solve_split(sc_arena *a, row *rows, int nrows, const int *cstart, int
              * block Gauss-Seidel (counted; an active set started from its
              * iterate settled no more of a bin's islands) */
             info->as_solves++;
-            rc = sc_island_active_set(&pb, bodies, body, m,
-                                      p->island_method == SC_ISLAND_SUBDOMAINS, p->runner, a, z,
-                                      u, info);
+            rc = p->inject & SC_INJECT_ACTIVE_SET
+                     ? SC_ENUMERIC
+                     : sc_island_active_set(&pb, bodies, body, m,
+                                            p->island_method == SC_ISLAND_SUBDOMAINS, p->runner,
+                                            a, z, u, info);
             if (rc == SC_OK)
                 goto done;
             rc = rc == SC_ENUMERIC ? SC_OK : rc;
@@ -1091,17 +1096,18 @@ static int solve_split(sc_arena *a, row *rows, int nrows, const int *cstart, int
                 rc = block_gs(a, &pb, &bl, z, u, 6 * m, p, p->max_sweeps - end.sweeps, tol, info,
                               &end);
             }
-            /* the last resort: Lemke's method too */
-            if (rc == SC_OK && end.res > tol) {
-                info->whole_tries++;
-                rc = whole_solve(a, &pb, z, u, info, 1, p->inject);
-                if (rc == SC_OK) {
-                    info->whole_solved++;
-                    end.res = 0;
-                    end.diverged = 0;
-                }
-                rc = rc == SC_ENUMERIC ? SC_OK : rc;
+        }
+        /* the last resort (counted), Lemke's method too where it is cheap */
+        if (rc == SC_OK && !pseudo && end.res > tol && nrows <= LAST_MAX_ROWS &&
+            p->island_method != SC_ISLAND_BLOCK_GS) {
+            info->whole_tries++;
+            rc = whole_solve(a, &pb, z, u, info, nrows <= WHOLE_MAX_ROWS, p->inject);
+            if (rc == SC_OK) {
+                info->whole_solved++;
+                end.res = 0;
+                end.diverged = 0;
             }
+            rc = rc == SC_ENUMERIC ? SC_OK : rc;
         }
         if (rc == SC_OK && !pseudo) {
             info->sweeps_max = end.sweeps > info->sweeps_max ? end.sweeps : info->sweeps_max;

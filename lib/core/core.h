@@ -241,6 +241,7 @@ enum {
     SC_INJECT_BLOCK = 4,            /* every block's Dantzig solve fails */
     SC_INJECT_NAN = 8,              /* a NaN appears in the island's data */
     SC_INJECT_ROUNDS = 16,          /* a whole solve's fixed-point rounds fail */
+    SC_INJECT_ACTIVE_SET = 32,      /* the active set does not settle */
 };
 
 typedef struct sc_solve_info {
@@ -278,8 +279,8 @@ typedef struct sc_solve_info {
                                        diverging sweep (on the best iterate) */
     int whole_tries;                /* tries of small split islands that block
                                        Gauss-Seidel left short of tol, solved
-                                       whole (a second, with Lemke's method,
-                                       for those still short at the cap) */
+                                       whole, and of split islands still short
+                                       at the cap (contact.c LAST_MAX_ROWS) */
     int whole_solved;               /* of them, those the whole solve settled */
     int cold_starts;                /* split solves that started from 0: the
                                        warm start was further from the answer */
