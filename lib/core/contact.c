@@ -747,34 +747,9 @@ static int aa_gamma(const double *dF, int k, int n, const double *f, double *gam
         return 0;
     for (int i = 0; i < k; i++)
         H[i * k + i] += 1e-10 * tr;
-    /* Cholesky */
-    for (int j = 0; j < k; j++) {
-        double d = H[j * k + j];
-        for (int l = 0; l < j; l++)
-            d -= H[j * k + l] * H[j * k + l];
-        if (!(d > 0))
-            return 0;
-        d = sqrt(d);
-        H[j * k + j] = d;
-        for (int i = j + 1; i < k; i++) {
-            double s = H[i * k + j];
-            for (int l = 0; l < j; l++)
-                s -= H[i * k + l] * H[j * k + l];
-            H[i * k + j] = s / d;
-        }
-    }
-    for (int i = 0; i < k; i++) {
-        double s = b[i];
-        for (int l = 0; l < i; l++)
-            s -= H[i * k + l] * gamma[l];
-        gamma[i] = s / H[i * k + i];
-    }
-    for (int i = k - 1; i >= 0; i--) {
-        double s = gamma[i];
-        for (int l = i + 1; l < k; l++)
-            s -= H[l * k + i] * gamma[l];
-        gamma[i] = s / H[i * k + i];
-    }
+    if (sc_lu_solve(k, H, b) != SC_OK)
+        return 0;
+    memcpy(gamma, b, (size_t)k * sizeof *gamma);
     for (int i = 0; i < k; i++)
         if (!isfinite(gamma[i]))
             return 0;
