@@ -77,10 +77,6 @@ static void build_a(const row *rows, const int *sel, int n, double *A)
         A[i * n + i] += COMPLIANCE * dmax;
 }
 
-/* Exact islands of more contacts than this start from last frame's
- * impulses. */
-#define WARM_MIN_CONTACTS 4
-
 enum {
     SOLVE_WARM = 1,           /* z holds a guess to start from */
     SOLVE_FAIL = 2,           /* a test's injected fault: fail without a solve */
@@ -1200,10 +1196,9 @@ static int solve_rows(sc_arena *arena, sc_body *bodies, row *rows, int nrows,
     int rc = SC_OK;
     if (!split) {
         build_a(rows, NULL, nrows, A);
-        /* small islands start cold: a few pivots, and the answer does not
-         * depend on the last frame's (the same bits whatever it held) */
+        /* from the matched impulses, scaled to this substep (build_rows()) */
         rc = solve(arena, nrows, A, q, lo, hi, friction ? findex : NULL, mu, z, w, info,
-                   (warm && nc > WARM_MIN_CONTACTS && !p->cold ? SOLVE_WARM : 0) |
+                   (warm && !p->cold ? SOLVE_WARM : 0) |
                        (p->inject & SC_INJECT_COUPLED ? SOLVE_FAIL : 0));
         int gain = rc == SC_OK ? adds_energy(A, nrows, q, off, ds, z) : ENERGY_NONE;
         if (gain == ENERGY_TARGETS) {
