@@ -463,80 +463,69 @@ static void test_a_small_island_short_of_the_tolerance_is_solved_whole(void **st
     stack_free(&s);
 }
 
-/* Where the whole solve's rounds do not settle, the sweeps go on to the
- * cap, and a small island still short of the tolerance there is solved
- * whole once more with Lemke's method too (docs/DESIGN.md 11): the stack
- * of 16 without the acceleration, its rounds made to fail, ends on the
- * answer of the island solved whole from the start, not unconverged. */
-static void test_a_small_island_left_at_the_cap_is_solved_with_lemke(void **state)
+/* The stack of n from 0 without the acceleration, at most 100 sweeps, a
+ * fault injected (inject): solved into wi, by block Gauss-Seidel alone
+ * into gi. Either way the sweeps stop at the cap short of the tolerance;
+ * the solve ends on the island solved whole from the start (within a
+ * tenth of the tolerance), block Gauss-Seidel alone unconverged. */
+static void left_at_the_cap(int n, int inject, int *nc, sc_solve_info *wi, sc_solve_info *gi)
 {
-    (void)state;
     stack s;
-    sc_contact_params p = tall_cold(&s, 16);
+    sc_contact_params p = tall_cold(&s, n);
     sc_body *b0 = s.out[0];
     p.anderson = 0;
     p.max_sweeps = 100;
-    p.inject = SC_INJECT_ROUNDS;
-    sc_solve_info wi, gi;
-    solve_copy(&s, &p, &wi, b0, s.cout[0]);
+    p.inject = inject;
+    solve_copy(&s, &p, wi, b0, s.cout[0]);
     p.island_method = SC_ISLAND_BLOCK_GS;
-    solve_copy(&s, &p, &gi, s.out[1], s.cout[1]);
-    print_message("stack of 16, rounds failing: %d sweeps, then %d of %d whole tries settled, "
-                  "%d unconverged, residual %.2g m/s; block Gauss-Seidel alone %d unconverged, "
-                  "residual %.2g m/s\n",
-                  wi.sweeps_max, wi.whole_solved, wi.whole_tries, wi.unconverged,
-                  wi.residual_split, gi.unconverged, gi.residual_split);
-    assert_int_equal(wi.split, 1);
-    assert_int_equal(wi.sweeps_max, 100);
-    assert_int_equal(wi.whole_tries, 2);
-    assert_int_equal(wi.whole_solved, 1);
-    assert_int_equal(wi.unconverged + wi.diverged, 0);
-    assert_int_equal(gi.whole_tries, 0);
-    assert_int_equal(gi.unconverged, 1);
-    assert_true(gi.residual_split > p.tol);
+    solve_copy(&s, &p, gi, s.out[1], s.cout[1]);
     double d;
     off_whole(&s, p, &b0, 1, &d);
-    print_message("largest velocity off the island solved whole from the start: %.2g m/s\n", d);
+    print_message("stack of %d, %d contacts: %d sweeps, then %d of %d whole tries settled, %d "
+                  "unconverged, %.2g m/s off the island solved whole from the start; block "
+                  "Gauss-Seidel alone %d unconverged, residual %.2g m/s\n",
+                  n, s.nc, wi->sweeps_max, wi->whole_solved, wi->whole_tries, wi->unconverged, d,
+                  gi->unconverged, gi->residual_split);
+    assert_int_equal(wi->split, 1);
+    assert_int_equal(wi->sweeps_max, 100);
+    assert_int_equal(wi->unconverged + wi->diverged, 0);
     assert_true(d < 0.1 * p.tol);
+    assert_int_equal(gi->whole_tries, 0);
+    assert_int_equal(gi->unconverged, 1);
+    assert_true(gi->residual_split > p.tol);
+    *nc = s.nc;
     stack_free(&s);
+}
+
+/* Where the whole solve's rounds do not settle, the sweeps go on to the
+ * cap, and a small island still short of the tolerance there is solved
+ * whole once more with Lemke's method too (docs/DESIGN.md 11): the stack
+ * of 16, its rounds made to fail. */
+static void test_a_small_island_left_at_the_cap_is_solved_with_lemke(void **state)
+{
+    (void)state;
+    sc_solve_info wi, gi;
+    int nc;
+    left_at_the_cap(16, SC_INJECT_ROUNDS, &nc, &wi, &gi);
+    assert_int_equal(wi.whole_tries, 2);
+    assert_int_equal(wi.whole_solved, 1);
 }
 
 /* A bigger island (over 192 rows) that neither the active set nor the
  * sweeps settle is solved whole once more at the cap, friction by the
- * fixed point's rounds (docs/DESIGN.md 11): the stack of 24 without the
- * acceleration, its active set made to fail, 100 sweeps at most. */
+ * fixed point's rounds (docs/DESIGN.md 11): the stack of 24, its active
+ * set made to fail. */
 static void test_a_big_island_left_at_the_cap_is_solved_whole(void **state)
 {
     (void)state;
-    stack s;
-    sc_contact_params p = tall_cold(&s, 24);
-    sc_body *b0 = s.out[0];
-    p.anderson = 0;
-    p.max_sweeps = 100;
-    p.inject = SC_INJECT_ACTIVE_SET;
     sc_solve_info wi, gi;
-    solve_copy(&s, &p, &wi, b0, s.cout[0]);
-    p.island_method = SC_ISLAND_BLOCK_GS;
-    solve_copy(&s, &p, &gi, s.out[1], s.cout[1]);
-    print_message("stack of 24, %d contacts, active set failing: %d sweeps, then %d of %d whole "
-                  "tries settled, %d unconverged; block Gauss-Seidel alone %d unconverged, "
-                  "residual %.2g m/s\n",
-                  s.nc, wi.sweeps_max, wi.whole_solved, wi.whole_tries, wi.unconverged,
-                  gi.unconverged, gi.residual_split);
-    assert_true(3 * s.nc > 192);
+    int nc;
+    left_at_the_cap(24, SC_INJECT_ACTIVE_SET, &nc, &wi, &gi);
+    assert_true(3 * nc > 192);
     assert_int_equal(wi.as_solves, 1);
     assert_int_equal(wi.as_fallbacks, 1);
-    assert_int_equal(wi.sweeps_max, 100);
     assert_int_equal(wi.whole_tries, 1);
     assert_int_equal(wi.whole_solved, 1);
-    assert_int_equal(wi.unconverged + wi.diverged, 0);
-    assert_int_equal(gi.unconverged, 1);
-    assert_true(gi.residual_split > p.tol);
-    double d;
-    off_whole(&s, p, &b0, 1, &d);
-    print_message("largest velocity off the island solved whole from the start: %.2g m/s\n", d);
-    assert_true(d < 0.1 * p.tol);
-    stack_free(&s);
 }
 
 /* The stack's island solved over h from contacts c0 (each copied), u*
