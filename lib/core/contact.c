@@ -887,12 +887,12 @@ static int block_gs(sc_arena *a, const gs_problem *pb, const blocks *bl, double 
  * rounds do not settle, the sweeps go on from the iterate to max_sweeps
  * (Lemke's method on the whole friction LCP costs more than all the
  * sweeps). Bigger islands are the active set's first. Any split island
- * of up to LAST_MAX_ROWS rows still short of tol at max_sweeps (or ended
- * on a diverging sweep: a few an arrival of 1000 parts) is solved whole
- * once more, with the full exact solve (Lemke's method included) up to
- * WHOLE_MAX_ROWS rows and by the rounds alone past them, where Lemke's
- * method on the friction LCP of 250 rows takes 0.1-0.7 s (docs/DESIGN.md
- * 11). SC_ISLAND_BLOCK_GS is block Gauss-Seidel alone. */
+ * of up to LAST_MAX_ROWS rows still short of tol at max_sweeps, or ended
+ * on a diverging sweep, is solved whole once more: by the full exact
+ * solve (Lemke's method included) up to WHOLE_MAX_ROWS rows, by the
+ * rounds alone past them, where Lemke's tableau (the rows and twice the
+ * friction rows, square) makes one solve cost as much as many frames
+ * (docs/DESIGN.md 11). SC_ISLAND_BLOCK_GS is block Gauss-Seidel alone. */
 #define WHOLE_MAX_ROWS 192
 #define WHOLE_SMALL 96
 #define WHOLE_SWEEPS 30

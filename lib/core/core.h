@@ -244,6 +244,14 @@ enum {
     SC_INJECT_ACTIVE_SET = 32,      /* the active set does not settle */
 };
 
+/* A contact's warm start (its impulse and the substep that impulse acted
+ * over) taken from another. */
+static inline void sc_impulse_copy(sc_contact *to, const sc_contact *from)
+{
+    memcpy(to->impulse, from->impulse, sizeof to->impulse);
+    to->impulse_dt = from->impulse_dt;
+}
+
 typedef struct sc_solve_info {
     int solves;                     /* islands solved */
     long pivots;

@@ -185,8 +185,7 @@ static void match_impulses(const sc_frame_state *st, const sc_contact *old, int 
         }
         if (best >= 0) {
             taken[best] = 1;
-            v3_copy(c->impulse, old[best].impulse);
-            c->impulse_dt = old[best].impulse_dt;
+            sc_impulse_copy(c, &old[best]);
         }
     }
 }

@@ -285,10 +285,8 @@ static int substep(sc_frame *f, double h, sc_islands *is, unsigned char *touched
         }
         if (kept_impulses(st, is, mask, rd, from)) {
             for (int k = 0; k < st->ncontacts; k++)
-                if (from[k] >= 0) {
-                    v3_copy(st->contacts[k].impulse, rd->old[from[k]].impulse);
-                    st->contacts[k].impulse_dt = rd->old[from[k]].impulse_dt;
-                }
+                if (from[k] >= 0)
+                    sc_impulse_copy(&st->contacts[k], &rd->old[from[k]]);
         } else {
             memset(mask, 1, (size_t)n);
         }
@@ -369,10 +367,8 @@ static void warm_from_solved(sc_contact *c, int n, const sc_spec_list *old)
 {
     for (int k = 0; k < n; k++) {
         int o = find_same(old->c, old->n, &c[k]);
-        if (o >= 0) {
-            v3_copy(c[k].impulse, old->c[o].impulse);
-            c[k].impulse_dt = old->c[o].impulse_dt;
-        }
+        if (o >= 0)
+            sc_impulse_copy(&c[k], &old->c[o]);
     }
 }
 
