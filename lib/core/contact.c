@@ -942,6 +942,21 @@ static int whole_solve(sc_arena *a, const gs_problem *pb, double *z, double *u,
     return rc == SC_OK || rc == SC_ENOMEM ? rc : SC_ENUMERIC;
 }
 
+/* whole_solve() counted as a try, its success ending the sweeps' run
+ * (end) at the answer. */
+static int whole_try(sc_arena *a, const gs_problem *pb, double *z, double *u,
+                     sc_solve_info *info, int full, int inject, gs_end *end)
+{
+    info->whole_tries++;
+    int rc = whole_solve(a, pb, z, u, info, full, inject);
+    if (rc == SC_OK) {
+        info->whole_solved++;
+        end->res = 0;
+        end->diverged = 0;
+    }
+    return rc;
+}
+
 static int cmp_int(const void *x, const void *y)
 {
     int a = *(const int *)x, b = *(const int *)y;
@@ -1052,32 +1067,21 @@ static int solve_split(sc_arena *a, row *rows, int nrows, const int *cstart, int
         }
         /* an unconverged iterate of a small island: solved whole (counted) */
         gs_end end = { 0 };
-        int whole = !pseudo && nrows <= WHOLE_MAX_ROWS && p->island_method != SC_ISLAND_BLOCK_GS;
+        int last = !pseudo && nrows <= LAST_MAX_ROWS && p->island_method != SC_ISLAND_BLOCK_GS;
+        int whole = last && nrows <= WHOLE_MAX_ROWS;
         int first = whole ? (nrows <= WHOLE_SMALL ? WHOLE_SWEEPS : WHOLE_SWEEPS_BIG) : 0;
         first = whole && first < p->max_sweeps ? first : p->max_sweeps;
         if (rc == SC_OK)
             rc = block_gs(a, &pb, &bl, z, u, 6 * m, p, first, tol, info, &end);
         if (rc == SC_OK && whole && end.res > tol) {
-            info->whole_tries++;
-            rc = whole_solve(a, &pb, z, u, info, 0, p->inject);
-            if (rc == SC_OK) {
-                info->whole_solved++;
-                end.res = 0;
-            } else if (rc == SC_ENUMERIC) {
+            rc = whole_try(a, &pb, z, u, info, 0, p->inject, &end);
+            if (rc == SC_ENUMERIC)
                 rc = block_gs(a, &pb, &bl, z, u, 6 * m, p, p->max_sweeps - end.sweeps, tol, info,
                               &end);
-            }
         }
-        /* the last resort (counted), Lemke's method too where it is cheap */
-        if (rc == SC_OK && !pseudo && end.res > tol && nrows <= LAST_MAX_ROWS &&
-            p->island_method != SC_ISLAND_BLOCK_GS) {
-            info->whole_tries++;
-            rc = whole_solve(a, &pb, z, u, info, nrows <= WHOLE_MAX_ROWS, p->inject);
-            if (rc == SC_OK) {
-                info->whole_solved++;
-                end.res = 0;
-                end.diverged = 0;
-            }
+        /* the last resort, Lemke's method too where it is cheap */
+        if (rc == SC_OK && last && end.res > tol) {
+            rc = whole_try(a, &pb, z, u, info, whole, p->inject, &end);
             rc = rc == SC_ENUMERIC ? SC_OK : rc;
         }
         if (rc == SC_OK && !pseudo) {

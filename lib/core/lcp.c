@@ -1417,14 +1417,16 @@ int sc_lcp_boxed_in(sc_arena *arena, int n, const double *M, const double *q,
                     const double *lo, const double *hi, const int *findex, const double *mu,
                     double *z, double *w, sc_lcp_info *info)
 {
-    return boxed(arena, n, M, q, lo, hi, findex, mu, START_COLD, MORE_LEMKE | MORE_GUESS, z, w, info);
+    return boxed(arena, n, M, q, lo, hi, findex, mu, START_COLD, MORE_LEMKE | MORE_GUESS, z, w,
+                 info);
 }
 
 int sc_lcp_boxed_warm_in(sc_arena *arena, int n, const double *M, const double *q,
                          const double *lo, const double *hi, const int *findex,
                          const double *mu, double *z, double *w, sc_lcp_info *info)
 {
-    return boxed(arena, n, M, q, lo, hi, findex, mu, START_GUESS, MORE_LEMKE | MORE_GUESS, z, w, info);
+    return boxed(arena, n, M, q, lo, hi, findex, mu, START_GUESS, MORE_LEMKE | MORE_GUESS, z, w,
+                 info);
 }
 
 int sc_lcp_boxed_rounds_in(sc_arena *arena, int n, const double *M, const double *q,
