@@ -76,7 +76,9 @@ enum {
 #define SC_ISLAND_SPLIT_DEFAULT 16
 /* A split island's outer iteration stops when no contact row is further than
  * SC_SPLIT_TOL (m/s) from its own answer given the others, or after
- * SC_SPLIT_MAX_SWEEPS sweeps (then counted in sc_stats_lcp.unconverged). */
+ * SC_SPLIT_MAX_SWEEPS sweeps; one the island's whole solves leave short there
+ * sweeps on as many again (SC_ISLAND_BLOCK_GS: not), and one still short
+ * then is counted in sc_stats_lcp.unconverged. */
 #define SC_SPLIT_TOL 1e-3
 #define SC_SPLIT_MAX_SWEEPS 500
 

@@ -528,6 +528,43 @@ static void test_a_big_island_left_at_the_cap_is_solved_whole(void **state)
     assert_int_equal(wi.whole_solved, 1);
 }
 
+/* What the last whole try leaves short sweeps on from its best iterate,
+ * as many sweeps again (docs/DESIGN.md 11): the stack of 24, its active
+ * set and its rounds made to fail, at most 40 sweeps a run. Block
+ * Gauss-Seidel alone stops short at the 40. */
+static void test_an_island_the_last_try_leaves_short_sweeps_on(void **state)
+{
+    (void)state;
+    stack s;
+    sc_contact_params p = tall_cold(&s, 24);
+    p.max_sweeps = 40;
+    p.inject = SC_INJECT_ACTIVE_SET | SC_INJECT_ROUNDS;
+    sc_solve_info wi, gi;
+    solve_copy(&s, &p, &wi, s.out[0], s.cout[0]);
+    p.island_method = SC_ISLAND_BLOCK_GS;
+    solve_copy(&s, &p, &gi, s.out[1], s.cout[1]);
+    double d;
+    off_whole(&s, p, &s.out[0], 1, &d);
+    print_message("stack of 24, %d contacts: %d sweeps, %d of %d whole tries settled, %d "
+                  "unconverged, residual %.2g m/s, %.2g m/s off the island solved whole from "
+                  "the start; block Gauss-Seidel alone %d sweeps, %d unconverged, residual "
+                  "%.2g m/s\n",
+                  s.nc, wi.sweeps_max, wi.whole_solved, wi.whole_tries, wi.unconverged,
+                  wi.residual_split, d, gi.sweeps_max, gi.unconverged, gi.residual_split);
+    assert_true(3 * s.nc > 192);
+    assert_int_equal(wi.split, 1);
+    assert_int_equal(wi.whole_tries, 1);
+    assert_int_equal(wi.whole_solved, 0);
+    assert_true(wi.sweeps_max > 40 && wi.sweeps_max <= 80);
+    assert_int_equal(wi.unconverged + wi.diverged, 0);
+    assert_true(wi.residual_split <= p.tol);
+    assert_true(d < 24 * p.tol);
+    assert_int_equal(gi.sweeps_max, 40);
+    assert_int_equal(gi.unconverged, 1);
+    assert_true(gi.residual_split > p.tol);
+    stack_free(&s);
+}
+
 /* The stack's island solved over h from contacts c0 (each copied), u*
  * made for h from the world's bodies as a substep makes it; into b, c. */
 static void solve_over(const stack *s, const sc_contact_params *p, double h,
@@ -756,6 +793,7 @@ int main(void)
         cmocka_unit_test(test_a_small_island_short_of_the_tolerance_is_solved_whole),
         cmocka_unit_test(test_a_small_island_left_at_the_cap_is_solved_with_lemke),
         cmocka_unit_test(test_a_big_island_left_at_the_cap_is_solved_whole),
+        cmocka_unit_test(test_an_island_the_last_try_leaves_short_sweeps_on),
         cmocka_unit_test(test_warm_starts_keep_the_force_over_a_shorter_substep),
         cmocka_unit_test(test_resting_contacts_keep_their_impulses),
         cmocka_unit_test(test_a_pinched_elastic_body_is_not_thrown),

@@ -961,9 +961,8 @@ static void report_text(const options *o, const sc_world *w, const sc_stats *stp
            t.solves, t.split, t.blocks, t.shared, t.kept, t.pivots, t.max_pivots,
            t.frames ? (double)t.substeps / (double)t.frames : 0.0, t.max_substeps);
     printf("  LCP residual at most %.3g m/s (exact), %.3g m/s (split, tolerance %.0e; "
-           "%ld stopped at %d sweeps, %ld on a diverging sweep)\n",
-           t.residual, t.outer_residual, SC_SPLIT_TOL, t.unconverged, SC_SPLIT_MAX_SWEEPS,
-           t.diverged);
+           "%ld stopped at the sweep limit, %ld on a diverging sweep)\n",
+           t.residual, t.outer_residual, SC_SPLIT_TOL, t.unconverged, t.diverged);
     if (t.whole_tries)
         printf("  split solves short of the tolerance solved whole: %ld of %ld tried\n",
                t.whole_solved, t.whole_tries);

@@ -891,8 +891,10 @@ static int block_gs(sc_arena *a, const gs_problem *pb, const blocks *bl, double 
  * on a diverging sweep, is solved whole once more: by the full exact
  * solve (Lemke's method included) up to WHOLE_MAX_ROWS rows, by the
  * rounds alone past them, where Lemke's tableau (the rows and twice the
- * friction rows, square) makes one solve cost as much as many frames
- * (docs/DESIGN.md 11). SC_ISLAND_BLOCK_GS is block Gauss-Seidel alone. */
+ * friction rows, square) makes one solve cost as much as many frames.
+ * What is still short then, of any size, sweeps on from its best iterate
+ * for max_sweeps more: rare, and most settle within them (docs/DESIGN.md
+ * 11). SC_ISLAND_BLOCK_GS is block Gauss-Seidel alone. */
 #define WHOLE_MAX_ROWS 192
 #define WHOLE_SMALL 96
 #define WHOLE_SWEEPS 30
@@ -1084,6 +1086,10 @@ static int solve_split(sc_arena *a, row *rows, int nrows, const int *cstart, int
             rc = whole_try(a, &pb, z, u, info, whole, p->inject, &end);
             rc = rc == SC_ENUMERIC ? SC_OK : rc;
         }
+        /* what that leaves short sweeps on from its best iterate, as
+         * many sweeps again (a fresh Anderson history) */
+        if (rc == SC_OK && !pseudo && p->island_method != SC_ISLAND_BLOCK_GS && end.res > tol)
+            rc = block_gs(a, &pb, &bl, z, u, 6 * m, p, p->max_sweeps, tol, info, &end);
         if (rc == SC_OK && !pseudo) {
             info->sweeps_max = end.sweeps > info->sweeps_max ? end.sweeps : info->sweeps_max;
             info->unconverged += end.res > tol && !end.diverged;
