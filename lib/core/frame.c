@@ -10,14 +10,18 @@
 #include "frame.h"
 #include "vecmath.h"
 
-#define MAX_SUBSTEPS 16       /* time-of-impact back-ups per frame */
+/* World-wide mode: substeps of a frame (the world's or a motion group's);
+ * all but the last may back up. A landing pile backs the whole world up
+ * once for every impact, dozens of times a frame for a thousand parts;
+ * fewer substeps let the last one's parts in well past the tolerance
+ * (docs/DESIGN.md 3.1). */
+#define MAX_SUBSTEPS 128
 #define SPEC_ROUNDS 4         /* speculative re-solves of a substep at most */
 /* Local mode: back-ups of one substep at most, and of a frame (a region's:
- * a motion group steps its own frame). The world-wide mode's 15 a frame
- * can all be spent by a pile's landing, which then lets parts in well past
- * the tolerance; 31 keeps them near it at the same cost. More a substep
- * would keep piles closer still but drift elastic bodies' energy more
- * (docs/DESIGN.md 3.4). */
+ * a motion group steps its own frame). A region's landing can spend 15,
+ * and then lets parts in past the tolerance; 31 keeps them near it at the
+ * same cost. More a substep would keep piles closer still but drift
+ * elastic bodies' energy more (docs/DESIGN.md 3.4). */
 #define SPEC_BACKUPS 3
 #define MAX_BACKUPS_LOCAL 31
 /* split islands: contacts per block (whole pairs: a pair has at most 4) */
