@@ -429,7 +429,7 @@ static int local_rounds(sc_frame *f, sub_state *u)
             return SC_ENOMEM;
         /* a substep backed up may back up again (its speculative
          * contacts change the motion), SPEC_BACKUPS times at most:
-         * every back-up counts against the frame's MAX_SUBSTEPS, and
+         * every back-up counts against MAX_BACKUPS_LOCAL, and
          * a pair pushed in by another's push-out is as deep after any
          * substep, however short, so backing up again only spends the
          * frame's back-ups; once backed up, pairs too far to hold at
