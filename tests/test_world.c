@@ -667,8 +667,8 @@ static void test_a_pile_never_gains_energy(void **state)
 
 /* A region's frame in local mode may back up 31 times: as the 1000-part
  * bin's first layer lands a frame needs more than 15 back-ups, and with
- * 15 a part goes in far deeper than the tolerance in its first 30 frames (docs/DESIGN.md 3.1; the measured
- * account is in docs/HISTORY.md 3.1). Which frame needs how many is
+ * 15 a part goes in far deeper than the tolerance in its first 30 frames
+ * (docs/DESIGN.md 3.1; the measured account is in docs/HISTORY.md 3.1). Which frame needs how many is
  * chaotic and depends on the seed, so the test runs a seed whose first 30
  * frames need more than 15, seed 7. */
 static void test_a_landing_pile_may_back_up_more_than_15_times_a_frame(void **state)

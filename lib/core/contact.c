@@ -1069,7 +1069,8 @@ static int solve_split(sc_arena *a, row *rows, int nrows, const int *cstart, int
         }
         /* an unconverged iterate of a small island: solved whole (counted) */
         gs_end end = { 0 };
-        int last = !pseudo && nrows <= LAST_MAX_ROWS && p->island_method != SC_ISLAND_BLOCK_GS;
+        int rescue = !pseudo && p->island_method != SC_ISLAND_BLOCK_GS;
+        int last = rescue && nrows <= LAST_MAX_ROWS;
         int whole = last && nrows <= WHOLE_MAX_ROWS;
         int first = whole ? (nrows <= WHOLE_SMALL ? WHOLE_SWEEPS : WHOLE_SWEEPS_BIG) : 0;
         first = whole && first < p->max_sweeps ? first : p->max_sweeps;
@@ -1088,7 +1089,7 @@ static int solve_split(sc_arena *a, row *rows, int nrows, const int *cstart, int
         }
         /* what that leaves short sweeps on from its best iterate, as
          * many sweeps again (a fresh Anderson history) */
-        if (rc == SC_OK && !pseudo && p->island_method != SC_ISLAND_BLOCK_GS && end.res > tol)
+        if (rc == SC_OK && rescue && end.res > tol)
             rc = block_gs(a, &pb, &bl, z, u, 6 * m, p, p->max_sweeps, tol, info, &end);
         if (rc == SC_OK && !pseudo) {
             info->sweeps_max = end.sweeps > info->sweeps_max ? end.sweeps : info->sweeps_max;

@@ -282,7 +282,8 @@ typedef struct sc_solve_info {
                                        restitution targets added energy,
                                        solved again with them scaled down */
     int sweeps_max;                 /* most outer sweeps of one split island */
-    int unconverged;                /* split islands that stopped at max_sweeps */
+    int unconverged;                /* split islands still short of tol after
+                                       their sweeps, whole tries and sweeps on */
     int diverged;                   /* split islands that ended short of tol on a
                                        diverging sweep (on the best iterate) */
     int whole_tries;                /* tries of small split islands that block

@@ -278,11 +278,12 @@ static int perfectly_elastic(const sc_body *saved, const sc_contact *c)
  * gap, is a perfectly elastic collision: restitution 1
  * (perfectly_elastic()) and c closing faster than the bounce speed. Such
  * a pair is not held: it backs up to its touch, as in the world-wide
- * mode, so that its collisions come one at a time in their order. Held, several touches of one substep would be solved at
- * once (a faceted sphere's vertices, or a floor touch that a hit on the
- * same sphere earlier in the substep would have prevented), and
- * restitution on simultaneous contacts loses or gains energy, so elastic
- * bodies drift (docs/DESIGN.md 3.4). Inelastic pairs are still held: they
+ * mode, so that its collisions come one at a time in their order. Held,
+ * several touches of one substep would be solved at once (a faceted
+ * sphere's vertices, or a floor touch that a hit on the same sphere
+ * earlier in the substep would have prevented), and restitution on
+ * simultaneous contacts loses or gains energy, so elastic bodies drift
+ * (docs/DESIGN.md 3.4). Inelastic pairs are still held: they
  * lose energy anyway, and piles need it. */
 static int elastic_collision(const sc_body *saved, const sc_contact *c)
 {
