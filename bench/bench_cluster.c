@@ -381,6 +381,7 @@ typedef struct profile {
     double wall, work, jobs, bytes, ideal[SC_STATS_IDEAL_NODES];
     double density[SC_STATS_DENSITY_BINS];
     double comm, overhead, remote_jobs, remote_bytes, remote_work, remote_units, units;
+    double serial;              /* sc_stats_sched.serial_s */
     uint64_t hash;
 } profile;
 
@@ -410,12 +411,13 @@ static int profile_run(int n, int workers, int k, double seconds, profile *p)
         p->remote_work += st.frame.remote.work_s;
         p->remote_units += (double)st.frame.remote.units;
         p->units += (double)st.frame.sched.units;
+        p->serial += st.frame.sched.serial_s;
     }
     p->wall = (now_s() - t0) / frames;
     /* every figure a frame */
     double *per[] = { &p->work,        &p->jobs,         &p->bytes,        &p->comm,
                       &p->overhead,    &p->remote_jobs,  &p->remote_bytes, &p->remote_work,
-                      &p->remote_units, &p->units };
+                      &p->remote_units, &p->units,      &p->serial };
     for (size_t i = 0; i < sizeof per / sizeof per[0]; i++)
         *per[i] /= frames;
     for (int i = 0; i < SC_STATS_IDEAL_NODES; i++)
@@ -518,6 +520,13 @@ static void model(int n, int runs, double seconds)
            "units), round trip less work L %.3f ms; bits %s\n",
            1e3 * t1, 1e3 * w, jobs, bytes / 1e3, 1e3 * s, 1e3 * tc, t1 / tc, sent, jr,
            1e9 * per_byte, rho_sent, rho, 1e3 * lat, same ? "same" : "DIFF");
+    /* sc_stats' own measure beside S: with one local node the pile is a
+     * unit (A); with more, or with a daemon, its stages outside jobs are
+     * the master's (docs/DESIGN.md 5.6) */
+    printf("master's serial part measured (sc_stats serial_s), a frame: A %.2f ms, B %.2f ms, "
+           "C %.2f ms (%.1f %% of T1)\n",
+           1e3 * MED(a, serial), 1e3 * MED(b, serial), 1e3 * MED(c, serial),
+           t1 > 0 ? 100 * MED(c, serial) / t1 : 0.0);
     if (s < 0) {
         /* B's units took longer than A's whole frames: its threads slowed
          * each other (two vCPUs of one core), and W is not the work a

@@ -431,6 +431,11 @@ typedef struct sc_stats_sched {
                               /* makespan_s as it would be on i + 1 nodes of the measured
                                  speed with free communication (the cluster model's input:
                                  bench_cluster -p model) */
+    double frame_s;           /* wall seconds of the frame (sc_world_step()) */
+    double serial_s;          /* of them, the master's serial part: the calling thread's
+                                 time outside the jobs' submit-to-last-result spans (its
+                                 own stages, scheduling, merging), which no node takes
+                                 (docs/DESIGN.md 5.6) */
 } sc_stats_sched;
 
 /* Daemons' share of the last frame (sc_world_config.cluster). */
@@ -474,6 +479,8 @@ typedef struct sc_stats_total {
     long backups;             /* time-of-impact back-ups */
     int backups_max;          /* most back-ups of one frame */
     long group_retries;       /* sc_stats_sched.group_retries summed */
+    double frame_s;           /* sc_stats_sched.frame_s summed */
+    double serial_s;          /* sc_stats_sched.serial_s summed */
     long initial_overlaps;    /* body pairs found overlapping deeper than twice the
                                  contact tolerance when added */
     size_t arena_bytes;       /* high-water mark of the frame's arena (a stack arena that

@@ -51,6 +51,21 @@ static void check_model_figures(const sc_stats *st)
                 1e-9 * st->frame.sched.unit_work_s + 1e-12);
 }
 
+/* The master's serial part is the frame's wall time outside the jobs'
+ * spans: within the frame, and with the jobs' makespans (which the spans
+ * hold) at most the frame; the totals add the frames up. */
+static void check_serial(const sc_stats *st, double *frames_s, double *serial_s)
+{
+    const sc_stats_sched *s = &st->frame.sched;
+    assert_true(s->frame_s > 0);
+    assert_true(s->serial_s >= 0 && s->serial_s <= s->frame_s);
+    assert_true(s->serial_s + s->makespan_s <= s->frame_s * (1 + 1e-9) + 1e-9);
+    *frames_s += s->frame_s;
+    *serial_s += s->serial_s;
+    assert_true(fabs(st->total.frame_s - *frames_s) <= 1e-9 * *frames_s);
+    assert_true(fabs(st->total.serial_s - *serial_s) <= 1e-9 * *frames_s);
+}
+
 static uint64_t run_bolts(int workers, uint64_t shuffle, int frames, sc_stats *st)
 {
     sc_world_config c = sc_world_config_default();
@@ -62,10 +77,12 @@ static uint64_t run_bolts(int workers, uint64_t shuffle, int frames, sc_stats *s
     w->ex.sched.shuffle = shuffle;
     assert_int_equal(sc_scene_bolts_nuts(w, BODIES, 7), SC_OK);
     long units = 0;
+    double frames_s = 0, serial_s = 0;
     for (int f = 0; f < frames; f++) {
         assert_int_equal(sc_world_step(w, 0.01), SC_OK);
         sc_world_stats(w, st);
         units += st->frame.sched.units;
+        check_serial(st, &frames_s, &serial_s);
         if (st->frame.sched.makespan_bound_s > 0 && st->now.spin) {
             /* the bound is below the makespan (clock granularity aside),
              * where each thread has a CPU: with more threads than CPUs

@@ -890,6 +890,7 @@ static void report_json(const options *o, const sc_world *w, const sc_stats *stp
            "\"background_units\": %ld, \"narrow_phase_pairs\": %ld, "
            "\"narrow_phase_reused\": %ld, "
            "\"frames_over_budget\": %ld, \"max_frame_s\": %.4f, \"initial_overlaps\": %ld, "
+           "\"serial_s\": %.4f, \"serial_share\": %.4f, "
            "\"solver\": {\"island_split\": %d, \"solves\": %ld, \"kept\": %ld, \"split\": %ld, "
            "\"blocks\": %ld, \"blocks_shared\": %ld, \"pivots\": %ld, \"max_frame_pivots\": %ld, "
            "\"staggered_fallbacks\": %ld, \"energy_refused\": %ld, \"split_fallbacks\": %ld, "
@@ -914,7 +915,8 @@ static void report_json(const options *o, const sc_world *w, const sc_stats *stp
            st.total.duplicate_nodes, t.comm, t.msgs_out, t.msgs_in, t.piped, t.kept_out, t.beside,
            t.np_pairs,
            t.np_reused, t.over_budget, t.max_frame,
-           t.overlaps,
+           t.overlaps, st.total.serial_s,
+           st.total.frame_s > 0 ? st.total.serial_s / st.total.frame_s : 0.0,
            island_split, t.solves, t.kept, t.split, t.blocks, t.shared, t.pivots, t.max_pivots, t.staggered,
            t.refused, t.split_fb, t.block_fb, t.nan, t.inelastic, t.rscaled, t.guessed,
            t.regularised, t.unconverged, t.diverged, t.whole_tries, t.whole_solved,
@@ -998,6 +1000,10 @@ static void report_text(const options *o, const sc_world *w, const sc_stats *stp
            "last detection\n",
            t.np_pairs, t.np_reused,
            t.np_pairs ? 100.0 * (double)t.np_reused / (double)t.np_pairs : 0.0);
+    printf("  master's serial part (outside the nodes' jobs): %.2f ms a frame, %.1f %% of "
+           "the frames' wall time\n",
+           t.frames ? 1e3 * st.total.serial_s / (double)t.frames : 0.0,
+           st.total.frame_s > 0 ? 100 * st.total.serial_s / st.total.frame_s : 0.0);
     printf("  work units %ld", t.units);
     if (t.beside)
         printf(", motion groups stepped by idle threads beside the pile %ld", t.beside);

@@ -317,6 +317,7 @@ SC_API int sc_world_step(sc_world *w, double dt)
     /* the last frame's figures start again; totals and the state now stay */
     sc_stats *st = &w->stats;
     memset(&st->frame, 0, sizeof st->frame);
+    double t0 = sc_wall_now(), span0 = w->ex.span_s;
     if (w->cluster)
         sc_cluster_frame(w->cluster);
     int rc = sc_arena_reset(&w->scr.arena);
@@ -333,6 +334,10 @@ SC_API int sc_world_step(sc_world *w, double dt)
             st->total.backups_max = st->frame.toi.backups;
         sc_stats_sched *sd = &st->frame.sched;
         sd->makespan_ratio = sd->makespan_bound_s > 0 ? sd->makespan_s / sd->makespan_bound_s : 0;
+        sd->frame_s = sc_wall_now() - t0;
+        sd->serial_s = fmax(sd->frame_s - (w->ex.span_s - span0), 0);
+        st->total.frame_s += sd->frame_s;
+        st->total.serial_s += sd->serial_s;
     }
     return rc;
 }

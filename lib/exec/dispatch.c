@@ -228,7 +228,9 @@ static int nodes_run(sc_exec *ex, sc_job *job, int stage, sc_stats *st)
     double cpu_others = wait_nodes(x, s->start);
     if (x->prov.ctx)
         x->prov.job_end(x->prov.ctx);
-    return account(x, job, stage, st, cpu_others, sc_wall_now() - t1, t1 - t0, 1);
+    double span = sc_wall_now() - t1;
+    x->span_s += span;
+    return account(x, job, stage, st, cpu_others, span, t1 - t0, 1);
 }
 
 /* start(): assign with the local nodes busy for home_busy_s, send the
@@ -280,6 +282,7 @@ static int nodes_start(sc_exec *ex, sc_job *job, double home_busy_s)
             s->nodes[k].busy_until = t1 + s->nodes[k].ready;
     x->pend.submit_s = t2 - t1;
     x->pend.sched_s = t1 - t0;
+    x->span_s += t2 - t1;
     return SC_OK;
 }
 
@@ -302,8 +305,9 @@ static int nodes_finish(sc_exec *ex, sc_job *job, int stage, sc_stats *st)
         s->nodes[k].busy_until = 0;
         s->nodes[k].job_cap = x->pend.cap[k];   /* what it offered for this job */
     }
-    return account(x, job, stage, st, cpu_others, x->pend.submit_s + sc_wall_now() - t1,
-                   x->pend.sched_s, 1);
+    double span = sc_wall_now() - t1;
+    x->span_s += span;
+    return account(x, job, stage, st, cpu_others, x->pend.submit_s + span, x->pend.sched_s, 1);
 }
 
 /* background(): only with worker threads and no remote nodes (those get
@@ -322,7 +326,9 @@ static int nodes_background(sc_exec *ex, sc_job *job)
 static int nodes_drain(sc_exec *ex, sc_job *job, sc_stats *st)
 {
     sc_exec_nodes *x = (sc_exec_nodes *)ex;
+    double t0 = sc_wall_now();
     sc_local_pool_drain(x->pool);
+    x->span_s += sc_wall_now() - t0;
     for (int i = 0; i < job->nunits; i++)
         st->frame.sched.units_background += job->units[i].node != 0;
     /* the units' times are not the scheduler's to learn from: they ran

@@ -180,6 +180,9 @@ typedef struct sc_exec_nodes {
     int unit_cap;
     int private_ode;                /* local nodes on a private ODE copy */
     double cpu_budget;              /* the CPUs it may use (init's budget) */
+    double span_s;                  /* wall seconds from submit to the last result, summed
+                                       over jobs (the frame's time less it is its serial
+                                       part, sc_stats_sched.serial_s) */
     struct {                        /* a job between start() and finish() */
         sc_job *job;
         int whole;                  /* nothing sent: run() it at finish() */
