@@ -590,6 +590,71 @@ static void test_skin_list_matches_reference_over_moving_calls(void **state)
     }
 }
 
+/* Pairs from a superset (the motion groups' check, group.c): candidates
+ * from larger spheres around most bodies, the rest (not inside: moved out
+ * of theirs, or given new radii, or at an exact touch) tested against
+ * every body; the same set as the reference, inactive bodies included. */
+static void test_pairs_within_a_superset_match_reference(void **state)
+{
+    (void)state;
+    for (int round = 0; round < 6; round++) {
+        rng g = { 71 + (uint64_t)round };
+        scene big = scene_new(600, 1), s = scene_new(600, 1);
+        static const double lo[3] = { 0, 0, 0 }, hi[3] = { 2, 2, 1 };
+        fill_uniform(&big, &g, lo, hi, 0.1, 0.15);
+        unsigned char *inside = calloc((size_t)s.n, 1);
+        assert_non_null(inside);
+        for (int i = 0; i < s.n; i++) {
+            big.act[i] = s.act[i] = i % 5 != 0;
+            double *cb = centre(&big, i), *c = centre(&s, i);
+            double room = uni(&g, 0, 0.5) * big.r[i];
+            for (int k = 0; k < 3; k++)
+                c[k] = cb[k] + uni(&g, -0.5, 0.5) * room;
+            s.r[i] = big.r[i] - room;
+            inside[i] = 1;
+            if (rng_next(&g) % (round < 3 ? 40 : 4) == 0) {  /* out of its sphere */
+                c[0] += uni(&g, 0, 0.3);
+                s.r[i] = uni(&g, 0.005, 0.06);
+                inside[i] = 0;
+            }
+            if (round == 5 && i % 9 == 0) { /* inactive in the superset only */
+                big.act[i] = 0;
+                inside[i] = !s.act[i];
+            }
+        }
+        if (round == 2) {
+            /* two bodies not inside moved onto an exact touch */
+            inside[3] = inside[4] = 0;
+            double *a = centre(&s, 3), *b = centre(&s, 4);
+            b[1] = a[1];
+            b[2] = a[2];
+            b[0] = a[0] + (s.r[3] + s.r[4]);
+        }
+        sc_pair *cand, *want, *p = NULL;
+        int ncand = reference(&big, &cand), nwant = reference(&s, &want), cap = 0;
+        sc_broadphase *bp = sc_bp_create();
+        assert_non_null(bp);
+        int np = sc_bp_pairs_within(bp, cand, ncand, inside, s.c, s.r, s.act, s.n, &p, &cap);
+        assert_same_pairs(want, nwant, p, np, "within a superset");
+        assert_true(nwant > 100);
+        /* no candidates: every pair comes from the bodies not inside */
+        memset(inside, 0, (size_t)s.n);
+        np = sc_bp_pairs_within(bp, NULL, 0, inside, s.c, s.r, s.act, s.n, &p, &cap);
+        assert_same_pairs(want, nwant, p, np, "none inside");
+        s.c[0] = NAN;
+        assert_int_equal(sc_bp_pairs_within(bp, cand, ncand, inside, s.c, s.r, s.act, s.n, &p,
+                                            &cap),
+                         SC_EINVAL);
+        free(cand);
+        free(want);
+        free(p);
+        free(inside);
+        sc_bp_destroy(bp);
+        scene_free(&big);
+        scene_free(&s);
+    }
+}
+
 /* Two spheres 2.5 skins apart (not candidates): one moving 0.9 of its
  * skin and the other 1.9 of its own bring them into overlap; the list
  * must be made again for the second, and the pair is found. Then from a
@@ -949,6 +1014,7 @@ int main(void)
         cmocka_unit_test(test_zero_one_and_two_bodies),
         cmocka_unit_test(test_skin_list_matches_reference_over_moving_calls),
         cmocka_unit_test(test_skin_list_is_made_again_past_a_skin),
+        cmocka_unit_test(test_pairs_within_a_superset_match_reference),
         cmocka_unit_test(test_sap_stays_exact_over_frames_of_moving_bodies),
         cmocka_unit_test(test_sap_stays_exact_when_the_body_count_changes),
         cmocka_unit_test(test_sap_exact_when_few_bodies_moved),

@@ -789,6 +789,63 @@ static int keep_last(sc_broadphase *bp, const double *c, const double *r,
     return SC_OK;
 }
 
+/* ---- within a superset ---- */
+
+int sc_bp_pairs_within(sc_broadphase *bp, const sc_pair *cand, int ncand,
+                       const unsigned char *inside, const double *c, const double *r,
+                       const unsigned char *active, int n, sc_pair **pairs, int *cap)
+{
+    if (!bp || !pairs || !cap || !inside || n < 0 || ncand < 0 || (ncand > 0 && !cand) ||
+        *cap < 0 || (*cap > 0 && !*pairs) || (n > 0 && (!c || !r)))
+        return SC_EINVAL;
+    double var[3];
+    if (check_bodies(c, r, n, var))
+        return SC_EINVAL;
+    bp->out = pairs;
+    bp->out_cap = cap;
+    bp->nout = 0;
+    /* a body not inside: against every body (two such once), sorted */
+    int nf = 0;
+    for (int i = 0; i < n; i++) {
+        if (inside[i])
+            continue;
+        int ai = !active || active[i];
+        const double *ci = &c[3 * i];
+        for (int j = 0; j < n; j++) {
+            if (j == i || (j < i && !inside[j]) || !(ai || active[j]))
+                continue;
+            const double *cj = &c[3 * j];
+            if (!spheres_overlap(ci[0], ci[1], ci[2], r[i], cj[0], cj[1], cj[2], r[j]))
+                continue;
+            if (sc_grow((void **)&bp->fresh, &bp->fresh_cap, nf + 1, sizeof *bp->fresh, INT_MAX))
+                return SC_ENOMEM;
+            bp->fresh[nf++] = (sc_pair){ i < j ? i : j, i < j ? j : i };
+        }
+    }
+    if (nf > 1)
+        qsort(bp->fresh, (size_t)nf, sizeof *bp->fresh, sc_pair_cmp);
+    /* merged with the candidates of two bodies inside that pass */
+    int i = 0, j = 0;
+    for (;;) {
+        while (i < ncand) {
+            int a = cand[i].a, b = cand[i].b;
+            if (a >= 0 && b > a && b < n && inside[a] && inside[b] &&
+                (!active || active[a] || active[b]) &&
+                spheres_overlap(c[3 * a], c[3 * a + 1], c[3 * a + 2], r[a], c[3 * b],
+                                c[3 * b + 1], c[3 * b + 2], r[b]))
+                break;
+            i++;
+        }
+        if (i == ncand && j == nf)
+            break;
+        int take_cand = j == nf || (i < ncand && sc_pair_cmp(&cand[i], &bp->fresh[j]) < 0);
+        if (grow_pairs(bp))
+            return SC_ENOMEM;
+        (*bp->out)[bp->nout++] = take_cand ? cand[i++] : bp->fresh[j++];
+    }
+    return bp->nout;
+}
+
 /* ---- API ---- */
 
 int sc_pair_cmp(const void *x, const void *y)

@@ -524,6 +524,14 @@ int sc_bp_find_pairs_skin(sc_broadphase *bp, const sc_task_runner *runner, int m
                           const double *c, const double *r, const double *skin,
                           const unsigned char *active, int n, sc_pair **pairs, int *cap);
 void sc_bp_list_drop(sc_broadphase *bp);
+/* The same set as sc_bp_find_pairs_on() from candidates cand[0 .. ncand)
+ * (sorted by (a, b)) that hold every pair of two bodies with inside[i] set
+ * whose spheres overlap and of which one is active: those that pass, and
+ * each body not inside tested against every body (its cost: n a body not
+ * inside). The pair count or a negative code. */
+int sc_bp_pairs_within(sc_broadphase *bp, const sc_pair *cand, int ncand,
+                       const unsigned char *inside, const double *c, const double *r,
+                       const unsigned char *active, int n, sc_pair **pairs, int *cap);
 /* Calls of sc_bp_find_pairs_skin() answered from a list kept (tests). */
 long sc_bp_list_reused(const sc_broadphase *bp);
 

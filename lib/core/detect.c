@@ -151,6 +151,15 @@ int sc_contacts_have_pair(const sc_contact *c, int n, int a, int b)
     return k < n && c[k].body_a == a && c[k].body_b == b;
 }
 
+/* Whether c[0 .. n) (sorted by pair) holds pair p; the cursor *k walks c
+ * for pairs asked in ascending order. */
+static int held_pair(const sc_contact *c, int n, sc_pair p, int *k)
+{
+    while (*k < n && (c[*k].body_a < p.a || (c[*k].body_a == p.a && c[*k].body_b < p.b)))
+        (*k)++;
+    return *k < n && c[*k].body_a == p.a && c[*k].body_b == p.b;
+}
+
 static int carries_impulse(const sc_contact *c)
 {
     return c->impulse[0] != 0 || c->impulse[1] != 0 || c->impulse[2] != 0;
@@ -261,7 +270,7 @@ static int narrowphase(sc_frame *f, int npairs)
                             : NULL;
     int rc = uc ? SC_OK : SC_ENOMEM;
     int use_memo = m->valid && m->nbodies == st->nbodies;
-    int nrun = 0, cursor = 0;
+    int nrun = 0, cursor = 0, held = 0;
     for (int i = 0; rc == SC_OK && i < npairs; i++) {
         int hit = use_memo ? memo_find(m, f->poses, pairs[i], &cursor) : -1;
         if (hit >= 0) {
@@ -280,8 +289,9 @@ static int narrowphase(sc_frame *f, int npairs)
         p->body_b = pairs[i].b;
         p->a0 = f->poses[pairs[i].a];
         p->b0 = f->poses[pairs[i].b];
-        /* the contacts still held are those of the last detection */
-        p->touching = sc_contacts_have_pair(st->contacts, st->ncontacts, p->body_a, p->body_b);
+        /* the contacts still held are those of the last detection; both
+         * lists are in pair order, so one cursor walks them */
+        p->touching = held_pair(st->contacts, st->ncontacts, pairs[i], &held);
         ncontact[i] = 0;
         run_of[nrun++] = i;
     }

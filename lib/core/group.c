@@ -58,6 +58,10 @@
                                  body over a frame, |g| dt^2 / 8 = 0.34 mm at
                                  60 Hz, twice: check_groups() counts it) */
 #define PILE_KEEP 0.5         /* moving average of the pile's frame time */
+#define INSIDE_SLACK 1e-9     /* relative and absolute (m) room for rounding when
+                                 a check sphere is taken as inside a reach sphere */
+#define CHECK_FEW_OUTSIDE 16  /* the check takes the build's pairs while at most
+                                 one body in this many is outside (else it sweeps) */
 
 /* A group's frame runs on a copy of its bodies: this holds the copy and a
  * frame scratch of its own, kept between frames (one per thread that runs
@@ -71,7 +75,7 @@ typedef struct sc_group_scratch {
     int ids_cap;
     sc_broadphase *gbp;             /* the parent's: reach spheres */
     sc_pair *gpairs;
-    int gpair_cap;
+    int gpair_cap, ngpairs;         /* ngpairs: the last build's */
     double pile_s;                  /* the parent's: wall seconds of the last
                                        piles' frames (moving average) */
     sc_track track;                 /* the copy's */
@@ -79,6 +83,9 @@ typedef struct sc_group_scratch {
     sc_broadphase *cbp;             /* the parent's: the tracks' check */
     sc_pair *cpairs;
     int cpair_cap;
+    double *cc, *cr;                /* the check's spheres, n bodies */
+    unsigned char *cact, *inside;   /* its activity; inside the reach sphere */
+    int c_cap;
 } sc_group_scratch;
 
 static sc_group_scratch *group_scratch_create(void)
@@ -105,6 +112,10 @@ static void group_scratch_destroy(sc_group_scratch *gs)
     sc_track_free(&gs->track);
     sc_bp_destroy(gs->cbp);
     free(gs->cpairs);
+    free(gs->cc);
+    free(gs->cr);
+    free(gs->cact);
+    free(gs->inside);
     free(gs);
 }
 
@@ -204,6 +215,7 @@ static int build_groups(const sc_frame_config *cfg, const sc_frame_state *st,
     int np = sc_bp_find_pairs_on(gs->gbp, runner,
                                  n < 256 ? SC_BROADPHASE_SPHERES : SC_BROADPHASE_SAP, g->centre,
                                  g->radius, g->active, n, &gs->gpairs, &gs->gpair_cap);
+    gs->ngpairs = np < 0 ? 0 : np;
     if (np < 0)
         return np;
     for (int k = 0; k < np; k++) {
@@ -669,23 +681,54 @@ static int check_groups(const sc_frame_config *cfg, const sc_body *start, const 
 {
     if (!gs->cbp && !(gs->cbp = sc_bp_create()))
         return SC_ENOMEM;
+    if (n > gs->c_cap) {
+        free(gs->cc);
+        free(gs->cr);
+        free(gs->cact);
+        free(gs->inside);
+        gs->c_cap = 0;
+        gs->cc = sc_alloc_array((size_t)n, 3 * sizeof *gs->cc);
+        gs->cr = sc_alloc_array((size_t)n, sizeof *gs->cr);
+        gs->cact = sc_alloc_array((size_t)n, 1);
+        gs->inside = sc_alloc_array((size_t)n, 1);
+        if (!gs->cc || !gs->cr || !gs->cact || !gs->inside)
+            return SC_ENOMEM;
+        gs->c_cap = n;
+    }
+    double *cc = gs->cc, *cr = gs->cr;
+    unsigned char *act = gs->cact, *inside = gs->inside;
+    /* the check's spheres; g keeps the build's reach spheres, which hold
+     * most of them: a body whose check sphere lies inside its reach sphere
+     * (with room for rounding) and that is active there when it is here
+     * meets, in the check, only bodies the build's pairs name */
+    int outside = 0;
     for (int i = 0; i < n; i++) {
         const sc_body *b = &start[i];
-        g->active[i] = b->inv_mass > 0 && g->gid[i] >= 0;
+        act[i] = b->inv_mass > 0 && g->gid[i] >= 0;
+        inside[i] = 0;
         if (b->inv_mass == 0) {
-            v3_set(&g->centre[3 * i], 0, 0, 0);
-            g->radius[i] = 0;
+            v3_set(&cc[3 * i], 0, 0, 0);
+            cr[i] = 0;
+            outside++;
             continue;
         }
         const double *d = &drift[9 * i];
-        double dev = g->active[i] ? tr->dev[i] : 0;
-        v3_madd(&g->centre[3 * i], d, d + 3, 0.5 * dt);
-        g->radius[i] = 0.5 * dt * v3_len(d + 3) + 0.5 * dt * dt * v3_len(d + 6) + dev +
-                       b->shape->bound_r + cfg->contact_tol_m;
+        double dev = act[i] ? tr->dev[i] : 0;
+        v3_madd(&cc[3 * i], d, d + 3, 0.5 * dt);
+        cr[i] = 0.5 * dt * v3_len(d + 3) + 0.5 * dt * dt * v3_len(d + 6) + dev +
+                b->shape->bound_r + cfg->contact_tol_m;
+        double off[3];
+        v3_sub(off, &cc[3 * i], &g->centre[3 * i]);
+        inside[i] = (!act[i] || g->active[i]) &&
+                    v3_len(off) + cr[i] <= g->radius[i] * (1 - INSIDE_SLACK) - INSIDE_SLACK;
+        outside += !inside[i];
     }
-    int np = sc_bp_find_pairs_on(gs->cbp, runner,
-                                 n < 256 ? SC_BROADPHASE_SPHERES : SC_BROADPHASE_SAP, g->centre,
-                                 g->radius, g->active, n, &gs->cpairs, &gs->cpair_cap);
+    int np = outside * CHECK_FEW_OUTSIDE <= n
+                 ? sc_bp_pairs_within(gs->cbp, gs->gpairs, gs->ngpairs, inside, cc, cr, act, n,
+                                      &gs->cpairs, &gs->cpair_cap)
+                 : sc_bp_find_pairs_on(gs->cbp, runner,
+                                       n < 256 ? SC_BROADPHASE_SPHERES : SC_BROADPHASE_SAP, cc,
+                                       cr, act, n, &gs->cpairs, &gs->cpair_cap);
     int met = 0;
     for (int k = 0; k < np; k++) {
         int a = gs->cpairs[k].a, b = gs->cpairs[k].b;
