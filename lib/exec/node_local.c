@@ -201,6 +201,12 @@ static void run_tasks(void *ctx, sc_task_fn fn, void *arg, int count, sc_arena *
 static void run_timed(local_node *n, const sc_job *job, sc_unit *u, double *t)
 {
     sc_unit_run(n->np, job, u);
+    /* Under a CPU quota (no polling: 5.3) a thread that used its share is
+     * throttled at its next entry into the kernel, not where it ran out;
+     * reading its CPU clock enters it here, so that the stall counts in
+     * this unit's time rather than in whatever the thread does next. */
+    if (n->pool && !sc_local_pool_spins(n->pool))
+        (void)sc_cpu_now();
     double t1 = sc_wall_now();
     u->time_s = t1 - *t;
     u->node = n->base.id;
@@ -305,8 +311,10 @@ static void run_one(local_node *n, local_node *m, int pos, double *t)
  * their tails. Returns the CPU seconds it took. */
 static double run_batch(local_node *n)
 {
-    double c0 = sc_cpu_now();
+    /* the wall clock first: a quota's stall at the CPU clock's read (see
+     * run_timed()) belongs to the first unit's time */
     double t = sc_wall_now();
+    double c0 = sc_cpu_now();
     int pos;
     while ((pos = take(n, 0)) >= 0)
         run_one(n, n, pos, &t);
