@@ -641,6 +641,10 @@ typedef struct totals {
     double residual, outer_residual;
     long as_solves, as_fallbacks, as_iterations, factor_nnz_max, as_exchanges, as_exchange_bytes;
     int as_iterations_max, as_parts_max, as_interface_max;
+    /* the scheduler's figures, summed (a model's inputs: bench/pcs.sh) */
+    long jobs, remote_jobs;
+    double unit_work, unit_bytes, ideal[SC_STATS_IDEAL_NODES];
+    double remote_overhead, remote_bytes, remote_work;
 } totals;
 
 /* SIGINT and SIGTERM during run and profile: the handler only notes the
@@ -713,6 +717,15 @@ static int simulate(const options *o, sc_world *w, totals *t, int progress, reco
         t->beside += st.frame.sched.units_background;
         t->np_pairs += st.frame.detect.np_pairs;
         t->np_reused += st.frame.detect.np_reused;
+        t->jobs += st.frame.sched.jobs;
+        t->unit_work += st.frame.sched.unit_work_s;
+        t->unit_bytes += st.frame.sched.unit_bytes;
+        for (int k = 0; k < SC_STATS_IDEAL_NODES; k++)
+            t->ideal[k] += st.frame.sched.ideal_makespan_s[k];
+        t->remote_jobs += st.frame.remote.jobs;
+        t->remote_overhead += st.frame.remote.overhead_s;
+        t->remote_bytes += st.frame.remote.bytes;
+        t->remote_work += st.frame.remote.work_s;
         if (st.total.duplicate_nodes > t->duplicates) {
             /* two running daemons with one id: said once per pair */
             t->duplicates = st.total.duplicate_nodes;
@@ -905,7 +918,7 @@ static void report_json(const options *o, const sc_world *w, const sc_stats *stp
            "\"interface_max\": %d, \"exchanges\": %ld, \"exchange_bytes\": %ld}}, "
            "\"toi\": {\"mode\": \"%s\", \"backups\": %ld, \"max_frame_backups\": %d, "
            "\"speculative_contacts\": %ld, \"groups\": %ld, \"groups_retried\": %ld}, "
-           "\"hash\": \"%016llx\", \"interrupted\": %s%s%s, \"error\": %s%s%s}\n",
+           "\"hash\": \"%016llx\", \"interrupted\": %s%s%s, \"error\": %s%s%s, \"sched\": ",
            sc_world_body_count(w), seed, (int)(st.now.nodes - st.now.daemons), st.now.cpu_budget,
            st.now.spin ? "true" : "false", t.frames,
            sim, t.wall, t.wall > 0 ? sim / t.wall : 0, t.at_rest ? "true" : "false",
@@ -931,6 +944,14 @@ static void report_json(const options *o, const sc_world *w, const sc_stats *stp
            t.interrupted ? "\"" : "null", t.interrupted ? signal_name(t.interrupted) : "",
            t.interrupted ? "\"" : "", rc ? "\"" : "null",
            rc ? sc_strerror(rc) : "", rc ? "\"" : "");
+    printf("{\"jobs\": %ld, \"unit_work_s\": %.6f, \"unit_bytes\": %.0f, "
+           "\"remote_jobs\": %ld, \"remote_overhead_s\": %.6f, \"remote_bytes\": %.0f, "
+           "\"remote_work_s\": %.6f, \"ideal_makespan_s\": [",
+           t.jobs, t.unit_work, t.unit_bytes, t.remote_jobs, t.remote_overhead, t.remote_bytes,
+           t.remote_work);
+    for (int k = 0; k < SC_STATS_IDEAL_NODES; k++)
+        printf("%s%.6f", k ? ", " : "", t.ideal[k]);
+    printf("]}}\n");
 }
 
 /* run's report as lines of text. */
