@@ -207,6 +207,15 @@ static void add_sched(sc_stats_sched *s, const sc_stats_sched *g)
         s->unit_work_by_density_s[k] += g->unit_work_by_density_s[k];
 }
 
+void sc_stats_add_work(sc_stats *s, const sc_stats *g)
+{
+    for (int k = 0; k < SC_STAGE_COUNT; k++) {
+        s->frame.stage_s[k] += g->frame.stage_s[k];
+        s->total.stage_s[k] += g->frame.stage_s[k];
+    }
+    add_sched(&s->frame.sched, &g->frame.sched);
+}
+
 void sc_stats_add_frame(sc_stats *s, const sc_stats *g)
 {
     for (int k = 0; k < SC_STAGE_COUNT; k++) {

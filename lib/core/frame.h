@@ -345,6 +345,10 @@ void sc_stats_add_solver(sc_stats *s, const sc_stats *s2);
 /* The figures of g (a motion group's or a region's frame, its own stats
  * from zero) into s: stage times, counters, maxima. */
 void sc_stats_add_frame(sc_stats *s, const sc_stats *g);
+/* Only g's stage times and scheduler figures (sc_stats_sched) into s: the
+ * work of a group's try that the check threw away (group.c), which took
+ * its time though its results are not the frame's. */
+void sc_stats_add_work(sc_stats *s, const sc_stats *g);
 /* Step 5 (impact.c): the earliest time of impact (fraction of the
  * substep) among the pairs whose contacts are marked 1 in fast, or, fast
  * NULL, among all contacts deeper than the tolerance; 1 when there is
