@@ -644,7 +644,7 @@ typedef struct totals {
     /* the scheduler's figures, summed (a model's inputs: bench/pcs.sh) */
     long jobs, remote_jobs;
     double unit_work, unit_bytes, ideal[SC_STATS_IDEAL_NODES];
-    double remote_overhead, remote_bytes, remote_work;
+    double remote_overhead, remote_bytes, remote_work, remote_wait;
 } totals;
 
 /* SIGINT and SIGTERM during run and profile: the handler only notes the
@@ -726,6 +726,7 @@ static int simulate(const options *o, sc_world *w, totals *t, int progress, reco
         t->remote_overhead += st.frame.remote.overhead_s;
         t->remote_bytes += st.frame.remote.bytes;
         t->remote_work += st.frame.remote.work_s;
+        t->remote_wait += st.frame.remote.wait_s;
         if (st.total.duplicate_nodes > t->duplicates) {
             /* two running daemons with one id: said once per pair */
             t->duplicates = st.total.duplicate_nodes;
@@ -946,9 +947,9 @@ static void report_json(const options *o, const sc_world *w, const sc_stats *stp
            rc ? sc_strerror(rc) : "", rc ? "\"" : "");
     printf("{\"jobs\": %ld, \"unit_work_s\": %.6f, \"unit_bytes\": %.0f, "
            "\"remote_jobs\": %ld, \"remote_overhead_s\": %.6f, \"remote_bytes\": %.0f, "
-           "\"remote_work_s\": %.6f, \"ideal_makespan_s\": [",
+           "\"remote_work_s\": %.6f, \"remote_wait_s\": %.6f, \"ideal_makespan_s\": [",
            t.jobs, t.unit_work, t.unit_bytes, t.remote_jobs, t.remote_overhead, t.remote_bytes,
-           t.remote_work);
+           t.remote_work, t.remote_wait);
     for (int k = 0; k < SC_STATS_IDEAL_NODES; k++)
         printf("%s%.6f", k ? ", " : "", t.ideal[k]);
     printf("]}}\n");
