@@ -96,6 +96,9 @@ for build in "$@"; do
         sh tests/cluster.sh "$build" >"$log" 2>&1
         count "cluster ($build)" $?
         echo "  $(tail -n 1 "$log")"
+        sh tests/pcs.sh "$build" >"$log" 2>&1
+        count "pcs ($build)" $?
+        echo "  $(tail -n 1 "$log")"
     fi
 done
 
