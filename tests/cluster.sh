@@ -22,7 +22,8 @@
 #      local): the spheres' group units go to the daemons while the pile
 #      steps on the master and are back when it ends (piped > 0), hash Hp;
 #      then daemon 2 stopped (SIGSTOP) a third into such a run: hash Hp,
-#      its units recomputed
+#      its units recomputed; then killed (kill -9) a third into another and
+#      started again with its id while it runs: hash Hp
 #   d  a CPU hog next to one daemon: it says "owner busy" within 2 s and gets
 #      no units from 1 s after that; hash H
 # (e, f, g, h, p run before d so that no daemon is still owner-busy from d's hog.)
@@ -475,6 +476,25 @@ echo "    p: daemon 2 stopped after frame ${at:-?} of $FRAMES; $(summary "$dir/p
 verdict "p: the master was running when the daemon stopped" '[ $alive -eq 1 ]'
 verdict "p: a daemon stopped mid-run, same hash (${h:-none}), exit $rc, recomputed ${rec:-?}" \
     '[ $rc -eq 0 ] && [ -n "$Hp" ] && [ "$h" = "$Hp" ] && [ "${rec:-0}" -gt 0 ]'
+# the same daemon killed a third into a pile's run and started again with
+# its id while the run goes on
+: >"$dir/p3.out"
+master_bg "$dir/p3.out" $P --wait-daemons 2 --trace
+first_frame "$dir/p3.out"
+sleep "$(awk -v t="${Tp:-1}" 'BEGIN { printf "%.3f", t / 3 }')"
+alive=0
+kill -0 $mpid 2>/dev/null && alive=1
+kill -9 "$(dpid 2)"
+wait "$(dpid 2)" 2>/dev/null
+at=$(grep '^frame ' "$dir/p3.out" | tail -n 1 | cut -d' ' -f2)
+start_daemon 2 || { verdict "daemon 2 restarts" false; finish; }
+wait $mpid
+rc=$?
+h=$(hash_of "$dir/p3.out")
+echo "    p: daemon 2 killed after frame ${at:-?} of $FRAMES and started again; $(summary "$dir/p3.out")"
+verdict "p: the master was running when the daemon was killed" '[ $alive -eq 1 ]'
+verdict "p: a daemon killed and restarted mid-pile, same hash (${h:-none}), exit $rc" \
+    '[ $rc -eq 0 ] && [ -n "$Hp" ] && [ "$h" = "$Hp" ]'
 
 # ---- d: the owner of daemon 1's CPU gets busy ----
 if [ "$ncpu" -ge 2 ]; then
