@@ -998,6 +998,52 @@ static void test_shared_sweeps_match_reference_in_any_order_and_thread(void **st
         }
 }
 
+/* A kept list's candidates filtered in tasks (a runner and a long list):
+ * the same pairs in the same order as the reference, over calls within
+ * the skins, in reverse order and on two threads. */
+static void test_skin_list_filtered_in_tasks_matches_reference(void **state)
+{
+    (void)state;
+    for (int threaded = 0; threaded < 2; threaded++) {
+        rng g = { 41 + (uint64_t)threaded };
+        scene s = scene_new(3000, 1);
+        fill_pile(&s, &g);
+        double *skin = calloc((size_t)s.n, sizeof *skin);
+        assert_non_null(skin);
+        for (int i = 0; i < s.n; i++) {
+            s.act[i] = i % 9 != 0;
+            skin[i] = 0.02;
+        }
+        task_runner tr = { .threaded = threaded };
+        sc_task_runner runner = { run_tasks, &tr };
+        sc_broadphase *bp = sc_bp_create();
+        assert_non_null(bp);
+        sc_pair *p = NULL;
+        int cap = 0;
+        for (int call = 0; call < 6; call++) {
+            sc_pair *want;
+            int nwant = reference(&s, &want);
+            int np = sc_bp_find_pairs_skin(bp, &runner, SC_BROADPHASE_SAP, s.c, s.r, skin, s.act,
+                                           s.n, &p, &cap);
+            assert_same_pairs(want, nwant, p, np, "skin list in tasks");
+            assert_true(nwant > 1000);
+            free(want);
+            for (int i = 0; i < s.n; i++)
+                for (int k = 0; k < 3; k++)
+                    s.c[3 * i + k] += uni(&g, -0.002, 0.002);
+        }
+        assert_true(sc_bp_list_reused(bp) >= 3);
+        print_message("skin list, %s: %d batches handed out, %d tasks\n",
+                      threaded ? "two threads" : "reverse order", tr.calls, tr.tasks);
+        /* the list's sweep and at least three filters went out as tasks */
+        assert_true(tr.calls >= 4);
+        free(p);
+        free(skin);
+        sc_bp_destroy(bp);
+        scene_free(&s);
+    }
+}
+
 int main(void)
 {
     const struct CMUnitTest tests[] = {
@@ -1015,6 +1061,7 @@ int main(void)
         cmocka_unit_test(test_skin_list_matches_reference_over_moving_calls),
         cmocka_unit_test(test_skin_list_is_made_again_past_a_skin),
         cmocka_unit_test(test_pairs_within_a_superset_match_reference),
+        cmocka_unit_test(test_skin_list_filtered_in_tasks_matches_reference),
         cmocka_unit_test(test_sap_stays_exact_over_frames_of_moving_bodies),
         cmocka_unit_test(test_sap_stays_exact_when_the_body_count_changes),
         cmocka_unit_test(test_sap_exact_when_few_bodies_moved),

@@ -975,6 +975,41 @@ static int list_holds(const sc_broadphase *bp, const double *c, const double *r,
     return 1;
 }
 
+/* The kept list's candidates that pass this call's test, in chunks. */
+typedef struct skin_filter {
+    const sc_broadphase *bp;
+    const double *c, *r;
+    sc_pair *out;                   /* room for the whole list */
+    int chunks;
+    int count[BP_CHUNKS];           /* pairs each chunk wrote, from its start */
+} skin_filter;
+
+/* The first index of chunk t of n items cut into k. */
+static int chunk_at(int n, int t, int k)
+{
+    return (int)((long long)n * t / k);
+}
+
+static void filter_task(void *arg, int t, sc_arena *a, int helper)
+{
+    (void)a;
+    (void)helper;
+    skin_filter *f = arg;
+    const sc_broadphase *bp = f->bp;
+    const double *c = f->c, *r = f->r;
+    int i0 = chunk_at(bp->nlist, t, f->chunks), i1 = chunk_at(bp->nlist, t + 1, f->chunks);
+    int k = i0;
+    for (int i = i0; i < i1; i++) {
+        int p = bp->list[i].a, q = bp->list[i].b;
+        if (!bp->list_act[p] && !bp->list_act[q])
+            continue;
+        const double *cp = &c[3 * p], *cq = &c[3 * q];
+        if (spheres_overlap(cp[0], cp[1], cp[2], r[p], cq[0], cq[1], cq[2], r[q]))
+            f->out[k++] = bp->list[i];
+    }
+    f->count[t] = k - i0;
+}
+
 static int list_make(sc_broadphase *bp, const sc_task_runner *runner, int method,
                      const double *c, const double *r, const double *skin,
                      const unsigned char *active, int n)
@@ -1038,17 +1073,20 @@ int sc_bp_find_pairs_skin(sc_broadphase *bp, const sc_task_runner *runner, int m
     } else {
         bp->list_reused++;
     }
-    int k = 0;
-    for (int i = 0; i < bp->nlist; i++) {
-        int a = bp->list[i].a, b = bp->list[i].b;
-        if (!bp->list_act[a] && !bp->list_act[b])
-            continue;
-        const double *ca = &c[3 * a], *cb = &c[3 * b];
-        if (!spheres_overlap(ca[0], ca[1], ca[2], r[a], cb[0], cb[1], cb[2], r[b]))
-            continue;
-        if (sc_grow((void **)pairs, cap, k + 1, sizeof **pairs, INT_MAX))
-            return SC_ENOMEM;
-        (*pairs)[k++] = bp->list[i];
+    if (bp->nlist > 0 && sc_grow((void **)pairs, cap, bp->nlist, sizeof **pairs, INT_MAX))
+        return SC_ENOMEM;
+    /* the candidates that pass, in chunks (tasks of the runner for a long
+     * list), each written from its own start in the output, then closed up
+     * in order: the same array either way */
+    skin_filter sf = { bp, c, r, *pairs,
+                       runner && bp->nlist >= BP_SHARE_MIN * BP_CHUNKS ? BP_CHUNKS : 1, { 0 } };
+    sc_tasks_run(sf.chunks > 1 ? runner : NULL, filter_task, &sf, sf.chunks, NULL);
+    int k = sf.count[0];
+    for (int t = 1; t < sf.chunks; t++) {
+        int i0 = chunk_at(bp->nlist, t, sf.chunks);
+        if (sf.count[t] > 0 && k != i0)
+            memmove(&(*pairs)[k], &(*pairs)[i0], (size_t)sf.count[t] * sizeof **pairs);
+        k += sf.count[t];
     }
     return k;
 }
