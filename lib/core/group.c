@@ -61,7 +61,9 @@
 #define INSIDE_SLACK 1e-9     /* relative and absolute (m) room for rounding when
                                  a check sphere is taken as inside a reach sphere */
 #define CHECK_FEW_OUTSIDE 16  /* the check takes the build's pairs while at most
-                                 one body in this many is outside (else it sweeps) */
+                                 one body in this many is outside, */
+#define CHECK_OUTSIDE_MAX 48  /* and at most this many (each is tested against every
+                                 body; a sweep costs about as much a body) */
 
 /* A group's frame runs on a copy of its bodies: this holds the copy and a
  * frame scratch of its own, kept between frames (one per thread that runs
@@ -723,7 +725,7 @@ static int check_groups(const sc_frame_config *cfg, const sc_body *start, const 
                     v3_len(off) + cr[i] <= g->radius[i] * (1 - INSIDE_SLACK) - INSIDE_SLACK;
         outside += !inside[i];
     }
-    int np = outside * CHECK_FEW_OUTSIDE <= n
+    int np = outside * CHECK_FEW_OUTSIDE <= n && outside <= CHECK_OUTSIDE_MAX
                  ? sc_bp_pairs_within(gs->cbp, gs->gpairs, gs->ngpairs, inside, cc, cr, act, n,
                                       &gs->cpairs, &gs->cpair_cap)
                  : sc_bp_find_pairs_on(gs->cbp, runner,
