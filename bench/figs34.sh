@@ -75,30 +75,12 @@ PERIOD_US=10000                 # CFS period: one frame, so throttling stalls st
 LINK_DELAY_US=50                # netem delay on each veth end (one way: 2 x this)
 RUN_LIMIT=600                   # s, one simcluster run at most
 
-skip() { echo "figs34: SKIPPED ($1)"; exit 0; }
-[ "$(id -u)" -eq 0 ] || skip "needs root"
-command -v ip >/dev/null 2>&1 || skip "no ip (iproute2)"
-command -v tc >/dev/null 2>&1 || skip "no tc (iproute2)"
+# shellcheck disable=SC2034 # read by bench/emulate.sh
+NAME=figs34
+# shellcheck source=bench/emulate.sh
+. "$ROOT/bench/emulate.sh"
+emu_require
 tag=$$
-ip netns add "scfprobe$tag" 2>/dev/null || skip "no network namespaces"
-ip netns exec "scfprobe$tag" true 2>/dev/null && command -v nsenter >/dev/null
-ok=$?
-ip netns del "scfprobe$tag"
-[ "$ok" -eq 0 ] || skip "no network namespaces"
-
-# ---- cgroups: v1 if the cpu controller is mounted as such, else v2 ----
-CGV=""
-if [ -f /sys/fs/cgroup/cpu/cpu.cfs_quota_us ]; then
-    CGV=1
-    CGROOT=/sys/fs/cgroup/cpu
-else
-    CGROOT=$(awk '$3 == "cgroup2" { print $2; exit }' /proc/mounts)
-    [ -n "$CGROOT" ] && grep -qw cpu "$CGROOT/cgroup.controllers" 2>/dev/null && CGV=2
-fi
-[ -n "$CGV" ] || skip "no cgroup cpu controller"
-for b in "$SIM" "$DAEMON"; do
-    [ -x "$b" ] || { echo "figs34: $b missing (run make first)" >&2; exit 1; }
-done
 "$SIM" --help | grep -q wait-daemons ||
     { echo "figs34: $SIM has no --wait-daemons (rebuild)" >&2; exit 1; }
 PLOT=1
@@ -177,7 +159,7 @@ mkcg() {
         fi
     done
 }
-mkcg || skip "cannot make cgroups with CPU quotas under $CGROOT"
+mkcg || emu_skip "cannot make cgroups with CPU quotas under $CGROOT"
 procs_file() { if [ "$CGV" = 1 ]; then echo tasks; else echo cgroup.procs; fi; }
 PROCS=$(procs_file)
 # in_cg GROUP CMD...: CMD in that cgroup (the shell joins it, then execs);
@@ -189,13 +171,7 @@ in_cg() {
     shift
     sh -c "$JOIN" "$CG/$g/$PROCS" "$@"
 }
-throttled() { # the cgroup's throttled time so far, s
-    if [ "$CGV" = 1 ]; then
-        awk '$1 == "throttled_time" { printf "%.3f", $2 / 1e9 }' "$CG/$1/cpu.stat"
-    else
-        awk '$1 == "throttled_usec" { printf "%.3f", $2 / 1e6 }' "$CG/$1/cpu.stat"
-    fi
-}
+throttled() { emu_throttled "$CG/$1"; }   # the cgroup of node $1
 
 # ---- network: a bridge in its own namespace, a shaped veth to each node ----
 plumb() {

@@ -81,29 +81,12 @@ LAN_MBIT=1000                   # an office LAN, scaled by the quota
 LAN_DELAY_US=100                # its one-way latency, scaled by the quota (netem only)
 RUN_LIMIT=900                   # s, one simcluster run at most
 
-skip() { echo "pcs: SKIPPED ($1)"; exit 0; }
-[ "$(id -u)" -eq 0 ] || skip "needs root"
-command -v ip >/dev/null 2>&1 || skip "no ip (iproute2)"
-command -v tc >/dev/null 2>&1 || skip "no tc (iproute2)"
+# shellcheck disable=SC2034 # read by bench/emulate.sh
+NAME=pcs
+# shellcheck source=bench/emulate.sh
+. "$ROOT/bench/emulate.sh"
+emu_require
 tag=$$
-ip netns add "scpprobe$tag" 2>/dev/null || skip "no network namespaces"
-ip netns exec "scpprobe$tag" true 2>/dev/null && command -v nsenter >/dev/null
-ok=$?
-ip netns del "scpprobe$tag"
-[ "$ok" -eq 0 ] || skip "no network namespaces"
-
-CGV=""
-if [ -f /sys/fs/cgroup/cpu/cpu.cfs_quota_us ]; then
-    CGV=1
-    CGROOT=/sys/fs/cgroup/cpu
-else
-    CGROOT=$(awk '$3 == "cgroup2" { print $2; exit }' /proc/mounts)
-    [ -n "$CGROOT" ] && grep -qw cpu "$CGROOT/cgroup.controllers" 2>/dev/null && CGV=2
-fi
-[ -n "$CGV" ] || skip "no cgroup cpu controller"
-for b in "$SIM" "$DAEMON"; do
-    [ -x "$b" ] || { echo "pcs: $b missing (run make first)" >&2; exit 1; }
-done
 
 br=scpbr$tag
 CG=$CGROOT/simpcs$tag
@@ -174,18 +157,12 @@ mkcg() {
         fi
     done
 }
-mkcg || skip "cannot make cgroups with CPU quotas under $CGROOT"
+mkcg || emu_skip "cannot make cgroups with CPU quotas under $CGROOT"
 if [ "$CGV" = 1 ]; then PROCS=tasks; else PROCS=cgroup.procs; fi
 # in a cgroup: sh -c "$JOIN" PROCS_FILE CMD... (the shell joins, then execs)
 # shellcheck disable=SC2016 # expanded by that shell
 JOIN='echo $$ >"$0" && exec "$@"'
-throttled() { # cgroup p$1's throttled time so far, s
-    if [ "$CGV" = 1 ]; then
-        awk '$1 == "throttled_time" { printf "%.3f", $2 / 1e9 }' "$CG/p$1/cpu.stat"
-    else
-        awk '$1 == "throttled_usec" { printf "%.3f", $2 / 1e6 }' "$CG/p$1/cpu.stat"
-    fi
-}
+throttled() { emu_throttled "$CG/p$1"; }  # the cgroup of PC $1
 
 # ---- network: a bridge, a shaped veth to each PC ----
 RATE=$(awk -v m=$LAN_MBIT -v s="$share" 'BEGIN { printf "%dkbit", m * s * 1000 + 0.5 }')

@@ -709,6 +709,35 @@ static int find_swept_pairs(sc_broadphase *bp, const sc_task_runner *runner, con
     return sort_pairs(bp, n, ntasks);
 }
 
+/* Into bp->fresh, sorted: the pairs of each body i with flag[i] == want
+ * against every body (two such once) that pass the predicate, one of
+ * them active. The count, or SC_ENOMEM. */
+static int flagged_pairs(sc_broadphase *bp, const double *c, const double *r,
+                         const unsigned char *active, int n, const unsigned char *flag,
+                         unsigned char want)
+{
+    int nf = 0;
+    for (int i = 0; i < n; i++) {
+        if (flag[i] != want)
+            continue;
+        int ai = !active || active[i];
+        const double *ci = &c[3 * i];
+        for (int j = 0; j < n; j++) {
+            if (j == i || (j < i && flag[j] == want) || !(ai || active[j]))
+                continue;
+            const double *cj = &c[3 * j];
+            if (!spheres_overlap(ci[0], ci[1], ci[2], r[i], cj[0], cj[1], cj[2], r[j]))
+                continue;
+            if (sc_grow((void **)&bp->fresh, &bp->fresh_cap, nf + 1, sizeof *bp->fresh, INT_MAX))
+                return SC_ENOMEM;
+            bp->fresh[nf++] = (sc_pair){ i < j ? i : j, i < j ? j : i };
+        }
+    }
+    if (nf > 1)
+        qsort(bp->fresh, (size_t)nf, sizeof *bp->fresh, sc_pair_cmp);
+    return nf;
+}
+
 /* ---- sweep and prune: few moved ---- */
 
 #define BP_FEW_MOVED 16        /* at most one body in this many moved */
@@ -732,28 +761,11 @@ static int find_moved_pairs(sc_broadphase *bp, const double *c, const double *r,
         if (k * BP_FEW_MOVED > n)
             return 0;
     }
-    /* the moved bodies' pairs: each against every body (two moved ones
-     * once), sorted */
-    int nf = 0;
-    for (int i = 0; i < n; i++) {
-        if (!bp->moved[i])
-            continue;
-        int ai = !active || active[i];
-        const double *ci = &c[3 * i];
-        for (int j = 0; j < n; j++) {
-            if (j == i || (j < i && bp->moved[j]) || !(ai || !active || active[j]))
-                continue;
-            const double *cj = &c[3 * j];
-            if (!spheres_overlap(ci[0], ci[1], ci[2], r[i], cj[0], cj[1], cj[2], r[j]))
-                continue;
-            if (sc_grow((void **)&bp->fresh, &bp->fresh_cap, nf + 1, sizeof *bp->fresh, INT_MAX))
-                return SC_ENOMEM;
-            bp->fresh[nf++] = (sc_pair){ i < j ? i : j, i < j ? j : i };
-        }
-    }
-    if (nf > 1)
-        qsort(bp->fresh, (size_t)nf, sizeof *bp->fresh, sc_pair_cmp);
-    /* merged with the last pairs of two unmoved bodies */
+    /* the moved bodies' pairs, merged with the last pairs of two unmoved
+     * bodies */
+    int nf = flagged_pairs(bp, c, r, active, n, bp->moved, 1);
+    if (nf < 0)
+        return nf;
     int i = 0, j = 0;
     for (;;) {
         while (i < bp->nlast && (bp->moved[bp->last[i].a] || bp->moved[bp->last[i].b]))
@@ -804,27 +816,11 @@ int sc_bp_pairs_within(sc_broadphase *bp, const sc_pair *cand, int ncand,
     bp->out = pairs;
     bp->out_cap = cap;
     bp->nout = 0;
-    /* a body not inside: against every body (two such once), sorted */
-    int nf = 0;
-    for (int i = 0; i < n; i++) {
-        if (inside[i])
-            continue;
-        int ai = !active || active[i];
-        const double *ci = &c[3 * i];
-        for (int j = 0; j < n; j++) {
-            if (j == i || (j < i && !inside[j]) || !(ai || active[j]))
-                continue;
-            const double *cj = &c[3 * j];
-            if (!spheres_overlap(ci[0], ci[1], ci[2], r[i], cj[0], cj[1], cj[2], r[j]))
-                continue;
-            if (sc_grow((void **)&bp->fresh, &bp->fresh_cap, nf + 1, sizeof *bp->fresh, INT_MAX))
-                return SC_ENOMEM;
-            bp->fresh[nf++] = (sc_pair){ i < j ? i : j, i < j ? j : i };
-        }
-    }
-    if (nf > 1)
-        qsort(bp->fresh, (size_t)nf, sizeof *bp->fresh, sc_pair_cmp);
-    /* merged with the candidates of two bodies inside that pass */
+    /* the pairs of a body not inside, merged with the candidates of two
+     * bodies inside that pass */
+    int nf = flagged_pairs(bp, c, r, active, n, inside, 0);
+    if (nf < 0)
+        return nf;
     int i = 0, j = 0;
     for (;;) {
         while (i < ncand) {
