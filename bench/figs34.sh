@@ -94,30 +94,16 @@ br=scfbr$tag; nsm=scf${tag}m; ns1=scf${tag}d1; ns2=scf${tag}d2; ns3=scf${tag}d3
 CG=$CGROOT/simfigs$tag
 dir=$(mktemp -d /tmp/scfigs.XXXXXX) || exit 1
 pids=""
-rmem_old=""
-subtree_added=""
 
 cleanup() {
     trap - EXIT INT TERM
-    for p in $pids; do kill "$p" 2>/dev/null; done
-    sleep 0.3
-    for p in $pids; do kill -9 "$p" 2>/dev/null; done
-    wait 2>/dev/null
+    # shellcheck disable=SC2086 # pids: words
+    emu_stop $pids
     for ns in "$nsm" "$ns1" "$ns2" "$ns3" "$br"; do ip netns del "$ns" 2>/dev/null; done
     # anything still in our cgroups was started by this script
-    for g in m d1 d2 d3; do
-        [ -f "$CG/$g/cgroup.procs" ] || continue
-        for p in $(cat "$CG/$g/cgroup.procs"); do kill -9 "$p" 2>/dev/null; done
-        tries=0
-        while [ -s "$CG/$g/cgroup.procs" ] && [ $tries -lt 50 ]; do
-            sleep 0.1
-            tries=$((tries + 1))
-        done
-        rmdir "$CG/$g"
-    done
+    for g in m d1 d2 d3; do emu_cg_remove "$CG/$g"; done
     [ -d "$CG" ] && rmdir "$CG"
-    [ -n "$subtree_added" ] && echo "-cpu" >"$CGROOT/cgroup.subtree_control" 2>/dev/null
-    [ -n "$rmem_old" ] && echo "$rmem_old" >/proc/sys/net/core/rmem_max
+    emu_restore
     rm -rf "$dir"
 }
 # fd 3: our stderr; dash may run a trap with a command's redirections in force
@@ -140,23 +126,10 @@ cpus() { awk -v q="$1" -v p=$PERIOD_US 'BEGIN { printf "%.3f", q / p }'; }
 qsum=$(cpus $((q_m + q_d1 + q_d2 + q_d3)))
 
 mkcg() {
-    mkdir "$CG" || return 1
-    if [ "$CGV" = 2 ]; then
-        if ! grep -qw cpu "$CGROOT/cgroup.subtree_control"; then
-            echo "+cpu" >"$CGROOT/cgroup.subtree_control" || return 1
-            subtree_added=1
-        fi
-        echo "+cpu" >"$CG/cgroup.subtree_control" || return 1
-    fi
+    emu_cg_parent "$CG" || return 1
     for g in m d1 d2 d3; do
         eval "q=\$q_$g"
-        mkdir "$CG/$g" || return 1
-        if [ "$CGV" = 1 ]; then
-            echo $PERIOD_US >"$CG/$g/cpu.cfs_period_us" && echo "$q" >"$CG/$g/cpu.cfs_quota_us" ||
-                return 1
-        else
-            echo "$q $PERIOD_US" >"$CG/$g/cpu.max" || return 1
-        fi
+        emu_cg_child "$CG/$g" "$q" "$PERIOD_US" || return 1
     done
 }
 mkcg || emu_skip "cannot make cgroups with CPU quotas under $CGROOT"
@@ -175,34 +148,14 @@ throttled() { emu_throttled "$CG/$1"; }   # the cgroup of node $1
 
 # ---- network: a bridge in its own namespace, a shaped veth to each node ----
 plumb() {
-    ip netns add "$br" && ip -n "$br" link set lo up &&
-        ip -n "$br" link add br0 type bridge mcast_snooping 0 && ip -n "$br" link set br0 up ||
-        return 1
+    emu_bridge "$br" || return 1
     i=1
     for ns in "$nsm" "$ns1" "$ns2" "$ns3"; do
-        ip netns add "$ns" && ip -n "$ns" link set lo up &&
-            ip -n "$br" link add "p$i" type veth peer name eth0 netns "$ns" &&
-            ip -n "$br" link set "p$i" master br0 && ip -n "$br" link set "p$i" up &&
-            ip -n "$ns" addr add "10.214.34.$i/24" dev eth0 && ip -n "$ns" link set eth0 up &&
-            ip -n "$ns" route add 224.0.0.0/4 dev eth0 || return 1
-        # both directions of the node's link: htb at the rate, netem delay under it
-        for end in "$ns eth0" "$br p$i"; do
-            set -- $end
-            tc -n "$1" qdisc add dev "$2" root handle 1: htb default 1 &&
-                tc -n "$1" class add dev "$2" parent 1: classid 1:1 htb rate 100mbit \
-                    ceil 100mbit quantum 1514 || return 1
-            # netem may be missing from the kernel (it is here: no modules,
-            # CONFIG_NET_SCH_NETEM unset): then a plain fifo, and no delay
-            # beyond the store-and-forward of each shaped hop
-            if [ "$NETEM" = 1 ] && ! tc -n "$1" qdisc add dev "$2" parent 1:1 handle 10: \
-                netem delay "${LINK_DELAY_US}us" limit 10000 2>/dev/null; then
-                [ $i -eq 1 ] || return 1
-                NETEM=0
-            fi
-            if [ "$NETEM" = 0 ]; then
-                tc -n "$1" qdisc add dev "$2" parent 1:1 handle 10: pfifo limit 10000 || return 1
-            fi
-        done
+        emu_node "$ns" "$br" "p$i" "10.214.34.$i" || return 1
+        # both directions of the node's link: htb at the rate, netem delay
+        # under it (here the kernel has none: CONFIG_NET_SCH_NETEM unset)
+        emu_shape "$ns" eth0 100mbit "$LINK_DELAY_US" &&
+            emu_shape "$br" "p$i" 100mbit "$LINK_DELAY_US" || return 1
         i=$((i + 1))
     done
 }
@@ -217,13 +170,8 @@ set_rate() { # $1: 100mbit or 10mbit, on every shaped veth end
         i=$((i + 1))
     done
 }
-NETEM=1
 plumb || die "network namespaces, bridge, veths or tc qdiscs could not be made"
-rmem=$(cat /proc/sys/net/core/rmem_max)
-if [ "$rmem" -lt 4194304 ]; then
-    rmem_old=$rmem
-    echo 4194304 >/proc/sys/net/core/rmem_max
-fi
+emu_rmem
 port=$((20000 + $(od -An -N2 -tu2 /dev/urandom) % 40000))
 URL="udpm://239.255.76.67:$port?ttl=1&recv_buf_size=4194304"
 KEY=$dir/key
@@ -325,7 +273,7 @@ echo "figs34: cgroup v$CGV at $CGROOT, CPU quotas per period of $PERIOD_US us (s
 echo "  the paper's GHz; $ncpu CPUs): master (1.26) $q_m us = $(cpus "$q_m") CPU," \
     "d1 (1.0) $q_d1 = $(cpus "$q_d1"), d2 (1.0) $q_d2 = $(cpus "$q_d2")," \
     "d3 (0.7) $q_d3 = $(cpus "$q_d3"); sum $qsum CPU"
-if [ "$NETEM" = 1 ]; then
+if [ "$EMU_NETEM" = 1 ]; then
     LAT="htb at 100 or 10 Mbit/s on both ends of each node's veth, netem delay $LINK_DELAY_US µs under it: node to node $((2 * LINK_DELAY_US)) µs one way ($((4 * LINK_DELAY_US)) µs round trip) plus the serialisation of each of the 2 shaped hops (a store-and-forward switch: 120 µs a 1500-byte frame at 100 Mbit/s, 1.2 ms at 10 Mbit/s)"
 else
     LAT="htb at 100 or 10 Mbit/s on both ends of each node's veth; this kernel has no netem (CONFIG_NET_SCH_NETEM unset), so no added delay: the latency is the serialisation of each of the 2 shaped hops (a store-and-forward switch: 120 µs a 1500-byte frame at 100 Mbit/s, 1.2 ms at 10 Mbit/s) and the kernel's own few µs"

@@ -92,34 +92,16 @@ br=scpbr$tag
 CG=$CGROOT/simpcs$tag
 dir=$(mktemp -d /tmp/scpcs.XXXXXX) || exit 1
 pids=""
-rmem_old=""
-subtree_added=""
 
 cleanup() {
     trap - EXIT INT TERM
-    for p in $pids; do kill "$p" 2>/dev/null; done
-    sleep 0.3
-    for p in $pids; do kill -9 "$p" 2>/dev/null; done
-    wait 2>/dev/null
+    # shellcheck disable=SC2086 # pids: words
+    emu_stop $pids
     for i in $(seq 1 "$KMAX"); do ip netns del "scp${tag}p$i" 2>/dev/null; done
     ip netns del "$br" 2>/dev/null
-    for i in $(seq 1 "$KMAX"); do
-        g=$CG/p$i
-        [ -d "$g" ] || continue
-        for f in cgroup.procs tasks; do
-            [ -f "$g/$f" ] || continue
-            while read -r p; do kill -9 "$p" 2>/dev/null; done <"$g/$f"
-        done
-        tries=0
-        while [ -s "$g/cgroup.procs" ] && [ $tries -lt 50 ]; do
-            sleep 0.1
-            tries=$((tries + 1))
-        done
-        rmdir "$g"
-    done
+    for i in $(seq 1 "$KMAX"); do emu_cg_remove "$CG/p$i"; done
     [ -d "$CG" ] && rmdir "$CG"
-    [ -n "$subtree_added" ] && echo "-cpu" >"$CGROOT/cgroup.subtree_control" 2>/dev/null
-    [ -n "$rmem_old" ] && echo "$rmem_old" >/proc/sys/net/core/rmem_max
+    emu_restore
     rm -rf "$dir"
 }
 exec 3>&2
@@ -139,23 +121,8 @@ q=$(awk -v s="$share" -v p="$PERIOD_US" -v m=$QUOTA_MIN_US 'BEGIN { q = s * p + 
     printf "%d", q }')
 share=$(awk -v q="$q" -v p="$PERIOD_US" 'BEGIN { printf "%.4f", q / p }')
 mkcg() {
-    mkdir "$CG" || return 1
-    if [ "$CGV" = 2 ]; then
-        if ! grep -qw cpu "$CGROOT/cgroup.subtree_control"; then
-            echo "+cpu" >"$CGROOT/cgroup.subtree_control" || return 1
-            subtree_added=1
-        fi
-        echo "+cpu" >"$CG/cgroup.subtree_control" || return 1
-    fi
-    for i in $(seq 1 "$KMAX"); do
-        mkdir "$CG/p$i" || return 1
-        if [ "$CGV" = 1 ]; then
-            echo "$PERIOD_US" >"$CG/p$i/cpu.cfs_period_us" && echo "$q" >"$CG/p$i/cpu.cfs_quota_us" ||
-                return 1
-        else
-            echo "$q $PERIOD_US" >"$CG/p$i/cpu.max" || return 1
-        fi
-    done
+    emu_cg_parent "$CG" || return 1
+    for i in $(seq 1 "$KMAX"); do emu_cg_child "$CG/p$i" "$q" "$PERIOD_US" || return 1; done
 }
 mkcg || emu_skip "cannot make cgroups with CPU quotas under $CGROOT"
 if [ "$CGV" = 1 ]; then PROCS=tasks; else PROCS=cgroup.procs; fi
@@ -167,41 +134,16 @@ throttled() { emu_throttled "$CG/p$1"; }  # the cgroup of PC $1
 # ---- network: a bridge, a shaped veth to each PC ----
 RATE=$(awk -v m=$LAN_MBIT -v s="$share" 'BEGIN { printf "%dkbit", m * s * 1000 + 0.5 }')
 DELAY=$(awk -v d=$LAN_DELAY_US -v s="$share" 'BEGIN { printf "%d", d / s + 0.5 }')
-NETEM=1
 plumb() {
-    ip netns add "$br" && ip -n "$br" link set lo up &&
-        ip -n "$br" link add br0 type bridge mcast_snooping 0 && ip -n "$br" link set br0 up ||
-        return 1
+    emu_bridge "$br" || return 1
     for i in $(seq 1 "$KMAX"); do
         ns=scp${tag}p$i
-        ip netns add "$ns" && ip -n "$ns" link set lo up &&
-            ip -n "$br" link add "p$i" type veth peer name eth0 netns "$ns" &&
-            ip -n "$br" link set "p$i" master br0 && ip -n "$br" link set "p$i" up &&
-            ip -n "$ns" addr add "10.214.35.$i/24" dev eth0 && ip -n "$ns" link set eth0 up &&
-            ip -n "$ns" route add 224.0.0.0/4 dev eth0 || return 1
-        for end in "$ns eth0" "$br p$i"; do
-            # shellcheck disable=SC2086 # two words
-            set -- $end
-            tc -n "$1" qdisc add dev "$2" root handle 1: htb default 1 &&
-                tc -n "$1" class add dev "$2" parent 1: classid 1:1 htb rate "$RATE" \
-                    ceil "$RATE" quantum 1514 || return 1
-            if [ "$NETEM" = 1 ] && ! tc -n "$1" qdisc add dev "$2" parent 1:1 handle 10: \
-                netem delay "${DELAY}us" limit 10000 2>/dev/null; then
-                [ "$i" -eq 1 ] || return 1
-                NETEM=0
-            fi
-            if [ "$NETEM" = 0 ]; then
-                tc -n "$1" qdisc add dev "$2" parent 1:1 handle 10: pfifo limit 10000 || return 1
-            fi
-        done
+        emu_node "$ns" "$br" "p$i" "10.214.35.$i" || return 1
+        emu_shape "$ns" eth0 "$RATE" "$DELAY" && emu_shape "$br" "p$i" "$RATE" "$DELAY" || return 1
     done
 }
 plumb || die "network namespaces, bridge, veths or tc qdiscs could not be made"
-rmem=$(cat /proc/sys/net/core/rmem_max)
-if [ "$rmem" -lt 4194304 ]; then
-    rmem_old=$rmem
-    echo 4194304 >/proc/sys/net/core/rmem_max
-fi
+emu_rmem
 port=$((20000 + $(od -An -N2 -tu2 /dev/urandom) % 40000))
 URL="udpm://239.255.76.67:$port?ttl=1&recv_buf_size=4194304"
 KEY=$dir/key
@@ -282,7 +224,7 @@ predict() {
 
 echo "pcs: cgroup v$CGV at $CGROOT, every PC $q us of CPU per $PERIOD_US us ($share CPU; $KMAX PCs"\
     "at most on $ncpu CPUs)"
-if [ "$NETEM" = 1 ]; then
+if [ "$EMU_NETEM" = 1 ]; then
     LAT="htb at $RATE (1 Gbit/s x $share) on both ends of each PC's veth, netem delay $DELAY us under it (100 us / $share)"
 else
     LAT="htb at $RATE (1 Gbit/s x $share) on both ends of each PC's veth; no netem on this kernel, so no added delay (the LAN's 100 us one way, scaled, would be $DELAY us): the latency is the 2 shaped hops' serialisation and the kernel's"
