@@ -1,6 +1,7 @@
 # bench/emulate.sh - sourced by bench/figs34.sh and bench/pcs.sh, which
-# emulate PCs on this machine (POSIX sh): what both need before they build
-# anything. The sourcing script sets NAME (its prefix), SIM and DAEMON.
+# emulate PCs on this machine (POSIX sh): the checks both make first, and
+# the cgroups, namespaces, shaped links and cleanup both build with. The
+# sourcing script sets NAME (its prefix), SIM and DAEMON.
 
 # emu_skip WHY: say SKIPPED and end the script well (no root, namespaces...)
 emu_skip() { echo "$NAME: SKIPPED ($1)"; exit 0; }
