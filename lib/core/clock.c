@@ -218,13 +218,9 @@ void sc_stats_add_work(sc_stats *s, const sc_stats *g)
 
 void sc_stats_add_frame(sc_stats *s, const sc_stats *g)
 {
-    for (int k = 0; k < SC_STAGE_COUNT; k++) {
-        s->frame.stage_s[k] += g->frame.stage_s[k];
-        s->total.stage_s[k] += g->frame.stage_s[k];
-    }
+    sc_stats_add_work(s, g);
     add_detect(&s->frame.detect, &g->frame.detect);
     sc_stats_add_solver(s, g);
-    add_sched(&s->frame.sched, &g->frame.sched);
     s->total.initial_overlaps += g->total.initial_overlaps;
     if (g->total.arena_bytes > s->total.unit_arena_bytes)
         s->total.unit_arena_bytes = g->total.arena_bytes;
