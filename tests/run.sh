@@ -103,7 +103,7 @@ for build in "$@"; do
 done
 
 echo "== static analysis (cppcheck)"
-cppcheck --quiet --error-exitcode=1 --enable=warning,performance,portability --std=c11 \
+cppcheck -j "$ncpu" --quiet --error-exitcode=1 --enable=warning,performance,portability --std=c11 \
     -Iinclude -Ilib --suppress=missingIncludeSystem --inline-suppr $(ls -d lib daemon tools 2>/dev/null) >"$log" 2>&1
 count cppcheck $?
 echo "== man pages (mandoc -T lint)"
