@@ -459,12 +459,18 @@ verdict "p: group units back from daemons while the pile ran (piped ${piped:-?})
 verdict "p: a pile and daemons, same hash as locally (${h:-none}, ${Hp:-none}), exit $rc" \
     '[ $rc -eq 0 ] && [ -n "$Hp" ] && [ "$h" = "$Hp" ]'
 Tp=$(sed -n 's/^wall \([^ ]*\).*/\1/p' "$dir/p1.out")
-: >"$dir/p2.out"
-master_bg "$dir/p2.out" $P --wait-daemons 2 --trace
-first_frame "$dir/p2.out"
-sleep "$(awk -v t="${Tp:-1}" 'BEGIN { printf "%.3f", t / 3 }')"
-alive=0
-kill -0 $mpid 2>/dev/null && alive=1
+# pile_third OUT: the pile's run with daemons in the background (--trace
+# into OUT), waited for a third of its steady length; alive=1 if the
+# master was still running then
+pile_third() {
+    : >"$1"
+    master_bg "$1" $P --wait-daemons 2 --trace
+    first_frame "$1"
+    sleep "$(awk -v t="${Tp:-1}" 'BEGIN { printf "%.3f", t / 3 }')"
+    alive=0
+    kill -0 $mpid 2>/dev/null && alive=1
+}
+pile_third "$dir/p2.out"
 kill -STOP "$(dpid 2)"
 at=$(grep '^frame ' "$dir/p2.out" | tail -n 1 | cut -d' ' -f2)
 wait $mpid
@@ -478,12 +484,7 @@ verdict "p: a daemon stopped mid-run, same hash (${h:-none}), exit $rc, recomput
     '[ $rc -eq 0 ] && [ -n "$Hp" ] && [ "$h" = "$Hp" ] && [ "${rec:-0}" -gt 0 ]'
 # the same daemon killed a third into a pile's run and started again with
 # its id while the run goes on
-: >"$dir/p3.out"
-master_bg "$dir/p3.out" $P --wait-daemons 2 --trace
-first_frame "$dir/p3.out"
-sleep "$(awk -v t="${Tp:-1}" 'BEGIN { printf "%.3f", t / 3 }')"
-alive=0
-kill -0 $mpid 2>/dev/null && alive=1
+pile_third "$dir/p3.out"
 kill -9 "$(dpid 2)"
 wait "$(dpid 2)" 2>/dev/null
 at=$(grep '^frame ' "$dir/p3.out" | tail -n 1 | cut -d' ' -f2)
