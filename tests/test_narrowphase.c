@@ -268,6 +268,39 @@ static void test_nuts_stacked_flat_touch_on_their_faces(void **state)
     sc_shape_release(nut);
 }
 
+/* sc_np_apart_by(), the motion groups' exact check: more than margin
+ * apart only where a face plane or the balls show it, never closer. */
+static void test_apart_by_proves_gaps_and_never_more(void **state)
+{
+    (void)state;
+    sc_shape *nut = sc_shape_nut(), *bolt = sc_shape_bolt(), *ball = sc_shape_sphere(0.1);
+    sc_shape *floor = sc_shape_plane(0, 0, 1, 0);
+    /* nuts stacked flat 3 mm apart: a face plane parts them by 3 mm */
+    sc_pose a = at(0, 0, 0), b = at(0, 0, 0.016 + 0.003);
+    assert_int_equal(sc_np_apart_by(nut, &a, nut, &b, 0.002), 1);
+    assert_int_equal(sc_np_apart_by(nut, &a, nut, &b, 0.004), 0);
+    b.pos[2] = 0.016 - 0.0002;               /* touching */
+    assert_int_equal(sc_np_apart_by(nut, &a, nut, &b, 0), 0);
+    /* balls: their bounding balls are the shapes, 50 mm apart */
+    sc_pose p = at(0, 0, 0), q = at(0.25, 0, 0);
+    assert_int_equal(sc_np_apart_by(ball, &p, ball, &q, 0.049), 1);
+    assert_int_equal(sc_np_apart_by(ball, &p, ball, &q, 0.051), 0);
+    /* a plane is never shown apart; shapes far apart always are */
+    assert_int_equal(sc_np_apart_by(ball, &q, floor, &p, 0.001), 0);
+    sc_pose far = at(1, 0, 0);
+    assert_int_equal(sc_np_apart_by(bolt, &p, nut, &far, 0.01), 1);
+    /* a bolt through a nut's hole: pieces interleaved, not shown apart */
+    double blo, bhi, nlo, nhi;
+    z_range(bolt, &blo, &bhi);
+    z_range(nut, &nlo, &nhi);
+    sc_pose n = at(0, 0, blo + 0.0125 + 0.02 - nlo);
+    assert_int_equal(sc_np_apart_by(bolt, &p, nut, &n, 0.001), 0);
+    sc_shape_release(nut);
+    sc_shape_release(bolt);
+    sc_shape_release(ball);
+    sc_shape_release(floor);
+}
+
 static void test_meshes_against_box_and_sphere(void **state)
 {
     (void)state;
@@ -786,6 +819,7 @@ int main(void)
         cmocka_unit_test(test_bolt_lying_on_plane_touches_on_its_head),
         cmocka_unit_test(test_bolt_standing_on_head_gets_a_spread_manifold),
         cmocka_unit_test(test_bolt_passes_through_nut_hole_without_contact),
+        cmocka_unit_test(test_apart_by_proves_gaps_and_never_more),
         cmocka_unit_test(test_a_box_astride_a_nut_piece_cut_is_pushed_up),
         cmocka_unit_test(test_mesh_pieces_collide_as_the_whole),
         cmocka_unit_test(test_nut_resting_on_bolt_head_is_pushed_up_the_axis),

@@ -392,6 +392,18 @@ double *sc_soa_pairs(const double *src, int n, int width);
  * their quaternions: a mesh's pieces share their body's). */
 int sc_poly_apart(const sc_shape *a, const double Ra[9], const double pa[3], const sc_shape *b,
                   const double Rb[9], const double pb[3]);
+/* The same, each corner more than margin (m) beyond the plane or the
+ * ball more than margin beyond it: the shapes are then more than margin
+ * apart. */
+int sc_poly_apart_by(const sc_shape *a, const double Ra[9], const double pa[3],
+                     const sc_shape *b, const double Rb[9], const double pb[3], double margin);
+/* 1 if a at pa and b at pb are for sure more than margin (m) apart: every
+ * pair of their convex pieces (a shape without pieces is one) has its
+ * bounding balls, or a face plane of one (sc_poly_apart_by()), that far
+ * apart; 0 when that does not show it (closer, or a shape without faces
+ * whose ball is not that far, or a plane). The motion groups' check. */
+int sc_np_apart_by(const sc_shape *a, const sc_pose *pa, const sc_shape *b, const sc_pose *pb,
+                   double margin);
 /* The contacts of an overlapping convex pair (the collider's deepest
  * point depth deep) by clipping: the face of least penetration of either
  * shape is the reference, the other shape's face most opposed to it is

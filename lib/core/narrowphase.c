@@ -336,6 +336,7 @@ static const sc_shape *piece_at(const sc_shape *s, const sc_pose *p, const doubl
 }
 
 /* A piece placed in the world: its shape, pose and bounding radius. */
+#define PIECES_APART 128      /* sc_np_apart_by(): pieces of both, at most */
 typedef struct placed_piece {
     const sc_shape *s;
     sc_pose q;
@@ -368,6 +369,30 @@ static int pieces_near(const sc_shape *s, const sc_pose *p, const double c[3], d
         pp->s = piece_at(s, p, R, k, &pp->q, &pp->r);
     }
     return m;
+}
+
+int sc_np_apart_by(const sc_shape *a, const sc_pose *pa, const sc_shape *b, const sc_pose *pb,
+                   double margin)
+{
+    if (a->kind == SC_SHAPE_PLANE || b->kind == SC_SHAPE_PLANE)
+        return 0;
+    if (v3_dist(pa->pos, pb->pos) > a->bound_r + b->bound_r + margin)
+        return 1;
+    placed_piece stack[PIECES_APART], *qa = stack, *qb = stack + PIECES_APART / 2;
+    int na = a->npieces ? a->npieces : 1, nb = b->npieces ? b->npieces : 1;
+    if (na > PIECES_APART / 2 || nb > PIECES_APART / 2)
+        return 0;
+    double Ra[9], Rb[9];
+    int ma = pieces_near(a, pa, pb->pos, b->bound_r + margin, qa, Ra);
+    int mb = pieces_near(b, pb, pa->pos, a->bound_r + margin, qb, Rb);
+    for (int i = 0; i < ma; i++)
+        for (int j = 0; j < mb; j++) {
+            if (v3_dist(qa[i].q.pos, qb[j].q.pos) > qa[i].r + qb[j].r + margin)
+                continue;
+            if (!sc_poly_apart_by(qa[i].s, Ra, qa[i].q.pos, qb[j].s, Rb, qb[j].q.pos, margin))
+                return 0;
+        }
+    return 1;
 }
 
 /* A pair where one shape or both have convex pieces: every pair of pieces

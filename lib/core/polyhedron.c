@@ -342,15 +342,16 @@ static double least_face_depth(const sc_shape *s, const double Rs[9], const doub
 }
 
 /* 1 if a face plane of s (pose Rs, ps), inner ones included, has every
- * corner of o beyond it. */
+ * corner of o more than margin beyond it. */
 static int face_separates(const sc_shape *s, const double Rs[9], const double ps[3],
-                          const sc_shape *o, const double Ro[9], const double po[3])
+                          const sc_shape *o, const double Ro[9], const double po[3],
+                          double margin)
 {
     for (int f = 0; f < s->nfaces; f++) {
         const double *pl = &s->face_plane[4 * f];
         double nw[3];
         m3_mulv(nw, Rs, pl);
-        double lim = pl[3] + v3_dot(nw, ps) - v3_dot(nw, po);
+        double lim = pl[3] + v3_dot(nw, ps) - v3_dot(nw, po) + margin;
         if (corners_min(o, Ro, nw, lim) > lim)
             return 1;
     }
@@ -362,7 +363,7 @@ static int face_separates(const sc_shape *s, const double Rs[9], const double ps
  * corners take a pass over o's corners per face. The same answer as the
  * corners when it says apart, and most tests of a pile end here. */
 static int ball_beyond_face(const sc_shape *s, const double Rs[9], const double ps[3],
-                            const sc_shape *o, const double po[3])
+                            const sc_shape *o, const double po[3], double margin)
 {
     double d[3], dl[3];
     v3_sub(d, po, ps);
@@ -372,7 +373,7 @@ static int ball_beyond_face(const sc_shape *s, const double Rs[9], const double 
         /* two faces at a time, the same products and sums as v3_dot() */
         const double *q = s->face_plane_soa;
         __m128d x = _mm_set1_pd(dl[0]), y = _mm_set1_pd(dl[1]), z = _mm_set1_pd(dl[2]);
-        __m128d r = _mm_set1_pd(o->bound_r);
+        __m128d r = _mm_set1_pd(o->bound_r + margin);
         for (int p = 0; 2 * p < s->nfaces; p++, q += 8) {
             __m128d dot = v3_dot2(x, y, z, q);    /* v3_dot(pl, dl) */
             if (_mm_movemask_pd(_mm_cmpgt_pd(_mm_sub_pd(dot, _mm_loadu_pd(q + 6)), r)))
@@ -383,19 +384,27 @@ static int ball_beyond_face(const sc_shape *s, const double Rs[9], const double 
 #endif
     for (int f = 0; f < s->nfaces; f++) {
         const double *pl = &s->face_plane[4 * f];
-        if (v3_dot(pl, dl) - pl[3] > o->bound_r)
+        if (v3_dot(pl, dl) - pl[3] > o->bound_r + margin)
             return 1;
     }
     return 0;
 }
 
-int sc_poly_apart(const sc_shape *a, const double Ra[9], const double pa[3], const sc_shape *b,
-                  const double Rb[9], const double pb[3])
+int sc_poly_apart_by(const sc_shape *a, const double Ra[9], const double pa[3],
+                     const sc_shape *b, const double Rb[9], const double pb[3], double margin)
 {
     if (a->nfaces == 0 || b->nfaces == 0)
         return 0;
-    return ball_beyond_face(a, Ra, pa, b, pb) || ball_beyond_face(b, Rb, pb, a, pa) ||
-           face_separates(a, Ra, pa, b, Rb, pb) || face_separates(b, Rb, pb, a, Ra, pa);
+    return ball_beyond_face(a, Ra, pa, b, pb, margin) ||
+           ball_beyond_face(b, Rb, pb, a, pa, margin) ||
+           face_separates(a, Ra, pa, b, Rb, pb, margin) ||
+           face_separates(b, Rb, pb, a, Ra, pa, margin);
+}
+
+int sc_poly_apart(const sc_shape *a, const double Ra[9], const double pa[3], const sc_shape *b,
+                  const double Rb[9], const double pb[3])
+{
+    return sc_poly_apart_by(a, Ra, pa, b, Rb, pb, 0);
 }
 
 /* Face f of s in world coordinates into p (3 per point); returns the count. */
