@@ -409,6 +409,8 @@ typedef struct sc_stats_sched {
                                  within the frame) */
     int group_retries;        /* times the groups were stepped again because bodies of two
                                  groups came close (docs/DESIGN.md 3.9) */
+    double retry_s;           /* CPU seconds of the groups' tries thrown away then (their
+                                 stage times, in stage_s too) */
     long units;               /* work units run */
     long units_background;    /* of them, motion groups stepped by idle local threads
                                  beside a pile (docs/DESIGN.md 5) */
@@ -479,6 +481,7 @@ typedef struct sc_stats_total {
     long backups;             /* time-of-impact back-ups */
     int backups_max;          /* most back-ups of one frame */
     long group_retries;       /* sc_stats_sched.group_retries summed */
+    double retry_s;           /* sc_stats_sched.retry_s summed */
     double frame_s;           /* sc_stats_sched.frame_s summed */
     double serial_s;          /* sc_stats_sched.serial_s summed */
     long initial_overlaps;    /* body pairs found overlapping deeper than twice the

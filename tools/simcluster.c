@@ -918,7 +918,8 @@ static void report_json(const options *o, const sc_world *w, const sc_stats *stp
            "\"iterations_max\": %d, \"factor_nnz_max\": %ld, \"parts_max\": %d, "
            "\"interface_max\": %d, \"exchanges\": %ld, \"exchange_bytes\": %ld}}, "
            "\"toi\": {\"mode\": \"%s\", \"backups\": %ld, \"max_frame_backups\": %d, "
-           "\"speculative_contacts\": %ld, \"groups\": %ld, \"groups_retried\": %ld}, "
+           "\"speculative_contacts\": %ld, \"groups\": %ld, \"groups_retried\": %ld, "
+           "\"groups_retry_s\": %.4f}, "
            "\"hash\": \"%016llx\", \"interrupted\": %s%s%s, \"error\": %s%s%s, \"sched\": ",
            sc_world_body_count(w), seed, (int)(st.now.nodes - st.now.daemons), st.now.cpu_budget,
            st.now.spin ? "true" : "false", t.frames,
@@ -941,7 +942,7 @@ static void report_json(const options *o, const sc_world *w, const sc_stats *stp
            t.as_iterations_max, t.factor_nnz_max, t.as_parts_max, t.as_interface_max,
            t.as_exchanges, t.as_exchange_bytes,
            o->toi_mode == SC_TOI_LOCAL ? "local" : "world", t.backups, t.max_backups, t.spec,
-           t.groups, t.retried, hash,
+           t.groups, t.retried, st.total.retry_s, hash,
            t.interrupted ? "\"" : "null", t.interrupted ? signal_name(t.interrupted) : "",
            t.interrupted ? "\"" : "", rc ? "\"" : "null",
            rc ? sc_strerror(rc) : "", rc ? "\"" : "");
@@ -1004,10 +1005,16 @@ static void report_text(const options *o, const sc_world *w, const sc_stats *stp
            "contacts %ld\n",
            o->toi_mode == SC_TOI_LOCAL ? "local" : "world",
            t.frames ? (double)t.backups / (double)t.frames : 0.0, t.max_backups, t.spec);
-    if (t.groups)
+    if (t.groups) {
+        double cpu = 0;
+        for (int k = 0; k < SC_STAGE_COUNT; k++)
+            cpu += st.total.stage_s[k];
         printf("  motion groups %.1f a frame, %ld of them stepped again (bodies of two "
-               "groups came close)\n",
-               t.frames ? (double)t.groups / (double)t.frames : 0.0, t.retried);
+               "groups came close; the tries thrown away took %.3f s of CPU, %.1f %% of "
+               "all stages')\n",
+               t.frames ? (double)t.groups / (double)t.frames : 0.0, t.retried,
+               st.total.retry_s, cpu > 0 ? 100 * st.total.retry_s / cpu : 0.0);
+    }
     printf("  fallbacks: staggered friction %ld (%ld of them answers refused for adding "
            "energy), blocks after staggered %ld, projected Gauss-Seidel blocks %ld, "
            "non-finite islands %ld, inelastic re-solves %ld, restitution scaled down %ld\n",

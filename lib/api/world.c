@@ -330,6 +330,7 @@ SC_API int sc_world_step(sc_world *w, double dt)
         st->total.frames++;
         st->total.backups += st->frame.toi.backups;
         st->total.group_retries += st->frame.sched.group_retries;
+        st->total.retry_s += st->frame.sched.retry_s;
         if (st->frame.toi.backups > st->total.backups_max)
             st->total.backups_max = st->frame.toi.backups;
         sc_stats_sched *sd = &st->frame.sched;

@@ -894,8 +894,11 @@ int sc_groups_step(const sc_frame_config *cfg, sc_frame_state *st, double dt,
             /* the groups of the last try that are not groups again: their
              * work took its time (the scheduler's and Table 1's figures) */
             for (int q = 0; rc == SC_OK && kept && q < prev_ng; q++)
-                if (!kept[q])
+                if (!kept[q]) {
                     sc_stats_add_work(stats, &prev[q].stats);
+                    for (int s = 0; s < SC_STAGE_COUNT; s++)
+                        stats->frame.sched.retry_s += prev[q].stats.frame.stage_s[s];
+                }
             free(kept);
             free(size);
         }
