@@ -434,15 +434,19 @@ static int local_rounds(sc_frame *f, sub_state *u)
          * substep, however short, so backing up again only spends the
          * frame's back-ups; once backed up, pairs too far to hold at
          * their touch are held where they ended (waiting for the last
-         * back-up instead gains elastic bodies energy) */
+         * back-up instead gains elastic bodies energy); perfectly
+         * elastic collisions back up past SPEC_BACKUPS, while the frame
+         * has back-ups left (held, one is solved with the others of the
+         * substep at once, and the box of elastic balls loses energy) */
         int nfast = 0, nslow = 0;
         f->backups = u->backups;
         int can_back = u->backups < MAX_BACKUPS_LOCAL && sub_backups < SPEC_BACKUPS;
+        int el_back = u->backups < MAX_BACKUPS_LOCAL;
         if (rounds < SPEC_ROUNDS || can_back)
             nslow = sc_spec_sort_out(f, u->saved, u->c0, u->n0, u->h, u->spec, fast, &nfast);
         if (nslow >= 0 && nfast > 0 && rounds < SPEC_ROUNDS) {
-            int nt = sc_spec_touch(f, u->saved, u->c0, u->n0, u->h, u->spec, fast, &nfast,
-                                   sub_backups > 0);
+            int hold = sub_backups > 0 ? SC_HOLD_FAR | (el_back ? 0 : SC_HOLD_ELASTIC) : 0;
+            int nt = sc_spec_touch(f, u->saved, u->c0, u->n0, u->h, u->spec, fast, &nfast, hold);
             nslow = nt < 0 ? nt : nslow + nt;
         }
         if (nslow < 0) {
@@ -450,7 +454,7 @@ static int local_rounds(sc_frame *f, sub_state *u)
             return nslow;
         }
         double frac = 1;
-        if (nfast > 0 && can_back)
+        if (nfast > 0 && (can_back || (el_back && sc_spec_fast_elastic(f, u->saved, fast))))
             rc = sc_frame_earliest_impact(f, u->saved, u->c0, u->n0, fast, &frac);
         sc_arena_free(a, fast);
         if (rc != SC_OK)

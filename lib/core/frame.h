@@ -376,8 +376,13 @@ int sc_spec_sort_out(sc_frame *f, const sc_body *saved, const sc_contact *c0, in
  * new there, or no time, held by its contacts where it ended, as a slow
  * one): a pair that added one is marked 2 and taken off *nfast. A pair
  * whose gap at the start passes SPEC_MARGIN contact tolerances is left
- * fast, unless hold (then it is held where it ended). Returns the number
- * of pairs held. */
+ * fast, unless hold has SC_HOLD_FAR (then it is held where it ended); a
+ * perfectly elastic collision is left fast (to back up to its touch)
+ * unless hold has SC_HOLD_ELASTIC. Returns the number of pairs held. */
+#define SC_HOLD_FAR 1
+#define SC_HOLD_ELASTIC 2
+/* 1 if a pair left fast (marked 1) is perfectly elastic: restitution 1. */
+int sc_spec_fast_elastic(const sc_frame *f, const sc_body *saved, const unsigned char *fast);
 int sc_spec_touch(sc_frame *f, const sc_body *saved, const sc_contact *c0, int n0, double h,
                   sc_spec_list *spec, unsigned char *fast, int *nfast, int hold);
 /* st->contacts = c0 and spec (sorted here) merged by pair, a pair's start

@@ -290,6 +290,14 @@ static int elastic_collision(const sc_body *saved, const sc_contact *c)
     return perfectly_elastic(saved, c) && normal_speed(NULL, saved, c, 0) < -SC_BOUNCE_SPEED;
 }
 
+int sc_spec_fast_elastic(const sc_frame *f, const sc_body *saved, const unsigned char *fast)
+{
+    for (int k = 0; k < f->st->ncontacts; k++)
+        if (fast[k] == 1 && perfectly_elastic(saved, &f->st->contacts[k]))
+            return 1;
+    return 0;
+}
+
 /* Whether a pair with contacts s[0 .. n) at the substep's start backs up
  * instead of being held: a perfectly elastic pair whose deepest contact is
  * a gap that it is only pushed into, or a perfectly elastic collision. */
@@ -303,8 +311,9 @@ static int backs_up(const sc_frame *f, const sc_body *saved, const sc_contact *s
 /* The contacts of the detection's pair run st->contacts[k0 .. k1) moved
  * back to the substep's start into spec (of a pair touching at the start,
  * only those deeper than limit: its new points), unless a start or
- * speculative contact holds the same point. 1 if one was added, 0 if not,
- * or SC_ENOMEM. */
+ * speculative contact holds the same point, or the pair backs up
+ * (backs_up()) and hold (SC_HOLD_*) lacks SC_HOLD_ELASTIC. 1 if one was
+ * added, 0 if not, or SC_ENOMEM. */
 static int end_contacts(sc_frame *f, const sc_body *saved, const sc_contact *c0, int n0, int k0,
                         int k1, double limit, int touching, double h, int hold,
                         sc_spec_list *spec)
@@ -320,7 +329,7 @@ static int end_contacts(sc_frame *f, const sc_body *saved, const sc_contact *c0,
     for (int k = k0; k < k1 && n < SC_MAX_PAIR_CONTACTS; k++)
         if (!touching || st->contacts[k].depth > limit)
             s[n++] = to_start(&st->contacts[k], &f->poses[a], &f->poses[b], &a0, &b0);
-    if (!hold && backs_up(f, saved, s, n, h))
+    if (!(hold & SC_HOLD_ELASTIC) && backs_up(f, saved, s, n, h))
         return 0;
     int added = 0;
     for (int k = 0; k < n; k++) {
@@ -471,11 +480,12 @@ int sc_spec_touch(sc_frame *f, const sc_body *saved, const sc_contact *c0, int n
                             &q->b1);
             gap = min_d(gap, -s[k].depth);
         }
-        /* too far to bounce early, pushed in, or perfectly elastic: it
-         * backs up, unless the substep already backed up (then it is
-         * held where it ended) */
+        /* too far to bounce early: it backs up, unless the substep
+         * already backed up (then it is held where it ended); pushed in,
+         * or perfectly elastic: it backs up while the substep may */
         int far = gap > margin;
-        if (!hold && (far || backs_up(f, saved, s, ncontact[i], h)))
+        if ((!(hold & SC_HOLD_FAR) && far) ||
+            (!(hold & SC_HOLD_ELASTIC) && backs_up(f, saved, s, ncontact[i], h)))
             continue;
         int added = 0;
         for (int k = 0; !far && k < ncontact[i] && rc == SC_OK; k++) {
