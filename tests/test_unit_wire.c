@@ -1715,9 +1715,13 @@ static void test_bad_group_fields_are_format_errors(void **state)
 
 /* A group result at its layout (header 8, members 4, rc 4, messages 8,
  * info 156), then per group: rc 4, its figures (a mask u64 and the fields
- * it names: 26 of 8 bytes, then 30 of 4), per member 122 bytes (flags,
- * 14 doubles, dev, points u8) and 32 a point, then contacts 4 and 96
- * each. */
+ * it names: 26 of 8 bytes, then 30 of 4), per member 130 bytes (flags,
+ * 14 doubles, dev, adev, points u8) and 64 a point (t, x, y, z and a
+ * quaternion), then contacts 4 and 96 each. */
+#define GM_ADEV 121
+#define GM_POINTS 129
+#define GM_LEN 130
+#define GM_POINT 64
 #define GR_RC 12
 #define GR_GROUPS 180
 
@@ -1737,7 +1741,7 @@ static int popcount64(uint64_t v)
 
 static size_t gr_member_len(const unsigned char *res, size_t at)
 {
-    return 122 + 32 * (size_t)res[at + 121];
+    return GM_LEN + GM_POINT * (size_t)res[at + GM_POINTS];
 }
 
 static gr_at gr_group(const unsigned char *res, const sc_job *job, const sc_unit *u, int j)
@@ -1789,7 +1793,7 @@ static void group_hostile_results(group_exec *gx, sc_job *job)
                 cj = j;
             size_t m = at.members;
             for (int q = 0; q < at.nm && tj < 0; q++, m += gr_member_len(res, m))
-                if (res[m + 121] >= 2) {
+                if (res[m + GM_POINTS] >= 2) {
                     tj = j;
                     tq = q;
                 }
@@ -1851,10 +1855,14 @@ static void group_hostile_results(group_exec *gx, sc_job *job)
         { c.contacts + 8, 4, (uint64_t)m },               /* ... its body_b */
         { t.members + 113, 8, bits(-1e-3) },              /* track: dev < 0 */
         { t.members + 113, 8, bits(NAN) },
-        { t.members + 121, 1, SC_TRACK_MAX + 1 },         /* points */
-        { tm + 122 + 32, 8, bits(-1e-3) },                /* its second point's t < 0 */
-        { tm + 122 + 32, 8, bits(1.0) },                  /* ... past the frame */
-        { tm + 122, 8, bits(0.5) },                       /* ... before its first */
+        { t.members + GM_ADEV, 8, bits(-1e-3) },          /* adev < 0 */
+        { t.members + GM_ADEV, 8, bits(INFINITY) },
+        { t.members + GM_POINTS, 1, SC_TRACK_MAX + 1 },   /* points */
+        { tm + GM_LEN + GM_POINT, 8, bits(-1e-3) },       /* its second point's t < 0 */
+        { tm + GM_LEN + GM_POINT, 8, bits(1.0) },         /* ... past the frame */
+        { tm + GM_LEN, 8, bits(0.5) },                    /* ... before its first */
+        { tm + GM_LEN + 32, 8, bits(2.0) },               /* its first quaternion: not unit */
+        { tm + GM_LEN + 32, 8, bits(NAN) },
     };
     for (size_t w = 0; w < sizeof wrong / sizeof wrong[0]; w++) {
         unsigned char keep[8];

@@ -588,6 +588,97 @@ static void test_a_body_knocked_into_another_group_is_stepped_with_it(void **sta
     assert_int_equal(s2.frame.sched.group_retries, s1.frame.sched.group_retries);
 }
 
+/* A ball flies at B, which rests 5 mm ahead of it; C rests beyond, its
+ * bounding sphere 6 mm from B's. With rods (thin along the flight, long
+ * across it), B's hit carries its bounding sphere into C's within the
+ * frame while the rods stay 15 cm apart: the check's spheres meet, the
+ * shapes do not, and the groups stand (no second try). With cubes turned
+ * corner to corner along the flight, B's corner reaches C's within the
+ * frame: the shapes meet and the frame is stepped again with the three. */
+enum { KNOCK_RODS, KNOCK_CORNERS };
+
+static void knock_shapes(int kind, int workers, sc_stats *st, double *vc, double *gap,
+                         uint64_t *hash)
+{
+    sc_world_config c = sc_world_config_default();
+    c.gravity[2] = 0;
+    c.workers = workers;
+    sc_world *w = sc_world_create(&c);
+    sc_shape *ball = sc_shape_sphere(kind == KNOCK_RODS ? 0.05 : 0.1);
+    sc_shape *s = kind == KNOCK_RODS ? sc_shape_box(0.01, 0.1, 0.01) : sc_shape_box(0.1, 0.1, 0.1);
+    double r = sc_shape_bounding_radius(s);
+    sc_body_desc d = sc_body_desc_default();
+    d.shape = ball;
+    d.vel[0] = 3;
+    assert_int_equal(sc_body_add(w, &d), 0);
+    d.shape = s;
+    d.vel[0] = 0;
+    if (kind == KNOCK_CORNERS) {
+        /* (1, 1, 1) turned onto +x: about (0, 1, -1) by acos(1 / sqrt 3) */
+        double h = 0.5 * acos(1 / sqrt(3.0));
+        d.quat[0] = cos(h);
+        d.quat[1] = 0;
+        d.quat[2] = sin(h) / sqrt(2.0);
+        d.quat[3] = -sin(h) / sqrt(2.0);
+    }
+    /* B 5 mm from the ball, C's bounding sphere 6 mm from B's */
+    d.pos[0] = kind == KNOCK_RODS ? 0.05 + 0.01 + 0.005 : 0.1 + r + 0.005;
+    assert_int_equal(sc_body_add(w, &d), 1);
+    double xb = d.pos[0];
+    d.pos[0] = xb + 2 * r + 2 * c.contact_tol_m + 0.006;
+    assert_int_equal(sc_body_add(w, &d), 2);
+    assert_int_equal(sc_world_step(w, 0.01), SC_OK);
+    sc_world_stats(w, st);
+    double v[3], om[3], pb[3], pc[3], q[4];
+    sc_body_get_velocity(w, 2, v, om);
+    *vc = v[0];
+    sc_body_get_pose(w, 1, pb, q);
+    sc_body_get_pose(w, 2, pc, q);
+    /* how far B's bounding sphere ended from C's, less touching */
+    double dx = pb[0] - pc[0], dy = pb[1] - pc[1], dz = pb[2] - pc[2];
+    *gap = sqrt(dx * dx + dy * dy + dz * dz) - 2 * r - 2 * c.contact_tol_m;
+    *hash = sc_world_hash(w);
+    sc_shape_release(ball);
+    sc_shape_release(s);
+    sc_world_destroy(w);
+}
+
+static void test_spheres_that_meet_with_shapes_apart_keep_their_groups(void **state)
+{
+    (void)state;
+    sc_stats s1, s2;
+    double v1, v2, g1, g2;
+    uint64_t h1, h2;
+    knock_shapes(KNOCK_RODS, 1, &s1, &v1, &g1, &h1);
+    knock_shapes(KNOCK_RODS, 2, &s2, &v2, &g2, &h2);
+    printf("  rods: bounding spheres %.1f mm past touching at the end, C at %.3g m/s\n",
+           -1e3 * g1, v1);
+    assert_true(g1 < -0.01);                /* the spheres met: the old check's join */
+    assert_int_equal(s1.frame.sched.group_retries, 0);
+    assert_int_equal(s1.frame.sched.groups, 2);
+    assert_true(v1 == 0);
+    assert_true(h1 == h2);
+    assert_int_equal(s2.frame.sched.group_retries, 0);
+}
+
+static void test_shapes_that_meet_across_groups_are_stepped_together(void **state)
+{
+    (void)state;
+    sc_stats s1, s2;
+    double v1, v2, g1, g2;
+    uint64_t h1, h2;
+    knock_shapes(KNOCK_CORNERS, 1, &s1, &v1, &g1, &h1);
+    knock_shapes(KNOCK_CORNERS, 2, &s2, &v2, &g2, &h2);
+    printf("  corners: C at %.3g m/s, %d groups stepped again\n", v1,
+           s1.frame.sched.group_retries);
+    assert_true(s1.frame.sched.group_retries >= 1);
+    assert_int_equal(s1.frame.sched.groups, 1);
+    assert_true(v1 > 0.1);                  /* C was hit in the frame */
+    assert_true(s1.frame.detect.max_penetration <= 1e-3 + 1e-9);
+    assert_true(h1 == h2);
+    assert_int_equal(s2.frame.sched.group_retries, s1.frame.sched.group_retries);
+}
+
 /* A bin of 100 parts over 3 s: it settles and its islands fall asleep
  * one by one. Two sleeping neighbours, one in a group that an awake body
  * keeps running and one in none, did not move; the groups' check must not
@@ -795,6 +886,8 @@ int main(void)
         cmocka_unit_test(test_a_landing_pile_may_back_up_more_than_15_times_a_frame),
         cmocka_unit_test(test_a_pressed_pair_does_not_back_up_a_pile_to_the_cap),
         cmocka_unit_test(test_a_body_knocked_into_another_group_is_stepped_with_it),
+        cmocka_unit_test(test_spheres_that_meet_with_shapes_apart_keep_their_groups),
+        cmocka_unit_test(test_shapes_that_meet_across_groups_are_stepped_together),
         cmocka_unit_test(test_sleeping_neighbours_do_not_step_a_frame_again),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);

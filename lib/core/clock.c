@@ -46,6 +46,20 @@ void sc_drift_at(const double d[9], double t, double p[3])
     v3_madd(p, p, d + 6, 0.5 * t * t);
 }
 
+void sc_spin_at(const double q0[4], const double w0[3], double t, double q[4])
+{
+    double wl = v3_len(w0);
+    if (!(wl * t > 0)) {
+        memcpy(q, q0, 4 * sizeof *q);
+        return;
+    }
+    double axis[3], dq[4];
+    v3_scale(axis, w0, 1 / wl);
+    q_from_axis_angle(dq, axis, wl * t);
+    q_mul(q, dq, q0);
+    q_normalize(q);
+}
+
 double sc_cpu_now(void)
 {
     struct timespec ts;

@@ -177,10 +177,12 @@ static int kept_impulses(const sc_frame_state *st, const sc_islands *is,
 void sc_track_copy(sc_track *to, int i, const sc_track *from, int j)
 {
     to->dev[i] = from->dev[j];
+    to->adev[i] = from->adev[j];
     to->count[i] = from->count[j];
     if (from->count[j] > 0)
-        memcpy(&to->pt[(size_t)i * SC_TRACK_MAX * 4], &from->pt[(size_t)j * SC_TRACK_MAX * 4],
-               (size_t)from->count[j] * 4 * sizeof *to->pt);
+        memcpy(&to->pt[(size_t)i * SC_TRACK_MAX * SC_TRACK_STRIDE],
+               &from->pt[(size_t)j * SC_TRACK_MAX * SC_TRACK_STRIDE],
+               (size_t)from->count[j] * SC_TRACK_STRIDE * sizeof *to->pt);
 }
 
 int sc_track_reserve(sc_track *t, int *cap, int n)
@@ -191,9 +193,10 @@ int sc_track_reserve(sc_track *t, int *cap, int n)
     *cap = 0;
     size_t N = (size_t)n;
     t->dev = sc_calloc_array(N, sizeof *t->dev);
+    t->adev = sc_calloc_array(N, sizeof *t->adev);
     t->count = sc_calloc_array(N, sizeof *t->count);
-    t->pt = sc_alloc_array(N, SC_TRACK_MAX * 4 * sizeof *t->pt);
-    if (!t->dev || !t->count || !t->pt) {
+    t->pt = sc_alloc_array(N, SC_TRACK_MAX * SC_TRACK_STRIDE * sizeof *t->pt);
+    if (!t->dev || !t->adev || !t->count || !t->pt) {
         sc_track_free(t);
         return SC_ENOMEM;
     }
@@ -204,12 +207,13 @@ int sc_track_reserve(sc_track *t, int *cap, int n)
 void sc_track_free(sc_track *t)
 {
     free(t->dev);
+    free(t->adev);
     free(t->count);
     free(t->pt);
     memset(t, 0, sizeof *t);
 }
 
-/* Body i's track (st->track) gets its shape origin at time t of the frame
+/* Body i's track (st->track) gets its shape's pose at time t of the frame
  * as a point; past SC_TRACK_MAX points it keeps none (count beyond). */
 static void track_point(const sc_frame *f, int i, double t)
 {
@@ -218,9 +222,10 @@ static void track_point(const sc_frame *f, int i, double t)
     if (k < SC_TRACK_MAX) {
         sc_pose p;
         sc_body_pose(&f->st->bodies[i], &p);
-        double *q = &tr->pt[((size_t)i * SC_TRACK_MAX + (size_t)k) * 4];
+        double *q = &tr->pt[((size_t)i * SC_TRACK_MAX + (size_t)k) * SC_TRACK_STRIDE];
         q[0] = t;
         v3_copy(q + 1, p.pos);
+        memcpy(q + 4, p.quat, 4 * sizeof *q);
     }
     tr->count[i] = k + (k <= SC_TRACK_MAX);
 }
@@ -230,18 +235,21 @@ static void track_point(const sc_frame *f, int i, double t)
  * (sc_body_drift()), plus how far the drift's parabola leaves its chord
  * over h (|a| h^2 / 8): between substep ends the frame moves a shape origin
  * along the chord (the time of impact's poses, toi.c), so the whole path
- * stays within that distance of the drift. Every substep counts, those a
- * back-up undoes too (a bound only). */
+ * stays within that distance of the drift. Its angle (adev) grown to the
+ * turn between its orientation and its spin's (sc_spin_at()) there. Every
+ * substep counts, those a back-up undoes too (a bound only). */
 static void track_dev(const sc_frame *f, int i, double t, double h)
 {
     const sc_body *b = &f->st->bodies[i];
-    const double *d = &f->drift[9 * i];
+    const double *d = &f->drift[9 * i], *sp = &f->spin[7 * i];
     sc_pose p;
     sc_body_pose(b, &p);
-    double at[3];
+    double at[3], q[4];
     sc_drift_at(d, t, at);
     double dev = v3_dist(p.pos, at) + v3_len(d + 6) * h * h / 8;
     f->st->track->dev[i] = max_d(f->st->track->dev[i], dev);
+    sc_spin_at(sp, sp + 4, t, q);
+    f->st->track->adev[i] = max_d(f->st->track->adev[i], q_angle_between(q, b->q));
 }
 
 /* Steps (4)-(7) once over h: islands, contact impulses, positions; with
@@ -608,12 +616,20 @@ int sc_frame_step(const sc_frame_config *cfg, sc_frame_state *st, double dt,
     if (tr) {
         /* empty first: a frame that fails leaves no stale points */
         memset(tr->dev, 0, (size_t)n * sizeof *tr->dev);
+        memset(tr->adev, 0, (size_t)n * sizeof *tr->adev);
         memset(tr->count, 0, (size_t)n * sizeof *tr->count);
         if (!(f.drift = sc_arena_alloc(a, (size_t)n * 9 * sizeof *f.drift)))
             return SC_ENOMEM;
+        if (!(f.spin = sc_arena_alloc(a, (size_t)n * 7 * sizeof *f.spin))) {
+            sc_arena_free(a, f.drift);
+            return SC_ENOMEM;
+        }
         for (int i = 0; i < n; i++) {
             if (st->bodies[i].inv_mass > 0) {
                 sc_body_drift(cfg, &st->bodies[i], &f.drift[9 * i]);
+                double *sp = f.spin + 7 * (size_t)i;
+                memcpy(sp, st->bodies[i].q, 4 * sizeof *sp);
+                memcpy(sp + 4, st->bodies[i].w, 3 * sizeof *sp);
                 track_point(&f, i, 0);
             }
         }
@@ -635,6 +651,7 @@ int sc_frame_step(const sc_frame_config *cfg, sc_frame_state *st, double dt,
     sc_arena_free(a, f.centre);
     sc_arena_free(a, touched);
     sc_arena_free(a, saved);
+    sc_arena_free(a, f.spin);
     sc_arena_free(a, f.drift);
     if (a->high > stats->total.arena_bytes)
         stats->total.arena_bytes = a->high;

@@ -161,21 +161,25 @@ typedef struct sc_frame_state {
 
 /* Where the bodies of a frame went, for the motion groups' check
  * (group.c): how far each body's shape origin went from its drift
- * (sc_body_drift()) at any time of the frame, and, for a body that went
- * farther than SC_TRACK_DEV, its origin at the frame's start and at the
- * end of every substep (t, x, y, z; between two the frame moves it along
- * the chord: the time of impact's poses, toi.c). Arrays by body, written by
- * sc_frame_step(). */
+ * (sc_body_drift()) at any time of the frame, how far its orientation
+ * turned from its spin's (sc_spin_at(): turning at its angular velocity
+ * of the frame's start), and, for a body that went farther than
+ * SC_TRACK_DEV, its pose at the frame's start and at the end of every
+ * substep (t, x, y, z, then the quaternion; between two the frame moves it
+ * along the chord and turns it by the slerp: the time of impact's poses,
+ * toi.c). Arrays by body, written by sc_frame_step(). */
 #define SC_TRACK_MAX 34       /* points: the start and 1 + 31 back-ups'
                                  substeps (frame.c MAX_BACKUPS_LOCAL), one
                                  spare; a body with more keeps none */
 #define SC_TRACK_DEV 2e-4     /* m: a body that stayed this close to its
                                  drift keeps no points (the check takes
                                  its drift and distance) */
+#define SC_TRACK_STRIDE 8     /* doubles a point: t, x, y, z, qw, qx, qy, qz */
 typedef struct sc_track {
     double *dev;
+    double *adev;                   /* rad from the spin's orientation */
     int *count;                     /* points kept (0: none) */
-    double *pt;                     /* SC_TRACK_MAX * 4 a body */
+    double *pt;                     /* SC_TRACK_MAX * SC_TRACK_STRIDE a body */
 } sc_track;
 
 /* Body j of track from written as body i of to. */
@@ -304,6 +308,8 @@ typedef struct sc_frame {
     double dt;                /* the frame's length, s */
     double t;                 /* the substep's start in the frame, s */
     double *drift;            /* with st->track: 9 a body, sc_body_drift() */
+    double *spin;             /* with st->track: 7 a body, q and w at the
+                                 frame's start (sc_spin_at()) */
     int backups;              /* back-ups of this frame so far (local mode) */
 } sc_frame;
 
@@ -321,6 +327,11 @@ double sc_body_reach(const sc_frame_config *cfg, const sc_body *b, double dt);
 void sc_body_drift(const sc_frame_config *cfg, const sc_body *b, double d[9]);
 /* Where that is at time t of the frame. */
 void sc_drift_at(const double d[9], double t, double p[3]);
+/* The orientation at time t of a body that starts the frame at q0 and
+ * turns at w0 (world, rad/s) about a fixed axis: the motion groups' check
+ * takes it, widened by the track's adev, for a body that keeps no points
+ * (clock.c). */
+void sc_spin_at(const double q0[4], const double w0[3], double t, double q[4]);
 /* The contact model and solver settings a frame of cfg uses (frame.c;
  * docs/DESIGN.md section 11). */
 sc_contact_params sc_frame_contact_params(const sc_frame_config *cfg);

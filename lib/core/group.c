@@ -9,6 +9,7 @@
 #include <limits.h>
 #include <math.h>
 #include <stdlib.h>
+#include <string.h>
 
 #include "frame.h"
 #include "vecmath.h"
@@ -598,15 +599,16 @@ static void origin_at(const sc_track *tr, int i, const double *d, double t, doub
         sc_drift_at(d, t, p);
         return;
     }
-    const double *q = &tr->pt[(size_t)i * SC_TRACK_MAX * 4];
+    enum { S = SC_TRACK_STRIDE };
+    const double *q = &tr->pt[(size_t)i * SC_TRACK_MAX * S];
     int k = 0;
-    while (k + 2 < n && q[4 * (k + 1)] <= t)
+    while (k + 2 < n && q[S * (k + 1)] <= t)
         k++;
     if (n == 1) {
         v3_copy(p, q + 1);
         return;
     }
-    const double *x = &q[4 * k], *y = &q[4 * (k + 1)];
+    const double *x = &q[S * k], *y = &q[S * (k + 1)];
     double s = y[0] > x[0] ? (t - x[0]) / (y[0] - x[0]) : 1;
     s = min_d(1, max_d(0, s));
     for (int c = 0; c < 3; c++)
@@ -628,9 +630,9 @@ static double track_gap(const sc_track *tr, const double *drift, int a, int b, i
     ts[nt++] = dt;
     for (int s = 0; s < 2; s++) {
         int n = ran[s] ? tr->count[ab[s]] : 0;
-        const double *q = &tr->pt[(size_t)ab[s] * SC_TRACK_MAX * 4];
+        const double *q = &tr->pt[(size_t)ab[s] * SC_TRACK_MAX * SC_TRACK_STRIDE];
         for (int k = 0; k < n; k++)
-            ts[nt++] = min_d(dt, max_d(0, q[4 * k]));
+            ts[nt++] = min_d(dt, max_d(0, q[SC_TRACK_STRIDE * k]));
     }
     /* sort the times (a few dozen) */
     for (int i = 1; i < nt; i++)
@@ -667,6 +669,151 @@ static double track_gap(const sc_track *tr, const double *drift, int a, int b, i
         v3_copy(r0, r1);
     }
     return best - pad;
+}
+
+/* The exact check (check_groups()): a pair whose bounding spheres came
+ * within touching distance is still apart if its shapes never came within
+ * it. A body's poses over the frame: at its start (a sleeping body in no
+ * group), along its track's points (slerped between two, as the frame
+ * moves it: the time of impact's poses), or, for a body that kept to its
+ * drift, on the drift turning at its spin (sc_spin_at()), widened by its
+ * track's dev and adev. */
+#define APART_STEP 5e-4       /* m: the most any point moves between two of
+                                 the check's samples, about */
+#define APART_SAMPLES 128     /* samples a pair, at most (the step grows) */
+
+enum { PATH_STILL, PATH_TRACK, PATH_SPIN };
+
+typedef struct path {
+    int kind;
+    const sc_shape *shape;
+    const double *pt;         /* PATH_TRACK: its points */
+    int n;
+    const double *d;          /* PATH_SPIN: drift, start orientation, spin */
+    const double *q0, *w0;
+    sc_pose still;            /* PATH_STILL */
+    double pad;               /* m: how far the body may be from these poses */
+} path;
+
+/* Body i's path over the frame of dt, or 0 where the check has none (a
+ * body with too many points for its track). Between its substep ends a
+ * body that kept to its drift turns by a slerp, the spin at a steady rate:
+ * two turns at rates w and w' part at first order as they did at the ends
+ * (the larger, adev), and at second order by up to |w| h times that over a
+ * substep of h <= dt, which the pad takes twice. */
+static int path_of(const sc_body *start, const sc_track *tr, const double *drift, int i,
+                   int ran, double dt, path *p)
+{
+    memset(p, 0, sizeof *p);
+    p->shape = start[i].shape;
+    if (!ran) {
+        p->kind = PATH_STILL;
+        sc_body_pose(&start[i], &p->still);
+        return 1;
+    }
+    if (tr->count[i] > 0) {
+        p->kind = PATH_TRACK;
+        p->pt = &tr->pt[(size_t)i * SC_TRACK_MAX * SC_TRACK_STRIDE];
+        p->n = tr->count[i];
+        return 1;
+    }
+    if (tr->dev[i] > SC_TRACK_DEV)
+        return 0;
+    p->kind = PATH_SPIN;
+    p->d = &drift[9 * i];
+    p->q0 = start[i].q;
+    p->w0 = start[i].w;
+    p->pad = tr->dev[i] + (1 + 2 * v3_len(p->w0) * dt) * tr->adev[i] * p->shape->bound_r;
+    return 1;
+}
+
+static void pose_on(const path *p, double t, sc_pose *out)
+{
+    enum { S = SC_TRACK_STRIDE };
+    if (p->kind == PATH_STILL) {
+        *out = p->still;
+    } else if (p->kind == PATH_SPIN) {
+        sc_drift_at(p->d, t, out->pos);
+        sc_spin_at(p->q0, p->w0, t, out->quat);
+    } else {
+        int k = 0;
+        while (k + 2 < p->n && p->pt[S * (k + 1)] <= t)
+            k++;
+        const double *x = &p->pt[S * k], *y = &p->pt[S * (k + 1 < p->n ? k + 1 : k)];
+        sc_pose a, b;
+        memcpy(a.pos, x + 1, 3 * sizeof *x);
+        memcpy(a.quat, x + 4, 4 * sizeof *x);
+        memcpy(b.pos, y + 1, 3 * sizeof *y);
+        memcpy(b.quat, y + 4, 4 * sizeof *y);
+        double s = y[0] > x[0] ? (t - x[0]) / (y[0] - x[0]) : 1;
+        sc_pose_lerp(out, &a, &b, min_d(1, max_d(0, s)));
+    }
+}
+
+/* 1 if bodies a and b, whose bounding spheres came within touching
+ * distance in the frame of dt, were for sure never within touching distance
+ * (twice the contact tolerance) of each other: sampled at every point of
+ * either track and between, so that no point moves more than about
+ * APART_STEP from one sample to the next, each sample's shapes more than
+ * the touching distance apart, plus that half-step, the paths' widening
+ * and a drift's parabola off its chord (sc_np_apart_by()). 0 when that
+ * does not show it: they are then joined. */
+static int exact_apart(const sc_frame_config *cfg, const sc_body *start, const sc_track *tr,
+                       const double *drift, int a, int b, int ran_a, int ran_b, double dt)
+{
+    path pa, pb;
+    if (!path_of(start, tr, drift, a, ran_a, dt, &pa) ||
+        !path_of(start, tr, drift, b, ran_b, dt, &pb))
+        return 0;
+    const path *ps[2] = { &pa, &pb };
+    double ts[2 * SC_TRACK_MAX + 2];
+    int nt = 0;
+    ts[nt++] = 0;
+    ts[nt++] = dt;
+    for (int s = 0; s < 2; s++)
+        for (int k = 0; ps[s]->kind == PATH_TRACK && k < ps[s]->n; k++)
+            ts[nt++] = min_d(dt, max_d(0, ps[s]->pt[SC_TRACK_STRIDE * k]));
+    for (int i = 1; i < nt; i++)
+        for (int j = i; j > 0 && ts[j - 1] > ts[j]; j--) {
+            double x = ts[j];
+            ts[j] = ts[j - 1];
+            ts[j - 1] = x;
+        }
+    /* each interval's sweep: how far any point of either shape moves */
+    double sweep[2 * SC_TRACK_MAX + 2], total = 0;
+    for (int i = 1; i < nt; i++) {
+        sweep[i] = 0;
+        for (int s = 0; s < 2; s++) {
+            sc_pose p0, p1;
+            pose_on(ps[s], ts[i - 1], &p0);
+            pose_on(ps[s], ts[i], &p1);
+            sweep[i] += sc_toi_sweep(ps[s]->shape, &p0, &p1);
+        }
+        total += sweep[i];
+    }
+    double step = max_d(APART_STEP, total / APART_SAMPLES);
+    double touch = 2 * cfg->contact_tol_m + pa.pad + pb.pad;
+    for (int i = 1; i < nt; i++) {
+        double h = ts[i] - ts[i - 1];
+        if (!(h > 0) && i > 1)
+            continue;
+        int k = (int)ceil(sweep[i] / step);
+        k = k < 1 ? 1 : k;
+        double chord = 0;
+        for (int s = 0; s < 2; s++)
+            if (ps[s]->kind == PATH_SPIN)
+                chord += v3_len(ps[s]->d + 6) * h * h / 8;
+        double margin = touch + chord + sweep[i] / (2 * k);
+        for (int j = i > 1; j <= k; j++) {
+            double t = ts[i - 1] + h * j / k;
+            sc_pose p0, p1;
+            pose_on(&pa, t, &p0);
+            pose_on(&pb, t, &p1);
+            if (!sc_np_apart_by(pa.shape, &p0, pb.shape, &p1, margin))
+                return 0;
+        }
+    }
+    return 1;
 }
 
 /* Pairs of bodies of different groups (or of a group and a sleeping body
@@ -765,6 +912,8 @@ static int check_groups(const sc_frame_config *cfg, const sc_body *start, const 
         if (((ran_a && tr->count[a] > 0) || (ran_b && tr->count[b] > 0)) &&
             track_gap(tr, drift, a, b, ran_a, ran_b, dt) >= touch)
             continue;
+        if (exact_apart(cfg, start, tr, drift, a, b, ran_a, ran_b, dt))
+            continue;
         sc_uf_unite(forced, a, b);
         met++;
     }
@@ -788,6 +937,7 @@ static void tries_free(sc_arena *a, tries *t)
     sc_arena_free(a, t->forced);
     sc_arena_free(a, t->track.pt);
     sc_arena_free(a, t->track.count);
+    sc_arena_free(a, t->track.adev);
     sc_arena_free(a, t->track.dev);
     sc_arena_free(a, t->start);
 }
@@ -798,8 +948,10 @@ static int tries_alloc(sc_arena *a, tries *t, int n)
     memset(t, 0, sizeof *t);
     t->start = sc_arena_alloc(a, N * sizeof *t->start);
     t->track.dev = t->start ? sc_arena_alloc(a, N * sizeof *t->track.dev) : NULL;
-    t->track.count = t->track.dev ? sc_arena_alloc(a, N * sizeof *t->track.count) : NULL;
-    t->track.pt = t->track.count ? sc_arena_alloc(a, N * SC_TRACK_MAX * 4 * sizeof *t->track.pt)
+    t->track.adev = t->track.dev ? sc_arena_alloc(a, N * sizeof *t->track.adev) : NULL;
+    t->track.count = t->track.adev ? sc_arena_alloc(a, N * sizeof *t->track.count) : NULL;
+    t->track.pt = t->track.count ? sc_arena_alloc(a, N * SC_TRACK_MAX * SC_TRACK_STRIDE *
+                                                         sizeof *t->track.pt)
                                  : NULL;
     t->forced = t->track.pt ? sc_arena_alloc(a, N * sizeof *t->forced) : NULL;
     t->prev_gid = t->forced ? sc_arena_alloc(a, N * sizeof *t->prev_gid) : NULL;

@@ -73,8 +73,9 @@
  *             the fields of stat_fields() that are not 0, then those: f64s,
  *             i64s, u64s, i32s), per member: flags u8 (state, collided <<
  *             2), x, q, v, w, rest_s f64, its track (group.c's check:
- *             sc_track): dev f64 (>= 0), points u8 (at most SC_TRACK_MAX)
- *             and per point t (within the frame, in order), x, y, z f64;
+ *             sc_track): dev, adev f64 (>= 0), points u8 (at most
+ *             SC_TRACK_MAX) and per point t (within the frame, in order),
+ *             x, y, z, qw, qx, qy, qz f64;
  *             contacts u32 (0 unless its rc is 0) and the frame's new
  *             contacts with their impulses (ids of the group's copy,
  *             canonical order)
@@ -100,7 +101,7 @@
  * phase would have. Outputs of a unit that failed (rc < 0) are as undefined as after a
  * local failure. */
 
-#define WIRE_VERSION 18      /* 6: island units carry impact_first, results inelastic, v0, w0;
+#define WIRE_VERSION 19      /* 6: island units carry impact_first, results inelastic, v0, w0;
                                 7: results carry energy_refused, restitution_scaled;
                                 8: and np_pairs, np_reused; 9: and lcp_kept;
                                 10: island units carry gravity (the push-out's lift);
@@ -115,7 +116,9 @@
                                 16: island units carry anderson;
                                 17: results and stats carry whole_tries,
                                 whole_solved;
-                                18: an impulse travels with its impulse_dt */
+                                18: an impulse travels with its impulse_dt;
+                                19: tracks carry adev and their points'
+                                orientations */
 #define MAGIC_UNIT 0x55574353u        /* "SCWU" */
 #define MAGIC_RESULT 0x52574353u      /* "SCWR" */
 #define MAX_PAIRS (1 << 16)
@@ -1448,9 +1451,11 @@ static void write_group_result(wbuf *w, const sc_wire_unit *wu)
             put_member_state(w, &st->bodies[q], 0);
             int n = gj->track->count[q];
             put_f64s(w, &gj->track->dev[q], 1);
+            put_f64s(w, &gj->track->adev[q], 1);
             put(w, (uint64_t)n, 1);
             if (n > 0)
-                put_f64s(w, &gj->track->pt[(size_t)q * SC_TRACK_MAX * 4], 4 * n);
+                put_f64s(w, &gj->track->pt[(size_t)q * SC_TRACK_MAX * SC_TRACK_STRIDE],
+                         SC_TRACK_STRIDE * n);
         }
         int nc = out->rc == SC_OK ? out->ncontacts : 0;
         put(w, (uint64_t)nc, 4);
@@ -1550,25 +1555,30 @@ static int read_group_result(rbuf *r, const sc_job *job, const sc_unit *u, int w
             sc_body *b = write ? &gj->st->bodies[mem[i]] : &scratch;
             /* a member stays dynamic */
             get_member_state(r, b, 0, 0);
-            /* its track: how far it went from its drift, and its points
-             * (times within the frame, in order) */
-            double dev;
+            /* its track: how far it went from its drift and turned from
+             * its spin, and its points (times within the frame, in order,
+             * unit quaternions) */
+            double dev, adev;
             get_f64s(r, &dev, 1, 1);
+            get_f64s(r, &adev, 1, 1);
             unsigned n = (unsigned)get(r, 1);
-            if (r->bad || !(dev >= 0) || n > SC_TRACK_MAX)
+            if (r->bad || !(dev >= 0) || !(adev >= 0) || n > SC_TRACK_MAX)
                 return SC_EFORMAT;
-            double pt[SC_TRACK_MAX * 4];
-            get_f64s(r, pt, 4 * (int)n, 1);
+            enum { S = SC_TRACK_STRIDE };
+            double pt[SC_TRACK_MAX * S];
+            get_f64s(r, pt, S * (int)n, 1);
             for (unsigned p = 0; p < n && !r->bad; p++)
-                if (pt[4 * p] < 0 || pt[4 * p] > gj->dt || (p > 0 && pt[4 * p] < pt[4 * (p - 1)]))
+                if (pt[S * p] < 0 || pt[S * p] > gj->dt || (p > 0 && pt[S * p] < pt[S * (p - 1)]) ||
+                    fabs(q_dot(&pt[S * p + 4], &pt[S * p + 4]) - 1) > 1e-6)
                     return SC_EFORMAT;
             if (r->bad)
                 return SC_EFORMAT;
             if (write && gj->track) {
                 gj->track->dev[mem[i]] = dev;
+                gj->track->adev[mem[i]] = adev;
                 gj->track->count[mem[i]] = (int)n;
-                memcpy(&gj->track->pt[(size_t)mem[i] * SC_TRACK_MAX * 4], pt,
-                       (size_t)n * 4 * sizeof *pt);
+                memcpy(&gj->track->pt[(size_t)mem[i] * SC_TRACK_MAX * S], pt,
+                       (size_t)n * S * sizeof *pt);
             }
         }
         uint32_t nc = (uint32_t)get(r, 4);
