@@ -620,11 +620,14 @@ static void origin_at(const sc_track *tr, int i, const double *d, double t, doub
  * dev, and the parabola's distance from its chord over the intervals
  * here): at every point of either track, and between two along both
  * chords. */
-static double track_gap(const sc_track *tr, const double *drift, int a, int b, int ran_a,
-                        int ran_b, double dt)
+/* 0, dt and the times of bodies a's and b's track points (none for a
+ * body that did not run: ran_a, ran_b 0), sorted into ts (room for
+ * TRACK_TIMES); returns how many. */
+#define TRACK_TIMES (2 * SC_TRACK_MAX + 2)
+static int track_times(const sc_track *tr, int a, int b, int ran_a, int ran_b, double dt,
+                       double *ts)
 {
     const int ab[2] = { a, b }, ran[2] = { ran_a, ran_b };
-    double ts[2 * SC_TRACK_MAX + 2];
     int nt = 0;
     ts[nt++] = 0;
     ts[nt++] = dt;
@@ -641,6 +644,15 @@ static double track_gap(const sc_track *tr, const double *drift, int a, int b, i
             ts[j] = ts[j - 1];
             ts[j - 1] = x;
         }
+    return nt;
+}
+
+static double track_gap(const sc_track *tr, const double *drift, int a, int b, int ran_a,
+                        int ran_b, double dt)
+{
+    const int ab[2] = { a, b }, ran[2] = { ran_a, ran_b };
+    double ts[TRACK_TIMES];
+    int nt = track_times(tr, a, b, ran_a, ran_b, dt, ts);
     double hmax = 0;
     for (int i = 1; i < nt; i++)
         hmax = max_d(hmax, ts[i] - ts[i - 1]);
@@ -766,21 +778,10 @@ static int exact_apart(const sc_frame_config *cfg, const sc_body *start, const s
         !path_of(start, tr, drift, b, ran_b, dt, &pb))
         return 0;
     const path *ps[2] = { &pa, &pb };
-    double ts[2 * SC_TRACK_MAX + 2];
-    int nt = 0;
-    ts[nt++] = 0;
-    ts[nt++] = dt;
-    for (int s = 0; s < 2; s++)
-        for (int k = 0; ps[s]->kind == PATH_TRACK && k < ps[s]->n; k++)
-            ts[nt++] = min_d(dt, max_d(0, ps[s]->pt[SC_TRACK_STRIDE * k]));
-    for (int i = 1; i < nt; i++)
-        for (int j = i; j > 0 && ts[j - 1] > ts[j]; j--) {
-            double x = ts[j];
-            ts[j] = ts[j - 1];
-            ts[j - 1] = x;
-        }
+    double ts[TRACK_TIMES];
+    int nt = track_times(tr, a, b, ran_a, ran_b, dt, ts);
     /* each interval's sweep: how far any point of either shape moves */
-    double sweep[2 * SC_TRACK_MAX + 2], total = 0;
+    double sweep[TRACK_TIMES], total = 0;
     for (int i = 1; i < nt; i++) {
         sweep[i] = 0;
         for (int s = 0; s < 2; s++) {
