@@ -342,6 +342,8 @@ typedef struct sc_stats_lcp {
     long blocks_shared;       /* of them, those a helping thread solved (docs/DESIGN.md
                                  11; timing decides it, not the result) */
     int sweeps_max;           /* most outer sweeps of one split solve */
+    long sweeps;              /* outer sweeps of the split solves, summed (sweeps / split
+                                 is the mean; a solve the active set settles has none) */
     int unconverged;          /* split solves that stopped at the sweep limit */
     int diverged;             /* split solves that ended short of the tolerance on a
                                  diverging sweep (on their best iterate) */

@@ -195,6 +195,7 @@ static uint64_t run(sc_world *w, daemon_thread *d, int stop_at, sc_stats *sum)
         sum->frame.lcp.regularised += st.frame.lcp.regularised;
         if (st.frame.lcp.sweeps_max > sum->frame.lcp.sweeps_max)
             sum->frame.lcp.sweeps_max = st.frame.lcp.sweeps_max;
+        sum->frame.lcp.sweeps += st.frame.lcp.sweeps;
         if (st.frame.lcp.residual > sum->frame.lcp.residual)
             sum->frame.lcp.residual = st.frame.lcp.residual;
         if (st.frame.lcp.outer_residual > sum->frame.lcp.outer_residual)
@@ -374,6 +375,8 @@ static void test_split_islands_on_daemons_give_the_same_bits(void **state)
     assert_int_equal(sum.frame.lcp.restitution_scaled, ls.frame.lcp.restitution_scaled);
     assert_int_equal(sum.frame.lcp.regularised, ls.frame.lcp.regularised);
     assert_int_equal(sum.frame.lcp.sweeps_max, ls.frame.lcp.sweeps_max);
+    assert_int_equal(sum.frame.lcp.sweeps, ls.frame.lcp.sweeps);
+    assert_true(sum.frame.lcp.sweeps >= sum.frame.lcp.sweeps_max);
     assert_memory_equal(&sum.frame.lcp.residual, &ls.frame.lcp.residual,
                         sizeof ls.frame.lcp.residual);
     assert_memory_equal(&sum.frame.lcp.outer_residual, &ls.frame.lcp.outer_residual,

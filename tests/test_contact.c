@@ -243,6 +243,7 @@ static void test_split_island_agrees_with_the_exact_one(void **state)
     assert_int_equal(is.unconverged, 0);
     assert_true(is.residual_split <= p.tol);
     assert_true(is.sweeps_max >= 2);
+    assert_int_equal(is.sweeps, is.sweeps_max);     /* one split solve */
     print_message("split from 0: %d sweeps, outer residual %.2g m/s, floor %.6f vs %.6f N s\n",
                   is.sweeps_max, is.residual_split, floor_impulse(csp, s.nc),
                   floor_impulse(cex, s.nc));

@@ -1415,7 +1415,7 @@ static void test_result_for_another_unit_is_a_format_error(void **state)
     /* an island result whose contact count or counters are wrong changes
      * nothing (layout: header 8, members 4, rc 4, messages 8, pivots,
      * as_iterations, factor_nnz_max, as_exchanges, as_exchange_bytes 5 x 8,
-     * failures ... whole_solved 25 x 4, residuals 16, contacts 4) */
+     * failures ... sweeps 26 x 4, residuals 16, contacts 4) */
     int big = 0;
     for (int i = 1; i < ij.is.count; i++)
         if (island_unit(&ij.is, i, 1).count > island_unit(&ij.is, big, 1).count)
@@ -1426,7 +1426,7 @@ static void test_result_for_another_unit_is_a_format_error(void **state)
     free(res);
     buf = pack_unit(&ij.jr, &ui, &len);
     res = remote_run(np, buf, len, &cc, &rlen);
-    const size_t pivots = 24, counters = pivots + 40, ncont = counters + 100 + 16;
+    const size_t pivots = 24, counters = pivots + 40, ncont = counters + 104 + 16;
     assert_int_equal(rlen, ncont + 4 +
                                (size_t)(ij.is.body_start[big + 1] - ij.is.body_start[big]) *
                                    (19 * 8 + 4) +
@@ -1443,7 +1443,7 @@ static void test_result_for_another_unit_is_a_format_error(void **state)
         { pivots + 16, 8, (uint64_t)-1 }, { pivots + 24, 8, (uint64_t)-1 },
         { pivots + 32, 8, (uint64_t)-1 },
     };
-    for (int k = 0; k < 7 + 25; k++) {
+    for (int k = 0; k < 7 + 26; k++) {
         size_t at = k < 7 ? wrong[k].at : counters + 4 * (size_t)(k - 7);
         int nbytes = k < 7 ? wrong[k].n : 4;
         uint64_t v = k < 7 ? wrong[k].v : (uint32_t)-1;   /* a negative counter */
@@ -1460,7 +1460,7 @@ static void test_result_for_another_unit_is_a_format_error(void **state)
     assert_memory_equal(contacts_before, ij.cr, ncb);
     /* the residuals are carried as they are */
     double odd = NAN;
-    memcpy(res + counters + 100, &odd, sizeof odd);
+    memcpy(res + counters + 104, &odd, sizeof odd);
     ui.info.residual_exact = 0;
     assert_int_equal(sc_wire_result_apply(&ij.jr, &ui, res, rlen), SC_OK);
     assert_true(isnan(ui.info.residual_exact));
@@ -1714,8 +1714,8 @@ static void test_bad_group_fields_are_format_errors(void **state)
 }
 
 /* A group result at its layout (header 8, members 4, rc 4, messages 8,
- * info 156), then per group: rc 4, its figures (a mask u64 and the fields
- * it names: 26 of 8 bytes, then 30 of 4), per member 130 bytes (flags,
+ * info 160), then per group: rc 4, its figures (a mask u64 and the fields
+ * it names: 27 of 8 bytes, then 30 of 4), per member 130 bytes (flags,
  * 14 doubles, dev, adev, points u8) and 64 a point (t, x, y, z and a
  * quaternion), then contacts 4 and 96 each. */
 #define GM_ADEV 121
@@ -1723,7 +1723,7 @@ static void test_bad_group_fields_are_format_errors(void **state)
 #define GM_LEN 130
 #define GM_POINT 64
 #define GR_RC 12
-#define GR_GROUPS 180
+#define GR_GROUPS 184
 
 /* Where group j of a result for u (of job) is. */
 typedef struct gr_at {
@@ -1756,8 +1756,8 @@ static gr_at gr_group(const unsigned char *res, const sc_job *job, const sc_unit
         r.stats = at + 4;
         uint64_t mask;
         memcpy(&mask, res + r.stats, 8);
-        r.first_int = r.stats + 8 + 8 * (size_t)popcount64(mask & ((1u << 26) - 1));
-        at = r.first_int + 4 * (size_t)popcount64(mask >> 26);
+        r.first_int = r.stats + 8 + 8 * (size_t)popcount64(mask & ((1u << 27) - 1));
+        at = r.first_int + 4 * (size_t)popcount64(mask >> 27);
         r.members = at;
         for (int q = 0; q < r.nm; q++)
             at += gr_member_len(res, at);
@@ -1839,7 +1839,7 @@ static void group_hostile_results(group_exec *gx, sc_job *job)
         tm += gr_member_len(res, tm);
     uint64_t mask;
     memcpy(&mask, res + c.stats, 8);
-    assert_true(mask >> 26 != 0);                         /* an int field is there */
+    assert_true(mask >> 27 != 0);                         /* an int field is there */
     struct { size_t at; int n; uint64_t v; } wrong[] = {
         { 8, 4, (uint64_t)ua->count + 1 },                /* members */
         { GR_RC, 4, (uint32_t)SC_ENUMERIC },              /* not its groups' rc */

@@ -635,7 +635,7 @@ typedef struct totals {
     /* the contact solver, summed (or the largest) over the frames */
     long solves, split, blocks, shared, pivots, staggered, refused, split_fb, block_fb, nan;
     long inelastic, rscaled, unconverged, diverged, kept, guessed, regularised, whole_tries;
-    long whole_solved;
+    long whole_solved, sweeps;
     long substeps, max_pivots, backups, spec, groups, retried;
     int max_sweeps, max_substeps, max_backups;
     double residual, outer_residual;
@@ -770,6 +770,7 @@ static int simulate(const options *o, sc_world *w, totals *t, int progress, reco
         t->as_exchange_bytes += st.frame.lcp.as_exchange_bytes;
         t->max_sweeps =
             st.frame.lcp.sweeps_max > t->max_sweeps ? st.frame.lcp.sweeps_max : t->max_sweeps;
+        t->sweeps += st.frame.lcp.sweeps;
         t->residual = fmax(t->residual, st.frame.lcp.residual);
         t->outer_residual = fmax(t->outer_residual, st.frame.lcp.outer_residual);
         t->substeps += st.frame.toi.substeps;
@@ -912,7 +913,7 @@ static void report_json(const options *o, const sc_world *w, const sc_stats *stp
            "\"restitution_scaled\": %ld, \"guessed\": %ld, \"regularised\": %ld, "
            "\"unconverged\": %ld, \"diverged\": %ld, \"whole_tries\": %ld, "
            "\"whole_solved\": %ld, "
-           "\"max_sweeps\": %d, \"max_residual\": %.3g, \"max_outer_residual\": %.3g, "
+           "\"max_sweeps\": %d, \"sweeps_mean\": %.2f, \"max_residual\": %.3g, \"max_outer_residual\": %.3g, "
            "\"substeps\": %ld, \"max_substeps\": %d, \"island_method\": \"%s\", "
            "\"active_set\": {\"solves\": %ld, \"fallbacks\": %ld, \"iterations_mean\": %.2f, "
            "\"iterations_max\": %d, \"factor_nnz_max\": %ld, \"parts_max\": %d, "
@@ -935,7 +936,7 @@ static void report_json(const options *o, const sc_world *w, const sc_stats *stp
            island_split, t.solves, t.kept, t.split, t.blocks, t.shared, t.pivots, t.max_pivots, t.staggered,
            t.refused, t.split_fb, t.block_fb, t.nan, t.inelastic, t.rscaled, t.guessed,
            t.regularised, t.unconverged, t.diverged, t.whole_tries, t.whole_solved,
-           t.max_sweeps, t.residual,
+           t.max_sweeps, t.split ? (double)t.sweeps / (double)t.split : 0.0, t.residual,
            t.outer_residual, t.substeps, t.max_substeps,
            island_method_name(o->island_method), t.as_solves,
            t.as_fallbacks, t.as_solves ? (double)t.as_iterations / (double)t.as_solves : 0.0,
@@ -988,6 +989,9 @@ static void report_text(const options *o, const sc_world *w, const sc_stats *stp
     printf("  LCP residual at most %.3g m/s (exact), %.3g m/s (split, tolerance %.0e; "
            "%ld stopped at the sweep limit, %ld on a diverging sweep)\n",
            t.residual, t.outer_residual, SC_SPLIT_TOL, t.unconverged, t.diverged);
+    if (t.split)
+        printf("  block Gauss-Seidel: %.2f sweeps a split solve (most %d)\n",
+               (double)t.sweeps / (double)t.split, t.max_sweeps);
     if (t.whole_tries)
         printf("  split solves short of the tolerance solved whole: %ld of %ld tried\n",
                t.whole_solved, t.whole_tries);

@@ -108,6 +108,7 @@ void sc_stats_add_solve(sc_stats *st, const sc_solve_info *info)
     st->frame.lcp.blocks_shared += info->blocks_shared;
     if (info->sweeps_max > st->frame.lcp.sweeps_max)
         st->frame.lcp.sweeps_max = info->sweeps_max;
+    st->frame.lcp.sweeps += info->sweeps;
     st->frame.lcp.unconverged += info->unconverged;
     st->frame.lcp.diverged += info->diverged;
     st->frame.lcp.whole_tries += info->whole_tries;
@@ -149,6 +150,7 @@ static void add_lcp(sc_stats_lcp *s, const sc_stats_lcp *g)
     s->blocks_shared += g->blocks_shared;
     if (g->sweeps_max > s->sweeps_max)
         s->sweeps_max = g->sweeps_max;
+    s->sweeps += g->sweeps;
     s->unconverged += g->unconverged;
     s->diverged += g->diverged;
     s->whole_tries += g->whole_tries;

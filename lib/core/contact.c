@@ -1093,6 +1093,7 @@ static int solve_split(sc_arena *a, row *rows, int nrows, const int *cstart, int
             rc = block_gs(a, &pb, &bl, z, u, 6 * m, p, p->max_sweeps, tol, info, &end);
         if (rc == SC_OK && !pseudo) {
             info->sweeps_max = end.sweeps > info->sweeps_max ? end.sweeps : info->sweeps_max;
+            info->sweeps += end.sweeps;
             info->unconverged += end.res > tol && !end.diverged;
             info->diverged += end.res > tol && end.diverged;
             info->residual_split = max_d(info->residual_split, end.res);

@@ -282,6 +282,7 @@ typedef struct sc_solve_info {
                                        restitution targets added energy,
                                        solved again with them scaled down */
     int sweeps_max;                 /* most outer sweeps of one split island */
+    int sweeps;                     /* outer sweeps of the split islands, summed */
     int unconverged;                /* split islands still short of tol after
                                        their sweeps, whole tries and sweeps on */
     int diverged;                   /* split islands that ended short of tol on a

@@ -62,7 +62,7 @@
  *             nan_islands, sweeps_max, unconverged, solves, diverged,
  *             cold_starts, inelastic, energy_refused, restitution_scaled,
  *             guessed, as_solves, as_fallbacks, as_iterations_max,
- *             as_parts_max, as_interface_max, whole_tries, whole_solved i32,
+ *             as_parts_max, as_interface_max, whole_tries, whole_solved, sweeps i32,
  *             residual_exact, residual_split f64,
  *             then per pair: n u8 and n contacts (COLLIDE), toi f64 (TOI);
  *             (ISLAND) contacts u32, per member: x f64[3], q f64[4], v, w,
@@ -101,7 +101,7 @@
  * phase would have. Outputs of a unit that failed (rc < 0) are as undefined as after a
  * local failure. */
 
-#define WIRE_VERSION 19      /* 6: island units carry impact_first, results inelastic, v0, w0;
+#define WIRE_VERSION 20      /* 6: island units carry impact_first, results inelastic, v0, w0;
                                 7: results carry energy_refused, restitution_scaled;
                                 8: and np_pairs, np_reused; 9: and lcp_kept;
                                 10: island units carry gravity (the push-out's lift);
@@ -118,7 +118,8 @@
                                 whole_solved;
                                 18: an impulse travels with its impulse_dt;
                                 19: tracks carry adev and their points'
-                                orientations */
+                                orientations; 20: results and stats carry
+                                sweeps */
 #define MAGIC_UNIT 0x55574353u        /* "SCWU" */
 #define MAGIC_RESULT 0x52574353u      /* "SCWR" */
 #define MAX_PAIRS (1 << 16)
@@ -1247,7 +1248,7 @@ void sc_wire_unit_free(sc_wire_unit *wu)
  * field added there must be added here; test_unit_wire compares whole
  * infos of a local and a remote run), and pivots. blocks_shared stays
  * home: a daemon's island shares no blocks. */
-#define INFO_INTS 25
+#define INFO_INTS 26
 
 static void info_ints(sc_solve_info *info, int *f[INFO_INTS])
 {
@@ -1261,7 +1262,7 @@ static void info_ints(sc_solve_info *info, int *f[INFO_INTS])
                           &info->as_solves,       &info->as_fallbacks,
                           &info->as_iterations_max, &info->as_parts_max,
                           &info->as_interface_max, &info->whole_tries,
-                          &info->whole_solved };
+                          &info->whole_solved,    &info->sweeps };
     memcpy(f, p, sizeof p);
 }
 
@@ -1309,7 +1310,7 @@ static void get_info(rbuf *r, sc_solve_info *info)
  * sc_stats_add_solver() (clock.c) read, field by field: a field they
  * start to read must be added here (test_unit_wire compares them). */
 #define STAT_F64 (SC_STAGE_COUNT + 6)
-#define STAT_LONGS 12
+#define STAT_LONGS 13
 #define STAT_SIZES 2
 #define STAT_INTS 30
 
@@ -1332,7 +1333,8 @@ static void stat_fields(sc_stats *s, stat_ptrs *p)
                            &s->frame.sched.units,         &s->total.initial_overlaps,
                            &s->frame.detect.np_pairs,     &s->frame.detect.np_reused,
                            &s->frame.lcp.as_iterations,   &s->frame.lcp.factor_nnz_max,
-                           &s->frame.lcp.as_exchanges,    &s->frame.lcp.as_exchange_bytes};
+                           &s->frame.lcp.as_exchanges,    &s->frame.lcp.as_exchange_bytes,
+                           &s->frame.lcp.sweeps};
     size_t *z[STAT_SIZES] = { &s->total.arena_bytes, &s->total.unit_arena_bytes };
     int *i[STAT_INTS] = {
         &s->frame.detect.pairs,       &s->frame.detect.islands,     &s->frame.lcp.solves,
