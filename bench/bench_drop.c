@@ -173,7 +173,7 @@ typedef struct result {
     /* simcluster's contact solver over the run (sc_stats, every frame) */
     long frames;                 /* frames stepped without error */
     long solves, split, blocks, shared, unconverged, substeps, backups, spec, refused, rscaled;
-    long whole_tries, whole_solved, diverged;
+    long whole_tries, whole_solved, diverged, sweeps;
     long fallbacks, split_fallbacks, block_fallbacks, nan_islands, regularised;
     int sweeps_max;
     double outer_res, exact_res; /* largest of any frame, m/s */
@@ -616,6 +616,7 @@ static void solver_add(result *r, const sc_stats *st)
     r->regularised += st->frame.lcp.regularised;
     if (st->frame.lcp.sweeps_max > r->sweeps_max)
         r->sweeps_max = st->frame.lcp.sweeps_max;
+    r->sweeps += st->frame.lcp.sweeps;
     r->outer_res = fmax(r->outer_res, st->frame.lcp.outer_residual);
     r->exact_res = fmax(r->exact_res, st->frame.lcp.residual);
 }
@@ -792,7 +793,7 @@ static void print_solver(int eng, const result *r)
     }
     printf("        %s solver: %ld frames, %ld island solves, %ld split (%.1f %%), "
            "%ld block solves (%ld by helping threads), solved whole %ld of %ld tried, "
-           "%ld unconverged, %ld diverged, sweeps max %d, "
+           "%ld unconverged, %ld diverged, sweeps %.2f a split solve (most %d), "
            "outer residual max %.3g m/s, exact residual max %.3g m/s; fallbacks: staggered "
            "%ld (%ld refused for adding energy), blocks %ld, block PGS %ld, NaN islands %ld, "
            "regularised %ld, restitution scaled down %ld; substeps %.3f a frame, back-ups "
@@ -800,7 +801,8 @@ static void print_solver(int eng, const result *r)
            eng_name[eng], r->frames, r->solves, r->split,
            r->solves ? 100.0 * (double)r->split / (double)r->solves : 0.0, r->blocks, r->shared,
            r->whole_solved, r->whole_tries, r->unconverged, r->diverged,
-           r->sweeps_max, r->outer_res, r->exact_res, r->fallbacks, r->refused, r->split_fallbacks,
+           r->split ? (double)r->sweeps / (double)r->split : 0.0, r->sweeps_max, r->outer_res,
+           r->exact_res, r->fallbacks, r->refused, r->split_fallbacks,
            r->block_fallbacks, r->nan_islands, r->regularised, r->rscaled,
            (double)r->substeps / (double)r->frames, (double)r->backups / (double)r->frames,
            r->spec);
