@@ -217,8 +217,8 @@ enum {
                                  exactly first: an active set on a sparse LU
                                  factor, iterations nearly independent of its height
                                  (the default); blocks where it does not settle */
-    SC_ISLAND_BLOCK_GS,       /* block Gauss-Seidel over exact blocks, to
-                                 SC_SPLIT_TOL or SC_SPLIT_MAX_SWEEPS sweeps */
+    SC_ISLAND_BLOCK_GS,       /* block Gauss-Seidel over blocks of whole pairs,
+                                 to SC_SPLIT_TOL or SC_SPLIT_MAX_SWEEPS sweeps */
     SC_ISLAND_SUBDOMAINS      /* the active set with each factorisation by
                                  subdomains of 32 bodies (an island of at least
                                  64), their interiors on the world's threads, coupled

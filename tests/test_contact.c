@@ -425,6 +425,52 @@ static void test_anderson_reaches_the_tolerance_in_fewer_sweeps(void **state)
     stack_free(&s);
 }
 
+/* A block's normals are one exact LCP (docs/DESIGN.md 11): on a stack of 16
+ * boxes solved from 0 by blocks, each face's four contacts carry equal
+ * loads and no box turns. Rows solved one by one reach the same tolerance
+ * with unequal loads and turning boxes, which a stack multiplies with its
+ * height (a stack of 8 rocks and ends millimetres off). */
+static void test_a_block_carries_a_face_load_evenly(void **state)
+{
+    (void)state;
+    stack s;
+    sc_contact_params p = tall_cold(&s, 16);
+    sc_body *b = s.out[0];
+    sc_contact *c = s.cout[0];
+    p.island_method = SC_ISLAND_BLOCK_GS;
+    sc_solve_info in;
+    solve_copy(&s, &p, &in, b, c);
+    assert_int_equal(in.split, 1);
+    assert_int_equal(in.unconverged + in.diverged, 0);
+    assert_true(in.residual_split <= p.tol);
+    /* contacts of one pair are consecutive */
+    double spread = 0, turn = 0;
+    int pairs = 0;
+    for (int k = 0; k < s.nc;) {
+        int e = k;
+        double lo = INFINITY, hi = 0;
+        while (e < s.nc && c[e].body_a == c[k].body_a && c[e].body_b == c[k].body_b) {
+            lo = fmin(lo, c[e].impulse[2]);
+            hi = fmax(hi, c[e].impulse[2]);
+            e++;
+        }
+        assert_true(lo > 0);
+        spread = fmax(spread, (hi - lo) / hi);
+        pairs++;
+        k = e;
+    }
+    for (int i = 1; i < s.nb; i++)
+        for (int j = 0; j < 3; j++)
+            turn = fmax(turn, fabs(b[i].w[j]));
+    print_message("stack of 16, %d pairs from 0: %d sweeps; a face's loads within %.2g of "
+                  "each other, boxes turning at most %.2g rad/s\n",
+                  pairs, in.sweeps_max, spread, turn);
+    assert_int_equal(pairs, 16);
+    assert_true(spread < 1e-6);
+    assert_true(turn < 1e-9);
+    stack_free(&s);
+}
+
 /* A small island that block Gauss-Seidel leaves short of the tolerance is
  * solved whole (docs/DESIGN.md 11): the stack of 16 from 0 without the
  * acceleration (hundreds of sweeps to the tolerance) stops sweeping at 60
@@ -791,6 +837,7 @@ int main(void)
         cmocka_unit_test(test_split_island_agrees_with_the_exact_one),
         cmocka_unit_test(test_blocks_of_a_colour_give_the_same_bits_in_any_order_or_thread),
         cmocka_unit_test(test_anderson_reaches_the_tolerance_in_fewer_sweeps),
+        cmocka_unit_test(test_a_block_carries_a_face_load_evenly),
         cmocka_unit_test(test_a_small_island_short_of_the_tolerance_is_solved_whole),
         cmocka_unit_test(test_a_small_island_left_at_the_cap_is_solved_with_lemke),
         cmocka_unit_test(test_a_big_island_left_at_the_cap_is_solved_whole),

@@ -3,7 +3,8 @@
  *
  * Baraff's velocity-level LCP with restitution and Coulomb friction (a
  * boxed LCP), one exact Dantzig solve for a small island and block
- * Gauss-Seidel over exact blocks for a pile; no island fails for numerical
+ * Gauss-Seidel for a pile (each block's normals exact, its friction by
+ * passes over its rows); no island fails for numerical
  * reasons, and every fallback is counted (sc_solve_info). Deeper contacts
  * are pushed out by a normal-only LCP on pseudo velocities (split
  * impulse), which moves positions and adds no kinetic energy. */
@@ -573,32 +574,87 @@ static void sub_take(const gs_problem *pb, int r0, int m, const sub_lcp *s, doub
     }
 }
 
-/* One block solved exactly with the others held: its LCP is
- * w_b = A_bb z_b + (J_b u + off_b - A_bb z_b_old), from z_b_old (the
- * last iterate: a warm start). */
+/* Passes of projected Gauss-Seidel over a block's friction rows after its
+ * normals' exact solve: a pair's friction converges with the sweeps that
+ * carry its neighbours' loads, and three passes a block take a pile to the
+ * tolerance in about as many sweeps as the coupled exact solve, at a
+ * fraction of its cost (docs/DESIGN.md 11). */
+#define FRICTION_PASSES 3
+
+/* One block with the others held, from its last iterate (a warm start):
+ * its rows' LCP w_b = A_bb (z_b - z_b_old) + J_b u + off_b. coupled: all
+ * its rows, friction coupled to the normals (solve()). Otherwise its
+ * normal rows alone, the block's friction held, then FRICTION_PASSES
+ * passes of projected Gauss-Seidel over its friction rows, bounds +-mu
+ * z_n of the new normals, alternately forwards and backwards, the first
+ * backwards in a backward sweep (back). The normals solved together
+ * carry a pair's load on its near-redundant face contacts symmetrically,
+ * which rows solved one by one do not within the tolerance (a stack
+ * rocks); a block without friction rows is exact either way. */
 static int block_solve(sc_arena *a, const gs_problem *pb, const blocks *bl, int k, double *z,
-                       double *u, sc_solve_info *info, int fail)
+                       double *u, sc_solve_info *info, int fail, int back, int coupled)
 {
     int r0 = bl->bstart[k], m = bl->bstart[k + 1] - r0;
-    sub_lcp s;
-    if (sub_alloc(a, m, &s) != SC_OK)
+    int *nr = sc_arena_alloc(a, (size_t)m * sizeof *nr);
+    if (!nr)
         return SC_ENOMEM;
-    memcpy(s.A, bl->amat + bl->aoff[k], (size_t)m * (size_t)m * sizeof *s.A);
-    sub_fill(pb, r0, m, z, u, &s);
+    int nn = 0;
+    for (int i = 0; i < m; i++)
+        if (coupled || !pb->findex || pb->findex[r0 + i] < 0)
+            nr[nn++] = r0 + i;
+    sub_lcp s;
+    if (sub_alloc(a, nn, &s) != SC_OK) {
+        sc_arena_free(a, nr);
+        return SC_ENOMEM;
+    }
+    /* nr is the block's rows in order when coupled: a friction row's
+     * normal is then findex - r0 of the sub-LCP */
+    const double *Ab = bl->amat + bl->aoff[k];
+    s.finite = 1;
+    for (int i = 0; i < nn; i++) {
+        int r = nr[i];
+        const double *Ar = Ab + (size_t)(r - r0) * (size_t)m;
+        double v = local_speed(&pb->rows[r], u) + pb->off[r];
+        for (int j = 0; j < nn; j++) {
+            double aij = Ar[nr[j] - r0];
+            s.A[(size_t)i * (size_t)nn + (size_t)j] = aij;
+            v -= aij * z[nr[j]];
+        }
+        s.q[i] = v;
+        s.finite &= isfinite(v);
+        s.fx[i] = pb->findex && pb->findex[r] >= 0 ? pb->findex[r] - r0 : -1;
+        s.friction |= s.fx[i] >= 0;
+        s.mu[i] = s.fx[i] >= 0 ? pb->mu[r] : 0;
+        s.lo[i] = s.fx[i] >= 0 ? -INFINITY : pb->lo[r];
+        s.hi[i] = s.fx[i] >= 0 ? INFINITY : pb->hi[r];
+        s.z[i] = z[r];
+    }
     int rc = SC_OK;
     if (!s.finite) {
         info->nan_islands++;      /* leave the block as it was */
     } else {
         info->blocks++;
         sc_solve_info bi = { 0 };
-        rc = solve(a, m, s.A, s.q, s.lo, s.hi, s.friction ? s.fx : NULL, s.mu, s.z, s.w, &bi,
+        rc = solve(a, nn, s.A, s.q, s.lo, s.hi, s.friction ? s.fx : NULL, s.mu, s.z, s.w, &bi,
                    (pb->cold ? 0 : SOLVE_WARM) | (fail ? SOLVE_FAIL : 0));
         info->pivots += bi.pivots;
         info->lemke += bi.lemke;
         info->guessed += bi.guessed;
         info->regularised += bi.regularised;
         if (rc == SC_OK) {
-            sub_take(pb, r0, m, &s, z, u);
+            for (int i = 0; i < nn; i++) {
+                local_apply(&pb->rows[nr[i]], s.z[i] - z[nr[i]], u);
+                z[nr[i]] = s.z[i];
+            }
+            for (int it = 0; nn < m && it < FRICTION_PASSES; it++)
+                for (int i = 0; i < m; i++) {
+                    int r = (it & 1) != back ? r0 + m - 1 - i : r0 + i;
+                    double zn;
+                    if (pb->findex[r] < 0 || !row_project(pb, bl, z, u, r, &zn))
+                        continue;
+                    local_apply(&pb->rows[r], zn - z[r], u);
+                    z[r] = zn;
+                }
         } else if (rc != SC_ENOMEM && rc != SC_EINVAL) {
             info->block_fallbacks++;
             block_pgs(pb, bl, k, z, u);
@@ -606,6 +662,7 @@ static int block_solve(sc_arena *a, const gs_problem *pb, const blocks *bl, int 
         }
     }
     sub_free(a, &s);
+    sc_arena_free(a, nr);
     return rc;
 }
 
@@ -654,6 +711,8 @@ struct sc_block_batch {
     int fail;
     const int *list;          /* the colour's blocks */
     double skip;              /* a block this close to its answer is passed over */
+    int back;                 /* a backward sweep (block_solve()) */
+    int coupled;              /* block_solve()'s coupled exact solve */
     sc_solve_info *info;      /* per listed block */
     int *rc;                  /* per listed block */
 };
@@ -674,7 +733,8 @@ void sc_block_run(void *batch, int i, sc_arena *a, int helper)
     b->rc[i] = SC_OK;
     if (block_settled(b->pb, b->bl, b->z, b->u, b->list[i], b->skip))
         return;
-    b->rc[i] = block_solve(a, b->pb, b->bl, b->list[i], b->z, b->u, &b->info[i], b->fail);
+    b->rc[i] = block_solve(a, b->pb, b->bl, b->list[i], b->z, b->u, &b->info[i], b->fail,
+                           b->back, b->coupled);
     b->info[i].blocks_shared = helper;
 }
 
@@ -683,14 +743,15 @@ void sc_block_run(void *batch, int i, sc_arena *a, int helper)
  * with a runner, wherever it runs them (the closeness test too). Either way
  * each block's solve sees the same numbers, and the first error in block
  * order is returned. */
-static int colour_solve(sc_arena *a, const gs_problem *pb, const blocks *bl, int c, double *z,
-                        double *u, int fail, double skip, const sc_task_runner *runner,
-                        sc_solve_info *binfo, int *brc, sc_solve_info *info)
+static int colour_solve(sc_arena *a, const gs_problem *pb, const blocks *bl, int c, int back,
+                        int coupled, double *z, double *u, int fail, double skip,
+                        const sc_task_runner *runner, sc_solve_info *binfo, int *brc,
+                        sc_solve_info *info)
 {
     int n = bl->cstart[c + 1] - bl->cstart[c];
     sc_block_batch b = { .pb = pb, .bl = bl, .z = z, .u = u, .fail = fail,
-                         .list = &bl->order[bl->cstart[c]], .skip = skip, .info = binfo,
-                         .rc = brc };
+                         .list = &bl->order[bl->cstart[c]], .skip = skip, .back = back,
+                         .coupled = coupled, .info = binfo, .rc = brc };
     sc_tasks_run(runner, sc_block_run, &b, n, a);
     int rc = SC_OK;
     for (int i = 0; i < n; i++) {
@@ -703,7 +764,8 @@ static int colour_solve(sc_arena *a, const gs_problem *pb, const blocks *bl, int
 /* Block Gauss-Seidel, sweeps alternating forwards and backwards over the
  * colours (the symmetric order converges faster on chains and stacks),
  * from z (warm start, already in u) until the residual is at most tol or
- * max_sweeps.
+ * max_sweeps; coupled: each block's friction coupled to its normals
+ * (block_solve()).
  * Gauss-Seidel over frictional blocks is not bound to converge: the best
  * iterate is kept (z and u, nu doubles), and a sweep that leaves the
  * residual DIVERGE times above the best stops the iteration, which then
@@ -762,7 +824,7 @@ typedef struct gs_end {
 
 static int block_gs(sc_arena *a, const gs_problem *pb, const blocks *bl, double *z, double *u,
                     int nu, const sc_contact_params *p, int max_sweeps, double tol,
-                    sc_solve_info *info, gs_end *end)
+                    int coupled, sc_solve_info *info, gs_end *end)
 {
     int nr = pb->nrows;
     size_t nz = (size_t)nr * sizeof *z, nub = (size_t)nu * sizeof *u;
@@ -799,8 +861,8 @@ static int block_gs(sc_arena *a, const gs_problem *pb, const blocks *bl, double 
             memcpy(xz, z, nz);
         for (int i = 0; i < bl->ncolours && rc == SC_OK; i++) {
             int c = sweeps % 2 == 0 ? i : bl->ncolours - 1 - i;
-            rc = colour_solve(a, pb, bl, c, z, u, fail, SKIP_SHARE * tol, runner, binfo, brc,
-                              info);
+            rc = colour_solve(a, pb, bl, c, sweeps % 2, coupled, z, u, fail, SKIP_SHARE * tol,
+                              runner, binfo, brc, info);
         }
         sweeps++;
         res = residual(pb, bl, z, u);
@@ -1075,12 +1137,12 @@ static int solve_split(sc_arena *a, row *rows, int nrows, const int *cstart, int
         int first = whole ? (nrows <= WHOLE_SMALL ? WHOLE_SWEEPS : WHOLE_SWEEPS_BIG) : 0;
         first = whole && first < p->max_sweeps ? first : p->max_sweeps;
         if (rc == SC_OK)
-            rc = block_gs(a, &pb, &bl, z, u, 6 * m, p, first, tol, info, &end);
+            rc = block_gs(a, &pb, &bl, z, u, 6 * m, p, first, tol, 0, info, &end);
         if (rc == SC_OK && whole && end.res > tol) {
             rc = whole_try(a, &pb, z, u, info, 0, p->inject, &end);
             if (rc == SC_ENUMERIC)
-                rc = block_gs(a, &pb, &bl, z, u, 6 * m, p, p->max_sweeps - end.sweeps, tol, info,
-                              &end);
+                rc = block_gs(a, &pb, &bl, z, u, 6 * m, p, p->max_sweeps - end.sweeps, tol, 0,
+                              info, &end);
         }
         /* the last resort, Lemke's method too where it is cheap */
         if (rc == SC_OK && last && end.res > tol) {
@@ -1088,9 +1150,11 @@ static int solve_split(sc_arena *a, row *rows, int nrows, const int *cstart, int
             rc = rc == SC_ENUMERIC ? SC_OK : rc;
         }
         /* what that leaves short sweeps on from its best iterate, as
-         * many sweeps again (a fresh Anderson history) */
+         * many sweeps again (a fresh Anderson history), each block's
+         * friction coupled to its normals: the friction passes leave some
+         * islands short that the coupled blocks settle */
         if (rc == SC_OK && rescue && end.res > tol)
-            rc = block_gs(a, &pb, &bl, z, u, 6 * m, p, p->max_sweeps, tol, info, &end);
+            rc = block_gs(a, &pb, &bl, z, u, 6 * m, p, p->max_sweeps, tol, 1, info, &end);
         if (rc == SC_OK && !pseudo) {
             info->sweeps_max = end.sweeps > info->sweeps_max ? end.sweeps : info->sweeps_max;
             info->sweeps += end.sweeps;
