@@ -949,14 +949,15 @@ static int block_gs(sc_arena *a, const gs_problem *pb, const blocks *bl, double 
  * rounds do not settle, the sweeps go on from the iterate to max_sweeps
  * (Lemke's method on the whole friction LCP costs more than all the
  * sweeps). Bigger islands are the active set's first. Any split island
- * of up to LAST_MAX_ROWS rows still short of tol at max_sweeps, or ended
- * on a diverging sweep, is solved whole once more: by the full exact
- * solve (Lemke's method included) up to WHOLE_MAX_ROWS rows, by the
- * rounds alone past them, where Lemke's tableau (the rows and twice the
- * friction rows, square) makes one solve cost as much as many frames.
- * What is still short then, of any size, sweeps on from its best iterate
- * for max_sweeps more: rare, and most settle within them (docs/DESIGN.md
- * 11). SC_ISLAND_BLOCK_GS is block Gauss-Seidel alone. */
+ * still short of tol at max_sweeps, or ended on a diverging sweep, sweeps
+ * on from its best iterate for max_sweeps more with each block's friction
+ * coupled (block_solve()); most settle within them. One of up to
+ * LAST_MAX_ROWS rows still short then is solved whole once more: by the
+ * full exact solve (Lemke's method included) up to WHOLE_MAX_ROWS rows,
+ * by the rounds alone past them, where Lemke's tableau (the rows and
+ * twice the friction rows, square) makes one solve cost as much as many
+ * frames (docs/DESIGN.md 11). SC_ISLAND_BLOCK_GS is block Gauss-Seidel
+ * alone. */
 #define WHOLE_MAX_ROWS 192
 #define WHOLE_SMALL 96
 #define WHOLE_SWEEPS 30
@@ -1144,17 +1145,17 @@ static int solve_split(sc_arena *a, row *rows, int nrows, const int *cstart, int
                 rc = block_gs(a, &pb, &bl, z, u, 6 * m, p, p->max_sweeps - end.sweeps, tol, 0,
                               info, &end);
         }
-        /* the last resort, Lemke's method too where it is cheap */
-        if (rc == SC_OK && last && end.res > tol) {
-            rc = whole_try(a, &pb, z, u, info, whole, p->inject, &end);
-            rc = rc == SC_ENUMERIC ? SC_OK : rc;
-        }
-        /* what that leaves short sweeps on from its best iterate, as
+        /* what the sweeps leave short sweeps on from its best iterate, as
          * many sweeps again (a fresh Anderson history), each block's
          * friction coupled to its normals: the friction passes leave some
          * islands short that the coupled blocks settle */
         if (rc == SC_OK && rescue && end.res > tol)
             rc = block_gs(a, &pb, &bl, z, u, 6 * m, p, p->max_sweeps, tol, 1, info, &end);
+        /* the last resort, Lemke's method too where it is cheap */
+        if (rc == SC_OK && last && end.res > tol) {
+            rc = whole_try(a, &pb, z, u, info, whole, p->inject, &end);
+            rc = rc == SC_ENUMERIC ? SC_OK : rc;
+        }
         if (rc == SC_OK && !pseudo) {
             info->sweeps_max = end.sweeps > info->sweeps_max ? end.sweeps : info->sweeps_max;
             info->sweeps += end.sweeps;
