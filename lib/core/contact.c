@@ -492,17 +492,22 @@ static int row_project(const gs_problem *pb, const blocks *bl, const double *z,
     return 1;
 }
 
+/* Row r moved to its own answer given the others (row_project()). */
+static void row_step(const gs_problem *pb, const blocks *bl, double *z, double *u, int r)
+{
+    double zn;
+    if (!row_project(pb, bl, z, u, r, &zn))
+        return;
+    local_apply(&pb->rows[r], zn - z[r], u);
+    z[r] = zn;
+}
+
 static void block_pgs(const gs_problem *pb, const blocks *bl, int k, double *z, double *u)
 {
     int r0 = bl->bstart[k], r1 = bl->bstart[k + 1];
     for (int it = 0; it < PGS_ITER; it++)
-        for (int r = r0; r < r1; r++) {
-            double zn;
-            if (!row_project(pb, bl, z, u, r, &zn))
-                continue;
-            local_apply(&pb->rows[r], zn - z[r], u);
-            z[r] = zn;
-        }
+        for (int r = r0; r < r1; r++)
+            row_step(pb, bl, z, u, r);
 }
 
 /* Rows [r0, r0 + m) of pb as an LCP of their own, the other rows held at
@@ -543,17 +548,19 @@ static void sub_free(sc_arena *a, sub_lcp *s)
     sc_arena_free(a, s->A);
 }
 
-static void sub_fill(const gs_problem *pb, int r0, int m, const double *z, const double *u,
-                     sub_lcp *s)
+/* nr: the sub-LCP's rows of pb, NULL for r0 .. r0 + m - 1 (a friction
+ * row's normal is then findex - r0; a list holds no friction rows). */
+static void sub_fill(const gs_problem *pb, int r0, const int *nr, int m, const double *z,
+                     const double *u, sub_lcp *s)
 {
     s->friction = 0;
     s->finite = 1;
     for (int i = 0; i < m; i++) {
-        int r = r0 + i;
+        int r = nr ? nr[i] : r0 + i;
         double v = local_speed(&pb->rows[r], u) + pb->off[r];
         const double *Ai = s->A + (size_t)i * (size_t)m;
         for (int j = 0; j < m; j++)
-            v -= Ai[j] * z[r0 + j];
+            v -= Ai[j] * z[nr ? nr[j] : r0 + j];
         s->q[i] = v;
         s->finite &= isfinite(v);
         s->fx[i] = pb->findex && pb->findex[r] >= 0 ? pb->findex[r] - r0 : -1;
@@ -565,12 +572,14 @@ static void sub_fill(const gs_problem *pb, int r0, int m, const double *z, const
     }
 }
 
-/* The sub-LCP's answer into z and u. */
-static void sub_take(const gs_problem *pb, int r0, int m, const sub_lcp *s, double *z, double *u)
+/* The sub-LCP's answer into z and u (nr as sub_fill()'s). */
+static void sub_take(const gs_problem *pb, int r0, const int *nr, int m, const sub_lcp *s,
+                     double *z, double *u)
 {
     for (int i = 0; i < m; i++) {
-        local_apply(&pb->rows[r0 + i], s->z[i] - z[r0 + i], u);
-        z[r0 + i] = s->z[i];
+        int r = nr ? nr[i] : r0 + i;
+        local_apply(&pb->rows[r], s->z[i] - z[r], u);
+        z[r] = s->z[i];
     }
 }
 
@@ -594,41 +603,29 @@ static void sub_take(const gs_problem *pb, int r0, int m, const sub_lcp *s, doub
 static int block_solve(sc_arena *a, const gs_problem *pb, const blocks *bl, int k, double *z,
                        double *u, sc_solve_info *info, int fail, int back, int coupled)
 {
-    int r0 = bl->bstart[k], m = bl->bstart[k + 1] - r0;
-    int *nr = sc_arena_alloc(a, (size_t)m * sizeof *nr);
-    if (!nr)
-        return SC_ENOMEM;
-    int nn = 0;
-    for (int i = 0; i < m; i++)
-        if (coupled || !pb->findex || pb->findex[r0 + i] < 0)
-            nr[nn++] = r0 + i;
+    int r0 = bl->bstart[k], m = bl->bstart[k + 1] - r0, nn = m;
+    int *nr = NULL;           /* the normal rows, where the friction is apart */
+    if (!coupled && pb->findex) {
+        nr = sc_arena_alloc(a, (size_t)m * sizeof *nr);
+        if (!nr)
+            return SC_ENOMEM;
+        nn = 0;
+        for (int i = 0; i < m; i++)
+            if (pb->findex[r0 + i] < 0)
+                nr[nn++] = r0 + i;
+    }
     sub_lcp s;
     if (sub_alloc(a, nn, &s) != SC_OK) {
         sc_arena_free(a, nr);
         return SC_ENOMEM;
     }
-    /* nr is the block's rows in order when coupled: a friction row's
-     * normal is then findex - r0 of the sub-LCP */
     const double *Ab = bl->amat + bl->aoff[k];
-    s.finite = 1;
-    for (int i = 0; i < nn; i++) {
-        int r = nr[i];
-        const double *Ar = Ab + (size_t)(r - r0) * (size_t)m;
-        double v = local_speed(&pb->rows[r], u) + pb->off[r];
-        for (int j = 0; j < nn; j++) {
-            double aij = Ar[nr[j] - r0];
-            s.A[(size_t)i * (size_t)nn + (size_t)j] = aij;
-            v -= aij * z[nr[j]];
-        }
-        s.q[i] = v;
-        s.finite &= isfinite(v);
-        s.fx[i] = pb->findex && pb->findex[r] >= 0 ? pb->findex[r] - r0 : -1;
-        s.friction |= s.fx[i] >= 0;
-        s.mu[i] = s.fx[i] >= 0 ? pb->mu[r] : 0;
-        s.lo[i] = s.fx[i] >= 0 ? -INFINITY : pb->lo[r];
-        s.hi[i] = s.fx[i] >= 0 ? INFINITY : pb->hi[r];
-        s.z[i] = z[r];
-    }
+    for (int i = 0; i < nn; i++)
+        for (int j = 0; j < nn; j++)
+            s.A[(size_t)i * (size_t)nn + (size_t)j] =
+                nr ? Ab[(size_t)(nr[i] - r0) * (size_t)m + (size_t)(nr[j] - r0)]
+                   : Ab[(size_t)i * (size_t)m + (size_t)j];
+    sub_fill(pb, r0, nr, nn, z, u, &s);
     int rc = SC_OK;
     if (!s.finite) {
         info->nan_islands++;      /* leave the block as it was */
@@ -642,18 +639,12 @@ static int block_solve(sc_arena *a, const gs_problem *pb, const blocks *bl, int 
         info->guessed += bi.guessed;
         info->regularised += bi.regularised;
         if (rc == SC_OK) {
-            for (int i = 0; i < nn; i++) {
-                local_apply(&pb->rows[nr[i]], s.z[i] - z[nr[i]], u);
-                z[nr[i]] = s.z[i];
-            }
+            sub_take(pb, r0, nr, nn, &s, z, u);
             for (int it = 0; nn < m && it < FRICTION_PASSES; it++)
                 for (int i = 0; i < m; i++) {
                     int r = (it & 1) != back ? r0 + m - 1 - i : r0 + i;
-                    double zn;
-                    if (pb->findex[r] < 0 || !row_project(pb, bl, z, u, r, &zn))
-                        continue;
-                    local_apply(&pb->rows[r], zn - z[r], u);
-                    z[r] = zn;
+                    if (pb->findex[r] >= 0)
+                        row_step(pb, bl, z, u, r);
                 }
         } else if (rc != SC_ENOMEM && rc != SC_EINVAL) {
             info->block_fallbacks++;
@@ -986,7 +977,7 @@ static int whole_solve(sc_arena *a, const gs_problem *pb, double *z, double *u,
      * stiff LCP that block Gauss-Seidel converges to, off by c |zw - z|
      * (far below tol). The fixed point's rounds settle more often so
      * than on the exact island's softened LCP (a proximal step). */
-    sub_fill(pb, 0, m, z, u, &s);
+    sub_fill(pb, 0, NULL, m, z, u, &s);
     int rc = SC_ENUMERIC;
     if (s.finite) {
         sc_lcp_info li = { 0 };
@@ -1002,7 +993,7 @@ static int whole_solve(sc_arena *a, const gs_problem *pb, double *z, double *u,
             rc = SC_ENUMERIC;
     }
     if (rc == SC_OK)
-        sub_take(pb, 0, m, &s, z, u);
+        sub_take(pb, 0, NULL, m, &s, z, u);
     sub_free(a, &s);
     return rc == SC_OK || rc == SC_ENOMEM ? rc : SC_ENUMERIC;
 }
