@@ -620,11 +620,13 @@ static int block_solve(sc_arena *a, const gs_problem *pb, const blocks *bl, int 
         return SC_ENOMEM;
     }
     const double *Ab = bl->amat + bl->aoff[k];
-    for (int i = 0; i < nn; i++)
-        for (int j = 0; j < nn; j++)
-            s.A[(size_t)i * (size_t)nn + (size_t)j] =
-                nr ? Ab[(size_t)(nr[i] - r0) * (size_t)m + (size_t)(nr[j] - r0)]
-                   : Ab[(size_t)i * (size_t)m + (size_t)j];
+    if (!nr)
+        memcpy(s.A, Ab, (size_t)m * (size_t)m * sizeof *s.A);
+    else
+        for (int i = 0; i < nn; i++)
+            for (int j = 0; j < nn; j++)
+                s.A[(size_t)i * (size_t)nn + (size_t)j] =
+                    Ab[(size_t)(nr[i] - r0) * (size_t)m + (size_t)(nr[j] - r0)];
     sub_fill(pb, r0, nr, nn, z, u, &s);
     int rc = SC_OK;
     if (!s.finite) {
