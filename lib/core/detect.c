@@ -166,35 +166,41 @@ static int carries_impulse(const sc_contact *c)
 }
 
 /* Warm starts (docs/DESIGN.md section 11): each new contact takes the
- * impulse of the nearest old contact of the same pair not yet taken, when
- * it lies within a tenth of the smaller body's bounding radius (a resting
- * contact moves far less in a frame; a new one is farther). Both lists
- * are sorted by pair. */
-static void match_impulses(const sc_frame_state *st, const sc_contact *old, int nold,
-                           unsigned char *taken)
+ * impulse of the nearest old contact of the same pair that carries one and
+ * is not yet taken, when it lies within a tenth of the smaller body's
+ * bounding radius (a resting contact moves far less in a frame; a new one
+ * is farther). Both lists are sorted by pair; c[0 .. n) are the new
+ * contacts of whole pairs, so that runs over disjoint pairs share nothing
+ * (taken: one flag per old contact). */
+static void match_impulses(const sc_frame_state *st, sc_contact *c, int n, const sc_contact *old,
+                           int nold, unsigned char *taken)
 {
-    int j0 = 0;
-    for (int k = 0; k < st->ncontacts; k++) {
-        sc_contact *c = &st->contacts[k];
-        while (j0 < nold && (old[j0].body_a < c->body_a ||
-                             (old[j0].body_a == c->body_a && old[j0].body_b < c->body_b)))
+    int j0 = n > 0 ? sc_contacts_pair_start(old, nold, c[0].body_a, c[0].body_b) : 0;
+    for (int k = 0; k < n; k++) {
+        sc_contact *ck = &c[k];
+        while (j0 < nold && (old[j0].body_a < ck->body_a ||
+                             (old[j0].body_a == ck->body_a && old[j0].body_b < ck->body_b)))
             j0++;
-        double ra = st->bodies[c->body_a].shape->bound_r, rb = st->bodies[c->body_b].shape->bound_r;
+        double ra = st->bodies[ck->body_a].shape->bound_r;
+        double rb = st->bodies[ck->body_b].shape->bound_r;
         double r = 0.1 * min_d(ra, rb);
         int best = -1;
         double bd = r * r;
-        for (int j = j0; j < nold && old[j].body_a == c->body_a && old[j].body_b == c->body_b; j++) {
+        for (int j = j0; j < nold && old[j].body_a == ck->body_a && old[j].body_b == ck->body_b;
+             j++) {
+            if (!carries_impulse(&old[j]) || taken[j])
+                continue;
             double d[3];
-            v3_sub(d, old[j].pos, c->pos);
+            v3_sub(d, old[j].pos, ck->pos);
             double dd = v3_dot(d, d);
-            if (!taken[j] && dd <= bd) {
+            if (dd <= bd) {
                 bd = dd;
                 best = j;
             }
         }
         if (best >= 0) {
             taken[best] = 1;
-            sc_impulse_copy(c, &old[best]);
+            sc_impulse_copy(ck, &old[best]);
         }
     }
 }
@@ -218,34 +224,142 @@ static int memo_find(const sc_np_memo *m, const sc_pose *poses, sc_pair p, int *
                : -1;
 }
 
-/* This detection's results into the memo (raw contacts, pairs in order);
- * without memory the memo is dropped, which only costs time. */
-static void memo_keep(sc_np_memo *m, const sc_frame *f, const sc_pair *pairs, int npairs,
-                      const sc_contact *uc, const int *ncontact, int total)
+/* The first of the memo's pairs not before p. */
+static int memo_lower(const sc_np_memo *m, sc_pair p)
 {
-    int n = f->st->nbodies;
-    m->valid = 0;
-    if (sc_grow((void **)&m->poses, &m->pose_cap, n, sizeof *m->poses, INT_MAX) ||
-        sc_grow((void **)&m->pairs, &m->pair_cap, npairs, sizeof *m->pairs, INT_MAX) ||
-        sc_grow((void **)&m->start, &m->start_cap, npairs + 1, sizeof *m->start, INT_MAX) ||
-        sc_grow((void **)&m->c, &m->c_cap, total, sizeof *m->c, INT_MAX))
-        return;
-    if (n > 0)
-        memcpy(m->poses, f->poses, (size_t)n * sizeof *m->poses);
-    if (npairs > 0)
-        memcpy(m->pairs, pairs, (size_t)npairs * sizeof *m->pairs);
-    int k = 0;
-    for (int i = 0; i < npairs; i++) {
-        m->start[i] = k;
-        if (ncontact[i] > 0)
-            memcpy(&m->c[k], &uc[(size_t)i * SC_MAX_PAIR_CONTACTS],
-                   (size_t)ncontact[i] * sizeof *m->c);
-        k += ncontact[i];
+    int lo = 0, hi = m->npairs;
+    while (lo < hi) {
+        int mid = lo + (hi - lo) / 2;
+        if (sc_pair_cmp(&m->pairs[mid], &p) < 0)
+            lo = mid + 1;
+        else
+            hi = mid;
     }
-    m->start[npairs] = k;
-    m->nbodies = n;
-    m->npairs = npairs;
-    m->valid = 1;
+    return lo;
+}
+
+/* The narrow phase's passes over the pairs (narrowphase()), in chunks of
+ * whole pairs that are tasks of the frame's runner from NP_SHARE_MIN pairs
+ * on: a pile is detected some twenty times a frame, and each pass only
+ * reads shared data and writes its own pairs' outputs, so the result is the
+ * same bits whoever runs which. */
+#define NP_SHARE_MIN 512
+
+typedef struct np_pass {
+    const sc_frame *f;
+    const sc_pair *pairs;
+    int npairs, chunks;
+    const sc_np_memo *m;
+    int use_memo;
+    int *hit;               /* per pair: its memo index, or -1 to collide it */
+    int *touching;          /* per pair collided: held at the last detection */
+    int *ncontact;          /* per pair: its contacts */
+    int *runs;              /* per chunk: pairs to collide (pass 1), then the
+                               first run index (pass 2) */
+    int *run_of;            /* per run: its pair */
+    sc_unit_pair *up;       /* per run: the unit's pair */
+    const int *rn;          /* per run: contacts found */
+    const sc_contact *rcs;  /* per run: SC_MAX_PAIR_CONTACTS of room */
+    const int *start;       /* per pair: its first contact in out (npairs + 1) */
+    int *run_at;            /* per pair collided: its run index */
+    sc_contact *out;        /* the new contacts */
+    sc_contact *memo_c;     /* the memo's next copy of them (raw) */
+    const sc_contact *old;  /* the last detection's contacts (warm starts) */
+    int nold;
+    unsigned char *taken;   /* per old contact */
+    double *maxpen;         /* per chunk */
+} np_pass;
+
+static int chunk_lo(const np_pass *p, int t)
+{
+    return (int)((long long)p->npairs * t / p->chunks);
+}
+
+/* Pass 1, chunk t: each pair found in the memo or marked to collide. */
+static void np_find(void *arg, int t, sc_arena *a, int helper)
+{
+    (void)a;
+    (void)helper;
+    np_pass *p = arg;
+    const sc_frame_state *st = p->f->st;
+    int lo = chunk_lo(p, t), hi = chunk_lo(p, t + 1), runs = 0;
+    if (lo >= hi) {
+        p->runs[t] = 0;
+        return;
+    }
+    int cursor = p->use_memo ? memo_lower(p->m, p->pairs[lo]) : 0;
+    int held = sc_contacts_pair_start(st->contacts, st->ncontacts, p->pairs[lo].a,
+                                      p->pairs[lo].b);
+    for (int i = lo; i < hi; i++) {
+        int h = p->use_memo ? memo_find(p->m, p->f->poses, p->pairs[i], &cursor) : -1;
+        p->hit[i] = h;
+        if (h >= 0) {
+            p->ncontact[i] = p->m->start[h + 1] - p->m->start[h];
+            continue;
+        }
+        /* the contacts still held are those of the last detection; both
+         * lists are in pair order, so one cursor walks them */
+        p->touching[i] = held_pair(st->contacts, st->ncontacts, p->pairs[i], &held);
+        runs++;
+    }
+    p->runs[t] = runs;
+}
+
+/* Pass 2, chunk t: the pairs to collide as the job's unit pairs. */
+static void np_units(void *arg, int t, sc_arena *a, int helper)
+{
+    (void)a;
+    (void)helper;
+    np_pass *p = arg;
+    const sc_frame_state *st = p->f->st;
+    int r = p->runs[t];
+    for (int i = chunk_lo(p, t); i < chunk_lo(p, t + 1); i++) {
+        if (p->hit[i] >= 0)
+            continue;
+        sc_unit_pair *u = &p->up[r];
+        sc_pair pr = p->pairs[i];
+        memset(u, 0, sizeof *u);    /* a1, b1 are the TOI's only */
+        u->sa = st->bodies[pr.a].shape;
+        u->sb = st->bodies[pr.b].shape;
+        u->body_a = pr.a;
+        u->body_b = pr.b;
+        u->a0 = p->f->poses[pr.a];
+        u->b0 = p->f->poses[pr.b];
+        u->touching = p->touching[i];
+        p->run_at[i] = r;
+        p->run_of[r++] = i;
+    }
+}
+
+/* Pass 3, chunk t: the contacts in pair order into out (and, raw, into
+ * the memo's next copy), then their warm starts; the deepest. */
+static void np_gather(void *arg, int t, sc_arena *a, int helper)
+{
+    (void)a;
+    (void)helper;
+    np_pass *p = arg;
+    int lo = chunk_lo(p, t), hi = chunk_lo(p, t + 1);
+    double maxpen = 0;
+    for (int i = lo; i < hi; i++) {
+        int n = p->ncontact[i];
+        if (n == 0)
+            continue;
+        const sc_contact *from = p->hit[i] >= 0
+                                     ? &p->m->c[p->m->start[p->hit[i]]]
+                                     : &p->rcs[(size_t)p->run_at[i] * SC_MAX_PAIR_CONTACTS];
+        sc_contact *to = &p->out[p->start[i]];
+        memcpy(to, from, (size_t)n * sizeof *to);
+        for (int k = 0; k < n; k++)
+            maxpen = max_d(maxpen, to[k].depth);
+    }
+    if (lo < hi) {
+        int c0 = p->start[lo], n = p->start[hi] - c0;
+        if (p->memo_c && n > 0)
+            memcpy(&p->memo_c[c0], &p->out[c0], (size_t)n * sizeof *p->out);
+        if (p->nold > 0)
+            match_impulses(p->f->st, &p->out[c0], n, p->old, p->nold, p->taken);
+    }
+    p->maxpen[t] = maxpen;
 }
 
 /* Step 4, exact: every pair through the narrow phase as work units on the
@@ -253,116 +367,150 @@ static void memo_keep(sc_np_memo *m, const sc_frame *f, const sc_pair *pairs, in
  * whose poses have not changed since the last detection of this frame (a
  * sleeper's, or an island a speculative re-solve left alone) takes its
  * contacts from the memo instead: the same bits, as the narrow phase reads
- * nothing else. */
+ * nothing else. The new list is built in the memo's spare buffer and takes
+ * the old list's place, which the warm starts read where it lies. */
 static int narrowphase(sc_frame *f, int npairs)
 {
     sc_frame_state *st = f->st;
-    const sc_pair *pairs = f->scr->pairs;
     sc_arena *a = &f->scr->arena;
     sc_np_memo *m = &f->scr->memo;
-    if (npairs > INT_MAX / SC_MAX_PAIR_CONTACTS)
+    const sc_task_runner *runner = f->ex ? f->ex->runner : NULL;
+    if (npairs > INT_MAX / SC_MAX_PAIR_CONTACTS - 1)
         return SC_ETOOBIG;
-    sc_unit_pair *up = sc_arena_alloc(a, (size_t)npairs * sizeof *up);
-    int *ncontact = up ? sc_arena_alloc(a, (size_t)npairs * sizeof *ncontact) : NULL;
-    int *run_of = ncontact ? sc_arena_alloc(a, (size_t)npairs * sizeof *run_of) : NULL;
-    sc_contact *uc = run_of ? sc_arena_alloc(a, (size_t)npairs * SC_MAX_PAIR_CONTACTS *
-                                                    sizeof *uc)
-                            : NULL;
-    int rc = uc ? SC_OK : SC_ENOMEM;
-    int use_memo = m->valid && m->nbodies == st->nbodies;
-    int nrun = 0, cursor = 0, held = 0;
-    for (int i = 0; rc == SC_OK && i < npairs; i++) {
-        int hit = use_memo ? memo_find(m, f->poses, pairs[i], &cursor) : -1;
-        if (hit >= 0) {
-            ncontact[i] = m->start[hit + 1] - m->start[hit];
-            if (ncontact[i] > 0)
-                memcpy(&uc[(size_t)i * SC_MAX_PAIR_CONTACTS], &m->c[m->start[hit]],
-                       (size_t)ncontact[i] * sizeof *uc);
-            continue;
-        }
-        sc_unit_pair *p = &up[nrun];
-        const sc_body *A = &st->bodies[pairs[i].a], *B = &st->bodies[pairs[i].b];
-        memset(p, 0, sizeof *p);    /* a1, b1 are the TOI's only */
-        p->sa = A->shape;
-        p->sb = B->shape;
-        p->body_a = pairs[i].a;
-        p->body_b = pairs[i].b;
-        p->a0 = f->poses[pairs[i].a];
-        p->b0 = f->poses[pairs[i].b];
-        /* the contacts still held are those of the last detection; both
-         * lists are in pair order, so one cursor walks them */
-        p->touching = held_pair(st->contacts, st->ncontacts, pairs[i], &held);
-        ncontact[i] = 0;
-        run_of[nrun++] = i;
+    np_pass p = {
+        .f = f,
+        .pairs = f->scr->pairs,
+        .npairs = npairs,
+        .chunks = runner && npairs >= NP_SHARE_MIN ? SC_SHARE_CHUNKS : 1,
+        .m = m,
+        .use_memo = m->valid && m->nbodies == st->nbodies,
+    };
+    size_t np = (size_t)npairs, nch = (size_t)p.chunks;
+    p.hit = sc_arena_alloc(a, np * sizeof *p.hit);
+    p.touching = p.hit ? sc_arena_alloc(a, np * sizeof *p.touching) : NULL;
+    p.ncontact = p.touching ? sc_arena_alloc(a, np * sizeof *p.ncontact) : NULL;
+    p.run_at = p.ncontact ? sc_arena_alloc(a, np * sizeof *p.run_at) : NULL;
+    int *start = p.run_at ? sc_arena_alloc(a, (np + 1) * sizeof *start) : NULL;
+    p.runs = start ? sc_arena_alloc(a, nch * sizeof *p.runs) : NULL;
+    p.maxpen = p.runs ? sc_arena_alloc(a, nch * sizeof *p.maxpen) : NULL;
+    int rc = p.maxpen ? SC_OK : SC_ENOMEM;
+    if (rc == SC_OK)
+        sc_tasks_run(runner, np_find, &p, p.chunks, NULL);
+    int nrun = 0;
+    for (int t = 0; rc == SC_OK && t < p.chunks; t++) {
+        int r = p.runs[t];
+        p.runs[t] = nrun;
+        nrun += r;
     }
-    f->stats->frame.detect.np_pairs += npairs;
-    f->stats->frame.detect.np_reused += npairs - nrun;
-    /* the old contacts that carry an impulse, for the warm start */
-    int nold = 0;
-    for (int k = 0; k < st->ncontacts; k++)
-        nold += carries_impulse(&st->contacts[k]);
-    sc_contact *old = rc == SC_OK && nold ? sc_arena_alloc(a, (size_t)nold * sizeof *old) : NULL;
-    unsigned char *taken = old ? sc_arena_alloc(a, (size_t)nold) : NULL;
-    if (nold && rc == SC_OK && !taken)
-        rc = SC_ENOMEM;
-    if (taken) {
-        memset(taken, 0, (size_t)nold);
-        nold = 0;
-        for (int k = 0; k < st->ncontacts; k++)
-            if (carries_impulse(&st->contacts[k]))
-                old[nold++] = st->contacts[k];
-    }
-    /* the pairs collided now: their contacts and counts in run order */
-    int *rn = rc == SC_OK && nrun ? sc_arena_alloc(a, (size_t)nrun * sizeof *rn) : NULL;
-    sc_contact *rcs = rn ? sc_arena_alloc(a, (size_t)nrun * SC_MAX_PAIR_CONTACTS * sizeof *rcs)
-                         : NULL;
+    size_t nr = (size_t)nrun;
+    p.run_of = rc == SC_OK && nrun ? sc_arena_alloc(a, nr * sizeof *p.run_of) : NULL;
+    p.up = p.run_of ? sc_arena_alloc(a, nr * sizeof *p.up) : NULL;
+    int *rn = p.up ? sc_arena_alloc(a, nr * sizeof *rn) : NULL;
+    sc_contact *rcs = rn ? sc_arena_alloc(a, nr * SC_MAX_PAIR_CONTACTS * sizeof *rcs) : NULL;
     if (nrun && rc == SC_OK && !rcs)
         rc = SC_ENOMEM;
+    if (rc == SC_OK && nrun)
+        sc_tasks_run(runner, np_units, &p, p.chunks, NULL);
+    if (rc == SC_OK) {
+        f->stats->frame.detect.np_pairs += npairs;
+        f->stats->frame.detect.np_reused += npairs - nrun;
+    }
     sc_job job = {
         .kind = SC_UNIT_COLLIDE,
-        .pairs = up,
+        .pairs = p.up,
         .npairs = nrun,
         .contacts = rcs,
         .ncontact = rn,
     };
-    st->ncontacts = 0;
     if (rc == SC_OK && nrun > 0)
         rc = f->ex->run(f->ex, &job, SC_STAGE_NARROWPHASE, f->stats);
-    for (int r = 0; rc == SC_OK && r < nrun; r++) {
-        int i = run_of[r];
-        ncontact[i] = rn[r];
-        if (rn[r] > 0)
-            memcpy(&uc[(size_t)i * SC_MAX_PAIR_CONTACTS], &rcs[(size_t)r * SC_MAX_PAIR_CONTACTS],
-                   (size_t)rn[r] * sizeof *uc);
-    }
     int total = 0;
-    for (int i = 0; rc == SC_OK && i < npairs; i++)
-        total += ncontact[i];
-    if (rc == SC_OK &&
-        sc_grow((void **)&st->contacts, &st->contact_cap, total, sizeof *st->contacts, INT_MAX))
-        rc = SC_ENOMEM;
-    double maxpen = 0;
     for (int i = 0; rc == SC_OK && i < npairs; i++) {
-        const sc_contact *c = &uc[(size_t)i * SC_MAX_PAIR_CONTACTS];
-        for (int k = 0; k < ncontact[i]; k++) {
-            st->contacts[st->ncontacts++] = c[k];
-            maxpen = max_d(maxpen, c[k].depth);
-        }
+        if (p.hit[i] < 0)
+            p.ncontact[i] = rn[p.run_at[i]];
+        start[i] = total;
+        total += p.ncontact[i];
     }
     if (rc == SC_OK)
-        memo_keep(m, f, pairs, npairs, uc, ncontact, total);
-    else
-        m->valid = 0;
-    if (rc == SC_OK && taken)
-        match_impulses(st, old, nold, taken);
+        start[npairs] = total;
+    /* the new list in the spare buffer; the memo's next copy beside it
+     * (without memory the memo is dropped, which only costs time) */
+    if (rc == SC_OK && sc_grow((void **)&m->spare, &m->spare_cap, total, sizeof *m->spare,
+                               INT_MAX))
+        rc = SC_ENOMEM;
+    int keep = rc == SC_OK &&
+               !sc_grow((void **)&m->c_next, &m->c_next_cap, total, sizeof *m->c_next, INT_MAX) &&
+               !sc_grow((void **)&m->start_next, &m->start_next_cap, npairs + 1,
+                        sizeof *m->start_next, INT_MAX);
+    unsigned char *taken = NULL;
+    if (rc == SC_OK && st->ncontacts > 0) {
+        taken = sc_arena_alloc(a, (size_t)st->ncontacts);
+        if (taken)
+            memset(taken, 0, (size_t)st->ncontacts);
+        else
+            rc = SC_ENOMEM;
+    }
+    double maxpen = 0;
+    if (rc == SC_OK) {
+        p.rn = rn;
+        p.rcs = rcs;
+        p.start = start;
+        p.out = m->spare;
+        p.memo_c = keep ? m->c_next : NULL;
+        p.old = st->contacts;
+        p.nold = st->ncontacts;
+        p.taken = taken;
+        sc_tasks_run(runner, np_gather, &p, p.chunks, NULL);
+        for (int t = 0; t < p.chunks; t++)
+            maxpen = max_d(maxpen, p.maxpen[t]);
+        /* the new list takes the old one's place, whose buffer is spare */
+        sc_contact *c = st->contacts;
+        int cap = st->contact_cap;
+        st->contacts = m->spare;
+        st->contact_cap = m->spare_cap;
+        st->ncontacts = total;
+        m->spare = c;
+        m->spare_cap = cap;
+    } else {
+        st->ncontacts = 0;
+    }
+    m->valid = 0;
+    if (rc == SC_OK && keep &&
+        !sc_grow((void **)&m->poses, &m->pose_cap, st->nbodies, sizeof *m->poses, INT_MAX) &&
+        !sc_grow((void **)&m->pairs, &m->pair_cap, npairs, sizeof *m->pairs, INT_MAX)) {
+        if (st->nbodies > 0)
+            memcpy(m->poses, f->poses, (size_t)st->nbodies * sizeof *m->poses);
+        if (npairs > 0)
+            memcpy(m->pairs, p.pairs, np * sizeof *m->pairs);
+        memcpy(m->start_next, start, (np + 1) * sizeof *start);
+        sc_contact *c = m->c;
+        int ccap = m->c_cap;
+        m->c = m->c_next;
+        m->c_cap = m->c_next_cap;
+        m->c_next = c;
+        m->c_next_cap = ccap;
+        int *s = m->start;
+        int scap = m->start_cap;
+        m->start = m->start_next;
+        m->start_cap = m->start_next_cap;
+        m->start_next = s;
+        m->start_next_cap = scap;
+        m->nbodies = st->nbodies;
+        m->npairs = npairs;
+        m->valid = 1;
+    }
+    sc_arena_free(a, taken);
     sc_arena_free(a, rcs);
     sc_arena_free(a, rn);
-    sc_arena_free(a, taken);
-    sc_arena_free(a, old);
-    sc_arena_free(a, uc);
-    sc_arena_free(a, run_of);
-    sc_arena_free(a, ncontact);
-    sc_arena_free(a, up);
+    sc_arena_free(a, p.up);
+    sc_arena_free(a, p.run_of);
+    sc_arena_free(a, p.maxpen);
+    sc_arena_free(a, p.runs);
+    sc_arena_free(a, start);
+    sc_arena_free(a, p.run_at);
+    sc_arena_free(a, p.ncontact);
+    sc_arena_free(a, p.touching);
+    sc_arena_free(a, p.hit);
     if (rc != SC_OK)
         return rc;
     f->stats->frame.detect.contacts = st->ncontacts;

@@ -70,6 +70,9 @@ void sc_frame_scratch_free(sc_frame_scratch *s)
     free(s->memo.pairs);
     free(s->memo.start);
     free(s->memo.c);
+    free(s->memo.start_next);
+    free(s->memo.c_next);
+    free(s->memo.spare);
     sc_islands_free(&s->islands);
     sc_arena_destroy(&s->arena);
     memset(s, 0, sizeof *s);
@@ -141,11 +144,25 @@ static int same_contact(const sc_contact *x, const sc_contact *y)
            !memcmp(&x->depth, &y->depth, sizeof x->depth);
 }
 
-/* The place of contact c in old[0 .. nold) (sorted by pair): the same
- * contact, whose impulse that solve found; -1 if none. */
-static int find_same(const sc_contact *old, int nold, const sc_contact *c)
+/* Whether pair (a, b) comes before pair (c, d). */
+static int pair_before(int a, int b, int c, int d)
 {
-    int o = sc_contacts_pair_start(old, nold, c->body_a, c->body_b);
+    return a < c || (a == c && b < d);
+}
+
+/* The place of contact c in old[0 .. nold) (sorted by pair): the same
+ * contact, whose impulse that solve found; -1 if none. *at: where c's
+ * pair starts in old, or -1 to search for it; contacts asked in pair
+ * order walk old once. */
+static int find_same(const sc_contact *old, int nold, const sc_contact *c, int *at)
+{
+    int o = *at;
+    if (o < 0 || (o > 0 && !pair_before(old[o - 1].body_a, old[o - 1].body_b, c->body_a,
+                                        c->body_b)))
+        o = sc_contacts_pair_start(old, nold, c->body_a, c->body_b);
+    while (o < nold && pair_before(old[o].body_a, old[o].body_b, c->body_a, c->body_b))
+        o++;
+    *at = o;
     while (o < nold && old[o].body_a == c->body_a && old[o].body_b == c->body_b &&
            !same_contact(&old[o], c))
         o++;
@@ -154,7 +171,8 @@ static int find_same(const sc_contact *old, int nold, const sc_contact *c)
 
 /* For each contact of an island kept (not in mask), its place in the last
  * solve's contacts (from[k]; -1 for the others): the same contact, whose
- * impulse that solve found. 0 if one is missing (then all are solved). */
+ * impulse that solve found. 0 if one is missing (then all are solved).
+ * The kept contacts are marked first, then found in pair order. */
 static int kept_impulses(const sc_frame_state *st, const sc_islands *is,
                          const unsigned char *mask, const redo *rd, int *from)
 {
@@ -163,13 +181,16 @@ static int kept_impulses(const sc_frame_state *st, const sc_islands *is,
     for (int i = 0; i < is->count; i++) {
         if (mask[is->bodies[is->body_start[i]]])
             continue;
-        for (int j = is->contact_start[i]; j < is->contact_start[i + 1]; j++) {
-            int k = is->contacts[j];
-            int o = find_same(rd->old, rd->nold, &st->contacts[k]);
-            if (o < 0)
-                return 0;
-            from[k] = o;
-        }
+        for (int j = is->contact_start[i]; j < is->contact_start[i + 1]; j++)
+            from[is->contacts[j]] = -2;
+    }
+    int at = -1;
+    for (int k = 0; k < st->ncontacts; k++) {
+        if (from[k] != -2)
+            continue;
+        from[k] = find_same(rd->old, rd->nold, &st->contacts[k], &at);
+        if (from[k] < 0)
+            return 0;
     }
     return 1;
 }
@@ -250,6 +271,55 @@ static void track_dev(const sc_frame *f, int i, double t, double h)
     f->st->track->dev[i] = max_d(f->st->track->dev[i], dev);
     sc_spin_at(sp, sp + 4, t, q);
     f->st->track->adev[i] = max_d(f->st->track->adev[i], q_angle_between(q, b->q));
+}
+
+/* The per-body work at a substep's end, in SC_SHARE_CHUNKS tasks of the
+ * frame's runner from SC_SHARE_MIN bodies on (each body's outputs are its
+ * own, so the same bits whoever runs which): after the solve, every
+ * movable body checked finite and its track distance grown (end 0); after
+ * the substep, its track point (end 1). */
+typedef struct end_pass {
+    const sc_frame *f;
+    int end;
+    double t, h;
+    int chunks;
+    unsigned char bad[SC_SHARE_CHUNKS];
+} end_pass;
+
+static void end_task(void *arg, int t, sc_arena *a, int helper)
+{
+    (void)a;
+    (void)helper;
+    end_pass *p = arg;
+    const sc_frame_state *st = p->f->st;
+    long long n = st->nbodies;
+    int i1 = (int)(n * (t + 1) / p->chunks);
+    p->bad[t] = 0;
+    for (int i = (int)(n * t / p->chunks); i < i1; i++) {
+        const sc_body *b = &st->bodies[i];
+        if (p->end == 1) {
+            if (b->inv_mass > 0)
+                track_point(p->f, i, p->t);
+            continue;
+        }
+        if (sc_body_movable(b) && (!sc_finite3(b->x) || !sc_finite3(b->v) || !sc_finite3(b->w)))
+            p->bad[t] = 1;
+        else if (st->track && b->inv_mass > 0)
+            track_dev(p->f, i, p->t, p->h);
+    }
+}
+
+/* end_task() over the bodies; SC_ENUMERIC if a body is not finite. */
+static int bodies_end(const sc_frame *f, int end, double t, double h)
+{
+    const sc_task_runner *r = f->ex ? f->ex->runner : NULL;
+    end_pass p = { .f = f, .end = end, .t = t, .h = h,
+                   .chunks = r && f->st->nbodies >= SC_SHARE_MIN ? SC_SHARE_CHUNKS : 1 };
+    sc_tasks_run(r, end_task, &p, p.chunks, NULL);
+    for (int k = 0; k < p.chunks; k++)
+        if (p.bad[k])
+            return SC_ENUMERIC;
+    return SC_OK;
 }
 
 /* Steps (4)-(7) once over h: islands, contact impulses, positions; with
@@ -346,14 +416,7 @@ static int substep(sc_frame *f, double h, sc_islands *is, unsigned char *touched
     }
     if (rc != SC_OK)
         return rc;
-    for (int i = 0; i < n; i++) {
-        sc_body *b = &st->bodies[i];
-        if (sc_body_movable(b) && (!sc_finite3(b->x) || !sc_finite3(b->v) || !sc_finite3(b->w)))
-            return SC_ENUMERIC;
-        if (st->track && b->inv_mass > 0)
-            track_dev(f, i, f->t + h, h);
-    }
-    return SC_OK;
+    return bodies_end(f, 0, f->t + h, h);
 }
 
 /* The contacts a solve ended with, impulses included, into keep. */
@@ -377,8 +440,9 @@ static int keep_solved(const sc_frame_state *st, sc_spec_list *keep)
  * substep starts from them, kept islands or not (the same bits). */
 static void warm_from_solved(sc_contact *c, int n, const sc_spec_list *old)
 {
+    int at = -1;
     for (int k = 0; k < n; k++) {
-        int o = find_same(old->c, old->n, &c[k]);
+        int o = find_same(old->c, old->n, &c[k], &at);
         if (o >= 0)
             sc_impulse_copy(&c[k], &old->c[o]);
     }
@@ -585,9 +649,8 @@ static int substeps(sc_frame *f, double dt, sc_body *saved, unsigned char *touch
         left -= u.h;
         if (left < 1e-9 * dt)
             left = 0;
-        for (int i = 0; st->track && rc == SC_OK && i < n; i++)
-            if (st->bodies[i].inv_mass > 0)
-                track_point(f, i, dt - left);
+        if (st->track && rc == SC_OK)
+            bodies_end(f, 1, dt - left, 0);
     }
     free(spec.c);
     free(solved.c);

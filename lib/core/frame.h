@@ -211,6 +211,15 @@ typedef struct sc_np_memo {
     int start_cap;
     sc_contact *c;
     int c_cap;
+    /* narrowphase()'s buffers: the next copy of start and c, written while
+     * c is read, and the contact list's spare (the frame state's list and
+     * this one trade places at each detection) */
+    int *start_next;
+    int start_next_cap;
+    sc_contact *c_next;
+    int c_next_cap;
+    sc_contact *spare;
+    int spare_cap;
 } sc_np_memo;
 
 typedef struct sc_frame_scratch {
