@@ -177,14 +177,30 @@ static double near_of(const sc_frame *f, int a, int b)
 }
 
 /* The run of pair (a, b) in the pair-sorted c[0 .. n): its first index,
- * *end one past its last (both the pair's place when it has none). */
-static int pair_run(const sc_contact *c, int n, int a, int b, int *end)
+ * *end one past its last (both the pair's place when it has none). *at is
+ * where the last pair asked starts (-1: none yet), so that pairs asked in
+ * order walk c once; any other is searched for. */
+static int pair_run_at(const sc_contact *c, int n, int a, int b, int *at, int *end)
 {
-    int k = sc_contacts_pair_start(c, n, a, b), e = k;
+    int k = *at;
+    if (k > 0 && !(c[k - 1].body_a < a || (c[k - 1].body_a == a && c[k - 1].body_b < b)))
+        k = -1;
+    if (k < 0)
+        k = sc_contacts_pair_start(c, n, a, b);
+    while (k < n && (c[k].body_a < a || (c[k].body_a == a && c[k].body_b < b)))
+        k++;
+    *at = k;
+    int e = k;
     while (e < n && c[e].body_a == a && c[e].body_b == b)
         e++;
     *end = e;
     return k;
+}
+
+static int pair_run(const sc_contact *c, int n, int a, int b, int *end)
+{
+    int at = -1;
+    return pair_run_at(c, n, a, b, &at, end);
 }
 
 /* Pair (a, b) held: its detected contacts marked 2 in fast, one fast pair
@@ -200,15 +216,24 @@ static void mark_held(const sc_frame_state *st, int a, int b, unsigned char *fas
  * pair, and for one touching at the start (contacts in c0, *touching = 1)
  * within it; one already past it, its deepest start depth plus a
  * hundredth of the tolerance. (The margin is what a pair just inside the
- * tolerance may end past it by, so it is kept small.) */
-static double pair_limit(const sc_contact *c0, int n0, int a, int b, double tol, int *touching)
+ * tolerance may end past it by, so it is kept small.)
+ * *at walks c0 as pair_run_at()'s does. */
+static double pair_limit_at(const sc_contact *c0, int n0, int a, int b, double tol,
+                            int *touching, int *at)
 {
     double d0 = -1;
     int j1;
-    for (int j = pair_run(c0, n0, a, b, &j1); j < j1; j++)
+    for (int j = pair_run_at(c0, n0, a, b, at, &j1); j < j1; j++)
         d0 = max_d(d0, c0[j].depth);
     *touching = d0 >= 0;
     return d0 <= tol ? tol : d0 + 0.01 * tol;
+}
+
+/* pair_limit_at() on its own. */
+static double pair_limit(const sc_contact *c0, int n0, int a, int b, double tol, int *touching)
+{
+    int at = -1;
+    return pair_limit_at(c0, n0, a, b, tol, touching, &at);
 }
 
 /* The deepest of contacts s[0 .. n) if it is a gap, else -1. */
@@ -346,7 +371,7 @@ int sc_spec_sort_out(sc_frame *f, const sc_body *saved, const sc_contact *c0, in
 {
     const sc_frame_state *st = f->st;
     double tol = f->cfg->contact_tol_m;
-    int nslow = 0;
+    int nslow = 0, at = -1;
     *nfast = 0;
     memset(fast, 0, (size_t)st->ncontacts);
     for (int k0 = 0, k1; k0 < st->ncontacts; k0 = k1) {
@@ -357,7 +382,7 @@ int sc_spec_sort_out(sc_frame *f, const sc_body *saved, const sc_contact *c0, in
                       st->contacts[k1].body_b == b; k1++)
             d1 = max_d(d1, st->contacts[k1].depth);
         int touching;
-        double limit = pair_limit(c0, n0, a, b, tol, &touching);
+        double limit = pair_limit_at(c0, n0, a, b, tol, &touching, &at);
         if (!(d1 > limit))
             continue;
         const sc_shape *sa = st->bodies[a].shape, *sb = st->bodies[b].shape;
