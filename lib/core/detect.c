@@ -362,6 +362,17 @@ static void np_gather(void *arg, int t, sc_arena *a, int helper)
     p->maxpen[t] = maxpen;
 }
 
+/* Two buffers (pointer and capacity) trade places. */
+static void trade(void **a, int *acap, void **b, int *bcap)
+{
+    void *p = *a;
+    int cap = *acap;
+    *a = *b;
+    *acap = *bcap;
+    *b = p;
+    *bcap = cap;
+}
+
 /* Step 4, exact: every pair through the narrow phase as work units on the
  * executor, merged in pair order, so the contact list is canonical. A pair
  * whose poses have not changed since the last detection of this frame (a
@@ -464,13 +475,8 @@ static int narrowphase(sc_frame *f, int npairs)
         for (int t = 0; t < p.chunks; t++)
             maxpen = max_d(maxpen, p.maxpen[t]);
         /* the new list takes the old one's place, whose buffer is spare */
-        sc_contact *c = st->contacts;
-        int cap = st->contact_cap;
-        st->contacts = m->spare;
-        st->contact_cap = m->spare_cap;
+        trade((void **)&st->contacts, &st->contact_cap, (void **)&m->spare, &m->spare_cap);
         st->ncontacts = total;
-        m->spare = c;
-        m->spare_cap = cap;
     } else {
         st->ncontacts = 0;
     }
@@ -483,18 +489,8 @@ static int narrowphase(sc_frame *f, int npairs)
         if (npairs > 0)
             memcpy(m->pairs, p.pairs, np * sizeof *m->pairs);
         memcpy(m->start_next, start, (np + 1) * sizeof *start);
-        sc_contact *c = m->c;
-        int ccap = m->c_cap;
-        m->c = m->c_next;
-        m->c_cap = m->c_next_cap;
-        m->c_next = c;
-        m->c_next_cap = ccap;
-        int *s = m->start;
-        int scap = m->start_cap;
-        m->start = m->start_next;
-        m->start_cap = m->start_next_cap;
-        m->start_next = s;
-        m->start_next_cap = scap;
+        trade((void **)&m->c, &m->c_cap, (void **)&m->c_next, &m->c_next_cap);
+        trade((void **)&m->start, &m->start_cap, (void **)&m->start_next, &m->start_next_cap);
         m->nbodies = st->nbodies;
         m->npairs = npairs;
         m->valid = 1;
