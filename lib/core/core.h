@@ -580,6 +580,10 @@ double sc_wall_now(void);
  * contact (where it would be: n or a later pair's when it has none), and
  * whether it has one. */
 int sc_contacts_pair_start(const sc_contact *c, int n, int a, int b);
+/* The same from a cursor: *at is where the last pair asked starts (-1: none
+ * yet) and becomes this one's; pairs asked in order walk c once, any other
+ * is searched for. */
+int sc_contacts_pair_walk(const sc_contact *c, int n, int a, int b, int *at);
 int sc_contacts_have_pair(const sc_contact *c, int n, int a, int b);
 
 #endif /* SC_CORE_H */

@@ -132,17 +132,33 @@ static int broadphase(sc_frame *f, int *npairs)
     return SC_OK;
 }
 
+/* Whether c's pair comes before pair (a, b). */
+static int pair_before(const sc_contact *c, int a, int b)
+{
+    return c->body_a < a || (c->body_a == a && c->body_b < b);
+}
+
 int sc_contacts_pair_start(const sc_contact *c, int n, int a, int b)
 {
     int lo = 0, hi = n;
     while (lo < hi) {
         int mid = (lo + hi) / 2;
-        if (c[mid].body_a < a || (c[mid].body_a == a && c[mid].body_b < b))
+        if (pair_before(&c[mid], a, b))
             lo = mid + 1;
         else
             hi = mid;
     }
     return lo;
+}
+
+int sc_contacts_pair_walk(const sc_contact *c, int n, int a, int b, int *at)
+{
+    int k = *at;
+    if (k < 0 || (k > 0 && !pair_before(&c[k - 1], a, b)))
+        k = sc_contacts_pair_start(c, n, a, b);
+    while (k < n && pair_before(&c[k], a, b))
+        k++;
+    return *at = k;
 }
 
 int sc_contacts_have_pair(const sc_contact *c, int n, int a, int b)
@@ -152,12 +168,11 @@ int sc_contacts_have_pair(const sc_contact *c, int n, int a, int b)
 }
 
 /* Whether c[0 .. n) (sorted by pair) holds pair p; the cursor *k walks c
- * for pairs asked in ascending order. */
+ * (sc_contacts_pair_walk()). */
 static int held_pair(const sc_contact *c, int n, sc_pair p, int *k)
 {
-    while (*k < n && (c[*k].body_a < p.a || (c[*k].body_a == p.a && c[*k].body_b < p.b)))
-        (*k)++;
-    return *k < n && c[*k].body_a == p.a && c[*k].body_b == p.b;
+    int i = sc_contacts_pair_walk(c, n, p.a, p.b, k);
+    return i < n && c[i].body_a == p.a && c[i].body_b == p.b;
 }
 
 static int carries_impulse(const sc_contact *c)
@@ -175,12 +190,10 @@ static int carries_impulse(const sc_contact *c)
 static void match_impulses(const sc_frame_state *st, sc_contact *c, int n, const sc_contact *old,
                            int nold, unsigned char *taken)
 {
-    int j0 = n > 0 ? sc_contacts_pair_start(old, nold, c[0].body_a, c[0].body_b) : 0;
+    int at = -1;
     for (int k = 0; k < n; k++) {
         sc_contact *ck = &c[k];
-        while (j0 < nold && (old[j0].body_a < ck->body_a ||
-                             (old[j0].body_a == ck->body_a && old[j0].body_b < ck->body_b)))
-            j0++;
+        int j0 = sc_contacts_pair_walk(old, nold, ck->body_a, ck->body_b, &at);
         double ra = st->bodies[ck->body_a].shape->bound_r;
         double rb = st->bodies[ck->body_b].shape->bound_r;
         double r = 0.1 * min_d(ra, rb);
@@ -288,8 +301,7 @@ static void np_find(void *arg, int t, sc_arena *a, int helper)
         return;
     }
     int cursor = p->use_memo ? memo_lower(p->m, p->pairs[lo]) : 0;
-    int held = sc_contacts_pair_start(st->contacts, st->ncontacts, p->pairs[lo].a,
-                                      p->pairs[lo].b);
+    int held = -1;
     for (int i = lo; i < hi; i++) {
         int h = p->use_memo ? memo_find(p->m, p->f->poses, p->pairs[i], &cursor) : -1;
         p->hit[i] = h;

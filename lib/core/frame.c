@@ -144,25 +144,13 @@ static int same_contact(const sc_contact *x, const sc_contact *y)
            !memcmp(&x->depth, &y->depth, sizeof x->depth);
 }
 
-/* Whether pair (a, b) comes before pair (c, d). */
-static int pair_before(int a, int b, int c, int d)
-{
-    return a < c || (a == c && b < d);
-}
-
 /* The place of contact c in old[0 .. nold) (sorted by pair): the same
  * contact, whose impulse that solve found; -1 if none. *at: where c's
  * pair starts in old, or -1 to search for it; contacts asked in pair
  * order walk old once. */
 static int find_same(const sc_contact *old, int nold, const sc_contact *c, int *at)
 {
-    int o = *at;
-    if (o < 0 || (o > 0 && !pair_before(old[o - 1].body_a, old[o - 1].body_b, c->body_a,
-                                        c->body_b)))
-        o = sc_contacts_pair_start(old, nold, c->body_a, c->body_b);
-    while (o < nold && pair_before(old[o].body_a, old[o].body_b, c->body_a, c->body_b))
-        o++;
-    *at = o;
+    int o = sc_contacts_pair_walk(old, nold, c->body_a, c->body_b, at);
     while (o < nold && old[o].body_a == c->body_a && old[o].body_b == c->body_b &&
            !same_contact(&old[o], c))
         o++;

@@ -177,20 +177,11 @@ static double near_of(const sc_frame *f, int a, int b)
 }
 
 /* The run of pair (a, b) in the pair-sorted c[0 .. n): its first index,
- * *end one past its last (both the pair's place when it has none). *at is
- * where the last pair asked starts (-1: none yet), so that pairs asked in
- * order walk c once; any other is searched for. */
+ * *end one past its last (both the pair's place when it has none); *at
+ * as sc_contacts_pair_walk()'s. */
 static int pair_run_at(const sc_contact *c, int n, int a, int b, int *at, int *end)
 {
-    int k = *at;
-    if (k > 0 && !(c[k - 1].body_a < a || (c[k - 1].body_a == a && c[k - 1].body_b < b)))
-        k = -1;
-    if (k < 0)
-        k = sc_contacts_pair_start(c, n, a, b);
-    while (k < n && (c[k].body_a < a || (c[k].body_a == a && c[k].body_b < b)))
-        k++;
-    *at = k;
-    int e = k;
+    int k = sc_contacts_pair_walk(c, n, a, b, at), e = k;
     while (e < n && c[e].body_a == a && c[e].body_b == b)
         e++;
     *end = e;
