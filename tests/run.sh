@@ -27,8 +27,11 @@ count() { # $1 = label, $2 = exit status; counts cmocka's summary lines
 
 # The cmocka binaries of every build run first, as many at once as there
 # are CPUs (make check's longest part; the sanitized ones are the slowest, so
-# they go first); test_cluster* run alone afterwards: their daemons answer
-# within deadlines. Their results print below in build order.
+# they go first); test_cluster* and test_units run alone afterwards: the
+# daemons answer within deadlines, and test_units holds each job's makespan
+# to its bound, which needs a CPU for each of its threads (beside another
+# test binary a unit's time holds that one's turns). Their results print
+# below in build order.
 runs=$(mktemp -d)
 trap 'rm -f "$log"; rm -rf "$runs"' EXIT
 one() { # $1 = test binary; its output, exit status and seconds into $runs
@@ -38,15 +41,15 @@ one() { # $1 = test binary; its output, exit status and seconds into $runs
     echo $? >"$runs/$key.rc"
     echo $(( $(date +%s) - start )) >"$runs/$key.s"
 }
-list() { # the test binaries, the last build's first; $1 = cluster: only test_cluster*
+list() { # the test binaries, the last build's first; $1 = alone: only those run alone
     i=$#
     while [ "$i" -gt 1 ]; do
         eval "b=\${$i}"
         for t in "$b"/tests/test_*; do
             [ -x "$t" ] || continue
             case $(basename "$t") in
-                test_cluster*) [ "$1" = cluster ] && echo "$t" ;;
-                *) [ "$1" = cluster ] || echo "$t" ;;
+                test_cluster* | test_units) [ "$1" = alone ] && echo "$t" ;;
+                *) [ "$1" = alone ] || echo "$t" ;;
             esac
         done
         i=$((i - 1))
@@ -60,7 +63,7 @@ for t in $(list pool "$@"); do
     (one "$t"; rm -f "$runs/$key.run") &
 done
 wait
-for t in $(list cluster "$@"); do one "$t"; done
+for t in $(list alone "$@"); do one "$t"; done
 
 for build in "$@"; do
     echo "== tests in $build"
