@@ -269,7 +269,6 @@ typedef struct np_pass {
     int *ncontact;          /* per pair: its contacts */
     int *runs;              /* per chunk: pairs to collide (pass 1), then the
                                first run index (pass 2) */
-    int *run_of;            /* per run: its pair */
     sc_unit_pair *up;       /* per run: the unit's pair */
     const int *rn;          /* per run: contacts found */
     const sc_contact *rcs;  /* per run: SC_MAX_PAIR_CONTACTS of room */
@@ -338,8 +337,7 @@ static void np_units(void *arg, int t, sc_arena *a, int helper)
         u->a0 = p->f->poses[pr.a];
         u->b0 = p->f->poses[pr.b];
         u->touching = p->touching[i];
-        p->run_at[i] = r;
-        p->run_of[r++] = i;
+        p->run_at[i] = r++;
     }
 }
 
@@ -426,8 +424,7 @@ static int narrowphase(sc_frame *f, int npairs)
         nrun += r;
     }
     size_t nr = (size_t)nrun;
-    p.run_of = rc == SC_OK && nrun ? sc_arena_alloc(a, nr * sizeof *p.run_of) : NULL;
-    p.up = p.run_of ? sc_arena_alloc(a, nr * sizeof *p.up) : NULL;
+    p.up = rc == SC_OK && nrun ? sc_arena_alloc(a, nr * sizeof *p.up) : NULL;
     int *rn = p.up ? sc_arena_alloc(a, nr * sizeof *rn) : NULL;
     sc_contact *rcs = rn ? sc_arena_alloc(a, nr * SC_MAX_PAIR_CONTACTS * sizeof *rcs) : NULL;
     if (nrun && rc == SC_OK && !rcs)
@@ -511,7 +508,6 @@ static int narrowphase(sc_frame *f, int npairs)
     sc_arena_free(a, rcs);
     sc_arena_free(a, rn);
     sc_arena_free(a, p.up);
-    sc_arena_free(a, p.run_of);
     sc_arena_free(a, p.maxpen);
     sc_arena_free(a, p.runs);
     sc_arena_free(a, start);
