@@ -265,7 +265,6 @@ typedef struct np_pass {
     const sc_np_memo *m;
     int use_memo;
     int *hit;               /* per pair: its memo index, or -1 to collide it */
-    int *touching;          /* per pair collided: held at the last detection */
     int *ncontact;          /* per pair: its contacts */
     int *runs;              /* per chunk: pairs to collide (pass 1), then the
                                first run index (pass 2) */
@@ -293,25 +292,19 @@ static void np_find(void *arg, int t, sc_arena *a, int helper)
     (void)a;
     (void)helper;
     np_pass *p = arg;
-    const sc_frame_state *st = p->f->st;
     int lo = chunk_lo(p, t), hi = chunk_lo(p, t + 1), runs = 0;
     if (lo >= hi) {
         p->runs[t] = 0;
         return;
     }
     int cursor = p->use_memo ? memo_lower(p->m, p->pairs[lo]) : 0;
-    int held = -1;
     for (int i = lo; i < hi; i++) {
         int h = p->use_memo ? memo_find(p->m, p->f->poses, p->pairs[i], &cursor) : -1;
         p->hit[i] = h;
-        if (h >= 0) {
+        if (h >= 0)
             p->ncontact[i] = p->m->start[h + 1] - p->m->start[h];
-            continue;
-        }
-        /* the contacts still held are those of the last detection; both
-         * lists are in pair order, so one cursor walks them */
-        p->touching[i] = held_pair(st->contacts, st->ncontacts, p->pairs[i], &held);
-        runs++;
+        else
+            runs++;
     }
     p->runs[t] = runs;
 }
@@ -323,7 +316,7 @@ static void np_units(void *arg, int t, sc_arena *a, int helper)
     (void)helper;
     np_pass *p = arg;
     const sc_frame_state *st = p->f->st;
-    int r = p->runs[t];
+    int r = p->runs[t], held = -1;
     for (int i = chunk_lo(p, t); i < chunk_lo(p, t + 1); i++) {
         if (p->hit[i] >= 0)
             continue;
@@ -336,7 +329,9 @@ static void np_units(void *arg, int t, sc_arena *a, int helper)
         u->body_b = pr.b;
         u->a0 = p->f->poses[pr.a];
         u->b0 = p->f->poses[pr.b];
-        u->touching = p->touching[i];
+        /* the contacts still held are those of the last detection; both
+         * lists are in pair order, so one cursor walks them */
+        u->touching = held_pair(st->contacts, st->ncontacts, pr, &held);
         p->run_at[i] = r++;
     }
 }
@@ -408,13 +403,16 @@ static int narrowphase(sc_frame *f, int npairs)
     };
     size_t np = (size_t)npairs, nch = (size_t)p.chunks;
     p.hit = sc_arena_alloc(a, np * sizeof *p.hit);
-    p.touching = p.hit ? sc_arena_alloc(a, np * sizeof *p.touching) : NULL;
-    p.ncontact = p.touching ? sc_arena_alloc(a, np * sizeof *p.ncontact) : NULL;
+    p.ncontact = p.hit ? sc_arena_alloc(a, np * sizeof *p.ncontact) : NULL;
     p.run_at = p.ncontact ? sc_arena_alloc(a, np * sizeof *p.run_at) : NULL;
-    int *start = p.run_at ? sc_arena_alloc(a, (np + 1) * sizeof *start) : NULL;
-    p.runs = start ? sc_arena_alloc(a, nch * sizeof *p.runs) : NULL;
+    p.runs = p.run_at ? sc_arena_alloc(a, nch * sizeof *p.runs) : NULL;
     p.maxpen = p.runs ? sc_arena_alloc(a, nch * sizeof *p.maxpen) : NULL;
-    int rc = p.maxpen ? SC_OK : SC_ENOMEM;
+    /* each pair's first contact, written where the memo takes it next */
+    int rc = p.maxpen && !sc_grow((void **)&m->start_next, &m->start_next_cap, npairs + 1,
+                                  sizeof *m->start_next, INT_MAX)
+                 ? SC_OK
+                 : SC_ENOMEM;
+    int *start = m->start_next;
     if (rc == SC_OK)
         sc_tasks_run(runner, np_find, &p, p.chunks, NULL);
     int nrun = 0;
@@ -459,9 +457,7 @@ static int narrowphase(sc_frame *f, int npairs)
                                INT_MAX))
         rc = SC_ENOMEM;
     int keep = rc == SC_OK &&
-               !sc_grow((void **)&m->c_next, &m->c_next_cap, total, sizeof *m->c_next, INT_MAX) &&
-               !sc_grow((void **)&m->start_next, &m->start_next_cap, npairs + 1,
-                        sizeof *m->start_next, INT_MAX);
+               !sc_grow((void **)&m->c_next, &m->c_next_cap, total, sizeof *m->c_next, INT_MAX);
     unsigned char *taken = NULL;
     if (rc == SC_OK && st->ncontacts > 0) {
         taken = sc_arena_alloc(a, (size_t)st->ncontacts);
@@ -497,7 +493,6 @@ static int narrowphase(sc_frame *f, int npairs)
             memcpy(m->poses, f->poses, (size_t)st->nbodies * sizeof *m->poses);
         if (npairs > 0)
             memcpy(m->pairs, p.pairs, np * sizeof *m->pairs);
-        memcpy(m->start_next, start, (np + 1) * sizeof *start);
         trade((void **)&m->c, &m->c_cap, (void **)&m->c_next, &m->c_next_cap);
         trade((void **)&m->start, &m->start_cap, (void **)&m->start_next, &m->start_next_cap);
         m->nbodies = st->nbodies;
@@ -510,10 +505,8 @@ static int narrowphase(sc_frame *f, int npairs)
     sc_arena_free(a, p.up);
     sc_arena_free(a, p.maxpen);
     sc_arena_free(a, p.runs);
-    sc_arena_free(a, start);
     sc_arena_free(a, p.run_at);
     sc_arena_free(a, p.ncontact);
-    sc_arena_free(a, p.touching);
     sc_arena_free(a, p.hit);
     if (rc != SC_OK)
         return rc;
