@@ -124,6 +124,15 @@
  * spent on failures: Lemke's method (friction_lemke()) is the cheaper way
  * on from here (docs/DESIGN.md 11). */
 #define LCP_FRICTION_ROUNDS 10
+/* The rounds alone (sc_lcp_boxed_rounds_in(), with no Lemke after them)
+ * damp the fixed point: from round LCP_DAMP_FROM on, the bounds come from
+ * the mean of the previous bounds' answer and the new one, which ends
+ * most of the two-set cycles the plain rounds fall into near stick-slip,
+ * up to LCP_DAMPED_ROUNDS rounds. Where Lemke's method follows, the plain
+ * rounds and their stop on a cycle are cheaper: damped, a small island
+ * that cycles runs every round before Lemke (docs/DESIGN.md 11). */
+#define LCP_DAMP_FROM 3
+#define LCP_DAMPED_ROUNDS 20
 
 enum { ST_UNSEEN, ST_DRIVE, ST_C, ST_LO, ST_HI, ST_FREE };
 
@@ -765,7 +774,7 @@ static int verify(int n, const double *M, const double *q, const double *lo,
 typedef struct work {
     void *mem, *fmem;
     lcp s;
-    double *lo, *hi, *shift, *qs, *blo, *bhi, *plo, *phi, *zfix, *zprev, *kmat;
+    double *lo, *hi, *shift, *qs, *blo, *bhi, *plo, *phi, *zfix, *zprev, *zbound, *kmat;
     double *vsc;                 /* S_i of the w of the last verify() */
     double *zpgs, *zsor;         /* the projected Gauss-Seidel iterates,
                                     plain and over-relaxed (friction_guess()) */
@@ -773,14 +782,14 @@ typedef struct work {
 } work;
 
 /* Everything a call needs in two allocations (nothing is allocated in the
- * pivot loop): 23 vectors, kmat (n x n, friction only), two stamp arrays
+ * pivot loop): 24 vectors, kmat (n x n, friction only), two stamp arrays
  * and the set of each index in mem, the factorisation (whose size depends
  * on whether M is symmetric) in fmem. One pass over M finds its row sums
  * |M_i.|, whether it is symmetric and whether it is finite (SC_EINVAL if
  * not): the O(n^2) each call pays once. */
 static int work_init(sc_arena *arena, work *wk, int n, const double *M, int friction)
 {
-    enum { VECS = 23 };
+    enum { VECS = 24 };
     size_t nd = (size_t)n, nn = nd * nd;
     if (nd > SIZE_MAX / sizeof(double) / (nd + VECS) / 4)
         return SC_ENOMEM;
@@ -796,7 +805,7 @@ static int work_init(sc_arena *arena, work *wk, int n, const double *M, int fric
     double **vec[VECS] = { &s->z, &s->w, &s->dzc, &s->dw, &s->rowabs, &s->wtol, &s->tmp,
                            &s->wv, &s->wsc, &s->zref, &wk->lo, &wk->hi, &wk->shift,
                            &wk->qs, &wk->blo, &wk->bhi, &wk->plo, &wk->phi, &wk->zfix,
-                           &wk->zprev, &wk->vsc, &wk->zpgs, &wk->zsor };
+                           &wk->zprev, &wk->zbound, &wk->vsc, &wk->zpgs, &wk->zsor };
     for (int v = 0; v < VECS; v++, p += nd)
         *vec[v] = p;
     wk->kmat = friction ? p : NULL;
@@ -1123,26 +1132,30 @@ static int friction_polish(work *wk, const double *q, const int *findex,
  * Fixed point on them (round 0 with the normals at 0, i.e. frictionless),
  * each round a full pivoting pass with fixed bounds, then an exact polish
  * with that round's sets; SC_OK as soon as one satisfies the bounds it
- * implies, SC_EMAXITER after LCP_FRICTION_ROUNDS or once a round repeats an
- * earlier one (a cycle). */
+ * implies, SC_EMAXITER after LCP_FRICTION_ROUNDS (damped:
+ * LCP_DAMPED_ROUNDS) or once the rounds repeat (a cycle). */
 static int solve_friction(work *wk, const double *q, const double *lo, const double *hi,
-                          const int *findex, const double *mu, int start, double *z,
-                          double *w, double *residual)
+                          const int *findex, const double *mu, int start, int damped,
+                          double *z, double *w, double *residual)
 {
     const int n = wk->s.n;
-    double *zprev = wk->zprev;
+    const size_t nb = (size_t)n * sizeof(double);
+    double *zprev = wk->zprev, *zb = wk->zbound;
+    const int rounds = damped ? LCP_DAMPED_ROUNDS : LCP_FRICTION_ROUNDS;
     /* a round that repeats an earlier round's answer bit for bit has
      * entered a cycle (the bin: a third of the fixed points that failed,
      * most with period 2, found by round 3-8; none settled after a
-     * repeat): Lemke at once instead of the remaining rounds */
-    uint64_t seen[LCP_FRICTION_ROUNDS];
+     * repeat): Lemke at once instead of the remaining rounds; damped,
+     * the bounds' answer is what repeats */
+    uint64_t seen[LCP_DAMPED_ROUNDS > LCP_FRICTION_ROUNDS ? LCP_DAMPED_ROUNDS
+                                                          : LCP_FRICTION_ROUNDS];
     /* round 0: the bounds of the guess (a warm start), else frictionless */
     if (start == START_GUESS)
-        memcpy(zprev, z, (size_t)n * sizeof(double));
+        memcpy(zb, z, nb);
     else
-        memset(zprev, 0, (size_t)n * sizeof(double));
-    for (int round = 0; round < LCP_FRICTION_ROUNDS; round++) {
-        friction_bounds(n, lo, hi, findex, mu, zprev, wk->lo, wk->hi);
+        memset(zb, 0, nb);
+    for (int round = 0; round < rounds; round++) {
+        friction_bounds(n, lo, hi, findex, mu, zb, wk->lo, wk->hi);
         int rc = solve_fixed(wk, q, wk->lo, wk->hi, round > 0 ? START_SETS : start, z, w,
                              residual);
         if (rc != SC_OK)
@@ -1155,7 +1168,12 @@ static int solve_friction(work *wk, const double *q, const double *lo, const dou
             verify_coupled(wk, q, lo, hi, findex, mu, z, w, residual, 0))
             return SC_OK;
         memcpy(z, zprev, (size_t)n * sizeof(double));
-        seen[round] = sc_fnv1a(SC_FNV_OFFSET, z, (size_t)n * sizeof *z);
+        if (damped && round + 1 >= LCP_DAMP_FROM)
+            for (int i = 0; i < n; i++)
+                zb[i] = 0.5 * (zb[i] + z[i]);
+        else
+            memcpy(zb, z, nb);
+        seen[round] = sc_fnv1a(SC_FNV_OFFSET, zb, nb);
         int cycle = 0;
         for (int r = 0; r < round && !cycle; r++)
             cycle = seen[r] == seen[round];
@@ -1346,7 +1364,7 @@ static int friction_guess(work *wk, const double *q, const double *lo, const dou
             if (!all_finite(zg[k], (size_t)n))
                 continue;
             memcpy(z, zg[k], (size_t)n * sizeof *z);
-            rc = solve_friction(wk, q, lo, hi, findex, mu, START_GUESS, z, w, residual);
+            rc = solve_friction(wk, q, lo, hi, findex, mu, START_GUESS, 0, z, w, residual);
             if (rc == SC_OK || rc == SC_ENOMEM)
                 return rc;
         }
@@ -1385,7 +1403,7 @@ static int boxed(sc_arena *arena, int n, const double *M, const double *q, const
     double residual;
     int lemke = 0, guessed = 0;
     if (friction) {
-        rc = solve_friction(&wk, q, lo, hi, findex, mu, start, z, w, &residual);
+        rc = solve_friction(&wk, q, lo, hi, findex, mu, start, more == 0, z, w, &residual);
         int failed = rc == SC_EMAXITER || rc == SC_ENUMERIC || rc == SC_ENOSOLUTION;
         if ((more & MORE_LEMKE) && failed) {
             int lr = friction_lemke(&wk, q, lo, hi, findex, mu, z, w, &residual);

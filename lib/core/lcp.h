@@ -66,9 +66,11 @@ int sc_lcp_dantzig_warm_in(sc_arena *a, int n, const double *M, const double *q,
 int sc_lcp_boxed_warm_in(sc_arena *a, int n, const double *M, const double *q,
                          const double *lo, const double *hi, const int *findex,
                          const double *mu, double *z, double *w, sc_lcp_info *info);
-/* The same with friction's fixed-point rounds only: where they do not
- * settle, SC_EMAXITER (or the rounds' error) without Lemke's method or
- * the guess after them (a caller that has an answer to keep). */
+/* The same with friction's fixed-point rounds only, damped (their bounds
+ * from a mean of answers after the first rounds, more rounds: lcp.c):
+ * where they do not settle, SC_EMAXITER (or the rounds' error) without
+ * Lemke's method or the guess after them (a caller that has an answer to
+ * keep). */
 int sc_lcp_boxed_rounds_in(sc_arena *a, int n, const double *M, const double *q,
                            const double *lo, const double *hi, const int *findex,
                            const double *mu, double *z, double *w, sc_lcp_info *info);
