@@ -711,7 +711,8 @@ static void push_out_frame(double depth, double spin, double *lift, double *de, 
  * box is not lifted at all: a resting part lifted for free at every
  * substep is what kept a nut rocking in a bin of 200. A box 1.5 mm deep
  * (past twice the slop: placed overlapping) is pushed out whatever it
- * costs. */
+ * costs, to within the contact tolerance in one frame (all of the depth
+ * past it at once, a fifth of the rest). */
 static void test_push_out_adds_no_energy(void **state)
 {
     (void)state;
@@ -732,7 +733,7 @@ static void test_push_out_adds_no_energy(void **state)
     assert_true(fabs(vx - 0.5) < 1e-12);
     push_out_frame(1.5e-3, 0, &lift, &de, &vx, &wz);
     print_message("box 1.5 mm in the floor: lifted %.4f mm\n", 1e3 * lift);
-    assert_true(lift > 1e-5);
+    assert_true(lift >= 1.5e-3 - sc_world_config_default().contact_tol_m);
 }
 
 int main(void)

@@ -27,6 +27,7 @@
 
 /* The contact parameters of lib/core/frame.c (the default island split). */
 static const sc_contact_params params = { .bounce_speed = 0.1, .slop = 0.5e-3, .baumgarte = 0.2,
+                                          .push_tol = 1e-3,
                                           .split_contacts = SC_ISLAND_SPLIT_DEFAULT,
                                           .block_contacts = 4, .tol = 1e-3, .max_sweeps = 50 };
 
@@ -1165,10 +1166,11 @@ static void test_bad_fields_are_format_errors(void **state)
     sc_wire_unit_free(&wu);
     /* island header: magic, version, kind 8; bodies, members, contacts,
      * islands 16; h, bounce_speed, slop, baumgarte, tol 40; gravity 24;
-     * split_contacts, block_contacts, max_sweeps, cold, impact_first,
+     * push_tol 8; split_contacts, block_contacts, max_sweeps, cold, impact_first,
      * island_method, anderson 28;
      * per island 8 */
-    const size_t tol = 8 + 16 + 32, grav = tol + 8, ints = grav + 24, isl0 = ints + 28;
+    const size_t tol = 8 + 16 + 32, grav = tol + 8, ptol = grav + 24, ints = ptol + 8,
+                 isl0 = ints + 28;
     size_t ilen = sm.len[SC_UNIT_ISLAND];
     print_message("island sample: %d islands, %d members, %d bodies\n", nisl, nm, m);
     /* the offsets are right: other valid values there decode as such */
@@ -1176,9 +1178,9 @@ static void test_bad_fields_are_format_errors(void **state)
         { tol, bits(0.25), 8 }, { ints, 5, 4 }, { ints + 4, 1u << 16, 4 },
         { ints + 8, 10000, 4 }, { ints + 12, 1, 4 }, { ints + 16, 1, 4 },
         { grav + 16, bits(-1.62), 8 }, { ints + 20, SC_ISLAND_SUBDOMAINS, 4 },
-        { ints + 24, SC_ANDERSON_MAX, 4 },
+        { ints + 24, SC_ANDERSON_MAX, 4 }, { ptol, bits(2e-3), 8 },
     };
-    for (int k = 0; k < 9; k++) {
+    for (int k = 0; k < 10; k++) {
         unsigned char keep8[8];
         memcpy(keep8, ib + good[k].at, (size_t)good[k].n);
         for (int i = 0; i < good[k].n; i++)
@@ -1193,7 +1195,8 @@ static void test_bad_fields_are_format_errors(void **state)
                : k == 5 ? q->impact_first == 1
                : k == 6 ? q->gravity[2] == -1.62
                : k == 7 ? q->island_method == SC_ISLAND_SUBDOMAINS
-                        : q->anderson == SC_ANDERSON_MAX;
+               : k == 8 ? q->anderson == SC_ANDERSON_MAX
+                        : q->push_tol == 2e-3;
         assert_true(ok);
         assert_int_equal(q->inject, 0);
         sc_wire_unit_free(&wu);
@@ -1201,8 +1204,10 @@ static void test_bad_fields_are_format_errors(void **state)
     }
     /* solver settings out of range */
     const double bad_tol[] = { NAN, INFINITY, -1e-3 };
-    for (int k = 0; k < 3; k++)
+    for (int k = 0; k < 3; k++) {
         bad_at(ib, ilen, tol, bits(bad_tol[k]), 8);
+        bad_at(ib, ilen, ptol, bits(bad_tol[k]), 8);
+    }
     for (int k = 0; k < 3; k++)                              /* gravity */
         bad_at(ib, ilen, grav + 8 * (size_t)k, bits(k == 1 ? -INFINITY : NAN), 8);
     bad_at(ib, ilen, ints, (uint32_t)-1, 4);                 /* split_contacts */
@@ -1291,7 +1296,7 @@ static void test_island_settings_and_impulses_travel(void **state)
 {
     const scene *s = *state;
     sc_contact_params p = { .bounce_speed = 0.25, .slop = 1e-4, .baumgarte = 0.3,
-                            .split_contacts = 3, .block_contacts = 2, .tol = 0.125,
+                            .push_tol = 2.5e-3, .split_contacts = 3, .block_contacts = 2, .tol = 0.125,
                             .max_sweeps = 7, .cold = 1, .impact_first = 1,
                             .island_method = SC_ISLAND_SUBDOMAINS, .anderson = 2 };
     islands_job ij;
@@ -1309,6 +1314,7 @@ static void test_island_settings_and_impulses_travel(void **state)
         assert_int_equal(sc_wire_unit_decode(buf, len, NULL, NULL, &wu), SC_OK);
         assert_true(wu.params.bounce_speed == p.bounce_speed && wu.params.slop == p.slop &&
                     wu.params.baumgarte == p.baumgarte && wu.params.tol == p.tol &&
+                    wu.params.push_tol == p.push_tol &&
                     wu.params.split_contacts == p.split_contacts &&
                     wu.params.block_contacts == p.block_contacts &&
                     wu.params.max_sweeps == p.max_sweeps && wu.params.cold == p.cold &&

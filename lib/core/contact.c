@@ -1223,7 +1223,9 @@ static int push_out(sc_arena *a, const row *rows, const int *nsel, int nn, const
         /* what the velocities just solved do not already take out: a
          * sphere leaving the floor after a bounce is not lifted as well
          * (that lift, against gravity, would add energy) */
-        double target = p->baumgarte * max_d(c[ci[k]].depth - p->slop, 0.0) / h;
+        double d = c[ci[k]].depth, tol = p->push_tol > 0 ? p->push_tol : INFINITY;
+        double target = (p->baumgarte * max_d(min_d(d, tol) - p->slop, 0.0) +
+                         max_d(d - tol, 0.0)) / h;
         q[k] = -max_d(target - max_d(row_speed(&rows[nsel[k]], bodies, 0), 0.0), 0.0);
         qmax = max_d(qmax, -q[k]);
         nr[k] = rows[nsel[k]];

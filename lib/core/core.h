@@ -208,6 +208,9 @@ typedef struct sc_contact_params {
                                        slower = resting contact (e = 0) */
     double slop;                    /* m of penetration left alone */
     double baumgarte;               /* fraction of the rest removed per substep */
+    double push_tol;                /* m: depth past which the push-out takes
+                                       out all of the excess in one substep
+                                       (0: none, baumgarte throughout) */
     int split_contacts;             /* islands with more contacts are split into
                                        blocks (block Gauss-Seidel); 0: never */
     int block_contacts;             /* contacts per block (whole pairs) */

@@ -36,6 +36,7 @@ sc_contact_params sc_frame_contact_params(const sc_frame_config *cfg)
         .bounce_speed = SC_BOUNCE_SPEED,
         .slop = 0.5e-3,
         .baumgarte = 0.2,
+        .push_tol = cfg->contact_tol_m,
         .split_contacts = cfg->island_split,
         .block_contacts = SPLIT_BLOCK_CONTACTS,
         .tol = SC_SPLIT_TOL,

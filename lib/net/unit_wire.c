@@ -30,7 +30,8 @@
  *             exact), a0, b0, (TOI) a1, b1
  *   ISLAND unit (consecutive islands, each solved on its own): bodies u32,
  *             members u32, contacts u32, islands u32, h, bounce_speed, slop,
- *             baumgarte, tol f64, gravity f64[3], split_contacts, block_contacts, max_sweeps,
+ *             baumgarte, tol f64, gravity f64[3], push_tol f64, split_contacts,
+ *             block_contacts, max_sweeps,
  *             cold i32, impact_first i32, island_method i32, anderson i32, per island:
  *             members u32, contacts
  *             u32; per body: see
@@ -101,7 +102,7 @@
  * phase would have. Outputs of a unit that failed (rc < 0) are as undefined as after a
  * local failure. */
 
-#define WIRE_VERSION 20      /* 6: island units carry impact_first, results inelastic, v0, w0;
+#define WIRE_VERSION 21      /* 6: island units carry impact_first, results inelastic, v0, w0;
                                 7: results carry energy_refused, restitution_scaled;
                                 8: and np_pairs, np_reused; 9: and lcp_kept;
                                 10: island units carry gravity (the push-out's lift);
@@ -119,7 +120,7 @@
                                 18: an impulse travels with its impulse_dt;
                                 19: tracks carry adev and their points'
                                 orientations; 20: results and stats carry
-                                sweeps */
+                                sweeps; 21: island units carry push_tol */
 #define MAGIC_UNIT 0x55574353u        /* "SCWU" */
 #define MAGIC_RESULT 0x52574353u      /* "SCWR" */
 #define MAX_PAIRS (1 << 16)
@@ -463,6 +464,7 @@ static int params_ok(const sc_contact_params *p)
     return isfinite(p->bounce_speed) && p->bounce_speed >= 0 && isfinite(p->slop) &&
            isfinite(p->gravity[0]) && isfinite(p->gravity[1]) && isfinite(p->gravity[2]) &&
            p->slop >= 0 && isfinite(p->baumgarte) && p->baumgarte >= 0 && isfinite(p->tol) &&
+           isfinite(p->push_tol) && p->push_tol >= 0 &&
            p->tol >= 0 && p->split_contacts >= 0 && p->block_contacts >= 1 &&
            p->block_contacts <= MAX_CONTACTS && p->max_sweeps >= 1 &&
            p->max_sweeps <= MAX_SWEEPS && (p->cold == 0 || p->cold == 1) &&
@@ -482,9 +484,10 @@ static void write_island(wbuf *w, const void *job_, const void *im_)
     put(w, (uint64_t)im->nc, 4);
     put(w, (uint64_t)im->nisl, 4);
     const sc_contact_params *p = job->params;
-    double head[8] = { job->h,         p->bounce_speed, p->slop,       p->baumgarte,
-                       p->tol,         p->gravity[0],   p->gravity[1], p->gravity[2] };
-    put_f64s(w, head, 8);
+    double head[9] = { job->h,         p->bounce_speed, p->slop,       p->baumgarte,
+                       p->tol,         p->gravity[0],   p->gravity[1], p->gravity[2],
+                       p->push_tol };
+    put_f64s(w, head, 9);
     put_i32(w, p->split_contacts);
     put_i32(w, p->block_contacts);
     put_i32(w, p->max_sweeps);
@@ -897,10 +900,11 @@ static int decode_island(rbuf *r, sc_wire_unit *wu)
 {
     uint32_t m = (uint32_t)get(r, 4), nm = (uint32_t)get(r, 4), nc = (uint32_t)get(r, 4);
     uint32_t nisl = (uint32_t)get(r, 4);
-    double head[8];
-    get_f64s(r, head, 8, 1);
+    double head[9];
+    get_f64s(r, head, 9, 1);
     sc_contact_params p = { .bounce_speed = head[1], .slop = head[2], .baumgarte = head[3],
-                            .tol = head[4], .gravity = { head[5], head[6], head[7] } };
+                            .tol = head[4], .gravity = { head[5], head[6], head[7] },
+                            .push_tol = head[8] };
     p.split_contacts = get_i32(r);
     p.block_contacts = get_i32(r);
     p.max_sweeps = get_i32(r);
