@@ -714,6 +714,7 @@ if [ -n "$seed_args" ]; then
     awk 'NF < 9 { printf "| %s | not measured | | | | | | |\n", $1; next }
         { printf "| %s | %s | %s | %s | %s | %s | %s | %s (%s) |\n", $1, $2, $3, $4, $5, $6, $7, $8, $9 }' \
         "$tmp/l_seeds" >>"$tmp/body"
+    w ""
     # seeds_median COLUMN NEED LABEL
     seeds_median() {
         v=$(awk -v c="$1" 'NF >= 9 { print $c }' "$tmp/l_seeds" | sort -g |
