@@ -576,6 +576,21 @@ static void test_a_big_island_left_at_the_cap_is_solved_whole(void **state)
     assert_int_equal(wi.whole_solved, 1);
 }
 
+/* The same island, its rounds made to fail too: the last whole try's
+ * rounds alone fail, and the full solve after them (its own rounds, then
+ * Lemke's method where they do not settle) settles it (docs/DESIGN.md
+ * 11). */
+static void test_a_big_island_the_rounds_leave_is_solved_by_the_full_solve(void **state)
+{
+    (void)state;
+    sc_solve_info wi, gi;
+    int nc;
+    left_at_the_cap(24, SC_INJECT_ACTIVE_SET | SC_INJECT_ROUNDS, &nc, &wi, &gi);
+    assert_true(3 * nc > 192);
+    assert_int_equal(wi.whole_tries, 2);
+    assert_int_equal(wi.whole_solved, 1);
+}
+
 /* What the sweeps leave short at the cap sweeps on from its best iterate,
  * as many sweeps again with each block's friction coupled, before the
  * last whole try (docs/DESIGN.md 11): the stack of 24, its active set and
@@ -842,6 +857,7 @@ int main(void)
         cmocka_unit_test(test_a_small_island_short_of_the_tolerance_is_solved_whole),
         cmocka_unit_test(test_a_small_island_left_at_the_cap_is_solved_with_lemke),
         cmocka_unit_test(test_a_big_island_left_at_the_cap_is_solved_whole),
+        cmocka_unit_test(test_a_big_island_the_rounds_leave_is_solved_by_the_full_solve),
         cmocka_unit_test(test_an_island_short_at_the_cap_sweeps_on_coupled),
         cmocka_unit_test(test_warm_starts_keep_the_force_over_a_shorter_substep),
         cmocka_unit_test(test_resting_contacts_keep_their_impulses),

@@ -946,11 +946,11 @@ static int block_gs(sc_arena *a, const gs_problem *pb, const blocks *bl, double 
  * on from its best iterate for max_sweeps more with each block's friction
  * coupled (block_solve()); most settle within them. One of up to
  * LAST_MAX_ROWS rows still short then is solved whole once more: by the
- * full exact solve (Lemke's method included) up to WHOLE_MAX_ROWS rows,
- * by the rounds alone past them, where Lemke's tableau (the rows and
- * twice the friction rows, square) makes one solve cost as much as many
- * frames (docs/DESIGN.md 11). SC_ISLAND_BLOCK_GS is block Gauss-Seidel
- * alone. */
+ * full exact solve (Lemke's method included) up to WHOLE_MAX_ROWS rows;
+ * past them by the rounds alone first, and by the full solve only where
+ * they do not settle, since Lemke's tableau (the rows and twice the
+ * friction rows, square) makes one solve cost as much as many frames
+ * (docs/DESIGN.md 11). SC_ISLAND_BLOCK_GS is block Gauss-Seidel alone. */
 #define WHOLE_MAX_ROWS 192
 #define WHOLE_SMALL 96
 #define WHOLE_SWEEPS 30
@@ -1147,6 +1147,8 @@ static int solve_split(sc_arena *a, row *rows, int nrows, const int *cstart, int
         /* the last resort, Lemke's method too where it is cheap */
         if (rc == SC_OK && last && end.res > tol) {
             rc = whole_try(a, &pb, z, u, info, whole, p->inject, &end);
+            if (rc == SC_ENUMERIC && !whole)
+                rc = whole_try(a, &pb, z, u, info, 1, p->inject, &end);
             rc = rc == SC_ENUMERIC ? SC_OK : rc;
         }
         if (rc == SC_OK && !pseudo) {
