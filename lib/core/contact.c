@@ -1144,7 +1144,8 @@ static int solve_split(sc_arena *a, row *rows, int nrows, const int *cstart, int
          * islands short that the coupled blocks settle */
         if (rc == SC_OK && rescue && end.res > tol)
             rc = block_gs(a, &pb, &bl, z, u, 6 * m, p, p->max_sweeps, tol, 1, info, &end);
-        /* the last resort, Lemke's method too where it is cheap */
+        /* the last resort: the full solve (Lemke's method too) where it
+         * is cheap, else the rounds first and it where they fail */
         if (rc == SC_OK && last && end.res > tol) {
             rc = whole_try(a, &pb, z, u, info, whole, p->inject, &end);
             if (rc == SC_ENUMERIC && !whole)

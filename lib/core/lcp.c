@@ -125,10 +125,10 @@
  * on from here (docs/DESIGN.md 11). */
 #define LCP_FRICTION_ROUNDS 10
 /* The rounds alone (sc_lcp_boxed_rounds_in(), with no Lemke after them)
- * damp the fixed point: from round LCP_DAMP_FROM on, the bounds come from
- * the mean of the previous bounds' answer and the new one, which ends
- * most of the two-set cycles the plain rounds fall into near stick-slip,
- * up to LCP_DAMPED_ROUNDS rounds. Where Lemke's method follows, the plain
+ * damp the fixed point: from round LCP_DAMP_FROM on, the normals a
+ * round's bounds come from are the mean of the previous round's and its
+ * answer, which ends most of the two-set cycles the plain rounds fall
+ * into near stick-slip, up to LCP_DAMPED_ROUNDS rounds. Where Lemke's method follows, the plain
  * rounds and their stop on a cycle are cheaper: damped, a small island
  * that cycles runs every round before Lemke (docs/DESIGN.md 11). */
 #define LCP_DAMP_FROM 3
@@ -1147,8 +1147,8 @@ static int solve_friction(work *wk, const double *q, const double *lo, const dou
      * most with period 2, found by round 3-8; none settled after a
      * repeat): Lemke at once instead of the remaining rounds; damped,
      * the bounds' answer is what repeats */
-    uint64_t seen[LCP_DAMPED_ROUNDS > LCP_FRICTION_ROUNDS ? LCP_DAMPED_ROUNDS
-                                                          : LCP_FRICTION_ROUNDS];
+    _Static_assert(LCP_DAMPED_ROUNDS >= LCP_FRICTION_ROUNDS, "seen holds every round");
+    uint64_t seen[LCP_DAMPED_ROUNDS];
     /* round 0: the bounds of the guess (a warm start), else frictionless */
     if (start == START_GUESS)
         memcpy(zb, z, nb);
@@ -1160,14 +1160,14 @@ static int solve_friction(work *wk, const double *q, const double *lo, const dou
                              residual);
         if (rc != SC_OK)
             return rc;
-        memcpy(zprev, z, (size_t)n * sizeof(double));
+        memcpy(zprev, z, nb);
         if (verify_coupled(wk, q, lo, hi, findex, mu, z, w, residual, 1))
             return SC_OK;
-        memcpy(z, zprev, (size_t)n * sizeof(double));
+        memcpy(z, zprev, nb);
         if (friction_polish(wk, q, findex, mu, z) == SC_OK &&
             verify_coupled(wk, q, lo, hi, findex, mu, z, w, residual, 0))
             return SC_OK;
-        memcpy(z, zprev, (size_t)n * sizeof(double));
+        memcpy(z, zprev, nb);
         if (damped && round + 1 >= LCP_DAMP_FROM)
             for (int i = 0; i < n; i++)
                 zb[i] = 0.5 * (zb[i] + z[i]);
@@ -1403,6 +1403,7 @@ static int boxed(sc_arena *arena, int n, const double *M, const double *q, const
     double residual;
     int lemke = 0, guessed = 0;
     if (friction) {
+        /* the rounds alone (nothing after them) are damped */
         rc = solve_friction(&wk, q, lo, hi, findex, mu, start, more == 0, z, w, &residual);
         int failed = rc == SC_EMAXITER || rc == SC_ENUMERIC || rc == SC_ENOSOLUTION;
         if ((more & MORE_LEMKE) && failed) {
