@@ -591,6 +591,20 @@ static void test_a_big_island_the_rounds_leave_is_solved_by_the_full_solve(void 
     assert_int_equal(wi.whole_solved, 1);
 }
 
+/* An island past the full solve's 600 rows gets the last whole try by
+ * the rounds alone (docs/DESIGN.md 11): the stack of 64 (768 rows), its
+ * active set made to fail. */
+static void test_an_island_past_600_rows_gets_the_rounds(void **state)
+{
+    (void)state;
+    sc_solve_info wi, gi;
+    int nc;
+    left_at_the_cap(64, SC_INJECT_ACTIVE_SET, &nc, &wi, &gi);
+    assert_true(3 * nc > 600 && 3 * nc <= 800);
+    assert_int_equal(wi.whole_tries, 1);
+    assert_int_equal(wi.whole_solved, 1);
+}
+
 /* What the sweeps leave short at the cap sweeps on from its best iterate,
  * as many sweeps again with each block's friction coupled, before the
  * last whole try (docs/DESIGN.md 11): the stack of 24, its active set and
@@ -858,6 +872,7 @@ int main(void)
         cmocka_unit_test(test_a_small_island_left_at_the_cap_is_solved_with_lemke),
         cmocka_unit_test(test_a_big_island_left_at_the_cap_is_solved_whole),
         cmocka_unit_test(test_a_big_island_the_rounds_leave_is_solved_by_the_full_solve),
+        cmocka_unit_test(test_an_island_past_600_rows_gets_the_rounds),
         cmocka_unit_test(test_an_island_short_at_the_cap_sweeps_on_coupled),
         cmocka_unit_test(test_warm_starts_keep_the_force_over_a_shorter_substep),
         cmocka_unit_test(test_resting_contacts_keep_their_impulses),

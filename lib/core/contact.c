@@ -948,14 +948,16 @@ static int block_gs(sc_arena *a, const gs_problem *pb, const blocks *bl, double 
  * LAST_MAX_ROWS rows still short then is solved whole once more: by the
  * full exact solve (Lemke's method included) up to WHOLE_MAX_ROWS rows;
  * past them by the rounds alone first, and by the full solve only where
- * they do not settle, since Lemke's tableau (the rows and twice the
- * friction rows, square) makes one solve cost as much as many frames
- * (docs/DESIGN.md 11). SC_ISLAND_BLOCK_GS is block Gauss-Seidel alone. */
+ * they do not settle, up to LAST_FULL_ROWS, since Lemke's tableau (the
+ * rows and twice the friction rows, square) makes one solve cost as much
+ * as many frames (docs/DESIGN.md 11). SC_ISLAND_BLOCK_GS is block
+ * Gauss-Seidel alone. */
 #define WHOLE_MAX_ROWS 192
 #define WHOLE_SMALL 96
 #define WHOLE_SWEEPS 30
 #define WHOLE_SWEEPS_BIG 60
-#define LAST_MAX_ROWS 600
+#define LAST_MAX_ROWS 800
+#define LAST_FULL_ROWS 600
 
 /* The whole problem pb as one exact LCP from the iterate (z, u), whose
  * answer replaces it if solved and adding no kinetic energy of its own
@@ -1148,7 +1150,7 @@ static int solve_split(sc_arena *a, row *rows, int nrows, const int *cstart, int
          * is cheap, else the rounds first and it where they fail */
         if (rc == SC_OK && last && end.res > tol) {
             rc = whole_try(a, &pb, z, u, info, whole, p->inject, &end);
-            if (rc == SC_ENUMERIC && !whole)
+            if (rc == SC_ENUMERIC && !whole && nrows <= LAST_FULL_ROWS)
                 rc = whole_try(a, &pb, z, u, info, 1, p->inject, &end);
             rc = rc == SC_ENUMERIC ? SC_OK : rc;
         }
