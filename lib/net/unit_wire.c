@@ -464,8 +464,8 @@ static int params_ok(const sc_contact_params *p)
     return isfinite(p->bounce_speed) && p->bounce_speed >= 0 && isfinite(p->slop) &&
            isfinite(p->gravity[0]) && isfinite(p->gravity[1]) && isfinite(p->gravity[2]) &&
            p->slop >= 0 && isfinite(p->baumgarte) && p->baumgarte >= 0 && isfinite(p->tol) &&
-           isfinite(p->push_tol) && p->push_tol >= 0 &&
-           p->tol >= 0 && p->split_contacts >= 0 && p->block_contacts >= 1 &&
+           p->tol >= 0 && isfinite(p->push_tol) && p->push_tol >= 0 &&
+           p->split_contacts >= 0 && p->block_contacts >= 1 &&
            p->block_contacts <= MAX_CONTACTS && p->max_sweeps >= 1 &&
            p->max_sweeps <= MAX_SWEEPS && (p->cold == 0 || p->cold == 1) &&
            (p->impact_first == 0 || p->impact_first == 1) &&
